@@ -1,0 +1,59 @@
+//! `truepos lag`: seed A's timing argument.
+
+use truepos_model::{lag_error_fraction, travel_per_update_mm, PositionFactor};
+
+/// Arguments of `truepos lag`.
+#[derive(clap::Args)]
+pub struct Args {
+    /// Maximum feed of the axis in m/min.
+    #[arg(long, default_value_t = 100.0)]
+    feed_m_min: f64,
+    /// Update period of the position-dependent terms in ms.
+    #[arg(long, default_value_t = 4.0)]
+    period_ms: f64,
+    /// Length of the axis (travel) in mm.
+    #[arg(long, default_value_t = 500.0)]
+    length_mm: f64,
+    /// Print the figures as JSON.
+    #[arg(long)]
+    json: bool,
+}
+
+pub fn run(args: Args) -> Result<(), String> {
+    for (name, v) in [
+        ("--feed-m-min", args.feed_m_min),
+        ("--period-ms", args.period_ms),
+        ("--length-mm", args.length_mm),
+    ] {
+        if !(v.is_finite() && v > 0.0) {
+            return Err(format!("{name} must be a positive number, got {v}"));
+        }
+    }
+    let feed_mm_min = args.feed_m_min * 1000.0;
+    let travel = travel_per_update_mm(feed_mm_min, args.period_ms);
+    let pct = |f| 100.0 * lag_error_fraction(feed_mm_min, args.period_ms, args.length_mm, f);
+    let (ratio, square, bed) = (
+        pct(PositionFactor::Ratio),
+        pct(PositionFactor::RatioSquared),
+        pct(PositionFactor::BedFactor),
+    );
+    if args.json {
+        let v = serde_json::json!({
+            "feed_m_min": args.feed_m_min,
+            "period_ms": args.period_ms,
+            "length_mm": args.length_mm,
+            "travel_per_update_mm": travel,
+            "worst_error_percent": { "ratio": ratio, "ratio_squared": square, "bed": bed },
+        });
+        println!("{v}");
+    } else {
+        println!(
+            "at {} m/min the axis travels {travel:.2} mm in {} ms; on {} mm of travel a position-dependent term is off by at most:",
+            args.feed_m_min, args.period_ms, args.length_mm
+        );
+        println!("  ratio r        {ratio:.1} %");
+        println!("  ratio squared  {square:.1} %");
+        println!("  bed factor     {bed:.1} %");
+    }
+    Ok(())
+}

@@ -1,0 +1,41 @@
+//! `truepos`: the one binary. Each subcommand lives in its own module; this file only parses the
+//! command line and dispatches.
+
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+mod eval;
+mod lag;
+
+/// truepos keeps the tool tip of a CNC machine tool where the program says it is, while the
+/// machine warms up, bends and carries geometric errors.
+#[derive(Parser)]
+#[command(name = "truepos", version, about, long_about = None)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Evaluate a compensation model on a recorded run (CSV of cycles) and write per-axis offsets.
+    Eval(eval::Args),
+    /// Seed A's timing argument: worst-case error of position-dependent terms updated every T ms.
+    Lag(lag::Args),
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Eval(args) => eval::run(args),
+        Command::Lag(args) => lag::run(args),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}

@@ -1,0 +1,362 @@
+//! The machine description in its checked, in-memory form: axes, temperature channels, the
+//! temperature differences built from them, and operating-state channels.
+//!
+//! Files are parsed by `truepos-io`; this module only holds what the cycle path needs and
+//! checks the structural rules that hold whatever the file format.
+
+use alloc::string::String;
+use alloc::vec::Vec;
+use core::fmt;
+
+/// Most axes a machine (and so a correction) may have. Outputs live in fixed arrays of this size
+/// so that evaluation never allocates.
+pub const MAX_AXES: usize = 9;
+
+/// Whether an axis translates (travel in mm) or rotates (travel in degrees).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum AxisKind {
+    /// Travel in millimetres.
+    Linear,
+    /// Travel in degrees.
+    Rotary,
+}
+
+/// How an axis' slide is carried, which selects the natural position factor of seed A.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Carriage {
+    /// The slide is held at one end and reaches out (a ram, a column slide): the error grows from
+    /// one end, so the ratio r = position / length describes it.
+    Cantilever,
+    /// The slide moves on a bed supported along its length: the bed bends and the error is
+    /// smallest in the middle, so the bed factor KFA = (position − L/2) / (L/2) describes it
+    /// (seed A, embodiment 6).
+    Bed,
+}
+
+/// One machine axis.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Axis {
+    /// Name as the control knows it (`X`, `Z1`, `C`).
+    pub name: String,
+    /// Linear or rotary.
+    pub kind: AxisKind,
+    /// Lower end of travel (mm or degrees).
+    pub travel_min: f64,
+    /// Upper end of travel (mm or degrees).
+    pub travel_max: f64,
+    /// Index of the axis this one rests on (serial stacking: axis 2 rests on axis 1), `None` for
+    /// an axis on the machine base.
+    pub carried_by: Option<usize>,
+    /// How the slide is carried.
+    pub carriage: Carriage,
+}
+
+impl Axis {
+    /// Length of travel, `travel_max − travel_min`.
+    pub fn length(&self) -> f64 {
+        self.travel_max - self.travel_min
+    }
+
+    /// The dimensionless position r = (position − travel_min) / length, 0 at the lower end of
+    /// travel and 1 at the upper end (seed A: r_j = position(A_j) / length(A_j)).
+    pub fn ratio(&self, position: f64) -> f64 {
+        (position - self.travel_min) / self.length()
+    }
+}
+
+/// One temperature sensor on the machine.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TemperatureChannel {
+    /// Identifier used in runs and models (`x_slide_bottom`).
+    pub id: String,
+    /// Where on the machine it sits, for people.
+    pub location: String,
+    /// Lowest plausible reading in °C; anything below is a fault (open circuit, wrong wiring).
+    pub valid_min_c: f64,
+    /// Highest plausible reading in °C.
+    pub valid_max_c: f64,
+}
+
+/// What a temperature difference is taken against.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Reference {
+    /// Another sensor: the opposite side of the same part (top/bottom, front/rear) or a shared
+    /// reference such as ambient or a reference spot on the machine.
+    Sensor(usize),
+    /// A fixed reference temperature in °C.
+    Fixed(f64),
+}
+
+/// A temperature difference ΔT = T_plus − T_reference, the input of every thermal term.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TemperatureDifference {
+    /// Name used by models (`dT_y_slide`).
+    pub name: String,
+    /// Index of the sensor whose reading is taken.
+    pub plus: usize,
+    /// What it is taken against.
+    pub minus: Reference,
+}
+
+/// What an operating-state channel measures.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum OperatingKind {
+    /// Spindle speed in 1/min.
+    SpindleSpeed,
+    /// Axis speed in mm/min or degrees/min.
+    AxisSpeed,
+    /// Motor torque in N·m.
+    Torque,
+    /// Motor power in W.
+    Power,
+    /// Anything else the control knows (coolant on/off, …).
+    Other,
+}
+
+/// An operating-state channel (spindle speed, axis speed, torque, …).
+#[derive(Debug, Clone, PartialEq)]
+pub struct OperatingChannel {
+    /// Identifier used in runs and models.
+    pub id: String,
+    /// What it measures.
+    pub kind: OperatingKind,
+    /// The axis it belongs to, for axis speeds and torques.
+    pub axis: Option<usize>,
+}
+
+/// A checked machine description.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Machine {
+    /// Name that model files refer to.
+    pub name: String,
+    /// Axes in control order.
+    pub axes: Vec<Axis>,
+    /// Temperature sensors.
+    pub temperatures: Vec<TemperatureChannel>,
+    /// Temperature differences built from the sensors.
+    pub differences: Vec<TemperatureDifference>,
+    /// Operating-state channels.
+    pub operating: Vec<OperatingChannel>,
+}
+
+/// A structural rule of the machine description that does not hold.
+#[derive(Debug, Clone, PartialEq)]
+pub enum MachineError {
+    /// The machine has no axis.
+    NoAxes,
+    /// More axes than [`MAX_AXES`].
+    TooManyAxes(usize),
+    /// Two items of the same list share a name.
+    DuplicateName {
+        /// `axis`, `temperature`, `difference` or `operating`.
+        list: &'static str,
+        /// The shared name.
+        name: String,
+    },
+    /// travel_max ≤ travel_min, or a bound is not finite.
+    BadTravel {
+        /// The axis.
+        axis: String,
+    },
+    /// A valid range with min ≥ max or a bound that is not finite.
+    BadValidRange {
+        /// The sensor.
+        sensor: String,
+    },
+    /// An index that points past its list.
+    BadIndex {
+        /// Which reference.
+        what: &'static str,
+        /// The item holding it.
+        item: String,
+    },
+    /// A difference taken against its own sensor.
+    SelfReference {
+        /// The difference.
+        difference: String,
+    },
+    /// A fixed reference temperature that is not finite.
+    BadFixedReference {
+        /// The difference.
+        difference: String,
+    },
+    /// The carried-by relation loops (A rests on B rests on A).
+    CarriageLoop {
+        /// An axis on the loop.
+        axis: String,
+    },
+}
+
+impl fmt::Display for MachineError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::NoAxes => write!(f, "the machine has no axis; expected at least one [[axis]]"),
+            Self::TooManyAxes(n) => write!(f, "{n} axes; at most {MAX_AXES} are supported"),
+            Self::DuplicateName { list, name } => {
+                write!(f, "duplicate {list} name `{name}`; names must be unique")
+            }
+            Self::BadTravel { axis } => write!(
+                f,
+                "axis `{axis}`: travel must be [min, max] with finite values and max > min"
+            ),
+            Self::BadValidRange { sensor } => write!(
+                f,
+                "sensor `{sensor}`: valid range must be [min, max] with finite values and max > min"
+            ),
+            Self::BadIndex { what, item } => write!(f, "{item}: {what} refers to nothing"),
+            Self::SelfReference { difference } => write!(
+                f,
+                "difference `{difference}` is taken against its own sensor; expected another sensor or a fixed temperature"
+            ),
+            Self::BadFixedReference { difference } => write!(
+                f,
+                "difference `{difference}`: the fixed reference temperature must be finite"
+            ),
+            Self::CarriageLoop { axis } => write!(
+                f,
+                "axis `{axis}` rests on itself through carried_by; the axes must form a chain from the base"
+            ),
+        }
+    }
+}
+
+impl core::error::Error for MachineError {}
+
+fn find_duplicate<'a>(names: impl Iterator<Item = &'a str> + Clone) -> Option<&'a str> {
+    let all = names.clone();
+    for (i, a) in names.enumerate() {
+        if all.clone().skip(i + 1).any(|b| b == a) {
+            return Some(a);
+        }
+    }
+    None
+}
+
+impl Machine {
+    /// Checks the structural rules: unique names, sound travels and ranges, indices in range,
+    /// no self-referencing difference and no loop in the carried-by chain.
+    pub fn check(&self) -> Result<(), MachineError> {
+        if self.axes.is_empty() {
+            return Err(MachineError::NoAxes);
+        }
+        if self.axes.len() > MAX_AXES {
+            return Err(MachineError::TooManyAxes(self.axes.len()));
+        }
+        let lists: [(&'static str, alloc::vec::Vec<&str>); 4] = [
+            ("axis", self.axes.iter().map(|a| a.name.as_str()).collect()),
+            (
+                "temperature",
+                self.temperatures.iter().map(|t| t.id.as_str()).collect(),
+            ),
+            (
+                "difference",
+                self.differences.iter().map(|d| d.name.as_str()).collect(),
+            ),
+            (
+                "operating",
+                self.operating.iter().map(|o| o.id.as_str()).collect(),
+            ),
+        ];
+        for (list, names) in &lists {
+            if let Some(name) = find_duplicate(names.iter().copied()) {
+                return Err(MachineError::DuplicateName {
+                    list,
+                    name: name.into(),
+                });
+            }
+        }
+        for axis in &self.axes {
+            if !(axis.travel_min.is_finite()
+                && axis.travel_max.is_finite()
+                && axis.travel_max > axis.travel_min)
+            {
+                return Err(MachineError::BadTravel {
+                    axis: axis.name.clone(),
+                });
+            }
+            if axis.carried_by.is_some_and(|c| c >= self.axes.len()) {
+                return Err(MachineError::BadIndex {
+                    what: "carried_by",
+                    item: axis.name.clone(),
+                });
+            }
+        }
+        for (start, axis) in self.axes.iter().enumerate() {
+            let mut at = axis.carried_by;
+            let mut steps = 0;
+            while let Some(i) = at {
+                steps += 1;
+                if i == start || steps > self.axes.len() {
+                    return Err(MachineError::CarriageLoop {
+                        axis: axis.name.clone(),
+                    });
+                }
+                at = self.axes[i].carried_by;
+            }
+        }
+        for t in &self.temperatures {
+            if !(t.valid_min_c.is_finite() && t.valid_max_c.is_finite() && t.valid_max_c > t.valid_min_c)
+            {
+                return Err(MachineError::BadValidRange {
+                    sensor: t.id.clone(),
+                });
+            }
+        }
+        for d in &self.differences {
+            if d.plus >= self.temperatures.len() {
+                return Err(MachineError::BadIndex {
+                    what: "plus",
+                    item: d.name.clone(),
+                });
+            }
+            match d.minus {
+                Reference::Sensor(s) if s >= self.temperatures.len() => {
+                    return Err(MachineError::BadIndex {
+                        what: "minus",
+                        item: d.name.clone(),
+                    })
+                }
+                Reference::Sensor(s) if s == d.plus => {
+                    return Err(MachineError::SelfReference {
+                        difference: d.name.clone(),
+                    })
+                }
+                Reference::Fixed(t) if !t.is_finite() => {
+                    return Err(MachineError::BadFixedReference {
+                        difference: d.name.clone(),
+                    })
+                }
+                _ => {}
+            }
+        }
+        for o in &self.operating {
+            if o.axis.is_some_and(|a| a >= self.axes.len()) {
+                return Err(MachineError::BadIndex {
+                    what: "axis",
+                    item: o.id.clone(),
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// Index of the axis with this name.
+    pub fn axis_index(&self, name: &str) -> Option<usize> {
+        self.axes.iter().position(|a| a.name == name)
+    }
+
+    /// Index of the temperature channel with this id.
+    pub fn temperature_index(&self, id: &str) -> Option<usize> {
+        self.temperatures.iter().position(|t| t.id == id)
+    }
+
+    /// Index of the temperature difference with this name.
+    pub fn difference_index(&self, name: &str) -> Option<usize> {
+        self.differences.iter().position(|d| d.name == name)
+    }
+
+    /// Index of the operating-state channel with this id.
+    pub fn operating_index(&self, id: &str) -> Option<usize> {
+        self.operating.iter().position(|o| o.id == id)
+    }
+}

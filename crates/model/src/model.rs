@@ -1,0 +1,388 @@
+//! Thermal compensation models: the general position-dependent form of seed A and the linear
+//! regression form of seed C, as parts that superimpose.
+//!
+//! Seed A, embodiment 5 (with embodiment 6's bed factor):
+//!
+//! ```text
+//! ΔA_n = Σ_m ΔT_m · [K_nm0 + Σ_j K_nmj · g_j] · (KFA_b if the summand is bed-multiplied)
+//! ```
+//!
+//! where g_j is r_j, r_j² or KFA_j of axis j. Each [`Summand`] is one `ΔT_m · […]` of one target
+//! axis n. Every example and embodiment of seed A, the position-independent prior art
+//! (ΔA_n = Σ ΔT·K) and seed C's regression (Y = Σ k_i·(t_i − t_r) + c) are this form with some
+//! coefficients left out.
+
+use alloc::string::String;
+use alloc::vec::Vec;
+use core::fmt;
+
+use crate::machine::{Machine, Reference, MAX_AXES};
+
+/// Most temperature differences one model may read. Differences are evaluated into a stack array
+/// of this size so that evaluation never allocates.
+pub const MAX_MODEL_DIFFERENCES: usize = 64;
+
+/// The position factor g_j of an axis.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum PositionFactor {
+    /// r = (position − travel_min) / length, 0 … 1 (seed A, eqs. 9–10).
+    Ratio,
+    /// r², for a bend that follows an arc rather than a line (seed A, eqs. 11–12).
+    RatioSquared,
+    /// KFA = (position − L/2) / (L/2) = 2r − 1, −1 … 1, for a slide on a bed (seed A, eq. 41).
+    BedFactor,
+}
+
+impl PositionFactor {
+    /// g as a function of the ratio r.
+    #[inline]
+    pub fn of_ratio(self, r: f64) -> f64 {
+        match self {
+            Self::Ratio => r,
+            Self::RatioSquared => r * r,
+            Self::BedFactor => 2.0 * r - 1.0,
+        }
+    }
+
+    /// The name used in model files.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Ratio => "ratio",
+            Self::RatioSquared => "ratio-squared",
+            Self::BedFactor => "bed",
+        }
+    }
+}
+
+/// One position-dependent coefficient K_nmj · g_j.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PositionTerm {
+    /// Axis j whose position enters.
+    pub axis: usize,
+    /// r_j, r_j² or KFA_j.
+    pub factor: PositionFactor,
+    /// K_nmj in µm/K.
+    pub k_um_per_k: f64,
+}
+
+/// One summand ΔT_m · [K_nm0 + Σ_j K_nmj · g_j] (· KFA_b) of the error of one axis.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Summand {
+    /// Target axis n: the direction of the error this summand describes.
+    pub axis: usize,
+    /// Temperature difference m (index into the machine's differences).
+    pub difference: usize,
+    /// K_nm0 in µm/K, the position-independent part.
+    pub k0_um_per_k: f64,
+    /// The K_nmj · g_j.
+    pub position_terms: Vec<PositionTerm>,
+    /// Embodiment 6: multiply the whole summand by the bed factor KFA of this axis.
+    pub bed_multiplier: Option<usize>,
+}
+
+/// Which form a part was written in; kept so that a model file reads back as written.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PartForm {
+    /// Seed A's position-dependent form.
+    PositionDependent,
+    /// Seed C's linear regression on temperature differences with a constant.
+    Regression,
+}
+
+/// A switchable part of the correction (structure, spindle growth, …). Parts superimpose: the
+/// correction of an axis is the sum over its enabled parts.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Part {
+    /// Name (`structure`, `spindle-growth`).
+    pub name: String,
+    /// Whether it contributes.
+    pub enabled: bool,
+    /// Form it was written in.
+    pub form: PartForm,
+    /// Its summands.
+    pub summands: Vec<Summand>,
+    /// Constant error per axis in µm (seed C's "+ constant"), as (axis, value).
+    pub constants_um: Vec<(usize, f64)>,
+}
+
+/// A model that does not fit its machine or holds an unusable number.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ModelError {
+    /// A summand's or constant's axis is not an axis of the machine.
+    UnknownAxis {
+        /// The part.
+        part: String,
+        /// The index.
+        axis: usize,
+    },
+    /// A summand's difference is not a difference of the machine.
+    UnknownDifference {
+        /// The part.
+        part: String,
+        /// The index.
+        difference: usize,
+    },
+    /// A coefficient or constant is NaN or infinite.
+    NonFiniteCoefficient {
+        /// The part.
+        part: String,
+    },
+    /// The model reads more than [`MAX_MODEL_DIFFERENCES`] differences.
+    TooManyDifferences(usize),
+    /// Two parts share a name.
+    DuplicatePart(String),
+}
+
+impl fmt::Display for ModelError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::UnknownAxis { part, axis } => {
+                write!(f, "part `{part}`: axis #{axis} is not an axis of the machine")
+            }
+            Self::UnknownDifference { part, difference } => write!(
+                f,
+                "part `{part}`: difference #{difference} is not a difference of the machine"
+            ),
+            Self::NonFiniteCoefficient { part } => {
+                write!(f, "part `{part}`: coefficients must be finite numbers")
+            }
+            Self::TooManyDifferences(n) => write!(
+                f,
+                "the model reads {n} temperature differences; at most {MAX_MODEL_DIFFERENCES} are supported"
+            ),
+            Self::DuplicatePart(name) => write!(f, "duplicate part name `{name}`"),
+        }
+    }
+}
+
+impl core::error::Error for ModelError {}
+
+/// What the cycle path needs of one difference the model reads.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct DifferenceInput {
+    pub plus: usize,
+    pub minus: Reference,
+}
+
+/// What the cycle path needs of one axis.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct AxisInput {
+    pub travel_min: f64,
+    pub length: f64,
+}
+
+/// A compiled summand: indices local to the model, position terms as a range of a flat list.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct CompiledSummand {
+    pub part: usize,
+    pub axis: usize,
+    pub local_difference: usize,
+    pub k0: f64,
+    pub terms_start: usize,
+    pub terms_end: usize,
+    pub bed_multiplier: Option<usize>,
+}
+
+/// A thermal compensation model bound to one machine, ready to evaluate every cycle.
+///
+/// Build it with [`Model::new`]; the machine is checked against the parts then, so that
+/// [`Model::evaluate`] needs no checks beyond the values of one cycle.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Model {
+    name: String,
+    machine: String,
+    parts: Vec<Part>,
+    pub(crate) axes: Vec<AxisInput>,
+    pub(crate) temperature_count: usize,
+    pub(crate) operating_count: usize,
+    pub(crate) valid_ranges: Vec<(f64, f64)>,
+    /// Machine difference index of each local difference.
+    pub(crate) used_differences: Vec<usize>,
+    pub(crate) difference_inputs: Vec<DifferenceInput>,
+    /// Temperature channels the model reads (sorted, unique).
+    pub(crate) used_sensors: Vec<usize>,
+    pub(crate) summands: Vec<CompiledSummand>,
+    pub(crate) terms: Vec<PositionTerm>,
+    pub(crate) constants: Vec<(usize, usize, f64)>,
+    pub(crate) part_enabled: Vec<bool>,
+}
+
+impl Model {
+    /// Binds parts to a machine, checking every index and coefficient.
+    pub fn new(
+        name: impl Into<String>,
+        machine: &Machine,
+        parts: Vec<Part>,
+    ) -> Result<Self, ModelError> {
+        let axis_count = machine.axes.len().min(MAX_AXES);
+        let mut used_differences: Vec<usize> = Vec::new();
+        let mut summands = Vec::new();
+        let mut terms = Vec::new();
+        let mut constants = Vec::new();
+        for (pi, part) in parts.iter().enumerate() {
+            if parts[..pi].iter().any(|p| p.name == part.name) {
+                return Err(ModelError::DuplicatePart(part.name.clone()));
+            }
+            let bad_axis = |axis: usize| ModelError::UnknownAxis {
+                part: part.name.clone(),
+                axis,
+            };
+            let non_finite = || ModelError::NonFiniteCoefficient {
+                part: part.name.clone(),
+            };
+            for s in &part.summands {
+                if s.axis >= axis_count {
+                    return Err(bad_axis(s.axis));
+                }
+                if s.difference >= machine.differences.len() {
+                    return Err(ModelError::UnknownDifference {
+                        part: part.name.clone(),
+                        difference: s.difference,
+                    });
+                }
+                if let Some(b) = s.bed_multiplier {
+                    if b >= axis_count {
+                        return Err(bad_axis(b));
+                    }
+                }
+                if !s.k0_um_per_k.is_finite() {
+                    return Err(non_finite());
+                }
+                let local = match used_differences.iter().position(|&d| d == s.difference) {
+                    Some(l) => l,
+                    None => {
+                        used_differences.push(s.difference);
+                        used_differences.len() - 1
+                    }
+                };
+                let terms_start = terms.len();
+                for t in &s.position_terms {
+                    if t.axis >= axis_count {
+                        return Err(bad_axis(t.axis));
+                    }
+                    if !t.k_um_per_k.is_finite() {
+                        return Err(non_finite());
+                    }
+                    terms.push(*t);
+                }
+                summands.push(CompiledSummand {
+                    part: pi,
+                    axis: s.axis,
+                    local_difference: local,
+                    k0: s.k0_um_per_k,
+                    terms_start,
+                    terms_end: terms.len(),
+                    bed_multiplier: s.bed_multiplier,
+                });
+            }
+            for &(axis, value) in &part.constants_um {
+                if axis >= axis_count {
+                    return Err(bad_axis(axis));
+                }
+                if !value.is_finite() {
+                    return Err(non_finite());
+                }
+                constants.push((pi, axis, value));
+            }
+        }
+        if used_differences.len() > MAX_MODEL_DIFFERENCES {
+            return Err(ModelError::TooManyDifferences(used_differences.len()));
+        }
+        let difference_inputs: Vec<DifferenceInput> = used_differences
+            .iter()
+            .map(|&d| DifferenceInput {
+                plus: machine.differences[d].plus,
+                minus: machine.differences[d].minus,
+            })
+            .collect();
+        let mut used_sensors: Vec<usize> = Vec::new();
+        for d in &difference_inputs {
+            used_sensors.push(d.plus);
+            if let Reference::Sensor(s) = d.minus {
+                used_sensors.push(s);
+            }
+        }
+        used_sensors.sort_unstable();
+        used_sensors.dedup();
+        Ok(Self {
+            name: name.into(),
+            machine: machine.name.clone(),
+            part_enabled: parts.iter().map(|p| p.enabled).collect(),
+            parts,
+            axes: machine
+                .axes
+                .iter()
+                .take(axis_count)
+                .map(|a| AxisInput {
+                    travel_min: a.travel_min,
+                    length: a.length(),
+                })
+                .collect(),
+            temperature_count: machine.temperatures.len(),
+            operating_count: machine.operating.len(),
+            valid_ranges: machine
+                .temperatures
+                .iter()
+                .map(|t| (t.valid_min_c, t.valid_max_c))
+                .collect(),
+            used_differences,
+            difference_inputs,
+            used_sensors,
+            summands,
+            terms,
+            constants,
+        })
+    }
+
+    /// The model's name.
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+
+    /// The name of the machine it belongs to.
+    pub fn machine_name(&self) -> &str {
+        &self.machine
+    }
+
+    /// The parts as they were given (their `enabled` flags as at construction).
+    pub fn parts(&self) -> &[Part] {
+        &self.parts
+    }
+
+    /// Number of axes the model produces offsets for.
+    pub fn axis_count(&self) -> usize {
+        self.axes.len()
+    }
+
+    /// Indices of the machine's temperature differences the model reads.
+    pub fn used_differences(&self) -> &[usize] {
+        &self.used_differences
+    }
+
+    /// Indices of the machine's temperature channels the model reads.
+    pub fn used_sensors(&self) -> &[usize] {
+        &self.used_sensors
+    }
+
+    /// Switches a part on or off at run time (no allocation). Returns `false` if there is no
+    /// part with that index.
+    pub fn set_part_enabled(&mut self, part: usize, enabled: bool) -> bool {
+        match self.part_enabled.get_mut(part) {
+            Some(e) => {
+                *e = enabled;
+                true
+            }
+            None => false,
+        }
+    }
+
+    /// Whether a part contributes now.
+    pub fn part_enabled(&self, part: usize) -> bool {
+        self.part_enabled.get(part).copied().unwrap_or(false)
+    }
+
+    /// Index of the part with this name.
+    pub fn part_index(&self, name: &str) -> Option<usize> {
+        self.parts.iter().position(|p| p.name == name)
+    }
+}
