@@ -1,0 +1,165 @@
+//! Recorded cycles of one machine in the run CSV form of `docs/formats.md`: the inputs of
+//! [`truepos_model::Model::evaluate`], one row per cycle.
+
+use std::path::Path;
+
+use truepos_model::{AxisKind, Machine};
+
+use crate::error::InputError;
+
+/// The cycles of a run, in the machine's channel order.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Cycles {
+    /// `time_s` of each row, or the row number when the run has no time column.
+    pub time_s: Vec<f64>,
+    /// Line in the file of each row (for messages).
+    pub line: Vec<u64>,
+    /// Temperatures of each row, one per machine temperature channel (NaN where the run has no
+    /// column for a channel the caller did not require).
+    pub temperatures_c: Vec<Vec<f64>>,
+    /// Axis positions of each row.
+    pub positions: Vec<Vec<f64>>,
+    /// Operating state of each row (NaN where the run has no column).
+    pub operating: Vec<Vec<f64>>,
+}
+
+/// The column name of an axis position: `<axis>_mm` or `<axis>_deg`.
+pub fn position_column(machine: &Machine, axis: usize) -> String {
+    let a = &machine.axes[axis];
+    match a.kind {
+        AxisKind::Linear => format!("{}_mm", a.name),
+        AxisKind::Rotary => format!("{}_deg", a.name),
+    }
+}
+
+/// Reads a run CSV. Every axis position column is required, and so is every temperature
+/// channel listed in `required_sensors` (the ones the model reads).
+pub fn load(
+    path: &Path,
+    machine: &Machine,
+    required_sensors: &[usize],
+) -> Result<Cycles, InputError> {
+    let file = std::fs::File::open(path)
+        .map_err(|e| InputError::file(path, format!("cannot read: {e}")))?;
+    read(path, file, machine, required_sensors)
+}
+
+/// Reads a run CSV from any reader; `path` only names it in errors.
+pub fn read(
+    path: &Path,
+    reader: impl std::io::Read,
+    machine: &Machine,
+    required_sensors: &[usize],
+) -> Result<Cycles, InputError> {
+    let mut rdr = csv::ReaderBuilder::new()
+        .trim(csv::Trim::All)
+        .flexible(false)
+        .from_reader(reader);
+    let csv_err = |e: csv::Error| {
+        let line = e.position().map_or(0, |p| p.line() as usize);
+        match line {
+            0 => InputError::file(path, e.to_string()),
+            l => InputError::at(path, l, 1, "", e.to_string()),
+        }
+    };
+    let header: Vec<String> = rdr
+        .headers()
+        .map_err(csv_err)?
+        .iter()
+        .map(str::to_string)
+        .collect();
+    if header.iter().all(|h| h.is_empty()) {
+        return Err(InputError::file(path, "empty file; expected a header row"));
+    }
+    let find = |name: &str| header.iter().position(|h| h == name);
+    let missing = |name: String, what: &str| {
+        InputError::at(
+            path,
+            1,
+            1,
+            name.clone(),
+            format!(
+                "missing column `{name}` ({what}); the header has: {}",
+                header.join(", ")
+            ),
+        )
+    };
+    let time_col = find("time_s");
+    let mut position_cols = Vec::new();
+    for a in 0..machine.axes.len() {
+        let name = position_column(machine, a);
+        position_cols.push(find(&name).ok_or_else(|| missing(name, "axis position"))?);
+    }
+    let mut temperature_cols = Vec::new();
+    for (i, t) in machine.temperatures.iter().enumerate() {
+        let col = find(&t.id);
+        if col.is_none() && required_sensors.contains(&i) {
+            return Err(missing(t.id.clone(), "temperature the model reads"));
+        }
+        temperature_cols.push(col);
+    }
+    let operating_cols: Vec<Option<usize>> =
+        machine.operating.iter().map(|o| find(&o.id)).collect();
+
+    let mut out = Cycles {
+        time_s: Vec::new(),
+        line: Vec::new(),
+        temperatures_c: Vec::new(),
+        positions: Vec::new(),
+        operating: Vec::new(),
+    };
+    for (row_index, record) in rdr.records().enumerate() {
+        let record = record.map_err(csv_err)?;
+        let line = record.position().map_or(0, |p| p.line());
+        let cell = |col: usize| -> Result<f64, InputError> {
+            let text = record.get(col).unwrap_or("");
+            text.parse::<f64>().map_err(|_| {
+                InputError::at(
+                    path,
+                    line as usize,
+                    col + 1,
+                    header[col].clone(),
+                    format!("expected a number, got `{text}`"),
+                )
+            })
+        };
+        let time = match time_col {
+            Some(c) => {
+                let t = cell(c)?;
+                if let Some(&prev) = out.time_s.last() {
+                    if t.is_nan() || t <= prev {
+                        return Err(InputError::at(
+                            path,
+                            line as usize,
+                            c + 1,
+                            "time_s",
+                            format!("expected time to increase, got {t} after {prev}"),
+                        ));
+                    }
+                }
+                t
+            }
+            None => row_index as f64,
+        };
+        // Sensor and position values are passed on as read (NaN included): judging them is
+        // the model's job, and a bad value must show as a failed cycle, not vanish here.
+        let positions = position_cols.iter().map(|&c| cell(c)).collect::<Result<_, _>>()?;
+        let temperatures = temperature_cols
+            .iter()
+            .map(|c| c.map_or(Ok(f64::NAN), cell))
+            .collect::<Result<_, _>>()?;
+        let operating = operating_cols
+            .iter()
+            .map(|c| c.map_or(Ok(f64::NAN), cell))
+            .collect::<Result<_, _>>()?;
+        out.time_s.push(time);
+        out.line.push(line);
+        out.positions.push(positions);
+        out.temperatures_c.push(temperatures);
+        out.operating.push(operating);
+    }
+    if out.time_s.is_empty() {
+        return Err(InputError::file(path, "no data rows after the header"));
+    }
+    Ok(out)
+}

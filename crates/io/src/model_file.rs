@@ -1,0 +1,712 @@
+//! The model file: the contract between learning and compensating.
+//!
+//! A model file is versioned (`format = "truepos-model"`, `version = 1`), names the machine it
+//! belongs to, lists the inputs it was made for (axes with their travel, temperature differences
+//! with their definitions) and holds its parts and coefficients, plus free-form provenance and
+//! validation tables. Loading binds it to a machine description and refuses any mismatch: a
+//! model fitted with `dT_x = x_bottom − x_top` must not silently run on a machine where `dT_x`
+//! means something else, and a ratio r = pos / length changes meaning when the travel changes.
+//!
+//! TOML is the native form (errors name line, column and key); JSON with the same structure is
+//! accepted too (syntax errors name line and column, the other errors the key).
+//!
+//! ```toml
+//! format = "truepos-model"
+//! version = 1
+//! name = "vmc3-structure"
+//! machine = "vmc-3axis"
+//!
+//! [[inputs.axes]]
+//! name = "X"
+//! travel = [0.0, 800.0]
+//!
+//! [[inputs.differences]]
+//! name = "dT_x_slide"
+//! plus = "x_slide_bottom"
+//! minus = "x_slide_top"
+//!
+//! [[part]]
+//! name = "structure"
+//! form = "position-dependent"
+//! [[part.term]]
+//! axis = "Z"                      # error direction n
+//! difference = "dT_x_slide"       # ΔT_m
+//! k0_um_per_k = 2.0               # K_nm0
+//! position = [{ axis = "X", factor = "ratio", k_um_per_k = 4.0 }]   # K_nmj · r_j
+//! ```
+
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+use toml::Spanned;
+use truepos_model::{
+    Carriage, Machine, Model, Part, PartForm, PositionFactor, PositionTerm, Reference,
+    Summand,
+};
+
+use crate::error::{parse_toml, read_text, InputError};
+
+/// The `format` every model file carries.
+pub const FORMAT: &str = "truepos-model";
+/// The version this build reads and writes.
+pub const VERSION: u32 = 1;
+
+/// A model file as written: names, not indices. Build one from a bound model with
+/// [`ModelFile::from_model`], write it with [`ModelFile::to_toml`], read one with [`load`].
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct ModelFile {
+    /// Always [`FORMAT`].
+    pub format: Spanned<String>,
+    /// Always [`VERSION`].
+    pub version: Spanned<u32>,
+    /// The model's name.
+    pub name: Spanned<String>,
+    /// The machine it belongs to (`[machine] name` of the machine description).
+    pub machine: Spanned<String>,
+    /// Free text.
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub description: String,
+    /// Seed D's axis-combination index (b_i = 100·path + axis number) this model serves.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub axis_index: Option<Vec<u32>>,
+    /// The inputs it was made for.
+    pub inputs: Inputs,
+    /// Its parts.
+    #[serde(default)]
+    pub part: Vec<PartEntry>,
+    /// Where it came from (tool, data, date): free-form.
+    #[serde(default, skip_serializing_if = "toml::Table::is_empty")]
+    pub provenance: toml::Table,
+    /// How it was validated and what it achieved: free-form.
+    #[serde(default, skip_serializing_if = "toml::Table::is_empty")]
+    pub validation: toml::Table,
+}
+
+/// The inputs a model was made for.
+#[derive(Debug, Clone, Default, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct Inputs {
+    /// Axes whose positions the model reads or whose error it describes.
+    #[serde(default)]
+    pub axes: Vec<InputAxis>,
+    /// Temperature differences it reads.
+    #[serde(default)]
+    pub differences: Vec<InputDifference>,
+}
+
+/// An axis as the model knows it.
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct InputAxis {
+    /// Axis name.
+    pub name: Spanned<String>,
+    /// Travel [min, max] the position factors were computed with.
+    pub travel: Spanned<[f64; 2]>,
+}
+
+/// A temperature difference as the model knows it.
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct InputDifference {
+    /// Difference name.
+    pub name: Spanned<String>,
+    /// Sensor taken.
+    pub plus: Spanned<String>,
+    /// Sensor it is taken against…
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub minus: Option<Spanned<String>>,
+    /// …or fixed reference in °C.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub minus_fixed: Option<Spanned<f64>>,
+}
+
+/// The form of a part in the file.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum FormEntry {
+    /// Seed A's general form.
+    PositionDependent,
+    /// Seed C's regression.
+    Regression,
+}
+
+/// A part in the file.
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct PartEntry {
+    /// Part name.
+    pub name: Spanned<String>,
+    /// Its form.
+    pub form: FormEntry,
+    /// Whether it contributes at start.
+    #[serde(default = "yes")]
+    pub enabled: bool,
+    /// Position-dependent form: its summands.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub term: Vec<TermEntry>,
+    /// Position-dependent form: constant errors per axis.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub constant: Vec<ConstantEntry>,
+    /// Regression form: the axis (error direction) Y of Y = Σ k_i·ΔT_i + c.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub axis: Option<Spanned<String>>,
+    /// Regression form: the k_i·ΔT_i.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub terms: Vec<RegressionTermEntry>,
+    /// Regression form: the constant c in µm.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub constant_um: Option<f64>,
+}
+
+fn yes() -> bool {
+    true
+}
+
+/// One summand ΔT_m · [K_nm0 + Σ K_nmj·g_j] (· KFA_b).
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct TermEntry {
+    /// Error direction n.
+    pub axis: Spanned<String>,
+    /// ΔT_m.
+    pub difference: Spanned<String>,
+    /// K_nm0 in µm/K.
+    #[serde(default)]
+    pub k0_um_per_k: f64,
+    /// The K_nmj·g_j.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub position: Vec<PositionEntry>,
+    /// Embodiment 6: multiply the summand by KFA of this axis.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub bed_multiplier: Option<Spanned<String>>,
+}
+
+/// The position factor in a file.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum FactorEntry {
+    /// r.
+    Ratio,
+    /// r².
+    RatioSquared,
+    /// KFA.
+    Bed,
+}
+
+/// One K_nmj·g_j.
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct PositionEntry {
+    /// Axis j.
+    pub axis: Spanned<String>,
+    /// g_j; when left out, the axis' natural factor: ratio for a cantilevered slide, bed factor
+    /// for a slide on a bed.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub factor: Option<FactorEntry>,
+    /// K_nmj in µm/K.
+    pub k_um_per_k: f64,
+}
+
+/// A constant error of an axis.
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct ConstantEntry {
+    /// Axis.
+    pub axis: Spanned<String>,
+    /// Value in µm.
+    pub value_um: f64,
+}
+
+/// One k_i·ΔT_i of a regression.
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct RegressionTermEntry {
+    /// ΔT_i (for seed C: sensor i minus the reference sensor).
+    pub difference: Spanned<String>,
+    /// k_i in µm/K.
+    pub k_um_per_k: f64,
+}
+
+fn spanned<T>(value: T) -> Spanned<T> {
+    Spanned::new(0..0, value)
+}
+
+/// Reads a model file (`.json` as JSON, anything else as TOML) and binds it to a machine.
+pub fn load(path: &Path, machine: &Machine) -> Result<Model, InputError> {
+    let text = read_text(path)?;
+    let is_json = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("json"));
+    if is_json {
+        parse_json(path, &text, machine)
+    } else {
+        parse(path, &text, machine)
+    }
+}
+
+/// Reads model-file TOML text and binds it to a machine; `path` only names it in errors.
+pub fn parse(path: &Path, text: &str, machine: &Machine) -> Result<Model, InputError> {
+    let file: ModelFile = parse_toml(path, text)?;
+    file.bind(machine)
+        .map_err(|(span, key, message)| InputError::at_span(path, text, span, key, message))
+}
+
+/// Reads model-file JSON text and binds it to a machine. Syntax errors name line and column;
+/// the JSON is then read through the TOML data model, so other errors name the key only.
+pub fn parse_json(path: &Path, text: &str, machine: &Machine) -> Result<Model, InputError> {
+    let value: serde_json::Value = serde_json::from_str(text)
+        .map_err(|e| InputError::at(path, e.line(), e.column(), "", e.to_string()))?;
+    let as_toml = toml::to_string(&value).map_err(|e| {
+        InputError::file(
+            path,
+            format!("cannot be represented as a model file (null values are not allowed): {e}"),
+        )
+    })?;
+    let strip = |mut e: InputError| {
+        e.position = None;
+        e
+    };
+    let file: ModelFile = parse_toml(path, &as_toml).map_err(strip)?;
+    file.bind(machine).map_err(|(_, key, message)| InputError {
+        file: path.to_path_buf(),
+        position: None,
+        key: Some(key),
+        message,
+    })
+}
+
+type BindError = (std::ops::Range<usize>, String, String);
+
+impl ModelFile {
+    /// Checks the file against a machine and builds the model.
+    pub fn bind(&self, machine: &Machine) -> Result<Model, BindError> {
+        let err = |s: &Spanned<String>, key: String, msg: String| (s.span(), key, msg);
+        if self.format.get_ref() != FORMAT {
+            return Err((
+                self.format.span(),
+                "format".into(),
+                format!(
+                    "expected \"{FORMAT}\", got \"{}\"; this is not a truepos model file",
+                    self.format.get_ref()
+                ),
+            ));
+        }
+        if *self.version.get_ref() != VERSION {
+            return Err((
+                self.version.span(),
+                "version".into(),
+                format!(
+                    "model file version {} is not supported; this build reads version {VERSION}",
+                    self.version.get_ref()
+                ),
+            ));
+        }
+        if self.machine.get_ref() != &machine.name {
+            return Err(err(
+                &self.machine,
+                "machine".into(),
+                format!(
+                    "the model was made for machine `{}`, but the machine description is `{}`",
+                    self.machine.get_ref(),
+                    machine.name
+                ),
+            ));
+        }
+
+        // The inputs the model was made for must be the machine's, exactly.
+        for (i, a) in self.inputs.axes.iter().enumerate() {
+            let key = format!("inputs.axes[{i}]");
+            let Some(ax) = machine.axis_index(a.name.get_ref()) else {
+                return Err(err(
+                    &a.name,
+                    format!("{key}.name"),
+                    format!(
+                        "the model needs axis `{}`, which machine `{}` does not have",
+                        a.name.get_ref(),
+                        machine.name
+                    ),
+                ));
+            };
+            let axis = &machine.axes[ax];
+            let [lo, hi] = *a.travel.get_ref();
+            if lo != axis.travel_min || hi != axis.travel_max {
+                return Err((
+                    a.travel.span(),
+                    format!("{key}.travel"),
+                    format!(
+                        "the model was made for axis `{}` with travel [{lo}, {hi}], but the machine has [{}, {}]",
+                        axis.name, axis.travel_min, axis.travel_max
+                    ),
+                ));
+            }
+        }
+        for (i, d) in self.inputs.differences.iter().enumerate() {
+            let key = format!("inputs.differences[{i}]");
+            let Some(di) = machine.difference_index(d.name.get_ref()) else {
+                return Err(err(
+                    &d.name,
+                    format!("{key}.name"),
+                    format!(
+                        "the model needs temperature difference `{}`, which machine `{}` does not define",
+                        d.name.get_ref(),
+                        machine.name
+                    ),
+                ));
+            };
+            let def = &machine.differences[di];
+            let machine_plus = &machine.temperatures[def.plus].id;
+            let machine_minus = match def.minus {
+                Reference::Sensor(s) => machine.temperatures[s].id.clone(),
+                Reference::Fixed(t) => format!("{t} °C"),
+            };
+            let model_minus = match (&d.minus, &d.minus_fixed) {
+                (Some(m), None) => m.get_ref().clone(),
+                (None, Some(t)) => format!("{} °C", t.get_ref()),
+                _ => {
+                    return Err(err(
+                        &d.name,
+                        key,
+                        "expected exactly one of `minus` (a sensor) or `minus_fixed` (°C)".into(),
+                    ))
+                }
+            };
+            if d.plus.get_ref() != machine_plus || model_minus != machine_minus {
+                return Err(err(
+                    &d.name,
+                    format!("{key}.name"),
+                    format!(
+                        "the model was made for `{}` = {} − {}, but the machine defines it as {} − {}",
+                        d.name.get_ref(),
+                        d.plus.get_ref(),
+                        model_minus,
+                        machine_plus,
+                        machine_minus
+                    ),
+                ));
+            }
+        }
+        let listed_axis = |s: &Spanned<String>, key: String| -> Result<usize, BindError> {
+            if !self.inputs.axes.iter().any(|a| a.name.get_ref() == s.get_ref()) {
+                let listed: Vec<&str> = self
+                    .inputs
+                    .axes
+                    .iter()
+                    .map(|a| a.name.get_ref().as_str())
+                    .collect();
+                return Err(err(
+                    s,
+                    key,
+                    format!(
+                        "axis `{}` is not listed in [[inputs.axes]] (listed: {})",
+                        s.get_ref(),
+                        if listed.is_empty() { "none".into() } else { listed.join(", ") }
+                    ),
+                ));
+            }
+            Ok(machine.axis_index(s.get_ref()).expect("checked above"))
+        };
+        let listed_difference = |s: &Spanned<String>, key: String| -> Result<usize, BindError> {
+            if !self
+                .inputs
+                .differences
+                .iter()
+                .any(|d| d.name.get_ref() == s.get_ref())
+            {
+                let listed: Vec<&str> = self
+                    .inputs
+                    .differences
+                    .iter()
+                    .map(|d| d.name.get_ref().as_str())
+                    .collect();
+                return Err(err(
+                    s,
+                    key,
+                    format!(
+                        "temperature difference `{}` is not listed in [[inputs.differences]] (listed: {})",
+                        s.get_ref(),
+                        if listed.is_empty() { "none".into() } else { listed.join(", ") }
+                    ),
+                ));
+            }
+            Ok(machine.difference_index(s.get_ref()).expect("checked above"))
+        };
+
+        let mut parts = Vec::new();
+        for (pi, p) in self.part.iter().enumerate() {
+            let pkey = format!("part[{pi}]");
+            if let Some(first) = self.part[..pi]
+                .iter()
+                .position(|q| q.name.get_ref() == p.name.get_ref())
+            {
+                return Err(err(
+                    &p.name,
+                    format!("{pkey}.name"),
+                    format!(
+                        "duplicate part `{}` (first defined as part[{first}]); names must be unique",
+                        p.name.get_ref()
+                    ),
+                ));
+            }
+            let mut summands = Vec::new();
+            let mut constants_um = Vec::new();
+            let finite = |v: f64, s: &Spanned<String>, key: String| -> Result<f64, BindError> {
+                if v.is_finite() {
+                    Ok(v)
+                } else {
+                    Err(err(s, key, "expected a finite coefficient".into()))
+                }
+            };
+            match p.form {
+                FormEntry::PositionDependent => {
+                    if p.axis.is_some() || !p.terms.is_empty() || p.constant_um.is_some() {
+                        return Err(err(
+                            &p.name,
+                            pkey,
+                            "a position-dependent part takes [[part.term]] and [[part.constant]]; `axis`, `terms` and `constant_um` belong to form = \"regression\"".into(),
+                        ));
+                    }
+                    for (ti, t) in p.term.iter().enumerate() {
+                        let tkey = format!("{pkey}.term[{ti}]");
+                        let axis = listed_axis(&t.axis, format!("{tkey}.axis"))?;
+                        let difference =
+                            listed_difference(&t.difference, format!("{tkey}.difference"))?;
+                        let k0 = finite(t.k0_um_per_k, &t.axis, format!("{tkey}.k0_um_per_k"))?;
+                        let mut position_terms = Vec::new();
+                        for (ji, j) in t.position.iter().enumerate() {
+                            let jkey = format!("{tkey}.position[{ji}]");
+                            let ja = listed_axis(&j.axis, format!("{jkey}.axis"))?;
+                            let factor = match j.factor {
+                                Some(FactorEntry::Ratio) => PositionFactor::Ratio,
+                                Some(FactorEntry::RatioSquared) => PositionFactor::RatioSquared,
+                                Some(FactorEntry::Bed) => PositionFactor::BedFactor,
+                                None => match machine.axes[ja].carriage {
+                                    Carriage::Cantilever => PositionFactor::Ratio,
+                                    Carriage::Bed => PositionFactor::BedFactor,
+                                },
+                            };
+                            let k = finite(j.k_um_per_k, &j.axis, format!("{jkey}.k_um_per_k"))?;
+                            position_terms.push(PositionTerm {
+                                axis: ja,
+                                factor,
+                                k_um_per_k: k,
+                            });
+                        }
+                        let bed_multiplier = match &t.bed_multiplier {
+                            Some(b) => Some(listed_axis(b, format!("{tkey}.bed_multiplier"))?),
+                            None => None,
+                        };
+                        summands.push(Summand {
+                            axis,
+                            difference,
+                            k0_um_per_k: k0,
+                            position_terms,
+                            bed_multiplier,
+                        });
+                    }
+                    for (ci, c) in p.constant.iter().enumerate() {
+                        let ckey = format!("{pkey}.constant[{ci}]");
+                        let axis = listed_axis(&c.axis, format!("{ckey}.axis"))?;
+                        let v = finite(c.value_um, &c.axis, format!("{ckey}.value_um"))?;
+                        constants_um.push((axis, v));
+                    }
+                }
+                FormEntry::Regression => {
+                    if !p.term.is_empty() || !p.constant.is_empty() {
+                        return Err(err(
+                            &p.name,
+                            pkey,
+                            "a regression part takes `axis`, `terms` and `constant_um`; [[part.term]] and [[part.constant]] belong to form = \"position-dependent\"".into(),
+                        ));
+                    }
+                    let Some(axis_name) = &p.axis else {
+                        return Err(err(
+                            &p.name,
+                            format!("{pkey}.axis"),
+                            "a regression part needs `axis`, the direction of the error it describes".into(),
+                        ));
+                    };
+                    let axis = listed_axis(axis_name, format!("{pkey}.axis"))?;
+                    for (ti, t) in p.terms.iter().enumerate() {
+                        let tkey = format!("{pkey}.terms[{ti}]");
+                        let difference =
+                            listed_difference(&t.difference, format!("{tkey}.difference"))?;
+                        let k = finite(t.k_um_per_k, &t.difference, format!("{tkey}.k_um_per_k"))?;
+                        summands.push(Summand {
+                            axis,
+                            difference,
+                            k0_um_per_k: k,
+                            position_terms: Vec::new(),
+                            bed_multiplier: None,
+                        });
+                    }
+                    if let Some(c) = p.constant_um {
+                        constants_um.push((axis, finite(c, axis_name, format!("{pkey}.constant_um"))?));
+                    }
+                }
+            }
+            parts.push(Part {
+                name: p.name.get_ref().clone(),
+                enabled: p.enabled,
+                form: match p.form {
+                    FormEntry::PositionDependent => PartForm::PositionDependent,
+                    FormEntry::Regression => PartForm::Regression,
+                },
+                summands,
+                constants_um,
+            });
+        }
+        Model::new(self.name.get_ref().clone(), machine, parts)
+            .map_err(|e| (self.name.span(), "part".into(), e.to_string()))
+    }
+
+    /// Describes a bound model as a file: the inputs are the axes and differences it reads.
+    pub fn from_model(model: &Model, machine: &Machine) -> Self {
+        let mut axes_used: Vec<usize> = Vec::new();
+        let mut use_axis = |a: usize| {
+            if !axes_used.contains(&a) {
+                axes_used.push(a);
+            }
+        };
+        for p in model.parts() {
+            for s in &p.summands {
+                use_axis(s.axis);
+                s.position_terms.iter().for_each(|t| use_axis(t.axis));
+                if let Some(b) = s.bed_multiplier {
+                    use_axis(b);
+                }
+            }
+            p.constants_um.iter().for_each(|c| use_axis(c.0));
+        }
+        axes_used.sort_unstable();
+        let axis_name = |a: usize| spanned(machine.axes[a].name.clone());
+        let diff_name = |d: usize| spanned(machine.differences[d].name.clone());
+        let factor = |f: PositionFactor| match f {
+            PositionFactor::Ratio => FactorEntry::Ratio,
+            PositionFactor::RatioSquared => FactorEntry::RatioSquared,
+            PositionFactor::BedFactor => FactorEntry::Bed,
+        };
+        let mut used_diffs: Vec<usize> = model.used_differences().to_vec();
+        used_diffs.sort_unstable();
+        let part = model
+            .parts()
+            .iter()
+            .map(|p| match p.form {
+                PartForm::Regression if regression_shaped(p) => PartEntry {
+                    name: spanned(p.name.clone()),
+                    form: FormEntry::Regression,
+                    enabled: p.enabled,
+                    term: vec![],
+                    constant: vec![],
+                    axis: p
+                        .summands
+                        .first()
+                        .map(|s| s.axis)
+                        .or(p.constants_um.first().map(|c| c.0))
+                        .map(axis_name),
+                    terms: p
+                        .summands
+                        .iter()
+                        .map(|s| RegressionTermEntry {
+                            difference: diff_name(s.difference),
+                            k_um_per_k: s.k0_um_per_k,
+                        })
+                        .collect(),
+                    constant_um: p.constants_um.first().map(|c| c.1),
+                },
+                _ => PartEntry {
+                    name: spanned(p.name.clone()),
+                    form: FormEntry::PositionDependent,
+                    enabled: p.enabled,
+                    term: p
+                        .summands
+                        .iter()
+                        .map(|s| TermEntry {
+                            axis: axis_name(s.axis),
+                            difference: diff_name(s.difference),
+                            k0_um_per_k: s.k0_um_per_k,
+                            position: s
+                                .position_terms
+                                .iter()
+                                .map(|t| PositionEntry {
+                                    axis: axis_name(t.axis),
+                                    factor: Some(factor(t.factor)),
+                                    k_um_per_k: t.k_um_per_k,
+                                })
+                                .collect(),
+                            bed_multiplier: s.bed_multiplier.map(axis_name),
+                        })
+                        .collect(),
+                    constant: p
+                        .constants_um
+                        .iter()
+                        .map(|&(a, v)| ConstantEntry {
+                            axis: axis_name(a),
+                            value_um: v,
+                        })
+                        .collect(),
+                    axis: None,
+                    terms: vec![],
+                    constant_um: None,
+                },
+            })
+            .collect();
+        ModelFile {
+            format: spanned(FORMAT.into()),
+            version: spanned(VERSION),
+            name: spanned(model.name().into()),
+            machine: spanned(machine.name.clone()),
+            description: String::new(),
+            axis_index: None,
+            inputs: Inputs {
+                axes: axes_used
+                    .iter()
+                    .map(|&a| InputAxis {
+                        name: axis_name(a),
+                        travel: spanned([machine.axes[a].travel_min, machine.axes[a].travel_max]),
+                    })
+                    .collect(),
+                differences: used_diffs
+                    .iter()
+                    .map(|&d| {
+                        let def = &machine.differences[d];
+                        let (minus, minus_fixed) = match def.minus {
+                            Reference::Sensor(s) => {
+                                (Some(spanned(machine.temperatures[s].id.clone())), None)
+                            }
+                            Reference::Fixed(t) => (None, Some(spanned(t))),
+                        };
+                        InputDifference {
+                            name: diff_name(d),
+                            plus: spanned(machine.temperatures[def.plus].id.clone()),
+                            minus,
+                            minus_fixed,
+                        }
+                    })
+                    .collect(),
+            },
+            part,
+            provenance: toml::Table::new(),
+            validation: toml::Table::new(),
+        }
+    }
+
+    /// The file as TOML text.
+    pub fn to_toml(&self) -> String {
+        toml::to_string_pretty(self).unwrap_or_else(|e| format!("# cannot serialise: {e}\n"))
+    }
+}
+
+/// A regression part has one axis, no position terms, no bed multiplier and at most one constant.
+fn regression_shaped(p: &Part) -> bool {
+    let axis = p
+        .summands
+        .first()
+        .map(|s| s.axis)
+        .or(p.constants_um.first().map(|c| c.0));
+    p.constants_um.len() <= 1
+        && p.summands.iter().all(|s| {
+            Some(s.axis) == axis && s.position_terms.is_empty() && s.bed_multiplier.is_none()
+        })
+        && p.constants_um.iter().all(|c| Some(c.0) == axis)
+}
