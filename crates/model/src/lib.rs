@@ -65,6 +65,7 @@ extern crate std;
 pub mod evaluate;
 pub mod machine;
 pub mod model;
+pub mod table;
 pub mod timing;
 
 pub use evaluate::{Correction, CycleInput, EvalError, TRAVEL_TOLERANCE};
@@ -73,8 +74,7 @@ pub use machine::{
     TemperatureChannel, TemperatureDifference, MAX_AXES,
 };
 pub use model::{
-    Model, ModelError, Part, PartForm, PositionFactor, PositionTerm, Summand,
-    MAX_MODEL_DIFFERENCES,
+    Model, ModelError, Part, PartForm, PositionFactor, PositionTerm, Summand, MAX_MODEL_DIFFERENCES,
 };
 pub use timing::{lag_error_fraction, travel_per_update_mm};
 

@@ -1,0 +1,578 @@
+//! Compensation tables: an error value as a function of one axis position, given at support
+//! points and interpolated in between (seed B, Figs. 2a/2b: `F_A_X(0)`, `F_A_X(10)` …
+//! `F_A_X(350)`, "values between support points are interpolated").
+//!
+//! * Support points need not be equidistant; positions must be strictly increasing.
+//! * [`Interpolation::Linear`] joins support points by straight lines;
+//!   [`Interpolation::MonotoneCubic`] is a C¹ piecewise cubic Hermite curve whose slopes follow
+//!   Fritsch & Butland (1984, "A method for constructing local monotone piecewise cubic
+//!   interpolants", SIAM J. Sci. Stat. Comput. 5): between two support points it never leaves
+//!   the range of their values, so it adds no overshoot.
+//! * A table of a linear axis holds its end values outside the support range. A table of a
+//!   rotary axis is periodic with 360°: the last support point joins the first one (shifted by
+//!   360°) seamlessly, and a position is wrapped into the period before lookup.
+//! * A directional table holds two value columns, one for travel in the positive (forward) and
+//!   one for the negative (reverse) direction, for backlash-like errors (LinuxCNC's
+//!   `forward`/`reverse` columns).
+//!
+//! Building a table allocates; [`CompTable::value`] does not allocate and never panics.
+
+use alloc::vec::Vec;
+use core::fmt;
+
+/// Period of a rotary axis in degrees.
+pub const ROTARY_PERIOD_DEG: f64 = 360.0;
+
+/// How a table continues outside its support points.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Wrap {
+    /// Linear axis: hold the first / last value outside the range.
+    Hold,
+    /// Rotary axis: periodic with 360°; the last support point joins the first seamlessly.
+    Rotary,
+}
+
+/// How values between support points are found.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Interpolation {
+    /// Straight lines between support points.
+    Linear,
+    /// C¹ piecewise cubic that stays monotone between support points (Fritsch–Butland slopes).
+    MonotoneCubic,
+}
+
+/// Direction of travel of the axis that drives a table.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Direction {
+    /// Travel towards larger positions (LinuxCNC "forward").
+    #[default]
+    Forward,
+    /// Travel towards smaller positions (LinuxCNC "reverse").
+    Reverse,
+}
+
+/// Why a table cannot be built. Indices are 0-based support-point indices.
+#[derive(Debug, Clone, PartialEq)]
+pub enum TableError {
+    /// Fewer than two support points.
+    TooFewPoints(usize),
+    /// The value columns do not have one value per position.
+    LengthMismatch {
+        /// Number of positions.
+        positions: usize,
+        /// Number of values in the offending column.
+        values: usize,
+    },
+    /// A position or value is NaN or infinite.
+    NonFinite {
+        /// Support point index.
+        index: usize,
+    },
+    /// Position `index` is not larger than the one before.
+    NotIncreasing {
+        /// Support point index.
+        index: usize,
+    },
+    /// A rotary table spans more than 360°.
+    SpanTooLarge {
+        /// last − first position in degrees.
+        span_deg: f64,
+    },
+    /// A rotary table spans exactly 360° but its first and last values differ, so the joint
+    /// would jump.
+    JointMismatch {
+        /// Value at the first support point.
+        first: f64,
+        /// Value at the last support point.
+        last: f64,
+    },
+}
+
+impl fmt::Display for TableError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::TooFewPoints(n) => {
+                write!(f, "{n} support point(s); expected at least 2")
+            }
+            Self::LengthMismatch { positions, values } => write!(
+                f,
+                "{positions} positions but {values} values; expected one value per position"
+            ),
+            Self::NonFinite { index } => {
+                write!(f, "support point #{index} is not a finite number")
+            }
+            Self::NotIncreasing { index } => write!(
+                f,
+                "support point #{index}: position is not larger than the one before; expected strictly increasing positions"
+            ),
+            Self::SpanTooLarge { span_deg } => write!(
+                f,
+                "rotary table spans {span_deg}°; expected at most {ROTARY_PERIOD_DEG}°"
+            ),
+            Self::JointMismatch { first, last } => write!(
+                f,
+                "rotary table spans 360° but its first value {first} differs from its last value {last}; the joint at 360° would jump"
+            ),
+        }
+    }
+}
+
+impl core::error::Error for TableError {}
+
+/// A compensation table: values (in the unit of the file, e.g. µm or µrad) at support positions
+/// (mm or degrees) of one axis.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CompTable {
+    positions: Vec<f64>,
+    forward: Vec<f64>,
+    reverse: Option<Vec<f64>>,
+    wrap: Wrap,
+    interpolation: Interpolation,
+    // Hermite slopes at each support point (monotone cubic only), per column.
+    slopes_forward: Vec<f64>,
+    slopes_reverse: Vec<f64>,
+}
+
+impl CompTable {
+    /// A table with one value column (the same for both directions of travel).
+    pub fn new(
+        positions: Vec<f64>,
+        values: Vec<f64>,
+        wrap: Wrap,
+        interpolation: Interpolation,
+    ) -> Result<Self, TableError> {
+        Self::build(positions, values, None, wrap, interpolation)
+    }
+
+    /// A directional table: `forward` applies while the axis travels towards larger positions,
+    /// `reverse` while it travels towards smaller ones.
+    pub fn directional(
+        positions: Vec<f64>,
+        forward: Vec<f64>,
+        reverse: Vec<f64>,
+        wrap: Wrap,
+        interpolation: Interpolation,
+    ) -> Result<Self, TableError> {
+        Self::build(positions, forward, Some(reverse), wrap, interpolation)
+    }
+
+    fn build(
+        positions: Vec<f64>,
+        forward: Vec<f64>,
+        reverse: Option<Vec<f64>>,
+        wrap: Wrap,
+        interpolation: Interpolation,
+    ) -> Result<Self, TableError> {
+        let n = positions.len();
+        if n < 2 {
+            return Err(TableError::TooFewPoints(n));
+        }
+        for col in core::iter::once(&forward).chain(reverse.as_ref()) {
+            if col.len() != n {
+                return Err(TableError::LengthMismatch {
+                    positions: n,
+                    values: col.len(),
+                });
+            }
+        }
+        for i in 0..n {
+            let rev_ok = reverse.as_ref().is_none_or(|r| r[i].is_finite());
+            if !(positions[i].is_finite() && forward[i].is_finite() && rev_ok) {
+                return Err(TableError::NonFinite { index: i });
+            }
+            if i > 0 && positions[i] <= positions[i - 1] {
+                return Err(TableError::NotIncreasing { index: i });
+            }
+        }
+        if wrap == Wrap::Rotary {
+            let span_deg = positions[n - 1] - positions[0];
+            if span_deg > ROTARY_PERIOD_DEG {
+                return Err(TableError::SpanTooLarge { span_deg });
+            }
+            if span_deg == ROTARY_PERIOD_DEG {
+                for col in core::iter::once(&forward).chain(reverse.as_ref()) {
+                    // The two ends are the same physical position: they must agree.
+                    let (first, last) = (col[0], col[n - 1]);
+                    if libm::fabs(first - last)
+                        > 1e-9 * (1.0 + libm::fmax(libm::fabs(first), libm::fabs(last)))
+                    {
+                        return Err(TableError::JointMismatch { first, last });
+                    }
+                }
+            }
+        }
+        let mut table = Self {
+            positions,
+            forward,
+            reverse,
+            wrap,
+            interpolation,
+            slopes_forward: Vec::new(),
+            slopes_reverse: Vec::new(),
+        };
+        if interpolation == Interpolation::MonotoneCubic {
+            table.slopes_forward = table.slopes(&table.forward);
+            if let Some(r) = &table.reverse {
+                table.slopes_reverse = table.slopes(r);
+            }
+        }
+        Ok(table)
+    }
+
+    /// Fritsch–Butland slopes: zero where the secants change sign, otherwise a weighted harmonic
+    /// mean of the neighbouring secants (which never exceeds three times the smaller one, the
+    /// Fritsch–Carlson bound for monotonicity). Linear axes take the secant at the ends; rotary
+    /// tables treat the joint segment like any other.
+    fn slopes(&self, values: &[f64]) -> Vec<f64> {
+        let n = self.positions.len();
+        // Segments: i = 0..n-1 between points i and i+1, plus the joint segment for rotary.
+        let segment = |i: usize| -> (f64, f64) {
+            if i + 1 < n {
+                let h = self.positions[i + 1] - self.positions[i];
+                (h, (values[i + 1] - values[i]) / h)
+            } else {
+                let h = self.positions[0] + ROTARY_PERIOD_DEG - self.positions[n - 1];
+                (h, (values[0] - values[n - 1]) / h)
+            }
+        };
+        let closed = self.wrap == Wrap::Rotary && self.joint_width() > 0.0;
+        let harmonic = |(h0, d0): (f64, f64), (h1, d1): (f64, f64)| -> f64 {
+            if d0 * d1 <= 0.0 {
+                0.0
+            } else {
+                let w1 = 2.0 * h1 + h0;
+                let w2 = h1 + 2.0 * h0;
+                (w1 + w2) / (w1 / d0 + w2 / d1)
+            }
+        };
+        let full_circle = self.wrap == Wrap::Rotary && !closed;
+        let mut out = Vec::with_capacity(n);
+        for i in 0..n {
+            let slope = if i == 0 {
+                if closed {
+                    harmonic(segment(n - 1), segment(0))
+                } else if full_circle {
+                    // First and last points are the same position: the segment before point 0
+                    // is the last real segment.
+                    harmonic(segment(n - 2), segment(0))
+                } else {
+                    segment(0).1
+                }
+            } else if i == n - 1 {
+                if closed {
+                    harmonic(segment(n - 2), segment(n - 1))
+                } else if full_circle {
+                    harmonic(segment(n - 2), segment(0))
+                } else {
+                    segment(n - 2).1
+                }
+            } else {
+                harmonic(segment(i - 1), segment(i))
+            };
+            out.push(slope);
+        }
+        out
+    }
+
+    /// Width of the rotary joint segment from the last support point to the first + 360°.
+    fn joint_width(&self) -> f64 {
+        self.positions[0] + ROTARY_PERIOD_DEG - self.positions[self.positions.len() - 1]
+    }
+
+    /// Support positions (mm or degrees).
+    pub fn positions(&self) -> &[f64] {
+        &self.positions
+    }
+
+    /// Values for forward travel (the only column of a non-directional table).
+    pub fn forward(&self) -> &[f64] {
+        &self.forward
+    }
+
+    /// Values for reverse travel, if the table is directional.
+    pub fn reverse(&self) -> Option<&[f64]> {
+        self.reverse.as_deref()
+    }
+
+    /// How the table continues outside its support points.
+    pub fn wrap(&self) -> Wrap {
+        self.wrap
+    }
+
+    /// How values between support points are found.
+    pub fn interpolation(&self) -> Interpolation {
+        self.interpolation
+    }
+
+    /// True if every value of every column is zero.
+    pub fn is_zero(&self) -> bool {
+        self.forward
+            .iter()
+            .chain(self.reverse.iter().flatten())
+            .all(|v| *v == 0.0)
+    }
+
+    /// The interpolated value at `position` for travel in `direction`. A non-finite position
+    /// gives the first value (callers check positions; this never returns NaN from finite
+    /// support values).
+    #[inline]
+    pub fn value(&self, position: f64, direction: Direction) -> f64 {
+        self.value_and_slope(position, direction).0
+    }
+
+    /// The interpolated value and its derivative with respect to position (value unit per mm or
+    /// per degree) at `position`. Where a linear axis' table holds its end value the slope is 0.
+    pub fn value_and_slope(&self, position: f64, direction: Direction) -> (f64, f64) {
+        let (values, slopes) = match (direction, &self.reverse) {
+            (Direction::Reverse, Some(r)) => (r.as_slice(), self.slopes_reverse.as_slice()),
+            _ => (self.forward.as_slice(), self.slopes_forward.as_slice()),
+        };
+        let p = &self.positions;
+        let n = p.len();
+        if !position.is_finite() {
+            return (values[0], 0.0);
+        }
+        let x = match self.wrap {
+            Wrap::Hold => {
+                if position <= p[0] {
+                    return (values[0], 0.0);
+                }
+                if position >= p[n - 1] {
+                    return (values[n - 1], 0.0);
+                }
+                position
+            }
+            Wrap::Rotary => {
+                let mut r = libm::fmod(position - p[0], ROTARY_PERIOD_DEG);
+                if r < 0.0 {
+                    r += ROTARY_PERIOD_DEG;
+                }
+                let x = p[0] + r;
+                // Adding 360 to a tiny negative remainder may round up to exactly the period.
+                if x >= p[0] + ROTARY_PERIOD_DEG {
+                    p[0]
+                } else {
+                    x
+                }
+            }
+        };
+        // Segment [x0, x1] containing x.
+        let i = p.partition_point(|&q| q <= x);
+        let (x0, x1, y0, y1, i0, i1) = if i >= n {
+            // Rotary joint: between the last point and the first + 360°.
+            (
+                p[n - 1],
+                p[0] + ROTARY_PERIOD_DEG,
+                values[n - 1],
+                values[0],
+                n - 1,
+                0,
+            )
+        } else {
+            let i = i.max(1);
+            (p[i - 1], p[i], values[i - 1], values[i], i - 1, i)
+        };
+        let h = x1 - x0;
+        let t = (x - x0) / h;
+        match self.interpolation {
+            Interpolation::Linear => (y0 + t * (y1 - y0), (y1 - y0) / h),
+            Interpolation::MonotoneCubic => {
+                let (m0, m1) = (slopes[i0] * h, slopes[i1] * h);
+                // Cubic Hermite basis on t ∈ [0, 1].
+                let t2 = t * t;
+                let t3 = t2 * t;
+                let h00 = 2.0 * t3 - 3.0 * t2 + 1.0;
+                let h10 = t3 - 2.0 * t2 + t;
+                let h01 = -2.0 * t3 + 3.0 * t2;
+                let h11 = t3 - t2;
+                let value = h00 * y0 + h10 * m0 + h01 * y1 + h11 * m1;
+                let d00 = 6.0 * t2 - 6.0 * t;
+                let d10 = 3.0 * t2 - 4.0 * t + 1.0;
+                let d01 = -6.0 * t2 + 6.0 * t;
+                let d11 = 3.0 * t2 - 2.0 * t;
+                let slope = (d00 * y0 + d10 * m0 + d01 * y1 + d11 * m1) / h;
+                (value, slope)
+            }
+        }
+    }
+
+    /// True if the support points are equidistant within `tolerance` (Siemens tables need it).
+    pub fn step(&self, tolerance: f64) -> Option<f64> {
+        let p = &self.positions;
+        let step = (p[p.len() - 1] - p[0]) / (p.len() - 1) as f64;
+        p.windows(2)
+            .all(|w| libm::fabs((w[1] - w[0]) - step) <= tolerance)
+            .then_some(step)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use alloc::vec;
+
+    fn lin(p: Vec<f64>, v: Vec<f64>, wrap: Wrap) -> CompTable {
+        CompTable::new(p, v, wrap, Interpolation::Linear).unwrap()
+    }
+
+    #[test]
+    fn linear_interpolation_between_unequal_support_points() {
+        // Points (0, 0), (10, 5), (40, -1). At 4: 0 + 4/10·5 = 2. At 25: 5 + 15/30·(−6) = 2.
+        let t = lin(vec![0.0, 10.0, 40.0], vec![0.0, 5.0, -1.0], Wrap::Hold);
+        assert!((t.value(4.0, Direction::Forward) - 2.0).abs() < 1e-12);
+        assert!((t.value(25.0, Direction::Forward) - 2.0).abs() < 1e-12);
+        // Slope on the second segment: −6/30 = −0.2.
+        assert!((t.value_and_slope(25.0, Direction::Forward).1 + 0.2).abs() < 1e-12);
+        // Exactly at support points.
+        assert_eq!(t.value(10.0, Direction::Forward), 5.0);
+        assert_eq!(t.value(40.0, Direction::Forward), -1.0);
+    }
+
+    #[test]
+    fn linear_axis_holds_end_values() {
+        let t = lin(vec![0.0, 10.0], vec![3.0, 7.0], Wrap::Hold);
+        assert_eq!(t.value(-100.0, Direction::Forward), 3.0);
+        assert_eq!(t.value(1e9, Direction::Forward), 7.0);
+        assert_eq!(t.value_and_slope(11.0, Direction::Forward).1, 0.0);
+        assert_eq!(t.value(f64::NAN, Direction::Forward), 3.0);
+    }
+
+    #[test]
+    fn rotary_joint_is_seamless() {
+        // Seed B, Fig. 2a: support points every 10° from 0 to 350; the joint 350 → 360 joins
+        // F(350) = 2 to F(0) = 0: at 355° the value is 1, and 355° ≡ −5°.
+        let p: Vec<f64> = (0..36).map(|i| 10.0 * i as f64).collect();
+        let mut v = vec![0.0; 36];
+        v[35] = 2.0;
+        let t = lin(p, v, Wrap::Rotary);
+        assert!((t.value(355.0, Direction::Forward) - 1.0).abs() < 1e-12);
+        assert!((t.value(-5.0, Direction::Forward) - 1.0).abs() < 1e-12);
+        assert!((t.value(715.0, Direction::Forward) - 1.0).abs() < 1e-12);
+        // Continuity at 360°.
+        let below = t.value(360.0 - 1e-9, Direction::Forward);
+        let above = t.value(360.0 + 1e-9, Direction::Forward);
+        assert!((below - above).abs() < 1e-6);
+        assert!(above.abs() < 1e-6);
+    }
+
+    #[test]
+    fn rotary_full_circle_must_close() {
+        let err = CompTable::new(
+            vec![0.0, 180.0, 360.0],
+            vec![0.0, 1.0, 0.5],
+            Wrap::Rotary,
+            Interpolation::Linear,
+        )
+        .unwrap_err();
+        assert!(matches!(err, TableError::JointMismatch { .. }));
+        let t = CompTable::new(
+            vec![0.0, 180.0, 360.0],
+            vec![0.0, 1.0, 0.0],
+            Wrap::Rotary,
+            Interpolation::MonotoneCubic,
+        )
+        .unwrap();
+        assert!(t.value(359.999_999, Direction::Forward).abs() < 1e-5);
+        assert!(t.value(0.000_001, Direction::Forward).abs() < 1e-5);
+        assert!(matches!(
+            CompTable::new(
+                vec![0.0, 361.0],
+                vec![0.0, 0.0],
+                Wrap::Rotary,
+                Interpolation::Linear
+            ),
+            Err(TableError::SpanTooLarge { .. })
+        ));
+    }
+
+    #[test]
+    fn bad_tables_are_refused() {
+        assert_eq!(
+            CompTable::new(vec![0.0], vec![0.0], Wrap::Hold, Interpolation::Linear),
+            Err(TableError::TooFewPoints(1))
+        );
+        assert_eq!(
+            CompTable::new(
+                vec![0.0, 1.0, 1.0],
+                vec![0.0; 3],
+                Wrap::Hold,
+                Interpolation::Linear
+            ),
+            Err(TableError::NotIncreasing { index: 2 })
+        );
+        assert_eq!(
+            CompTable::new(
+                vec![0.0, 1.0],
+                vec![0.0, f64::NAN],
+                Wrap::Hold,
+                Interpolation::Linear
+            ),
+            Err(TableError::NonFinite { index: 1 })
+        );
+        assert!(matches!(
+            CompTable::directional(
+                vec![0.0, 1.0],
+                vec![0.0; 2],
+                vec![0.0; 3],
+                Wrap::Hold,
+                Interpolation::Linear
+            ),
+            Err(TableError::LengthMismatch { .. })
+        ));
+    }
+
+    #[test]
+    fn directional_table_picks_its_column() {
+        // Backlash of 4 µm: forward reads +2, reverse −2.
+        let t = CompTable::directional(
+            vec![0.0, 100.0],
+            vec![2.0, 2.0],
+            vec![-2.0, -2.0],
+            Wrap::Hold,
+            Interpolation::Linear,
+        )
+        .unwrap();
+        assert_eq!(t.value(50.0, Direction::Forward), 2.0);
+        assert_eq!(t.value(50.0, Direction::Reverse), -2.0);
+    }
+
+    #[test]
+    fn monotone_cubic_stays_within_neighbours_and_hits_support_points() {
+        // A step-like table: linear-free cubics would overshoot beyond 1 near x = 2.
+        let p = vec![0.0, 1.0, 2.0, 3.0, 10.0];
+        let v = vec![0.0, 0.0, 1.0, 1.0, 1.5];
+        let t = CompTable::new(
+            p.clone(),
+            v.clone(),
+            Wrap::Hold,
+            Interpolation::MonotoneCubic,
+        )
+        .unwrap();
+        for (x, y) in p.iter().zip(&v) {
+            assert!((t.value(*x, Direction::Forward) - y).abs() < 1e-12);
+        }
+        for k in 0..=1000 {
+            let x = 10.0 * k as f64 / 1000.0;
+            let i = p.partition_point(|&q| q <= x).clamp(1, p.len() - 1);
+            let (lo, hi) = (v[i - 1].min(v[i]), v[i - 1].max(v[i]));
+            let y = t.value(x, Direction::Forward);
+            assert!(y >= lo - 1e-12 && y <= hi + 1e-12, "x={x} y={y}");
+        }
+        // On the flat segment [0, 1] the slopes at both ends are 0: the value stays 0.
+        assert_eq!(t.value(0.5, Direction::Forward), 0.0);
+        // Derivative check by central difference at 2.5.
+        let (_, s) = t.value_and_slope(2.5, Direction::Forward);
+        let fd = (t.value(2.5 + 1e-6, Direction::Forward)
+            - t.value(2.5 - 1e-6, Direction::Forward))
+            / 2e-6;
+        assert!((s - fd).abs() < 1e-6);
+    }
+
+    #[test]
+    fn step_detects_equidistant_tables() {
+        let t = lin(vec![0.0, 10.0, 20.0], vec![0.0; 3], Wrap::Hold);
+        assert_eq!(t.step(1e-9), Some(10.0));
+        let t = lin(vec![0.0, 10.0, 25.0], vec![0.0; 3], Wrap::Hold);
+        assert_eq!(t.step(1e-9), None);
+    }
+}
