@@ -1,9 +1,206 @@
-//! `truepos eval`: a model on a recorded run.
+//! `truepos eval`: a model on a recorded run, as a user checks a model before trusting it.
+
+use std::io::Write;
+use std::path::PathBuf;
+
+use truepos_io::{cycles, machine_file, model_file};
+use truepos_model::CycleInput;
 
 /// Arguments of `truepos eval`.
 #[derive(clap::Args)]
-pub struct Args {}
+pub struct Args {
+    /// Machine description (TOML).
+    #[arg(long, default_value = "examples/vmc3/machine.toml")]
+    machine: PathBuf,
+    /// Model file (TOML, or JSON by extension).
+    #[arg(long, default_value = "examples/vmc3/model.toml")]
+    model: PathBuf,
+    /// Run CSV of cycles: time_s, <axis>_mm / <axis>_deg, temperatures, operating state.
+    #[arg(long, default_value = "examples/vmc3/run.csv")]
+    run: PathBuf,
+    /// Where to write per-axis offsets (CSV); `-` for standard output.
+    #[arg(long, short, default_value = "-")]
+    out: PathBuf,
+    /// Print a summary as JSON (and write the CSV only if --out names a file).
+    #[arg(long)]
+    json: bool,
+}
 
-pub fn run(_args: Args) -> Result<(), String> {
-    Err("not yet".into())
+/// Per-axis figures over the run.
+struct AxisSummary {
+    name: String,
+    min_um: f64,
+    max_um: f64,
+    max_abs_um: f64,
+}
+
+pub fn run(args: Args) -> Result<(), String> {
+    let machine = machine_file::load(&args.machine)
+        .map_err(|e| e.to_string())?
+        .machine;
+    let model = model_file::load(&args.model, &machine).map_err(|e| e.to_string())?;
+    let cycles = cycles::load(&args.run, &machine, model.used_sensors()).map_err(|e| e.to_string())?;
+
+    let to_stdout = args.out.as_os_str() == "-";
+    let mut writer: Option<csv::Writer<Box<dyn Write>>> = if to_stdout && args.json {
+        None
+    } else if to_stdout {
+        Some(csv::Writer::from_writer(Box::new(std::io::stdout().lock())))
+    } else {
+        let f = std::fs::File::create(&args.out)
+            .map_err(|e| format!("{}: cannot write: {e}", args.out.display()))?;
+        Some(csv::Writer::from_writer(Box::new(std::io::BufWriter::new(f))))
+    };
+    let io_err = |e: csv::Error| format!("{}: cannot write: {e}", args.out.display());
+    let n_axes = model.axis_count();
+    if let Some(w) = writer.as_mut() {
+        let mut header = vec!["time_s".to_string()];
+        for a in &machine.axes[..n_axes] {
+            header.push(format!("{}_error_um", a.name));
+            header.push(format!("{}_comp_um", a.name));
+        }
+        header.push("status".into());
+        w.write_record(&header).map_err(io_err)?;
+    }
+
+    let mut summary: Vec<AxisSummary> = machine.axes[..n_axes]
+        .iter()
+        .map(|a| AxisSummary {
+            name: a.name.clone(),
+            min_um: f64::INFINITY,
+            max_um: f64::NEG_INFINITY,
+            max_abs_um: 0.0,
+        })
+        .collect();
+    let mut failed = 0usize;
+    let mut first_failure: Option<String> = None;
+    for i in 0..cycles.time_s.len() {
+        let input = CycleInput {
+            temperatures_c: &cycles.temperatures_c[i],
+            positions: &cycles.positions[i],
+            operating: &cycles.operating[i],
+        };
+        let mut record = vec![format!("{}", cycles.time_s[i])];
+        match model.evaluate(&input) {
+            Ok(c) => {
+                for (a, s) in summary.iter_mut().enumerate() {
+                    let e = c.error_um()[a];
+                    s.min_um = s.min_um.min(e);
+                    s.max_um = s.max_um.max(e);
+                    s.max_abs_um = s.max_abs_um.max(e.abs());
+                    record.push(format!("{e:.6}"));
+                    record.push(format!("{:.6}", c.compensation_um(a)));
+                }
+                record.push("ok".into());
+            }
+            Err(e) => {
+                // A failed cycle writes no number at all: a blank cell can never be taken for
+                // a compensation, a NaN might.
+                failed += 1;
+                let reason = describe(&e, &machine);
+                if first_failure.is_none() {
+                    first_failure = Some(format!(
+                        "{}:{}: {reason}",
+                        args.run.display(),
+                        cycles.line[i]
+                    ));
+                }
+                record.extend(std::iter::repeat_n(String::new(), 2 * n_axes));
+                record.push(format!("error: {reason}"));
+            }
+        }
+        if let Some(w) = writer.as_mut() {
+            if let Err(e) = w.write_record(&record) {
+                if is_broken_pipe(&e) {
+                    // The reader (`head`, a pager) has seen enough.
+                    return Ok(());
+                }
+                return Err(io_err(e));
+            }
+        }
+    }
+    if let Some(mut w) = writer {
+        w.flush().map_err(|e| format!("{}: cannot write: {e}", args.out.display()))?;
+    }
+
+    let rows = cycles.time_s.len();
+    if args.json {
+        let axes: Vec<serde_json::Value> = summary
+            .iter()
+            .map(|s| {
+                let finite = |v: f64| if v.is_finite() { Some(v) } else { None };
+                serde_json::json!({
+                    "axis": s.name,
+                    "min_error_um": finite(s.min_um),
+                    "max_error_um": finite(s.max_um),
+                    "max_abs_error_um": s.max_abs_um,
+                })
+            })
+            .collect();
+        let v = serde_json::json!({
+            "machine": machine.name,
+            "model": model.name(),
+            "run": args.run.display().to_string(),
+            "cycles": rows,
+            "failed_cycles": failed,
+            "first_failure": first_failure,
+            "axes": axes,
+        });
+        println!("{v}");
+    } else {
+        eprintln!(
+            "{} cycles of {} evaluated with model `{}` ({} failed)",
+            rows,
+            args.run.display(),
+            model.name(),
+            failed
+        );
+        for s in &summary {
+            if s.min_um.is_finite() {
+                eprintln!(
+                    "  {:>4}: predicted error {:+9.3} … {:+9.3} µm",
+                    s.name, s.min_um, s.max_um
+                );
+            }
+        }
+        if let Some(f) = &first_failure {
+            eprintln!("  first failed cycle: {f}");
+        }
+    }
+    Ok(())
+}
+
+fn is_broken_pipe(e: &csv::Error) -> bool {
+    matches!(e.kind(), csv::ErrorKind::Io(io) if io.kind() == std::io::ErrorKind::BrokenPipe)
+}
+
+/// An evaluation error with channel names instead of indices.
+fn describe(e: &truepos_model::EvalError, machine: &truepos_model::Machine) -> String {
+    use truepos_model::EvalError as E;
+    let sensor = |c: usize| machine.temperatures.get(c).map_or("?", |t| t.id.as_str());
+    let axis = |a: usize| machine.axes.get(a).map_or("?", |x| x.name.as_str());
+    match *e {
+        E::NonFiniteTemperature { channel } => {
+            format!("temperature `{}` is not a number", sensor(channel))
+        }
+        E::TemperatureOutOfRange { channel, value } => {
+            let t = &machine.temperatures[channel];
+            format!(
+                "temperature `{}` reads {value} °C, outside its valid range [{}, {}]",
+                t.id, t.valid_min_c, t.valid_max_c
+            )
+        }
+        E::NonFinitePosition { axis: a } => format!("position of axis `{}` is not a number", axis(a)),
+        E::PositionOutsideTravel { axis: a, value } => {
+            let x = &machine.axes[a];
+            format!(
+                "position {value} of axis `{}` is outside its travel [{}, {}]",
+                x.name, x.travel_min, x.travel_max
+            )
+        }
+        E::NonFiniteResult { axis: a } => {
+            format!("the correction of axis `{}` is not a finite number", axis(a))
+        }
+        E::InputLength { .. } => e.to_string(),
+    }
 }

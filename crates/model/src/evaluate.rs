@@ -84,7 +84,10 @@ impl fmt::Display for EvalError {
                 write!(f, "position of axis #{axis} is not a finite number")
             }
             Self::PositionOutsideTravel { axis, value } => {
-                write!(f, "position {value} of axis #{axis} lies outside its travel")
+                write!(
+                    f,
+                    "position {value} of axis #{axis} lies outside its travel"
+                )
             }
             Self::NonFiniteResult { axis } => {
                 write!(f, "the correction of axis #{axis} is not a finite number")
@@ -129,7 +132,8 @@ impl Correction {
     /// The compensation to add to the set-point of `axis` in µm: −error.
     pub fn compensation_um(&self, axis: usize) -> f64 {
         if axis < self.axes {
-            -self.error_um[axis]
+            // 0 − e rather than −e: a zero error gives +0, not −0, in files and displays.
+            0.0 - self.error_um[axis]
         } else {
             0.0
         }
@@ -144,7 +148,11 @@ impl Model {
     /// within travel (± [`TRAVEL_TOLERANCE`]). Nothing here allocates or panics.
     pub fn evaluate(&self, input: &CycleInput<'_>) -> Result<Correction, EvalError> {
         let lengths = [
-            ("temperatures_c", self.temperature_count, input.temperatures_c.len()),
+            (
+                "temperatures_c",
+                self.temperature_count,
+                input.temperatures_c.len(),
+            ),
             ("positions", self.axes.len(), input.positions.len()),
             ("operating", self.operating_count, input.operating.len()),
         ];
