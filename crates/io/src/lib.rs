@@ -23,6 +23,7 @@
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
+pub mod comp_table;
 pub mod cycles;
 pub mod error;
 pub mod machine_file;
