@@ -39,7 +39,8 @@ pub fn run(args: Args) -> Result<(), String> {
         .map_err(|e| e.to_string())?
         .machine;
     let model = model_file::load(&args.model, &machine).map_err(|e| e.to_string())?;
-    let cycles = cycles::load(&args.run, &machine, model.used_sensors()).map_err(|e| e.to_string())?;
+    let cycles =
+        cycles::load(&args.run, &machine, model.used_sensors()).map_err(|e| e.to_string())?;
 
     let to_stdout = args.out.as_os_str() == "-";
     let mut writer: Option<csv::Writer<Box<dyn Write>>> = if to_stdout && args.json {
@@ -49,7 +50,9 @@ pub fn run(args: Args) -> Result<(), String> {
     } else {
         let f = std::fs::File::create(&args.out)
             .map_err(|e| format!("{}: cannot write: {e}", args.out.display()))?;
-        Some(csv::Writer::from_writer(Box::new(std::io::BufWriter::new(f))))
+        Some(csv::Writer::from_writer(Box::new(std::io::BufWriter::new(
+            f,
+        ))))
     };
     let io_err = |e: csv::Error| format!("{}: cannot write: {e}", args.out.display());
     let n_axes = model.axis_count();
@@ -120,7 +123,8 @@ pub fn run(args: Args) -> Result<(), String> {
         }
     }
     if let Some(mut w) = writer {
-        w.flush().map_err(|e| format!("{}: cannot write: {e}", args.out.display()))?;
+        w.flush()
+            .map_err(|e| format!("{}: cannot write: {e}", args.out.display()))?;
     }
 
     let rows = cycles.time_s.len();
@@ -190,7 +194,9 @@ fn describe(e: &truepos_model::EvalError, machine: &truepos_model::Machine) -> S
                 t.id, t.valid_min_c, t.valid_max_c
             )
         }
-        E::NonFinitePosition { axis: a } => format!("position of axis `{}` is not a number", axis(a)),
+        E::NonFinitePosition { axis: a } => {
+            format!("position of axis `{}` is not a number", axis(a))
+        }
         E::PositionOutsideTravel { axis: a, value } => {
             let x = &machine.axes[a];
             format!(
@@ -199,7 +205,10 @@ fn describe(e: &truepos_model::EvalError, machine: &truepos_model::Machine) -> S
             )
         }
         E::NonFiniteResult { axis: a } => {
-            format!("the correction of axis `{}` is not a finite number", axis(a))
+            format!(
+                "the correction of axis `{}` is not a finite number",
+                axis(a)
+            )
         }
         E::InputLength { .. } => e.to_string(),
     }

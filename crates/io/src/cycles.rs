@@ -143,7 +143,10 @@ pub fn read(
         };
         // Sensor and position values are passed on as read (NaN included): judging them is
         // the model's job, and a bad value must show as a failed cycle, not vanish here.
-        let positions = position_cols.iter().map(|&c| cell(c)).collect::<Result<_, _>>()?;
+        let positions = position_cols
+            .iter()
+            .map(|&c| cell(c))
+            .collect::<Result<_, _>>()?;
         let temperatures = temperature_cols
             .iter()
             .map(|c| c.map_or(Ok(f64::NAN), cell))

@@ -40,8 +40,7 @@ use std::path::Path;
 use serde::{Deserialize, Serialize};
 use toml::Spanned;
 use truepos_model::{
-    Carriage, Machine, Model, Part, PartForm, PositionFactor, PositionTerm, Reference,
-    Summand,
+    Carriage, Machine, Model, Part, PartForm, PositionFactor, PositionTerm, Reference, Summand,
 };
 
 use crate::error::{parse_toml, read_text, InputError};
@@ -387,7 +386,12 @@ impl ModelFile {
             }
         }
         let listed_axis = |s: &Spanned<String>, key: String| -> Result<usize, BindError> {
-            if !self.inputs.axes.iter().any(|a| a.name.get_ref() == s.get_ref()) {
+            if !self
+                .inputs
+                .axes
+                .iter()
+                .any(|a| a.name.get_ref() == s.get_ref())
+            {
                 let listed: Vec<&str> = self
                     .inputs
                     .axes
@@ -400,7 +404,11 @@ impl ModelFile {
                     format!(
                         "axis `{}` is not listed in [[inputs.axes]] (listed: {})",
                         s.get_ref(),
-                        if listed.is_empty() { "none".into() } else { listed.join(", ") }
+                        if listed.is_empty() {
+                            "none".into()
+                        } else {
+                            listed.join(", ")
+                        }
                     ),
                 ));
             }
@@ -429,7 +437,9 @@ impl ModelFile {
                     ),
                 ));
             }
-            Ok(machine.difference_index(s.get_ref()).expect("checked above"))
+            Ok(machine
+                .difference_index(s.get_ref())
+                .expect("checked above"))
         };
 
         let mut parts = Vec::new();
@@ -541,7 +551,8 @@ impl ModelFile {
                         });
                     }
                     if let Some(c) = p.constant_um {
-                        constants_um.push((axis, finite(c, axis_name, format!("{pkey}.constant_um"))?));
+                        constants_um
+                            .push((axis, finite(c, axis_name, format!("{pkey}.constant_um"))?));
                     }
                 }
             }

@@ -295,7 +295,9 @@ impl Machine {
             }
         }
         for t in &self.temperatures {
-            if !(t.valid_min_c.is_finite() && t.valid_max_c.is_finite() && t.valid_max_c > t.valid_min_c)
+            if !(t.valid_min_c.is_finite()
+                && t.valid_max_c.is_finite()
+                && t.valid_max_c > t.valid_min_c)
             {
                 return Err(MachineError::BadValidRange {
                     sensor: t.id.clone(),
