@@ -57,9 +57,16 @@ pub fn read(
         .from_reader(reader);
     let csv_err = |e: csv::Error| {
         let line = e.position().map_or(0, |p| p.line() as usize);
+        let message = match e.kind() {
+            csv::ErrorKind::UnequalLengths {
+                expected_len, len, ..
+            } => format!("expected {expected_len} fields as in the header, found {len}"),
+            csv::ErrorKind::Utf8 { .. } => "expected UTF-8 text".to_string(),
+            _ => e.to_string(),
+        };
         match line {
-            0 => InputError::file(path, e.to_string()),
-            l => InputError::at(path, l, 1, "", e.to_string()),
+            0 => InputError::file(path, message),
+            l => InputError::at(path, l, 1, "", message),
         }
     };
     let header: Vec<String> = rdr

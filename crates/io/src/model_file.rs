@@ -254,8 +254,15 @@ pub fn parse(path: &Path, text: &str, machine: &Machine) -> Result<Model, InputE
 /// Reads model-file JSON text and binds it to a machine. Syntax errors name line and column;
 /// the JSON is then read through the TOML data model, so other errors name the key only.
 pub fn parse_json(path: &Path, text: &str, machine: &Machine) -> Result<Model, InputError> {
-    let value: serde_json::Value = serde_json::from_str(text)
-        .map_err(|e| InputError::at(path, e.line(), e.column(), "", e.to_string()))?;
+    let value: serde_json::Value = serde_json::from_str(text).map_err(|e| {
+        // serde_json appends " at line L column C"; the position goes in front instead.
+        let message = e.to_string();
+        let message = message
+            .rsplit_once(" at line ")
+            .map_or(message.as_str(), |(m, _)| m)
+            .to_string();
+        InputError::at(path, e.line(), e.column(), "", message)
+    })?;
     let as_toml = toml::to_string(&value).map_err(|e| {
         InputError::file(
             path,

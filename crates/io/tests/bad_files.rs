@@ -1,0 +1,350 @@
+//! Malformed machine and model files: each gets one exact message naming file, line, column,
+//! key and what was expected.
+
+use std::path::Path;
+
+use truepos_io::{machine_file, model_file};
+
+const MACHINE: &str = r#"[machine]
+name = "two-axis"
+
+[[axis]]
+name = "X"
+kind = "linear"
+travel = [0.0, 500.0]
+
+[[axis]]
+name = "Y"
+kind = "linear"
+travel = [0.0, 400.0]
+carried_by = "X"
+
+[[temperature]]
+id = "x_bottom"
+valid_range = [0.0, 80.0]
+
+[[temperature]]
+id = "x_top"
+valid_range = [0.0, 80.0]
+
+[[difference]]
+name = "dT_x"
+plus = "x_bottom"
+minus = "x_top"
+"#;
+
+const MODEL: &str = r#"format = "truepos-model"
+version = 1
+name = "bend"
+machine = "two-axis"
+
+[[inputs.axes]]
+name = "X"
+travel = [0.0, 500.0]
+
+[[inputs.axes]]
+name = "Y"
+travel = [0.0, 400.0]
+
+[[inputs.differences]]
+name = "dT_x"
+plus = "x_bottom"
+minus = "x_top"
+
+[[part]]
+name = "structure"
+form = "position-dependent"
+
+[[part.term]]
+axis = "Y"
+difference = "dT_x"
+k0_um_per_k = 2.0
+position = [{ axis = "X", factor = "ratio", k_um_per_k = 4.0 }]
+"#;
+
+fn machine_error(text: &str) -> String {
+    machine_file::parse(Path::new("m.toml"), text)
+        .expect_err("the file must be refused")
+        .to_string()
+}
+
+fn model_error(text: &str) -> String {
+    let machine = machine_file::parse(Path::new("m.toml"), MACHINE)
+        .unwrap()
+        .machine;
+    model_file::parse(Path::new("k.toml"), text, &machine)
+        .expect_err("the file must be refused")
+        .to_string()
+}
+
+/// Replaces exactly one occurrence, so that a fixture cannot silently stop applying.
+fn edit(text: &str, from: &str, to: &str) -> String {
+    assert_eq!(text.matches(from).count(), 1, "`{from}` must occur once");
+    text.replacen(from, to, 1)
+}
+
+#[test]
+fn the_unedited_files_are_accepted() {
+    let m = machine_file::parse(Path::new("m.toml"), MACHINE).unwrap();
+    assert_eq!(m.machine.axes[1].carried_by, Some(0));
+    model_file::parse(Path::new("k.toml"), MODEL, &m.machine).unwrap();
+}
+
+// ---- machine files ----
+
+#[test]
+fn m01_toml_syntax_error() {
+    let text = edit(
+        MACHINE,
+        "kind = \"linear\"\ntravel = [0.0, 500.0]",
+        "kind = \"linear\ntravel = [0.0, 500.0]",
+    );
+    assert_eq!(machine_error(&text), "m.toml:6:15: invalid basic string");
+}
+
+#[test]
+fn m02_travel_not_positive() {
+    let text = edit(MACHINE, "travel = [0.0, 400.0]", "travel = [400.0, 400.0]");
+    assert_eq!(
+        machine_error(&text),
+        "m.toml:12:10: `axis[1].travel`: expected [min, max] with max > min (travel > 0), got [400, 400]"
+    );
+}
+
+#[test]
+fn m03_unknown_axis_kind() {
+    let text = edit(
+        MACHINE,
+        "name = \"Y\"\nkind = \"linear\"",
+        "name = \"Y\"\nkind = \"linaer\"",
+    );
+    assert_eq!(
+        machine_error(&text),
+        "m.toml:11:8: `axis[1].kind`: unknown variant `linaer`, expected `linear` or `rotary`"
+    );
+}
+
+#[test]
+fn m04_duplicate_axis_name() {
+    let text = edit(MACHINE, "name = \"Y\"", "name = \"X\"");
+    assert_eq!(
+        machine_error(&text),
+        "m.toml:10:8: `axis[1].name`: duplicate axis `X` (first defined as axis[0]); names must be unique"
+    );
+}
+
+#[test]
+fn m05_unknown_sensor_in_difference() {
+    let text = edit(MACHINE, "minus = \"x_top\"", "minus = \"x_tpo\"");
+    assert_eq!(
+        machine_error(&text),
+        "m.toml:26:9: `difference[0].minus`: unknown temperature sensor `x_tpo`; expected one of: x_bottom, x_top"
+    );
+}
+
+#[test]
+fn m06_difference_references_itself() {
+    let text = edit(MACHINE, "minus = \"x_top\"", "minus = \"x_bottom\"");
+    assert_eq!(
+        machine_error(&text),
+        "m.toml:26:9: `difference[0].minus`: difference `dT_x` references itself (`x_bottom` minus `x_bottom`); expected another sensor or minus_fixed"
+    );
+}
+
+#[test]
+fn m07_unknown_carrying_axis() {
+    let text = edit(MACHINE, "carried_by = \"X\"", "carried_by = \"W\"");
+    assert_eq!(
+        machine_error(&text),
+        "m.toml:13:14: `axis[1].carried_by`: unknown axis `W`; expected one of: X, Y"
+    );
+}
+
+#[test]
+fn m08_axes_carry_each_other() {
+    let text = edit(
+        MACHINE,
+        "travel = [0.0, 500.0]\n",
+        "travel = [0.0, 500.0]\ncarried_by = \"Y\"\n",
+    );
+    assert_eq!(
+        machine_error(&text),
+        "m.toml:8:14: `carried_by`: axis `X` rests on itself through carried_by; the axes must form a chain from the base"
+    );
+}
+
+#[test]
+fn m09_unknown_key() {
+    let text = edit(
+        MACHINE,
+        "valid_range = [0.0, 80.0]\n\n[[difference]]",
+        "valid_range = [0.0, 80.0]\nunit = \"K\"\n\n[[difference]]",
+    );
+    assert_eq!(
+        machine_error(&text),
+        "m.toml:22:1: `temperature[1].unit`: unknown field `unit`, expected one of `id`, `location`, `valid_range`"
+    );
+}
+
+#[test]
+fn m10_missing_travel() {
+    let text = edit(MACHINE, "travel = [0.0, 400.0]\n", "");
+    assert_eq!(
+        machine_error(&text),
+        "m.toml:9:1: `axis[1]`: missing field `travel`"
+    );
+}
+
+#[test]
+fn m11_valid_range_reversed() {
+    let text = edit(
+        MACHINE,
+        "id = \"x_top\"\nvalid_range = [0.0, 80.0]",
+        "id = \"x_top\"\nvalid_range = [80.0, 0.0]",
+    );
+    assert_eq!(
+        machine_error(&text),
+        "m.toml:21:15: `temperature[1].valid_range`: expected [min, max] in °C with max > min, got [80, 0]"
+    );
+}
+
+#[test]
+fn m12_both_minus_and_minus_fixed() {
+    let text = edit(
+        MACHINE,
+        "minus = \"x_top\"",
+        "minus = \"x_top\"\nminus_fixed = 20.0",
+    );
+    assert_eq!(
+        machine_error(&text),
+        "m.toml:27:15: `difference[0].minus_fixed`: expected either `minus` (a sensor) or `minus_fixed` (°C), not both"
+    );
+}
+
+#[test]
+fn m13_travel_is_not_a_pair_of_numbers() {
+    let text = edit(MACHINE, "travel = [0.0, 500.0]", "travel = \"0..500\"");
+    assert_eq!(
+        machine_error(&text),
+        "m.toml:7:10: `axis[0].travel`: invalid type: string \"0..500\", expected an array of length 2"
+    );
+}
+
+#[test]
+fn m14_no_axes() {
+    let text = "[machine]\nname = \"empty\"\n";
+    assert_eq!(
+        machine_error(text),
+        "m.toml:1:1: `axis`: expected at least one [[axis]] table"
+    );
+}
+
+// ---- model files ----
+
+#[test]
+fn k01_wrong_machine() {
+    let text = edit(MODEL, "machine = \"two-axis\"", "machine = \"lathe\"");
+    assert_eq!(
+        model_error(&text),
+        "k.toml:4:11: `machine`: the model was made for machine `lathe`, but the machine description is `two-axis`"
+    );
+}
+
+#[test]
+fn k02_unsupported_version() {
+    let text = edit(MODEL, "version = 1", "version = 7");
+    assert_eq!(
+        model_error(&text),
+        "k.toml:2:11: `version`: model file version 7 is not supported; this build reads version 1"
+    );
+}
+
+#[test]
+fn k03_travel_mismatch() {
+    let text = edit(MODEL, "travel = [0.0, 400.0]", "travel = [0.0, 600.0]");
+    assert_eq!(
+        model_error(&text),
+        "k.toml:12:10: `inputs.axes[1].travel`: the model was made for axis `Y` with travel [0, 600], but the machine has [0, 400]"
+    );
+}
+
+#[test]
+fn k04_difference_defined_otherwise() {
+    let text = edit(MODEL, "minus = \"x_top\"", "minus_fixed = 20.0");
+    assert_eq!(
+        model_error(&text),
+        "k.toml:15:8: `inputs.differences[0].name`: the model was made for `dT_x` = x_bottom − 20 °C, but the machine defines it as x_bottom − x_top"
+    );
+}
+
+#[test]
+fn k05_term_uses_unlisted_difference() {
+    let text = edit(MODEL, "difference = \"dT_x\"", "difference = \"dT_y\"");
+    assert_eq!(
+        model_error(&text),
+        "k.toml:25:14: `part[0].term[0].difference`: temperature difference `dT_y` is not listed in [[inputs.differences]] (listed: dT_x)"
+    );
+}
+
+#[test]
+fn k06_unknown_factor() {
+    let text = edit(MODEL, "factor = \"ratio\"", "factor = \"cubic\"");
+    assert_eq!(
+        model_error(&text),
+        "k.toml:27:36: `part[0].term[0].position[0].factor`: unknown variant `cubic`, expected one of `ratio`, `ratio-squared`, `bed`"
+    );
+}
+
+#[test]
+fn k07_axis_the_machine_lacks() {
+    let text = edit(MODEL, "name = \"Y\"\ntravel", "name = \"Z\"\ntravel");
+    assert_eq!(
+        model_error(&text),
+        "k.toml:11:8: `inputs.axes[1].name`: the model needs axis `Z`, which machine `two-axis` does not have"
+    );
+}
+
+#[test]
+fn k08_not_a_model_file() {
+    let text = edit(MODEL, "format = \"truepos-model\"", "format = \"klipper\"");
+    assert_eq!(
+        model_error(&text),
+        "k.toml:1:10: `format`: expected \"truepos-model\", got \"klipper\"; this is not a truepos model file"
+    );
+}
+
+#[test]
+fn k09_regression_without_axis() {
+    let text = format!(
+        "{MODEL}\n[[part]]\nname = \"spindle\"\nform = \"regression\"\nterms = [{{ difference = \"dT_x\", k_um_per_k = 1.0 }}]\n"
+    );
+    assert_eq!(
+        model_error(&text),
+        "k.toml:30:8: `part[1].axis`: a regression part needs `axis`, the direction of the error it describes"
+    );
+}
+
+#[test]
+fn k10_duplicate_part() {
+    let text =
+        format!("{MODEL}\n[[part]]\nname = \"structure\"\nform = \"regression\"\naxis = \"X\"\n");
+    assert_eq!(
+        model_error(&text),
+        "k.toml:30:8: `part[1].name`: duplicate part `structure` (first defined as part[0]); names must be unique"
+    );
+}
+
+#[test]
+fn k11_json_syntax_error() {
+    let machine = machine_file::parse(Path::new("m.toml"), MACHINE)
+        .unwrap()
+        .machine;
+    let err = model_file::parse_json(
+        Path::new("k.json"),
+        "{\n  \"format\": \"truepos-model\",\n  \"version\": 1,,\n}",
+        &machine,
+    )
+    .unwrap_err()
+    .to_string();
+    assert_eq!(err, "k.json:3:16: key must be a string");
+}
