@@ -63,6 +63,7 @@ extern crate alloc;
 extern crate std;
 
 pub mod evaluate;
+pub mod kinematics;
 pub mod machine;
 pub mod model;
 pub mod table;

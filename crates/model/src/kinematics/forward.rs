@@ -1,0 +1,346 @@
+//! Forward transform: axis set-points (+ tool length) → TCP and tool direction in workpiece
+//! coordinates, nominal or through the error tables, optionally with the exact Jacobian
+//! (forward-mode differentiation through every row, including the slopes of the tables).
+
+use super::{Chain, Directions, Geometry, KinError, Pose, Step, DEG};
+use crate::machine::{AxisKind, MAX_AXES};
+
+/// Derivatives of the TCP (`dp`) and the tool direction (`dd`) with respect to each axis, per
+/// mm for linear axes and per radian for rotary ones.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Tangents {
+    pub dp: [[f64; 3]; MAX_AXES],
+    pub dd: [[f64; 3]; MAX_AXES],
+}
+
+impl Tangents {
+    pub const ZERO: Self = Self {
+        dp: [[0.0; 3]; MAX_AXES],
+        dd: [[0.0; 3]; MAX_AXES],
+    };
+}
+
+/// x ← R_k(θ)·x with c = cos θ, s = sin θ (active rotation about coordinate axis k).
+#[inline(always)]
+fn rotate(x: &mut [f64; 3], k: usize, c: f64, s: f64) {
+    let (i, j) = ((k + 1) % 3, (k + 2) % 3);
+    let (a, b) = (x[i], x[j]);
+    x[i] = c * a - s * b;
+    x[j] = s * a + c * b;
+}
+
+/// t += g · (e_k × x).
+#[inline(always)]
+fn add_cross(t: &mut [f64; 3], k: usize, x: &[f64; 3], g: f64) {
+    let (i, j) = ((k + 1) % 3, (k + 2) % 3);
+    t[i] -= g * x[j];
+    t[j] += g * x[i];
+}
+
+impl Chain {
+    /// Checks that `q` has one finite value per axis.
+    pub(crate) fn check_positions(&self, q: &[f64]) -> Result<(), KinError> {
+        if q.len() != self.axes.len() {
+            return Err(KinError::AxisCount {
+                expected: self.axes.len(),
+                got: q.len(),
+            });
+        }
+        if q.iter().any(|v| !v.is_finite()) {
+            return Err(KinError::NonFinite);
+        }
+        Ok(())
+    }
+
+    /// The tool pose in workpiece coordinates for axis set-points `q` (mm, degrees, in
+    /// [`Chain::axes`] order), tool length `tool_mm`, travel directions `dirs` (for directional
+    /// tables) and `geometry`. Allocates nothing; a NaN/∞ input gives [`KinError::NonFinite`].
+    pub fn forward(
+        &self,
+        q: &[f64],
+        tool_mm: f64,
+        dirs: Directions,
+        geometry: Geometry,
+    ) -> Result<Pose, KinError> {
+        self.check_positions(q)?;
+        if !tool_mm.is_finite() {
+            return Err(KinError::NonFinite);
+        }
+        let pose = self.eval::<false>(q, tool_mm, dirs, geometry, None);
+        if pose
+            .position
+            .iter()
+            .chain(&pose.direction)
+            .all(|v| v.is_finite())
+        {
+            Ok(pose)
+        } else {
+            Err(KinError::NonFinite)
+        }
+    }
+
+    /// The pose and, if `JAC`, its exact derivatives. Inputs must be checked by the caller.
+    #[inline]
+    pub(crate) fn eval<const JAC: bool>(
+        &self,
+        q: &[f64],
+        tool_mm: f64,
+        dirs: Directions,
+        geometry: Geometry,
+        mut tangents: Option<&mut Tangents>,
+    ) -> Pose {
+        let n = self.axes.len();
+        let mut p = [0.0_f64; 3];
+        let mut d = [0.0, 0.0, 1.0_f64];
+        if JAC {
+            if let Some(t) = tangents.as_deref_mut() {
+                for j in 0..n {
+                    t.dp[j] = [0.0; 3];
+                    t.dd[j] = [0.0; 3];
+                }
+            }
+        }
+        let actual = geometry == Geometry::Actual;
+        for step in &self.steps {
+            match *step {
+                Step::Translate { k, v } => p[k] += v,
+                Step::Tool { k, sign, offset } => p[k] += sign * tool_mm + offset,
+                Step::AxisTranslate { k, axis, sign } => {
+                    p[k] += sign * q[axis];
+                    if JAC {
+                        if let Some(t) = tangents.as_deref_mut() {
+                            t.dp[axis][k] += sign;
+                        }
+                    }
+                }
+                Step::ErrTranslate {
+                    k,
+                    offset,
+                    table,
+                    axis,
+                    scale,
+                } => {
+                    if actual {
+                        let (v, slope) = self.tables[table]
+                            .table
+                            .value_and_slope(q[axis], dirs.of(axis));
+                        p[k] += offset + scale * v;
+                        if JAC {
+                            if let Some(t) = tangents.as_deref_mut() {
+                                t.dp[axis][k] += scale * slope * self.per_unit(axis);
+                            }
+                        }
+                    } else {
+                        p[k] += offset;
+                    }
+                }
+                Step::Rotate { k, c, s } => {
+                    rotate(&mut p, k, c, s);
+                    rotate(&mut d, k, c, s);
+                    if JAC {
+                        if let Some(t) = tangents.as_deref_mut() {
+                            for j in 0..n {
+                                rotate(&mut t.dp[j], k, c, s);
+                                rotate(&mut t.dd[j], k, c, s);
+                            }
+                        }
+                    }
+                }
+                Step::AxisRotate { k, axis, sign } => {
+                    let (s, c) = super::sincos(sign * q[axis] * DEG);
+                    rotate(&mut p, k, c, s);
+                    rotate(&mut d, k, c, s);
+                    if JAC {
+                        if let Some(t) = tangents.as_deref_mut() {
+                            for j in 0..n {
+                                rotate(&mut t.dp[j], k, c, s);
+                                rotate(&mut t.dd[j], k, c, s);
+                            }
+                            add_cross(&mut t.dp[axis], k, &p, sign);
+                            add_cross(&mut t.dd[axis], k, &d, sign);
+                        }
+                    }
+                }
+                Step::ErrRotate {
+                    k,
+                    offset,
+                    table,
+                    axis,
+                    scale,
+                } => {
+                    let (angle, slope) = if actual {
+                        let (v, slope) = self.tables[table]
+                            .table
+                            .value_and_slope(q[axis], dirs.of(axis));
+                        (offset + scale * v, scale * slope)
+                    } else {
+                        (offset, 0.0)
+                    };
+                    let (s, c) = super::sincos(angle);
+                    rotate(&mut p, k, c, s);
+                    rotate(&mut d, k, c, s);
+                    if JAC {
+                        if let Some(t) = tangents.as_deref_mut() {
+                            for j in 0..n {
+                                rotate(&mut t.dp[j], k, c, s);
+                                rotate(&mut t.dd[j], k, c, s);
+                            }
+                            if actual {
+                                let g = slope * self.per_unit(axis);
+                                add_cross(&mut t.dp[axis], k, &p, g);
+                                add_cross(&mut t.dd[axis], k, &d, g);
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        Pose {
+            position: p,
+            direction: d,
+        }
+    }
+
+    /// d(axis position in mm or degrees) / d(internal unknown in mm or radians).
+    #[inline]
+    pub(crate) fn per_unit(&self, axis: usize) -> f64 {
+        match self.axes[axis].kind {
+            AxisKind::Linear => 1.0,
+            AxisKind::Rotary => 1.0 / DEG,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::kinematics::{Dof, ErrorTable, ErrorUnit, KinAxis, Row};
+    use crate::table::{CompTable, Interpolation, Wrap};
+    use alloc::vec;
+    use alloc::vec::Vec;
+
+    fn chain() -> Chain {
+        let rot_table = |name: &str, axis: usize, unit: ErrorUnit, amp: f64| {
+            let pos: Vec<f64> = (0..36).map(|i| 10.0 * i as f64).collect();
+            let val = pos
+                .iter()
+                .map(|p| amp * libm::sin(p * DEG * 2.0 + 0.3))
+                .collect();
+            ErrorTable {
+                name: name.into(),
+                axis,
+                unit,
+                table: CompTable::new(pos, val, Wrap::Rotary, Interpolation::MonotoneCubic)
+                    .unwrap(),
+            }
+        };
+        let lin_table = |name: &str, axis: usize, unit: ErrorUnit, amp: f64| {
+            let pos: Vec<f64> = (0..11).map(|i| -500.0 + 100.0 * i as f64).collect();
+            let val = pos.iter().map(|p| amp * libm::sin(p / 150.0)).collect();
+            ErrorTable {
+                name: name.into(),
+                axis,
+                unit,
+                table: CompTable::new(pos, val, Wrap::Hold, Interpolation::MonotoneCubic).unwrap(),
+            }
+        };
+        let ax = |name: &str, kind| KinAxis {
+            name: name.into(),
+            kind,
+            travel_min: -500.0,
+            travel_max: 500.0,
+        };
+        let axes = vec![
+            ax("X", AxisKind::Linear),
+            ax("A", AxisKind::Rotary),
+            ax("C", AxisKind::Rotary),
+        ];
+        // Large errors so that the table terms dominate the finite-difference check.
+        let tables = vec![
+            rot_table("FAX", 1, ErrorUnit::Millimetre, 0.5),
+            rot_table("FAB", 1, ErrorUnit::Degree, 2.0),
+            rot_table("FCA", 2, ErrorUnit::Degree, 3.0),
+            lin_table("FXC", 0, ErrorUnit::Degree, 1.0),
+        ];
+        let rows = vec![
+            Row::Tool {
+                dof: Dof::Z,
+                sign: -1.0,
+                offset: -100.0,
+            },
+            Row::Error {
+                dof: Dof::X,
+                offset: 0.0,
+                table: 0,
+            },
+            Row::Error {
+                dof: Dof::B,
+                offset: 1.0,
+                table: 1,
+            },
+            Row::Axis {
+                dof: Dof::A,
+                axis: 1,
+                sign: 1.0,
+            },
+            Row::Fixed {
+                dof: Dof::Y,
+                value: 30.0,
+            },
+            Row::Error {
+                dof: Dof::A,
+                offset: 0.0,
+                table: 2,
+            },
+            Row::Axis {
+                dof: Dof::C,
+                axis: 2,
+                sign: -1.0,
+            },
+            Row::Error {
+                dof: Dof::C,
+                offset: 0.0,
+                table: 3,
+            },
+            Row::Axis {
+                dof: Dof::X,
+                axis: 0,
+                sign: 1.0,
+            },
+        ];
+        Chain::new(axes, tables, rows).unwrap()
+    }
+
+    #[test]
+    fn jacobian_matches_finite_differences() {
+        let c = chain();
+        let q = [123.0, 37.0, -71.0];
+        let mut t = Tangents::ZERO;
+        c.eval::<true>(&q, 50.0, Directions(0), Geometry::Actual, Some(&mut t));
+        for j in 0..3 {
+            // Step in the internal unit (mm or rad) converted to mm or degrees.
+            let h = 1e-6;
+            let hq = h * c.per_unit(j);
+            let mut qp = q;
+            let mut qm = q;
+            qp[j] += hq;
+            qm[j] -= hq;
+            let a = c.eval::<false>(&qp, 50.0, Directions(0), Geometry::Actual, None);
+            let b = c.eval::<false>(&qm, 50.0, Directions(0), Geometry::Actual, None);
+            for i in 0..3 {
+                let fd_p = (a.position[i] - b.position[i]) / (2.0 * h);
+                let fd_d = (a.direction[i] - b.direction[i]) / (2.0 * h);
+                assert!(
+                    (fd_p - t.dp[j][i]).abs() < 1e-5 * (1.0 + fd_p.abs()),
+                    "dp[{j}][{i}] {fd_p} vs {}",
+                    t.dp[j][i]
+                );
+                assert!(
+                    (fd_d - t.dd[j][i]).abs() < 1e-6,
+                    "dd[{j}][{i}] {fd_d} vs {}",
+                    t.dd[j][i]
+                );
+            }
+        }
+    }
+}

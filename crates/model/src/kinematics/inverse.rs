@@ -1,0 +1,909 @@
+//! Inverse transform: TCP and tool direction in workpiece coordinates → axis set-points.
+//!
+//! 1. **Closed form on the nominal chain** (3 linear + 2 rotary axes, any fixed rotations
+//!    between them): the two rotations follow from the tool direction alone (Paden–Kahan
+//!    subproblem 2: two successive rotations about non-parallel axes that carry one unit vector
+//!    onto another; R. M. Murray, Z. Li, S. S. Sastry, "A Mathematical Introduction to Robotic
+//!    Manipulation", 1994, §3.3.2). Both branches are formed, each rotary angle is taken at the
+//!    multiple of 360° nearest the previous set-point within travel, the three linear axes
+//!    follow from a 3×3 linear system, and the branch nearest the previous set-point wins. At
+//!    the pole (tool direction along the outer rotary axis) the outer angle is undetermined
+//!    and keeps its previous value: no jump, no NaN.
+//! 2. **Error pre-correction**: the error the tables add at that solution is subtracted from
+//!    the target and the closed form is solved again (removes the errors to first order; also
+//!    handles poses near the pole where the errors move the outer angle a lot).
+//! 3. **Newton** (Gauss–Newton with Levenberg–Marquardt damping) through the full erroneous
+//!    chain with its exact Jacobian, until the real TCP is within [`POSITION_TOLERANCE_MM`] and
+//!    the real tool direction within [`DIRECTION_TOLERANCE_RAD`] of the target.
+//!
+//! Chains of another shape start Newton (damped least squares) from the previous set-point.
+
+#![allow(clippy::needless_range_loop)] // index-heavy small matrix maths reads clearer with indices
+
+use super::forward::Tangents;
+use super::{Chain, Directions, Geometry, KinAxis, KinError, Layout, Pose, Step, DEG};
+use crate::machine::{AxisKind, MAX_AXES};
+
+/// The inverse transform stops when the TCP is this close to the target (0.1 nm, a tenth of
+/// the 1 nm the issue asks for).
+pub const POSITION_TOLERANCE_MM: f64 = 1e-7;
+/// … and the tool direction this close (0.1 µrad).
+pub const DIRECTION_TOLERANCE_RAD: f64 = 1e-7;
+/// A 3-axis machine cannot turn the tool: a target direction further than this from the
+/// nominal tool direction is refused (real tilts from angular errors are far smaller).
+const THREE_AXIS_DIRECTION_SLACK: f64 = 1e-3;
+/// Weight (mm) of a tool direction deviation against a TCP deviation in the least squares.
+const DIRECTION_WEIGHT_MM: f64 = 100.0;
+/// Below this distance of the tool direction from a rotary axis (rad) the angle of that axis
+/// is undetermined (the pole) and keeps its previous value.
+const POLE: f64 = 1e-12;
+/// A set-point this far beyond the end of travel is still accepted (rounding).
+const TRAVEL_SLACK: f64 = 1e-9;
+
+type M3 = [[f64; 3]; 3];
+type V3 = [f64; 3];
+
+const I3: M3 = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+
+fn mul_mv(m: &M3, v: &V3) -> V3 {
+    [
+        m[0][0] * v[0] + m[0][1] * v[1] + m[0][2] * v[2],
+        m[1][0] * v[0] + m[1][1] * v[1] + m[1][2] * v[2],
+        m[2][0] * v[0] + m[2][1] * v[1] + m[2][2] * v[2],
+    ]
+}
+
+fn mul_tv(m: &M3, v: &V3) -> V3 {
+    [
+        m[0][0] * v[0] + m[1][0] * v[1] + m[2][0] * v[2],
+        m[0][1] * v[0] + m[1][1] * v[1] + m[2][1] * v[2],
+        m[0][2] * v[0] + m[1][2] * v[1] + m[2][2] * v[2],
+    ]
+}
+
+fn dot(a: &V3, b: &V3) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+fn cross(a: &V3, b: &V3) -> V3 {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+fn norm(a: &V3) -> f64 {
+    libm::sqrt(dot(a, a))
+}
+
+fn unit(k: usize) -> V3 {
+    let mut e = [0.0; 3];
+    e[k] = 1.0;
+    e
+}
+
+/// R_k(c, s)·M.
+fn rotate_m(m: &mut M3, k: usize, c: f64, s: f64) {
+    let (i, j) = ((k + 1) % 3, (k + 2) % 3);
+    for col in 0..3 {
+        let (a, b) = (m[i][col], m[j][col]);
+        m[i][col] = c * a - s * b;
+        m[j][col] = s * a + c * b;
+    }
+}
+
+/// The rotation angle about unit axis `u` that carries `from` onto `to` (both projected onto
+/// the plane normal to `u`), or `None` if either projection is at the pole.
+fn angle_about(u: &V3, from: &V3, to: &V3) -> Option<f64> {
+    let f = sub(from, &scale(u, dot(u, from)));
+    let t = sub(to, &scale(u, dot(u, to)));
+    if norm(&f) < POLE || norm(&t) < POLE {
+        return None;
+    }
+    Some(libm::atan2(dot(u, &cross(&f, &t)), dot(&f, &t)))
+}
+
+fn sub(a: &V3, b: &V3) -> V3 {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+fn scale(a: &V3, s: f64) -> V3 {
+    [a[0] * s, a[1] * s, a[2] * s]
+}
+
+/// Structure of a 5-axis chain for the closed form.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct FiveAxis {
+    linear: [usize; 3],
+    /// Rotary axes: [inner (nearer the tool), outer].
+    rotary: [usize; 2],
+    sign: [f64; 2],
+    /// Tool direction in the frame just before the inner axis.
+    v: V3,
+    /// Inner axis direction and tool direction, in the frame just before the outer axis.
+    u1: V3,
+    /// Rotations between the inner and the outer axis.
+    g1: M3,
+    /// Outer axis direction.
+    u2: V3,
+    /// Rotations after the outer axis.
+    g2: M3,
+}
+
+/// Finds the layout of a chain (see [`Layout`]).
+pub(crate) fn analyse(axes: &[KinAxis], steps: &[Step]) -> Layout {
+    let mut linear = [0usize; 3];
+    let mut nl = 0;
+    let mut rotary = [0usize; 2];
+    let mut sign = [0.0; 2];
+    let mut k_rot = [0usize; 2];
+    let mut nr = 0;
+    let mut m = I3;
+    let mut gs = [I3; 3];
+    for step in steps {
+        match *step {
+            Step::Rotate { k, c, s } => rotate_m(&mut m, k, c, s),
+            Step::ErrRotate { k, offset, .. } => {
+                let (s, c) = super::sincos(offset);
+                rotate_m(&mut m, k, c, s);
+            }
+            Step::AxisTranslate { axis, .. } => {
+                if nl < 3 {
+                    linear[nl] = axis;
+                }
+                nl += 1;
+            }
+            Step::AxisRotate { k, axis, sign: sg } => {
+                if nr < 2 {
+                    rotary[nr] = axis;
+                    sign[nr] = sg;
+                    k_rot[nr] = k;
+                    gs[nr] = m;
+                }
+                nr += 1;
+                m = I3;
+            }
+            _ => {}
+        }
+    }
+    debug_assert_eq!(nl + nr, axes.len());
+    match (nl, nr) {
+        (3, 0) => Layout::ThreeAxis { linear },
+        (3, 2) => {
+            gs[2] = m;
+            let v = mul_mv(&gs[0], &[0.0, 0.0, 1.0]);
+            let u1 = mul_mv(&gs[1], &unit(k_rot[0]));
+            let u2 = unit(k_rot[1]);
+            if norm(&cross(&u1, &u2)) < 1e-9 {
+                return Layout::General;
+            }
+            Layout::FiveAxis(FiveAxis {
+                linear,
+                rotary,
+                sign,
+                v,
+                u1,
+                g1: gs[1],
+                u2,
+                g2: gs[2],
+            })
+        }
+        _ => Layout::General,
+    }
+}
+
+/// What one inverse transform did.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct InverseReport {
+    /// Newton iterations after the closed form (0: the closed form was exact).
+    pub iterations: u32,
+    /// Remaining TCP deviation in mm.
+    pub position_residual_mm: f64,
+    /// Remaining tool direction deviation in rad (not controlled on machines with fewer than
+    /// two rotary axes).
+    pub direction_residual_rad: f64,
+    /// Travel directions of the axes at the new set-points (for directional tables).
+    pub directions: Directions,
+}
+
+/// The value of `q` + 360·m nearest `prev` inside travel, or `None`.
+fn nearest_turn(q: f64, prev: f64, axis: &KinAxis) -> Option<f64> {
+    let m0 = libm::round((prev - q) / 360.0);
+    let mut best: Option<f64> = None;
+    for dm in [-1.0, 0.0, 1.0, -2.0, 2.0] {
+        let c = q + 360.0 * (m0 + dm);
+        if c >= axis.travel_min - TRAVEL_SLACK && c <= axis.travel_max + TRAVEL_SLACK {
+            let better = best.is_none_or(|b| libm::fabs(c - prev) < libm::fabs(b - prev));
+            if better {
+                best = Some(c);
+            }
+        }
+    }
+    best
+}
+
+fn within_travel(axis: &KinAxis, v: f64) -> bool {
+    v >= axis.travel_min - TRAVEL_SLACK && v <= axis.travel_max + TRAVEL_SLACK
+}
+
+/// Solves the n×n system `a x = b` in place by Gaussian elimination with partial pivoting.
+fn solve(a: &mut [[f64; MAX_AXES]; MAX_AXES], b: &mut [f64; MAX_AXES], n: usize) -> bool {
+    for col in 0..n {
+        let mut piv = col;
+        for r in col + 1..n {
+            if libm::fabs(a[r][col]) > libm::fabs(a[piv][col]) {
+                piv = r;
+            }
+        }
+        if libm::fabs(a[piv][col]) <= 1e-300 || a[piv][col].is_nan() {
+            return false;
+        }
+        a.swap(col, piv);
+        b.swap(col, piv);
+        for r in col + 1..n {
+            let f = a[r][col] / a[col][col];
+            if f != 0.0 {
+                for c in col..n {
+                    a[r][c] -= f * a[col][c];
+                }
+                b[r] -= f * b[col];
+            }
+        }
+    }
+    for col in (0..n).rev() {
+        let mut s = b[col];
+        for c in col + 1..n {
+            s -= a[col][c] * b[c];
+        }
+        b[col] = s / a[col][col];
+    }
+    b[..n].iter().all(|v| v.is_finite())
+}
+
+impl Chain {
+    /// Axis set-points that put the tool at `target` (TCP in mm, direction normalised here) in
+    /// workpiece coordinates, written to `out` (one value per axis).
+    ///
+    /// `previous` are the last set-points (the branch and the turn of each rotary axis nearest
+    /// to them are chosen; at the pole the outer rotary axis keeps its value) and
+    /// `previous_dirs` the last travel directions. With [`Geometry::Actual`] the set-points
+    /// make the **real** tool, through every error table, land on the target. Allocates
+    /// nothing; failures (unreachable, outside travel, no convergence) are values.
+    pub fn inverse(
+        &self,
+        target: &Pose,
+        tool_mm: f64,
+        previous: &[f64],
+        previous_dirs: Directions,
+        geometry: Geometry,
+        out: &mut [f64],
+    ) -> Result<InverseReport, KinError> {
+        self.check_positions(previous)?;
+        let n = self.axes.len();
+        if out.len() != n {
+            return Err(KinError::AxisCount {
+                expected: n,
+                got: out.len(),
+            });
+        }
+        if !(tool_mm.is_finite()
+            && target
+                .position
+                .iter()
+                .chain(&target.direction)
+                .all(|v| v.is_finite()))
+        {
+            return Err(KinError::NonFinite);
+        }
+        let len = norm(&target.direction);
+        if len <= 1e-12 {
+            return Err(KinError::ZeroDirection);
+        }
+        let target = Pose {
+            position: target.position,
+            direction: scale(&target.direction, 1.0 / len),
+        };
+        let mut q = [0.0_f64; MAX_AXES];
+        let mut prev = [0.0_f64; MAX_AXES];
+        prev[..n].copy_from_slice(previous);
+        let with_errors = geometry == Geometry::Actual;
+        let use_direction = self.rotary_count() >= 2;
+        let closed = match &self.layout {
+            Layout::General => {
+                // Damped least squares from the previous set-point.
+                for j in 0..n {
+                    let a = &self.axes[j];
+                    q[j] = prev[j].clamp(a.travel_min, a.travel_max);
+                }
+                false
+            }
+            layout => {
+                self.closed_form(layout, &target, tool_mm, &prev, &mut q)?;
+                if with_errors {
+                    if let Layout::FiveAxis(fa) = layout {
+                        self.refine_frozen(fa, &target, tool_mm, &prev, previous_dirs, &mut q);
+                    }
+                }
+                true
+            }
+        };
+        let dirs = directions_from(&q, &prev, previous_dirs, n);
+        let mut report = InverseReport {
+            iterations: 0,
+            position_residual_mm: 0.0,
+            direction_residual_rad: 0.0,
+            directions: dirs,
+        };
+        if with_errors || !closed {
+            let max_iter = if closed { 100 } else { 200 };
+            let start = q;
+            let mut result = self.newton(
+                &target,
+                tool_mm,
+                dirs,
+                geometry,
+                use_direction,
+                max_iter,
+                &mut q,
+            );
+            if let (Err(KinError::NotConverged { .. }), Layout::FiveAxis(fa), true) =
+                (&result, &self.layout, with_errors)
+            {
+                // Within a few µrad of the real pole the outer angle is barely determined and
+                // Newton may creep: start again with the outer axis turned by 45°, 90°, …
+                let outer = fa.rotary[1];
+                for k in 1..8 {
+                    let mut q2 = start;
+                    q2[outer] += 45.0 * k as f64;
+                    if !within_travel(&self.axes[outer], q2[outer]) {
+                        q2[outer] -= 360.0;
+                    }
+                    self.refine_frozen(fa, &target, tool_mm, &prev, previous_dirs, &mut q2);
+                    let r2 = self.newton(
+                        &target,
+                        tool_mm,
+                        dirs,
+                        geometry,
+                        use_direction,
+                        max_iter,
+                        &mut q2,
+                    );
+                    if r2.is_ok() {
+                        q = q2;
+                        result = r2;
+                        break;
+                    }
+                }
+            }
+            let (it, rp, rd) = result?;
+            report.iterations = it;
+            report.position_residual_mm = rp;
+            report.direction_residual_rad = rd;
+        } else {
+            let pose = self.eval::<false>(&q[..n], tool_mm, dirs, geometry, None);
+            report.position_residual_mm = norm(&sub(&pose.position, &target.position));
+            report.direction_residual_rad = norm(&sub(&pose.direction, &target.direction));
+        }
+        for j in 0..n {
+            if !within_travel(&self.axes[j], q[j]) {
+                return Err(KinError::OutsideTravel {
+                    axis: j,
+                    value: q[j],
+                });
+            }
+        }
+        out.copy_from_slice(&q[..n]);
+        Ok(report)
+    }
+
+    /// Error pre-correction: solves the closed form again with every error rotation frozen at
+    /// the current set-points (and the TCP on the erroneous chain).
+    /// Near the pole the error tilts move the outer angle a lot and the plain
+    /// iteration q ← F(q) converges slowly or swings around the solution. The
+    /// steps s = F(q) − q are relaxed, q ← q + ω·s, with ω from the ratio t of
+    /// successive steps (a secant estimate of the contraction ρ of F:
+    /// ρ = 1 + (t − 1)/ω, and ω_next = 1/(1 − ρ) = ω/(1 − t)).
+    fn refine_frozen(
+        &self,
+        fa: &FiveAxis,
+        target: &Pose,
+        tool_mm: f64,
+        prev: &[f64; MAX_AXES],
+        previous_dirs: Directions,
+        q: &mut [f64; MAX_AXES],
+    ) {
+        let n = self.axes.len();
+        let mut omega = 1.0_f64;
+        let mut last = [0.0_f64; MAX_AXES];
+        for round in 0..24 {
+            let dirs = directions_from(q, prev, previous_dirs, n);
+            let frozen = self.frozen_rotations(fa, q, dirs);
+            let mut q2 = *q;
+            if self
+                .five_axis(&frozen, target, tool_mm, prev, &mut q2, Some(dirs))
+                .is_err()
+            {
+                break;
+            }
+            let mut step = [0.0_f64; MAX_AXES];
+            let (mut cross_, mut last2, mut size) = (0.0, 0.0, 0.0_f64);
+            for j in fa.rotary {
+                step[j] = q2[j] - q[j];
+                cross_ += step[j] * last[j];
+                last2 += last[j] * last[j];
+                size = size.max(libm::fabs(step[j]));
+            }
+            if round > 0 && last2 > 0.0 {
+                let t = cross_ / last2;
+                omega = (omega / (1.0 - t)).clamp(0.05, 10.0);
+                if !omega.is_finite() {
+                    omega = 1.0;
+                }
+            }
+            for j in 0..n {
+                q[j] += omega * (q2[j] - q[j]);
+            }
+            for j in 0..n {
+                last[j] = omega * step[j];
+            }
+            if size < 1e-10 {
+                break;
+            }
+        }
+    }
+
+    /// Closed form on the nominal chain, best branch into `q`.
+    fn closed_form(
+        &self,
+        layout: &Layout,
+        target: &Pose,
+        tool_mm: f64,
+        prev: &[f64; MAX_AXES],
+        q: &mut [f64; MAX_AXES],
+    ) -> Result<(), KinError> {
+        match layout {
+            Layout::ThreeAxis { linear } => {
+                let mut t = Tangents::ZERO;
+                *q = *prev;
+                let pose = self.eval::<true>(
+                    &q[..self.axes.len()],
+                    tool_mm,
+                    Directions(0),
+                    Geometry::Nominal,
+                    Some(&mut t),
+                );
+                if norm(&sub(&pose.direction, &target.direction)) > THREE_AXIS_DIRECTION_SLACK {
+                    return Err(KinError::UnreachableDirection);
+                }
+                self.solve_linear(linear, &pose, &t, target, q)
+            }
+            Layout::FiveAxis(fa) => self.five_axis(fa, target, tool_mm, prev, q, None),
+            Layout::General => Ok(()),
+        }
+    }
+
+    /// Given the rotary set-points in `q`, moves the three linear axes so that the nominal TCP
+    /// lands on the target: the TCP is affine in them, p = p(q) + J·Δ.
+    fn solve_linear(
+        &self,
+        linear: &[usize; 3],
+        pose: &Pose,
+        t: &Tangents,
+        target: &Pose,
+        q: &mut [f64; MAX_AXES],
+    ) -> Result<(), KinError> {
+        let mut a = [[0.0; MAX_AXES]; MAX_AXES];
+        let mut b = [0.0; MAX_AXES];
+        for r in 0..3 {
+            for (c, &j) in linear.iter().enumerate() {
+                a[r][c] = t.dp[j][r];
+            }
+            b[r] = target.position[r] - pose.position[r];
+        }
+        if !solve(&mut a, &mut b, 3) {
+            return Err(KinError::Singular);
+        }
+        for (c, &j) in linear.iter().enumerate() {
+            q[j] += b[c];
+        }
+        for &j in linear {
+            if !within_travel(&self.axes[j], q[j]) {
+                return Err(KinError::OutsideTravel {
+                    axis: j,
+                    value: q[j],
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// The 5-axis closed form. With `actual` (travel directions), `fa` holds the rotations of
+    /// the erroneous chain frozen at some set-points and the linear axes are solved on the
+    /// erroneous chain (one Newton step; exact if the tables do not depend on them).
+    fn five_axis(
+        &self,
+        fa: &FiveAxis,
+        target: &Pose,
+        tool_mm: f64,
+        prev: &[f64; MAX_AXES],
+        q: &mut [f64; MAX_AXES],
+        actual: Option<Directions>,
+    ) -> Result<(), KinError> {
+        let n = self.axes.len();
+        // R(u2, φ2)·R(u1, φ1)·v' = w, with v' = G1·v and w = G2ᵀ·d.
+        let vp = mul_mv(&fa.g1, &fa.v);
+        let w = mul_tv(&fa.g2, &target.direction);
+        let (u1, u2) = (&fa.u1, &fa.u2);
+        // c = α·u1 + β·u2 + γ·(u1 × u2) with u1·c = u1·v', u2·c = u2·w, |c| = 1.
+        let k = dot(u1, u2);
+        let (a, b) = (dot(u1, &vp), dot(u2, &w));
+        let den = 1.0 - k * k;
+        let alpha = (a - k * b) / den;
+        let beta = (b - k * a) / den;
+        let g2 = (1.0 - alpha * alpha - beta * beta - 2.0 * alpha * beta * k) / den;
+        if g2 < -1e-10 {
+            return Err(KinError::UnreachableDirection);
+        }
+        let gamma = libm::sqrt(g2.max(0.0));
+        let nrm = cross(u1, u2);
+        let mut best: Option<(f64, [f64; MAX_AXES])> = None;
+        let mut failure = KinError::UnreachableDirection;
+        let branches: &[f64] = if gamma == 0.0 { &[1.0] } else { &[1.0, -1.0] };
+        for &sg in branches {
+            let mut c = [0.0; 3];
+            for i in 0..3 {
+                c[i] = alpha * u1[i] + beta * u2[i] + sg * gamma * nrm[i];
+            }
+            let mut cand = *prev;
+            let [r1, r2] = fa.rotary;
+            // Angles in rad; the pole keeps the previous set-point.
+            let phi1 = angle_about(u1, &vp, &c);
+            let phi2 = angle_about(u2, &c, &w);
+            let mut ok = true;
+            for (idx, (axis, phi)) in [(r1, phi1), (r2, phi2)].into_iter().enumerate() {
+                let Some(phi) = phi else {
+                    continue;
+                };
+                let raw = phi / DEG * fa.sign[idx];
+                match nearest_turn(raw, prev[axis], &self.axes[axis]) {
+                    Some(v) => cand[axis] = v,
+                    None => {
+                        failure = KinError::OutsideTravel { axis, value: raw };
+                        ok = false;
+                    }
+                }
+            }
+            if !ok {
+                continue;
+            }
+            let mut t = Tangents::ZERO;
+            let (geometry, dirs) = match actual {
+                Some(d) => (Geometry::Actual, d),
+                None => (Geometry::Nominal, Directions(0)),
+            };
+            let pose = self.eval::<true>(&cand[..n], tool_mm, dirs, geometry, Some(&mut t));
+            if let Err(e) = self.solve_linear(&fa.linear, &pose, &t, target, &mut cand) {
+                failure = e;
+                continue;
+            }
+            let mut cost = 0.0;
+            for j in 0..n {
+                let d = libm::fabs(cand[j] - prev[j]);
+                cost += if self.axes[j].kind == AxisKind::Rotary {
+                    d
+                } else {
+                    1e-3 * d
+                };
+            }
+            if best.as_ref().is_none_or(|(bc, _)| cost < *bc) {
+                best = Some((cost, cand));
+            }
+        }
+        match best {
+            Some((_, cand)) => {
+                *q = cand;
+                Ok(())
+            }
+            None => Err(failure),
+        }
+    }
+
+    /// The rotation structure of the erroneous chain with every error rotation read from its
+    /// table at `q` (see [`FiveAxis`]).
+    fn frozen_rotations(&self, fa: &FiveAxis, q: &[f64; MAX_AXES], dirs: Directions) -> FiveAxis {
+        let mut m = I3;
+        let mut gs = [I3; 3];
+        let mut k_rot = [0usize; 2];
+        let mut nr = 0;
+        for step in &self.steps {
+            match *step {
+                Step::Rotate { k, c, s } => rotate_m(&mut m, k, c, s),
+                Step::ErrRotate {
+                    k,
+                    offset,
+                    table,
+                    axis,
+                    scale,
+                } => {
+                    let v = self.tables[table].table.value(q[axis], dirs.of(axis));
+                    let (s, c) = super::sincos(offset + scale * v);
+                    rotate_m(&mut m, k, c, s);
+                }
+                Step::AxisRotate { k, .. } => {
+                    if nr < 2 {
+                        k_rot[nr] = k;
+                        gs[nr] = m;
+                    }
+                    nr += 1;
+                    m = I3;
+                }
+                _ => {}
+            }
+        }
+        gs[2] = m;
+        FiveAxis {
+            linear: fa.linear,
+            rotary: fa.rotary,
+            sign: fa.sign,
+            v: mul_mv(&gs[0], &[0.0, 0.0, 1.0]),
+            u1: mul_mv(&gs[1], &unit(k_rot[0])),
+            g1: gs[1],
+            u2: unit(k_rot[1]),
+            g2: gs[2],
+        }
+    }
+
+    /// Gauss–Newton with Levenberg–Marquardt damping through the chain (exact Jacobian).
+    /// Returns (iterations, TCP residual mm, direction residual rad).
+    #[allow(clippy::too_many_arguments)]
+    fn newton(
+        &self,
+        target: &Pose,
+        tool_mm: f64,
+        dirs: Directions,
+        geometry: Geometry,
+        use_direction: bool,
+        max_iter: u32,
+        q: &mut [f64; MAX_AXES],
+    ) -> Result<(u32, f64, f64), KinError> {
+        let n = self.axes.len();
+        let residual = |pose: &Pose| -> ([f64; 6], f64, f64) {
+            let rp = sub(&pose.position, &target.position);
+            let rd = sub(&pose.direction, &target.direction);
+            let w = if use_direction {
+                DIRECTION_WEIGHT_MM
+            } else {
+                0.0
+            };
+            (
+                [rp[0], rp[1], rp[2], w * rd[0], w * rd[1], w * rd[2]],
+                norm(&rp),
+                norm(&rd),
+            )
+        };
+        let cost = |r: &[f64; 6]| r.iter().map(|v| v * v).sum::<f64>();
+        let mut t = Tangents::ZERO;
+        let mut pose = self.eval::<true>(&q[..n], tool_mm, dirs, geometry, Some(&mut t));
+        let (mut r, mut np, mut nd) = residual(&pose);
+        let mut mu = 0.0_f64;
+        let mut iterations = 0;
+        loop {
+            if !(np.is_finite() && nd.is_finite()) {
+                return Err(KinError::NonFinite);
+            }
+            if np <= POSITION_TOLERANCE_MM && (!use_direction || nd <= DIRECTION_TOLERANCE_RAD) {
+                return Ok((iterations, np, nd));
+            }
+            if iterations >= max_iter {
+                return Err(KinError::NotConverged {
+                    position_mm: np,
+                    direction_rad: nd,
+                });
+            }
+            iterations += 1;
+            // Weighted Jacobian (6 × n); the least-squares step comes from a QR factorisation
+            // of [J·S; √μ·I] with S scaling every column to unit length (normal equations
+            // would square the condition number, which near the pole reaches 1e5 and more).
+            let w = if use_direction {
+                DIRECTION_WEIGHT_MM
+            } else {
+                0.0
+            };
+            let mut jac = [[0.0; 6]; MAX_AXES];
+            let mut colscale = [1.0; MAX_AXES];
+            for j in 0..n {
+                for i in 0..3 {
+                    jac[j][i] = t.dp[j][i];
+                    jac[j][i + 3] = w * t.dd[j][i];
+                }
+                let l = libm::sqrt(jac[j].iter().map(|v| v * v).sum::<f64>());
+                colscale[j] = if l > 0.0 { 1.0 / l } else { 1.0 };
+            }
+            let mut accepted = false;
+            for _ in 0..12 {
+                let Some(step) = damped_step(&jac, &colscale, &r, n, mu.max(1e-20)) else {
+                    mu = (mu * 10.0).max(1e-9);
+                    continue;
+                };
+                let mut trial = *q;
+                for j in 0..n {
+                    trial[j] += step[j] * self.per_unit(j);
+                }
+                let p2 = self.eval::<false>(&trial[..n], tool_mm, dirs, geometry, None);
+                let (r2, _, _) = residual(&p2);
+                if cost(&r2) < cost(&r) || cost(&r2) == 0.0 {
+                    *q = trial;
+                    mu *= 0.1;
+                    if mu < 1e-12 {
+                        mu = 0.0;
+                    }
+                    accepted = true;
+                    break;
+                }
+                mu = (mu * 10.0).max(1e-6);
+            }
+            if !accepted {
+                return Err(KinError::NotConverged {
+                    position_mm: np,
+                    direction_rad: nd,
+                });
+            }
+            pose = self.eval::<true>(&q[..n], tool_mm, dirs, geometry, Some(&mut t));
+            (r, np, nd) = residual(&pose);
+        }
+    }
+}
+
+/// The step Δ minimising |J·Δ + r|² + μ·|S⁻¹Δ|² (S: column scaling), by Householder QR of the
+/// (6 + n) × n matrix [J·S; √μ·I].
+fn damped_step(
+    jac: &[[f64; 6]; MAX_AXES],
+    colscale: &[f64; MAX_AXES],
+    r: &[f64; 6],
+    n: usize,
+    mu: f64,
+) -> Option<[f64; MAX_AXES]> {
+    const M: usize = 6 + MAX_AXES;
+    let m = 6 + n;
+    let mut a = [[0.0; MAX_AXES]; M];
+    let mut b = [0.0; M];
+    let sq = libm::sqrt(mu);
+    for j in 0..n {
+        for i in 0..6 {
+            a[i][j] = jac[j][i] * colscale[j];
+        }
+        a[6 + j][j] = sq;
+    }
+    for i in 0..6 {
+        b[i] = -r[i];
+    }
+    for k in 0..n {
+        let mut norm2 = 0.0;
+        for row in a.iter().take(m).skip(k) {
+            norm2 += row[k] * row[k];
+        }
+        let norm = libm::sqrt(norm2);
+        if norm == 0.0 {
+            continue;
+        }
+        let alpha = if a[k][k] > 0.0 { -norm } else { norm };
+        // v = x − α·e_1, stored in place; vᵀv = 2·(norm² − α·x_0).
+        let vtv = 2.0 * (norm2 - alpha * a[k][k]);
+        a[k][k] -= alpha;
+        if vtv > 0.0 {
+            for c in k + 1..n {
+                let mut d = 0.0;
+                for row in a.iter().take(m).skip(k) {
+                    d += row[k] * row[c];
+                }
+                let f = 2.0 * d / vtv;
+                for row in a.iter_mut().take(m).skip(k) {
+                    row[c] -= f * row[k];
+                }
+            }
+            let mut d = 0.0;
+            for i in k..m {
+                d += a[i][k] * b[i];
+            }
+            let f = 2.0 * d / vtv;
+            for i in k..m {
+                b[i] -= f * a[i][k];
+            }
+        }
+        a[k][k] = alpha;
+    }
+    let mut x = [0.0; MAX_AXES];
+    for k in (0..n).rev() {
+        let mut s = b[k];
+        for c in k + 1..n {
+            s -= a[k][c] * x[c];
+        }
+        if a[k][k] == 0.0 {
+            return None;
+        }
+        x[k] = s / a[k][k];
+    }
+    for j in 0..n {
+        x[j] *= colscale[j];
+    }
+    x[..n].iter().all(|v| v.is_finite()).then_some(x)
+}
+
+/// Travel directions at new set-points `q`: towards larger positions is forward; an axis that
+/// does not move keeps its previous direction.
+fn directions_from(
+    q: &[f64; MAX_AXES],
+    prev: &[f64; MAX_AXES],
+    before: Directions,
+    n: usize,
+) -> Directions {
+    let mut bits = before.0;
+    for j in 0..n {
+        if q[j] > prev[j] {
+            bits &= !(1 << j);
+        } else if q[j] < prev[j] {
+            bits |= 1 << j;
+        }
+    }
+    Directions(bits)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn subproblem_two_recovers_known_angles() {
+        // Tool along Z, inner axis A (X), outer C (Z). A = 30°, C = 45° give
+        // d = R_z(45°)·R_x(30°)·e_z = R_z(45°)·(0, −sin30, cos30) = (sin45·sin30, −cos45·sin30, cos30)
+        //   = (0.353553, −0.353553, 0.866025).
+        let v = [0.0, 0.0, 1.0];
+        let u1 = unit(0);
+        let u2 = unit(2);
+        let d = [
+            0.353_553_390_593_273_8,
+            -0.353_553_390_593_273_8,
+            0.866_025_403_784_438_6,
+        ];
+        let k = dot(&u1, &u2);
+        let (a, b) = (dot(&u1, &v), dot(&u2, &d));
+        let alpha = (a - k * b) / (1.0 - k * k);
+        let beta = (b - k * a) / (1.0 - k * k);
+        let g = libm::sqrt(1.0 - alpha * alpha - beta * beta);
+        let n = cross(&u1, &u2);
+        let mut found = false;
+        for sg in [1.0, -1.0] {
+            let c: V3 = core::array::from_fn(|i| alpha * u1[i] + beta * u2[i] + sg * g * n[i]);
+            let p1 = angle_about(&u1, &v, &c).unwrap() / DEG;
+            let p2 = angle_about(&u2, &c, &d).unwrap() / DEG;
+            if (p1 - 30.0).abs() < 1e-9 && (p2 - 45.0).abs() < 1e-9 {
+                found = true;
+            }
+            // The other branch: A = −30°, C = 45° + 180° = −135°.
+            if (p1 + 30.0).abs() < 1e-9 && (p2 + 135.0).abs() < 1e-9 {
+                found = true;
+            }
+        }
+        assert!(found);
+    }
+
+    #[test]
+    fn nearest_turn_respects_travel() {
+        let c = KinAxis {
+            name: "C".into(),
+            kind: AxisKind::Rotary,
+            travel_min: -720.0,
+            travel_max: 720.0,
+        };
+        assert_eq!(nearest_turn(10.0, 365.0, &c), Some(370.0));
+        assert_eq!(nearest_turn(-170.0, 170.0, &c), Some(190.0));
+        let a = KinAxis {
+            travel_min: -100.0,
+            travel_max: 100.0,
+            ..c
+        };
+        assert_eq!(nearest_turn(150.0, 0.0, &a), None);
+        assert_eq!(nearest_turn(-170.0, 90.0, &a), None);
+    }
+}
