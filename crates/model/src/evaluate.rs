@@ -3,7 +3,7 @@
 use core::fmt;
 
 use crate::machine::{Reference, MAX_AXES};
-use crate::model::{Model, PositionFactor, MAX_MODEL_DIFFERENCES};
+use crate::model::{g_index, Model, PositionFactor, FACTORS, MAX_MODEL_DIFFERENCES};
 
 /// How far (as a fraction of the axis length) a position may lie outside travel before it is
 /// taken as a fault (wrong units, wrong axis) rather than feedback overshoot at a limit. Within
@@ -175,7 +175,8 @@ impl Model {
                 return Err(EvalError::TemperatureOutOfRange { channel: ch, value });
             }
         }
-        let mut ratio = [0.0_f64; MAX_AXES];
+        // g of every axis and factor, computed once per cycle: [r, r², KFA] per axis.
+        let mut g = [0.0_f64; FACTORS * MAX_AXES];
         for (i, (axis, &pos)) in self.axes.iter().zip(input.positions).enumerate() {
             if !pos.is_finite() {
                 return Err(EvalError::NonFinitePosition { axis: i });
@@ -187,7 +188,10 @@ impl Model {
                     value: pos,
                 });
             }
-            ratio[i] = r.clamp(0.0, 1.0);
+            let r = r.clamp(0.0, 1.0);
+            g[g_index(i, PositionFactor::Ratio)] = PositionFactor::Ratio.of_ratio(r);
+            g[g_index(i, PositionFactor::RatioSquared)] = PositionFactor::RatioSquared.of_ratio(r);
+            g[g_index(i, PositionFactor::BedFactor)] = PositionFactor::BedFactor.of_ratio(r);
         }
         let mut delta = [0.0_f64; MAX_MODEL_DIFFERENCES];
         for (d, inp) in delta.iter_mut().zip(&self.difference_inputs) {
@@ -203,12 +207,12 @@ impl Model {
                 continue;
             }
             let mut bracket = s.k0;
-            for t in &self.terms[s.terms_start..s.terms_end] {
-                bracket += t.k_um_per_k * t.factor.of_ratio(ratio[t.axis]);
+            for &(gi, k) in &self.terms[s.terms_start..s.terms_end] {
+                bracket += k * g[gi];
             }
             let mut value = delta[s.local_difference] * bracket;
             if let Some(b) = s.bed_multiplier {
-                value *= PositionFactor::BedFactor.of_ratio(ratio[b]);
+                value *= g[g_index(b, PositionFactor::BedFactor)];
             }
             out.error_um[s.axis] += value;
         }

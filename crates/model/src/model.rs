@@ -157,6 +157,19 @@ impl fmt::Display for ModelError {
 
 impl core::error::Error for ModelError {}
 
+/// Number of position factors per axis in the per-cycle g table.
+pub(crate) const FACTORS: usize = 3;
+
+/// Where g = factor(r_axis) sits in the per-cycle table.
+pub(crate) fn g_index(axis: usize, factor: PositionFactor) -> usize {
+    FACTORS * axis
+        + match factor {
+            PositionFactor::Ratio => 0,
+            PositionFactor::RatioSquared => 1,
+            PositionFactor::BedFactor => 2,
+        }
+}
+
 /// What the cycle path needs of one difference the model reads.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct DifferenceInput {
@@ -202,7 +215,9 @@ pub struct Model {
     /// Temperature channels the model reads (sorted, unique).
     pub(crate) used_sensors: Vec<usize>,
     pub(crate) summands: Vec<CompiledSummand>,
-    pub(crate) terms: Vec<PositionTerm>,
+    /// Position terms as (index into the per-cycle table of g values, K): the table holds
+    /// r, r², KFA of every axis, so the inner loop is one load and one multiply-add.
+    pub(crate) terms: Vec<(usize, f64)>,
     pub(crate) constants: Vec<(usize, usize, f64)>,
     pub(crate) part_enabled: Vec<bool>,
 }
@@ -263,7 +278,7 @@ impl Model {
                     if !t.k_um_per_k.is_finite() {
                         return Err(non_finite());
                     }
-                    terms.push(*t);
+                    terms.push((g_index(t.axis, t.factor), t.k_um_per_k));
                 }
                 summands.push(CompiledSummand {
                     part: pi,
