@@ -26,6 +26,7 @@
 pub mod comp_table;
 pub mod cycles;
 pub mod error;
+pub mod kinematics_file;
 pub mod machine_file;
 pub mod model_file;
 
