@@ -60,6 +60,14 @@ struct RawAxis {
     carried_by: Option<Spanned<String>>,
     #[serde(default = "default_carriage")]
     carriage: RawCarriage,
+    /// Safety envelope: largest offset magnitude in µm.
+    max_offset_um: Option<Spanned<f64>>,
+    /// Safety envelope: largest rate of change of the offset in µm/s.
+    max_rate_um_per_s: Option<Spanned<f64>>,
+    /// Seed D: the control path (channel) the axis belongs to at power-on, 1-based.
+    path: Option<Spanned<u32>>,
+    /// Seed D: the axis number within that path, 1-based.
+    number: Option<Spanned<u32>>,
 }
 
 fn default_carriage() -> RawCarriage {
@@ -73,6 +81,12 @@ struct RawTemperature {
     #[serde(default)]
     location: String,
     valid_range: Spanned<[f64; 2]>,
+    /// Fastest plausible change in K/min; faster is a fault (a spike, a loose contact).
+    max_rate_k_per_min: Option<Spanned<f64>>,
+    /// Longest time without an update in s before the reading is stale.
+    max_age_s: Option<Spanned<f64>>,
+    /// A reading that does not change at all for this long (s) is stuck; 0 switches it off.
+    stuck_after_s: Option<Spanned<f64>>,
 }
 
 #[derive(Debug, Deserialize, Serialize)]
@@ -104,6 +118,50 @@ struct RawOperating {
     axis: Option<Spanned<String>>,
 }
 
+/// Default safety envelope: largest offset magnitude in µm. Thermal errors of machining
+/// centres reach tens of µm (seed A: −100 … 150 µm on 500 mm at the extreme); 100 µm lets a
+/// sound model work and stops a wild one.
+pub const DEFAULT_MAX_OFFSET_UM: f64 = 100.0;
+/// Default safety envelope: largest offset rate in µm/s. Thermal drift is µm per minute; the
+/// position-dependent terms change faster only with fast moves (20 µm over 500 mm at 10 m/min
+/// is 6.7 µm/s), so 50 µm/s passes them and stops a jump.
+pub const DEFAULT_MAX_RATE_UM_PER_S: f64 = 50.0;
+/// Default fastest plausible temperature change: 2 K/min (a sensor in a casting).
+pub const DEFAULT_MAX_RATE_K_PER_MIN: f64 = 2.0;
+/// Default staleness limit: 10 s without an update.
+pub const DEFAULT_MAX_AGE_S: f64 = 10.0;
+
+/// The per-axis settings of the runtime: safety envelope and seed D identity.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AxisRuntime {
+    /// Largest offset magnitude in µm.
+    pub max_offset_um: f64,
+    /// Largest offset rate in µm/s.
+    pub max_rate_um_per_s: f64,
+    /// Path (channel) at power-on, 1-based.
+    pub path: u32,
+    /// Axis number within the path, 1-based.
+    pub number: u32,
+}
+
+impl AxisRuntime {
+    /// Seed D's axis code b = 100·path + axis number.
+    pub fn code(&self) -> u32 {
+        100 * self.path + self.number
+    }
+}
+
+/// The validation limits of one temperature channel (its valid range is in the machine).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SensorChecks {
+    /// Fastest plausible change in K/s.
+    pub max_rate_k_per_s: f64,
+    /// Longest time without an update in s.
+    pub max_age_s: f64,
+    /// Time without any change after which a reading is stuck, in s (0: not checked).
+    pub stuck_after_s: f64,
+}
+
 /// A checked machine description with what the file says beyond the real-time core's needs.
 #[derive(Debug, Clone, PartialEq)]
 pub struct MachineFile {
@@ -113,6 +171,10 @@ pub struct MachineFile {
     pub description: String,
     /// Unit of each operating channel, in machine order.
     pub operating_units: Vec<String>,
+    /// Envelope and seed D identity per axis, in machine order.
+    pub axis_runtime: Vec<AxisRuntime>,
+    /// Validation limits per temperature channel, in machine order.
+    pub sensor_checks: Vec<SensorChecks>,
 }
 
 /// Reads and checks a machine description file.
@@ -237,6 +299,97 @@ pub fn parse(path: &Path, text: &str) -> Result<MachineFile, InputError> {
                 RawCarriage::Cantilever => Carriage::Cantilever,
                 RawCarriage::Bed => Carriage::Bed,
             },
+        });
+    }
+
+    let positive = |v: &Option<Spanned<f64>>, key: String, default: f64, allow_zero: bool| {
+        match v {
+            None => Ok(default),
+            Some(x) => {
+                let ok = x.get_ref().is_finite()
+                    && (*x.get_ref() > 0.0 || (allow_zero && *x.get_ref() == 0.0));
+                if ok {
+                    Ok(*x.get_ref())
+                } else {
+                    let what = if allow_zero { "≥ 0" } else { "> 0" };
+                    Err(err(
+                        x.span(),
+                        key,
+                        format!("expected a finite number {what}, got {}", x.get_ref()),
+                    ))
+                }
+            }
+        }
+    };
+    let mut axis_runtime = Vec::new();
+    for (i, a) in raw.axis.iter().enumerate() {
+        let whole = |v: &Option<Spanned<u32>>, key: String, default: u32| match v {
+            None => Ok(default),
+            Some(x) if (1..=99).contains(x.get_ref()) => Ok(*x.get_ref()),
+            Some(x) => Err(err(
+                x.span(),
+                key,
+                format!("expected a whole number from 1 to 99, got {}", x.get_ref()),
+            )),
+        };
+        axis_runtime.push(AxisRuntime {
+            max_offset_um: positive(
+                &a.max_offset_um,
+                format!("axis[{i}].max_offset_um"),
+                DEFAULT_MAX_OFFSET_UM,
+                false,
+            )?,
+            max_rate_um_per_s: positive(
+                &a.max_rate_um_per_s,
+                format!("axis[{i}].max_rate_um_per_s"),
+                DEFAULT_MAX_RATE_UM_PER_S,
+                false,
+            )?,
+            path: whole(&a.path, format!("axis[{i}].path"), 1)?,
+            number: whole(&a.number, format!("axis[{i}].number"), i as u32 + 1)?,
+        });
+    }
+    for (i, a) in axis_runtime.iter().enumerate() {
+        if let Some(first) = axis_runtime[..i].iter().position(|b| b.code() == a.code()) {
+            let span = raw.axis[i]
+                .number
+                .as_ref()
+                .or(raw.axis[i].path.as_ref())
+                .map_or(raw.axis[i].name.span(), |s| s.span());
+            return Err(err(
+                span,
+                format!("axis[{i}].number"),
+                format!(
+                    "axis `{}` has path {} number {}, like axis `{}`; each axis needs its own",
+                    raw.axis[i].name.get_ref(),
+                    a.path,
+                    a.number,
+                    raw.axis[first].name.get_ref()
+                ),
+            ));
+        }
+    }
+    let mut sensor_checks = Vec::new();
+    for (i, t) in raw.temperature.iter().enumerate() {
+        sensor_checks.push(SensorChecks {
+            max_rate_k_per_s: positive(
+                &t.max_rate_k_per_min,
+                format!("temperature[{i}].max_rate_k_per_min"),
+                DEFAULT_MAX_RATE_K_PER_MIN,
+                false,
+            )? / 60.0,
+            max_age_s: positive(
+                &t.max_age_s,
+                format!("temperature[{i}].max_age_s"),
+                DEFAULT_MAX_AGE_S,
+                false,
+            )?,
+            stuck_after_s: positive(
+                &t.stuck_after_s,
+                format!("temperature[{i}].stuck_after_s"),
+                0.0,
+                true,
+            )?,
         });
     }
 
@@ -381,6 +534,8 @@ pub fn parse(path: &Path, text: &str) -> Result<MachineFile, InputError> {
         machine,
         description: raw.machine.description,
         operating_units,
+        axis_runtime,
+        sensor_checks,
     })
 }
 

@@ -182,7 +182,7 @@ fn m09_unknown_key() {
     );
     assert_eq!(
         machine_error(&text),
-        "m.toml:22:1: `temperature[1].unit`: unknown field `unit`, expected one of `id`, `location`, `valid_range`"
+        "m.toml:22:1: `temperature[1].unit`: unknown field `unit`, expected one of `id`, `location`, `valid_range`, `max_rate_k_per_min`, `max_age_s`, `stuck_after_s`"
     );
 }
 
@@ -236,6 +236,24 @@ fn m14_no_axes() {
     assert_eq!(
         machine_error(text),
         "m.toml:1:1: `axis`: expected at least one [[axis]] table"
+    );
+}
+
+#[test]
+fn m15_envelope_not_positive() {
+    let text = edit(MACHINE, "carried_by = \"X\"", "carried_by = \"X\"\nmax_rate_um_per_s = -5.0");
+    assert_eq!(
+        machine_error(&text),
+        "m.toml:14:21: `axis[1].max_rate_um_per_s`: expected a finite number > 0, got -5"
+    );
+}
+
+#[test]
+fn m16_two_axes_with_one_seed_d_code() {
+    let text = edit(MACHINE, "carried_by = \"X\"", "carried_by = \"X\"\nnumber = 1");
+    assert_eq!(
+        machine_error(&text),
+        "m.toml:14:10: `axis[1].number`: axis `Y` has path 1 number 1, like axis `X`; each axis needs its own"
     );
 }
 
