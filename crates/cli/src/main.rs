@@ -6,6 +6,7 @@ use std::process::ExitCode;
 use clap::{Parser, Subcommand};
 
 mod eval;
+mod kin;
 mod lag;
 
 /// truepos keeps the tool tip of a CNC machine tool where the program says it is, while the
@@ -21,6 +22,8 @@ struct Cli {
 enum Command {
     /// Evaluate a compensation model on a recorded run (CSV of cycles) and write per-axis offsets.
     Eval(eval::Args),
+    /// Seed B's kinematics table: forward/inverse transforms with error tables, G-code rewrite.
+    Kin(kin::Args),
     /// Seed A's timing argument: worst-case error of position-dependent terms updated every T ms.
     Lag(lag::Args),
 }
@@ -29,6 +32,7 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Eval(args) => eval::run(args),
+        Command::Kin(args) => kin::run(args),
         Command::Lag(args) => lag::run(args),
     };
     match result {

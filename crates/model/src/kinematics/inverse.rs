@@ -270,6 +270,8 @@ impl Chain {
     /// `previous_dirs` the last travel directions. With [`Geometry::Actual`] the set-points
     /// make the **real** tool, through every error table, land on the target. Allocates
     /// nothing; failures (unreachable, outside travel, no convergence) are values.
+    ///
+    /// On [`KinError::NotConverged`] `out` holds the best set-points found (if within travel).
     pub fn inverse(
         &self,
         target: &Pose,
@@ -279,6 +281,51 @@ impl Chain {
         geometry: Geometry,
         out: &mut [f64],
     ) -> Result<InverseReport, KinError> {
+        self.inverse_impl(
+            target,
+            tool_mm,
+            previous,
+            previous_dirs,
+            false,
+            geometry,
+            out,
+        )
+    }
+
+    /// Like [`Chain::inverse`], but `reference` only chooses the branch and the turn of each
+    /// rotary axis, and the travel directions for directional tables are `directions` as given
+    /// (for rewriting programs, where the reference is the programmed nominal position).
+    pub fn inverse_near(
+        &self,
+        target: &Pose,
+        tool_mm: f64,
+        reference: &[f64],
+        directions: Directions,
+        geometry: Geometry,
+        out: &mut [f64],
+    ) -> Result<InverseReport, KinError> {
+        self.inverse_impl(target, tool_mm, reference, directions, true, geometry, out)
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn inverse_impl(
+        &self,
+        target: &Pose,
+        tool_mm: f64,
+        previous: &[f64],
+        previous_dirs: Directions,
+        fixed_dirs: bool,
+        geometry: Geometry,
+        out: &mut [f64],
+    ) -> Result<InverseReport, KinError> {
+        let directions_from =
+            |q: &[f64; MAX_AXES], prev: &[f64; MAX_AXES], before: Directions, n: usize| {
+                if fixed_dirs {
+                    before
+                } else {
+                    directions_from(q, prev, before, n)
+                }
+            };
         self.check_positions(previous)?;
         let n = self.axes.len();
         if out.len() != n {
@@ -322,7 +369,16 @@ impl Chain {
                 self.closed_form(layout, &target, tool_mm, &prev, &mut q)?;
                 if with_errors {
                     if let Layout::FiveAxis(fa) = layout {
-                        self.refine_frozen(fa, &target, tool_mm, &prev, previous_dirs, &mut q);
+                        let fixed = fixed_dirs.then_some(previous_dirs);
+                        self.refine_frozen(
+                            fa,
+                            &target,
+                            tool_mm,
+                            &prev,
+                            previous_dirs,
+                            fixed,
+                            &mut q,
+                        );
                     }
                 }
                 true
@@ -359,7 +415,8 @@ impl Chain {
                     if !within_travel(&self.axes[outer], q2[outer]) {
                         q2[outer] -= 360.0;
                     }
-                    self.refine_frozen(fa, &target, tool_mm, &prev, previous_dirs, &mut q2);
+                    let fixed = fixed_dirs.then_some(previous_dirs);
+                    self.refine_frozen(fa, &target, tool_mm, &prev, previous_dirs, fixed, &mut q2);
                     let r2 = self.newton(
                         &target,
                         tool_mm,
@@ -374,6 +431,13 @@ impl Chain {
                         result = r2;
                         break;
                     }
+                }
+            }
+            if let Err(KinError::NotConverged { .. }) = result {
+                // The best set-points found, for callers that accept a residual (a tool
+                // direction the real machine cannot reach exactly, e.g. at the pole).
+                if (0..n).all(|j| within_travel(&self.axes[j], q[j])) {
+                    out.copy_from_slice(&q[..n]);
                 }
             }
             let (it, rp, rd) = result?;
@@ -404,6 +468,7 @@ impl Chain {
     /// steps s = F(q) − q are relaxed, q ← q + ω·s, with ω from the ratio t of
     /// successive steps (a secant estimate of the contraction ρ of F:
     /// ρ = 1 + (t − 1)/ω, and ω_next = 1/(1 − ρ) = ω/(1 − t)).
+    #[allow(clippy::too_many_arguments)]
     fn refine_frozen(
         &self,
         fa: &FiveAxis,
@@ -411,13 +476,14 @@ impl Chain {
         tool_mm: f64,
         prev: &[f64; MAX_AXES],
         previous_dirs: Directions,
+        fixed_dirs: Option<Directions>,
         q: &mut [f64; MAX_AXES],
     ) {
         let n = self.axes.len();
         let mut omega = 1.0_f64;
         let mut last = [0.0_f64; MAX_AXES];
         for round in 0..24 {
-            let dirs = directions_from(q, prev, previous_dirs, n);
+            let dirs = fixed_dirs.unwrap_or_else(|| directions_from(q, prev, previous_dirs, n));
             let frozen = self.frozen_rotations(fa, q, dirs);
             let mut q2 = *q;
             if self

@@ -1,0 +1,626 @@
+//! `truepos kin`: the kinematics table of seed B from the command line.
+//!
+//! * `kin fwd`: axis positions (CSV with one column per axis, named as in the kinematics file)
+//!   → TCP `X,Y,Z` (mm) and tool direction `I,J,K` in workpiece coordinates.
+//! * `kin inv`: `X,Y,Z,I,J,K` → axis set-points, through the error tables (or nominal with
+//!   `--nominal`); each row starts from the previous row's set-points.
+//! * `kin gcode`: rewrites G0/G1 moves whose X Y Z A B C words are nominal axis positions into
+//!   compensated axis positions (the real tool lands where the nominal machine would put it).
+//! * `kin chain`: the resolved chain as JSON (used by `scripts/kdl_compare.py`).
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use truepos_io::kinematics_file::{self, KinematicsFile};
+use truepos_io::InputError;
+use truepos_model::kinematics::{Chain, Directions, Geometry, KinError, Pose, Row};
+use truepos_model::AxisKind;
+
+/// Arguments of `truepos kin`.
+#[derive(clap::Args)]
+pub struct Args {
+    #[command(subcommand)]
+    command: KinCommand,
+}
+
+#[derive(clap::Args)]
+struct Common {
+    /// The kinematics table file (`*.ktab`).
+    #[arg(long)]
+    kinematics: PathBuf,
+    /// The machine description (TOML); axis travels are taken from it.
+    #[arg(long)]
+    machine: Option<PathBuf>,
+    /// Tool length in mm (default: `tool_length` of the kinematics file).
+    #[arg(long)]
+    tool_length: Option<f64>,
+    /// Use the nominal chain (ignore the error tables).
+    #[arg(long)]
+    nominal: bool,
+    /// Input file (CSV for fwd/inv, a G-code program for gcode).
+    #[arg(long)]
+    input: PathBuf,
+    /// Output file; without it the result goes to standard output and the summary to
+    /// standard error.
+    #[arg(long)]
+    output: Option<PathBuf>,
+    /// Print the summary as JSON.
+    #[arg(long)]
+    json: bool,
+}
+
+#[derive(clap::Subcommand)]
+enum KinCommand {
+    /// Axis positions → TCP and tool direction.
+    Fwd(Common),
+    /// TCP and tool direction → axis set-points.
+    Inv(Common),
+    /// Rewrite a G-code program of G0/G1 moves into compensated axis positions.
+    Gcode(Common),
+    /// Print the resolved chain (rows, axes) as JSON.
+    Chain {
+        /// The kinematics table file.
+        #[arg(long)]
+        kinematics: PathBuf,
+        /// The machine description (TOML).
+        #[arg(long)]
+        machine: Option<PathBuf>,
+    },
+}
+
+pub fn run(args: Args) -> Result<(), String> {
+    match args.command {
+        KinCommand::Fwd(c) => fwd(&c),
+        KinCommand::Inv(c) => inv(&c),
+        KinCommand::Gcode(c) => gcode(&c),
+        KinCommand::Chain {
+            kinematics,
+            machine,
+        } => chain(&kinematics, machine.as_deref()),
+    }
+}
+
+fn load(kinematics: &Path, machine: Option<&Path>) -> Result<KinematicsFile, String> {
+    let machine = match machine {
+        Some(m) => Some(
+            truepos_io::machine_file::load(m)
+                .map_err(|e| e.to_string())?
+                .machine,
+        ),
+        None => None,
+    };
+    kinematics_file::load(kinematics, machine.as_ref()).map_err(|e| e.to_string())
+}
+
+fn tool_length(c: &Common, k: &KinematicsFile) -> Result<f64, String> {
+    let t = c.tool_length.unwrap_or(k.tool_length_mm);
+    if t.is_finite() {
+        Ok(t)
+    } else {
+        Err(format!("--tool-length must be a finite number, got {t}"))
+    }
+}
+
+/// A numeric CSV: header names and rows with their line numbers.
+struct Table {
+    header: Vec<String>,
+    rows: Vec<(usize, Vec<f64>)>,
+}
+
+fn read_csv(path: &Path) -> Result<Table, String> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| InputError::file(path, format!("cannot read: {e}")).to_string())?;
+    let mut header: Option<Vec<String>> = None;
+    let mut rows = Vec::new();
+    for (i, raw) in text.lines().enumerate() {
+        let line = raw.split('#').next().unwrap_or("").trim();
+        if line.is_empty() {
+            continue;
+        }
+        let Some(h) = &header else {
+            header = Some(line.split(',').map(|s| s.trim().to_string()).collect());
+            continue;
+        };
+        let mut values = Vec::with_capacity(h.len());
+        let mut col = 1;
+        for field in line.split(',') {
+            let v: f64 = field
+                .trim()
+                .parse()
+                .ok()
+                .filter(|v: &f64| v.is_finite())
+                .ok_or_else(|| {
+                    InputError::at(
+                        path,
+                        i + 1,
+                        col,
+                        h.get(values.len()).cloned().unwrap_or_default(),
+                        format!("expected a finite number, got `{}`", field.trim()),
+                    )
+                    .to_string()
+                })?;
+            values.push(v);
+            col += field.chars().count() + 1;
+        }
+        if values.len() != h.len() {
+            return Err(InputError::at(
+                path,
+                i + 1,
+                1,
+                "",
+                format!(
+                    "expected {} values as in the header, got {}",
+                    h.len(),
+                    values.len()
+                ),
+            )
+            .to_string());
+        }
+        rows.push((i + 1, values));
+    }
+    let header = header.ok_or_else(|| {
+        InputError::file(path, "empty file; expected a header and rows").to_string()
+    })?;
+    Ok(Table { header, rows })
+}
+
+/// Column index of each of `names` in the header.
+fn columns(path: &Path, t: &Table, names: &[&str]) -> Result<Vec<usize>, String> {
+    for (c, h) in t.header.iter().enumerate() {
+        if !names.contains(&h.as_str()) {
+            return Err(InputError::at(
+                path,
+                1,
+                c + 1,
+                h.clone(),
+                format!("unknown column; expected the columns {}", names.join(",")),
+            )
+            .to_string());
+        }
+    }
+    names
+        .iter()
+        .map(|n| {
+            t.header.iter().position(|h| h == n).ok_or_else(|| {
+                InputError::at(
+                    path,
+                    1,
+                    1,
+                    *n,
+                    format!("missing column; expected the columns {}", names.join(",")),
+                )
+                .to_string()
+            })
+        })
+        .collect()
+}
+
+fn emit(c: &Common, body: &str, summary: serde_json::Value, text: String) -> Result<(), String> {
+    let summary = if c.json { summary.to_string() } else { text };
+    match &c.output {
+        Some(p) => {
+            std::fs::write(p, body).map_err(|e| format!("{}: cannot write: {e}", p.display()))?;
+            println!("{summary}");
+        }
+        None => {
+            print!("{body}");
+            eprintln!("{summary}");
+        }
+    }
+    Ok(())
+}
+
+fn geometry(c: &Common) -> Geometry {
+    if c.nominal {
+        Geometry::Nominal
+    } else {
+        Geometry::Actual
+    }
+}
+
+fn fwd(c: &Common) -> Result<(), String> {
+    let k = load(&c.kinematics, c.machine.as_deref())?;
+    let tool = tool_length(c, &k)?;
+    let chain = &k.chain;
+    let names: Vec<&str> = chain.axes().iter().map(|a| a.name.as_str()).collect();
+    let t = read_csv(&c.input)?;
+    let cols = columns(&c.input, &t, &names)?;
+    let n = names.len();
+    let qs: Vec<Vec<f64>> = t
+        .rows
+        .iter()
+        .map(|(_, r)| cols.iter().map(|&i| r[i]).collect())
+        .collect();
+    let mut poses = Vec::with_capacity(qs.len());
+    let start = Instant::now();
+    for q in &qs {
+        poses.push(chain.forward(q, tool, Directions(0), geometry(c)));
+    }
+    let seconds = start.elapsed().as_secs_f64();
+    let mut body = String::from("X,Y,Z,I,J,K\n");
+    for ((line, _), p) in t.rows.iter().zip(&poses) {
+        let p = p
+            .as_ref()
+            .map_err(|e| format!("{}:{line}: {e}", c.input.display()))?;
+        let [x, y, z] = p.position;
+        let [i, j, kk] = p.direction;
+        let _ = writeln!(body, "{x},{y},{z},{i},{j},{kk}");
+    }
+    let summary = serde_json::json!({
+        "points": qs.len(), "axes": n, "geometry": if c.nominal { "nominal" } else { "actual" },
+        "transform_seconds": seconds,
+        "points_per_second": qs.len() as f64 / seconds.max(1e-12),
+    });
+    let text = format!(
+        "{} points forward ({}) in {:.3} ms",
+        qs.len(),
+        if c.nominal { "nominal" } else { "with errors" },
+        seconds * 1e3
+    );
+    emit(c, &body, summary, text)
+}
+
+/// Where an axis starts when no previous set-point exists: 0 if inside travel, else mid-travel.
+fn start_positions(chain: &Chain) -> Vec<f64> {
+    chain
+        .axes()
+        .iter()
+        .map(|a| {
+            if a.travel_min <= 0.0 && a.travel_max >= 0.0 {
+                0.0
+            } else {
+                0.5 * (a.travel_min + a.travel_max)
+            }
+        })
+        .collect()
+}
+
+fn inv(c: &Common) -> Result<(), String> {
+    let k = load(&c.kinematics, c.machine.as_deref())?;
+    let tool = tool_length(c, &k)?;
+    let chain = &k.chain;
+    let t = read_csv(&c.input)?;
+    let cols = columns(&c.input, &t, &["X", "Y", "Z", "I", "J", "K"])?;
+    let targets: Vec<Pose> = t
+        .rows
+        .iter()
+        .map(|(_, r)| Pose {
+            position: [r[cols[0]], r[cols[1]], r[cols[2]]],
+            direction: [r[cols[3]], r[cols[4]], r[cols[5]]],
+        })
+        .collect();
+    let n = chain.axes().len();
+    let mut prev = start_positions(chain);
+    let mut dirs = Directions(0);
+    let mut out = vec![0.0; n * targets.len()];
+    let mut results = Vec::with_capacity(targets.len());
+    let start = Instant::now();
+    for (i, target) in targets.iter().enumerate() {
+        let slot = &mut out[i * n..(i + 1) * n];
+        let r = chain.inverse(target, tool, &prev, dirs, geometry(c), slot);
+        if let Ok(rep) = &r {
+            prev.copy_from_slice(slot);
+            dirs = rep.directions;
+        }
+        results.push(r);
+    }
+    let seconds = start.elapsed().as_secs_f64();
+    let names: Vec<&str> = chain.axes().iter().map(|a| a.name.as_str()).collect();
+    let mut body = names.join(",") + ",status\n";
+    let (mut ok, mut max_p, mut max_d, mut max_it) = (0usize, 0.0_f64, 0.0_f64, 0u32);
+    let mut failures = Vec::new();
+    for (i, r) in results.iter().enumerate() {
+        match r {
+            Ok(rep) => {
+                ok += 1;
+                max_p = max_p.max(rep.position_residual_mm);
+                max_d = max_d.max(rep.direction_residual_rad);
+                max_it = max_it.max(rep.iterations);
+                for v in &out[i * n..(i + 1) * n] {
+                    let _ = write!(body, "{v},");
+                }
+                body.push_str("ok\n");
+            }
+            Err(e) => {
+                body.push_str(&",".repeat(n));
+                let _ = writeln!(body, "\"{e}\"");
+                failures.push(format!("{}:{}: {e}", c.input.display(), t.rows[i].0));
+            }
+        }
+    }
+    let total = targets.len();
+    let summary = serde_json::json!({
+        "points": total, "converged": ok, "failed": total - ok,
+        "geometry": if c.nominal { "nominal" } else { "actual" },
+        "layout": chain.layout_name(),
+        "max_position_residual_mm": max_p, "max_direction_residual_rad": max_d,
+        "max_newton_iterations": max_it,
+        "solve_seconds": seconds,
+        "points_per_second": total as f64 / seconds.max(1e-12),
+        "failures": failures.iter().take(20).collect::<Vec<_>>(),
+    });
+    let mut text = format!(
+        "{ok} of {total} points converged ({} inverse, {}); largest residual {max_p:.2e} mm, {max_d:.2e} rad; {:.3} ms",
+        chain.layout_name(),
+        if c.nominal { "nominal" } else { "through the error tables" },
+        seconds * 1e3
+    );
+    for f in failures.iter().take(20) {
+        text.push('\n');
+        text.push_str(f);
+    }
+    emit(c, &body, summary, text)?;
+    if ok == total {
+        Ok(())
+    } else {
+        Err(format!("{} of {total} points failed", total - ok))
+    }
+}
+
+fn chain(kinematics: &Path, machine: Option<&Path>) -> Result<(), String> {
+    let k = load(kinematics, machine)?;
+    let axes: Vec<_> = k
+        .chain
+        .axes()
+        .iter()
+        .map(|a| {
+            serde_json::json!({
+                "name": a.name,
+                "kind": if a.kind == AxisKind::Linear { "linear" } else { "rotary" },
+                "travel": [a.travel_min, a.travel_max],
+            })
+        })
+        .collect();
+    let rows: Vec<_> = k
+        .chain
+        .rows()
+        .iter()
+        .map(|r| match *r {
+            Row::Fixed { dof, value } => {
+                serde_json::json!({"key": "fixed", "dof": dof.name(), "value": value})
+            }
+            Row::Tool { dof, sign, offset } => {
+                serde_json::json!({"key": "tool", "dof": dof.name(), "sign": sign, "offset": offset})
+            }
+            Row::Error { dof, offset, table } => serde_json::json!({
+                "key": "error", "dof": dof.name(), "value": offset,
+                "table": k.chain.tables()[table].name,
+            }),
+            Row::Axis { dof, axis, sign } => {
+                serde_json::json!({"key": "axis", "dof": dof.name(), "axis": axis, "sign": sign})
+            }
+        })
+        .collect();
+    let v = serde_json::json!({
+        "name": k.name, "tool_length_mm": k.tool_length_mm, "axes": axes, "rows": rows,
+        "layout": k.chain.layout_name(),
+    });
+    println!("{v}");
+    Ok(())
+}
+
+fn gcode(c: &Common) -> Result<(), String> {
+    let k = load(&c.kinematics, c.machine.as_deref())?;
+    let tool = tool_length(c, &k)?;
+    let chain = &k.chain;
+    let text = std::fs::read_to_string(&c.input)
+        .map_err(|e| format!("{}: cannot read: {e}", c.input.display()))?;
+    let n = chain.axes().len();
+    // Program axis words: the chain's axes named by one letter.
+    let letters: Vec<char> = chain
+        .axes()
+        .iter()
+        .map(|a| a.name.chars().next().unwrap_or(' '))
+        .collect();
+    let mut nominal = start_positions(chain);
+    let mut dirs = Directions(0);
+    let mut warnings: Vec<String> = Vec::new();
+    let mut out_text = String::new();
+    let mut problems: Vec<String> = Vec::new();
+    let mut moves = 0usize;
+    let mut motion: Option<u32> = None;
+    let mut out = vec![0.0; n];
+    for (i, raw) in text.lines().enumerate() {
+        let ln = i + 1;
+        let loc = format!("{}:{ln}", c.input.display());
+        // Split code from comments: `( … )` anywhere and `;` to the end of the line.
+        let mut code = String::new();
+        let mut comments: Vec<(usize, String)> = Vec::new();
+        let mut depth = 0;
+        let mut current = String::new();
+        let mut rest_comment: Option<String> = None;
+        for (ci, ch) in raw.char_indices() {
+            if depth == 0 && ch == ';' {
+                rest_comment = Some(raw[ci..].to_string());
+                break;
+            }
+            if ch == '(' {
+                depth += 1;
+            }
+            if depth > 0 {
+                current.push(ch);
+                if ch == ')' {
+                    depth -= 1;
+                    if depth == 0 {
+                        comments.push((code.len(), std::mem::take(&mut current)));
+                    }
+                }
+            } else {
+                code.push(ch);
+            }
+        }
+        if depth > 0 {
+            problems.push(format!("{loc}: unclosed comment `(`"));
+            out_text.push_str(raw);
+            out_text.push('\n');
+            continue;
+        }
+        // Words.
+        let mut words: Vec<(char, String)> = Vec::new();
+        let chars: Vec<char> = code.chars().collect();
+        let mut p = 0;
+        let mut bad = false;
+        while p < chars.len() {
+            let ch = chars[p];
+            if ch.is_whitespace() {
+                p += 1;
+                continue;
+            }
+            if !ch.is_ascii_alphabetic() {
+                problems.push(format!(
+                    "{loc}: unexpected `{ch}`; expected a word such as G1 or X10.5"
+                ));
+                bad = true;
+                break;
+            }
+            let mut q = p + 1;
+            while q < chars.len()
+                && (chars[q].is_ascii_digit() || matches!(chars[q], '.' | '-' | '+' | ' '))
+            {
+                q += 1;
+            }
+            let num: String = chars[p + 1..q]
+                .iter()
+                .filter(|c| !c.is_whitespace())
+                .collect();
+            words.push((ch.to_ascii_uppercase(), num));
+            p = q;
+        }
+        let mut axis_words = false;
+        let mut unsupported = bad;
+        for (l, num) in &words {
+            match l {
+                'G' => {
+                    match num.parse::<f64>().ok() {
+                        Some(g) if g == 0.0 || g == 1.0 => motion = Some(g as u32),
+                        Some(g)
+                            if matches!(g as i64, 17 | 21 | 40 | 49 | 54 | 80 | 90 | 94)
+                                && g.fract() == 0.0 => {}
+                        _ => {
+                            problems.push(format!("{loc}: G{num} is not supported (only G0/G1 moves in absolute mm, G90)"));
+                            unsupported = true;
+                        }
+                    }
+                }
+                'N' | 'F' | 'S' | 'M' | 'T' | 'H' | 'D' => {}
+                l if letters.contains(l) => {
+                    axis_words = true;
+                    if num.parse::<f64>().ok().filter(|v| v.is_finite()).is_none() {
+                        problems.push(format!("{loc}: `{l}{num}`: expected a number"));
+                        unsupported = true;
+                    }
+                }
+                _ => {
+                    problems.push(format!("{loc}: word `{l}{num}` is not supported here"));
+                    unsupported = true;
+                }
+            }
+        }
+        if !axis_words || unsupported {
+            out_text.push_str(raw);
+            out_text.push('\n');
+            continue;
+        }
+        if motion.is_none() {
+            problems.push(format!("{loc}: axis words before any G0/G1"));
+            out_text.push_str(raw);
+            out_text.push('\n');
+            continue;
+        }
+        let before = nominal.clone();
+        for (l, num) in &words {
+            if let Some(j) = letters.iter().position(|c| c == l) {
+                nominal[j] = num.parse().unwrap_or(nominal[j]);
+            }
+        }
+        // Travel directions from the programmed motion (for directional tables).
+        for j in 0..n {
+            if nominal[j] > before[j] {
+                dirs.0 &= !(1 << j);
+            } else if nominal[j] < before[j] {
+                dirs.0 |= 1 << j;
+            }
+        }
+        // The nominal machine would put the tool here; find set-points that put the real tool
+        // there, on the branch the program chose.
+        let target = match chain.forward(&nominal, tool, dirs, Geometry::Nominal) {
+            Ok(t) => t,
+            Err(e) => {
+                problems.push(format!("{loc}: {e}"));
+                out_text.push_str(raw);
+                out_text.push('\n');
+                continue;
+            }
+        };
+        match chain.inverse_near(&target, tool, &nominal, dirs, geometry(c), &mut out) {
+            Ok(_) => {}
+            Err(KinError::NotConverged {
+                position_mm,
+                direction_rad,
+            }) if position_mm < 1e-6 => {
+                // The real machine cannot point the tool exactly there (e.g. at the pole, a tilt
+                // in the plane of the swivel axis): TCP exact, direction as close as it gets.
+                warnings.push(format!(
+                    "{loc}: the real tool direction stays {:.1} µrad off (not reachable with these errors); TCP exact",
+                    direction_rad * 1e6
+                ));
+            }
+            Err(e) => {
+                problems.push(format!("{loc}: {e}"));
+                out_text.push_str(raw);
+                out_text.push('\n');
+                continue;
+            }
+        }
+        moves += 1;
+        // Rewrite: every word as it was, axis words of this line with compensated values, axis
+        // words that changed through compensation but were modal added at the end.
+        let mut line = String::new();
+        let mut written = vec![false; n];
+        for (l, num) in &words {
+            if !line.is_empty() {
+                line.push(' ');
+            }
+            if let Some(j) = letters.iter().position(|c| c == l) {
+                let _ = write!(line, "{l}{:.6}", out[j]);
+                written[j] = true;
+            } else {
+                let _ = write!(line, "{l}{num}");
+            }
+        }
+        for j in 0..n {
+            if !written[j] {
+                let _ = write!(line, " {}{:.6}", letters[j], out[j]);
+            }
+        }
+        for (_, cmt) in &comments {
+            line.push(' ');
+            line.push_str(cmt);
+        }
+        if let Some(cmt) = &rest_comment {
+            line.push(' ');
+            line.push_str(cmt);
+        }
+        out_text.push_str(&line);
+        out_text.push('\n');
+    }
+    let summary = serde_json::json!({
+        "moves_rewritten": moves, "problems": problems, "warnings": warnings,
+    });
+    let mut txt = format!(
+        "{moves} moves rewritten; {} problem(s), {} warning(s)",
+        problems.len(),
+        warnings.len()
+    );
+    for p in problems.iter().chain(&warnings) {
+        txt.push('\n');
+        txt.push_str(p);
+    }
+    emit(c, &out_text, summary, txt)?;
+    if problems.is_empty() {
+        Ok(())
+    } else {
+        Err(format!("{} line(s) could not be rewritten", problems.len()))
+    }
+}
