@@ -7,7 +7,10 @@
 
 pub mod frame;
 pub mod io_traits;
+pub mod modbus;
 pub mod output;
+pub mod reconnect;
+pub mod shdr;
 
 pub use frame::{Frame, NEVER};
 pub use io_traits::{LinkError, SharedChannels, Sink, Source};

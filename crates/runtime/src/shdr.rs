@@ -1,0 +1,841 @@
+//! MTConnect SHDR input: a TCP client to an MTConnect adapter, reading axis positions
+//! (`POSITION`, `ANGLE`) and temperatures (`TEMPERATURE`) from its SHDR lines.
+//!
+//! SHDR ("simple hierarchical data representation") is the line protocol between an MTConnect
+//! adapter and an agent, as described by the MTConnect Institute's reference agent
+//! documentation (cppagent, "Adapter Agent Protocol"): the adapter listens on TCP, and each line
+//! it sends is `timestamp|dataItemId|value|dataItemId|value…`, with the value `UNAVAILABLE` when
+//! it does not know it. An adapter sends a value when it changes (and all values when a client
+//! connects). The client sends `* PING`; the adapter answers `* PONG <ms>`, announcing the
+//! longest time the client should wait for the next answer. Lines starting with `*` are protocol
+//! commands (`* shdrVersion: 2`).
+//!
+//! [`parse_line`] is a pure function: every malformed line gives an [`ShdrError`], never a
+//! panic (property-tested with a million inputs, `tests/fuzz_network.rs`).
+//!
+//! [`ShdrSource`] runs the client on its own thread and implements [`Source`]. The stamp of a
+//! value is the last time the adapter confirmed it: when it arrived, or later when any line or
+//! `PONG` arrived on the same connection (an adapter only re-sends changed values, so a live
+//! connection confirms the unchanged ones). When the connection is lost — the socket closes, or
+//! no `PONG` comes within the announced interval after a `PING` — the stamps stop advancing and
+//! the client reconnects with backoff ([`crate::reconnect`]).
+//!
+//! Limits: data items are read as `id|value` pairs, so CONDITION (six fields), MESSAGE and
+//! time-series items must be on lines of their own (as adapters usually send them); a line whose
+//! pairing fails is reported as bad data and skipped. Multi-line assets (`--multiline--`) are
+//! skipped. The adapter's timestamp is not used: values are stamped on the service clock when
+//! they arrive.
+
+use std::collections::HashMap;
+use std::io::{Read, Write};
+use std::net::{SocketAddr, TcpStream, ToSocketAddrs};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::Arc;
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use serde::Deserialize;
+use truepos_model::Machine;
+
+use crate::frame::{Frame, NEVER};
+use crate::io_traits::{LinkError, SharedChannels, Source};
+use crate::reconnect::{
+    check_unique_targets, seconds_since, sleep_unless_stopped, Backoff, BackoffConfig, ConfigError,
+    LinkSnapshot, LinkStatus, OutageReporter, Target,
+};
+
+/// One line from an adapter.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ShdrLine<'a> {
+    /// Data: the adapter's timestamp (possibly empty) and the items of the line.
+    Data {
+        /// The first field as sent (ISO 8601 time, possibly with `@duration`, or empty).
+        timestamp: &'a str,
+        /// `dataItemId|value` pairs in line order.
+        items: Vec<ShdrItem<'a>>,
+    },
+    /// `* PONG <ms>`: the adapter is alive and announces its heartbeat interval in ms.
+    Pong {
+        /// The announced interval in ms (≥ 1).
+        interval_ms: u64,
+    },
+    /// Any other protocol line, `* name: value` or `* name value` (e.g. `* shdrVersion: 2`).
+    Command {
+        /// The command's name.
+        name: &'a str,
+        /// The rest of the line, trimmed (may be empty).
+        value: &'a str,
+    },
+}
+
+/// One `dataItemId|value` pair.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ShdrItem<'a> {
+    /// The data item's id (or name) in the adapter's device model.
+    pub id: &'a str,
+    /// Its value.
+    pub value: ShdrValue<'a>,
+}
+
+/// The value of a data item.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ShdrValue<'a> {
+    /// A finite number (a POSITION in mm, ANGLE in degrees, TEMPERATURE in °C).
+    Number(f64),
+    /// `UNAVAILABLE`: the adapter does not know the value.
+    Unavailable,
+    /// Anything else (an event's text, or a number that is not finite), trimmed.
+    Text(&'a str),
+}
+
+/// Why a line cannot be read.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum ShdrError {
+    /// The line is empty or only white space.
+    Empty,
+    /// A data line without any `|`.
+    NoItems,
+    /// A data item id without a value (the line has an even number of fields).
+    MissingValue {
+        /// The id left without a value.
+        id: String,
+    },
+    /// An empty data item id.
+    EmptyId {
+        /// 1-based field number in the line (the timestamp is field 1).
+        field: usize,
+    },
+    /// `* PONG` without a positive whole number of ms.
+    BadPong {
+        /// What followed `PONG`.
+        found: String,
+    },
+    /// A `*` line without a command name.
+    EmptyCommand,
+}
+
+impl std::fmt::Display for ShdrError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Empty => write!(f, "empty line; expected timestamp|dataItemId|value…"),
+            Self::NoItems => {
+                write!(
+                    f,
+                    "expected timestamp|dataItemId|value…, found no `|` in the line"
+                )
+            }
+            Self::MissingValue { id } => write!(
+                f,
+                "expected dataItemId|value pairs after the timestamp; data item `{id}` has no value"
+            ),
+            Self::EmptyId { field } => {
+                write!(
+                    f,
+                    "expected a data item id in field {field}, found an empty field"
+                )
+            }
+            Self::BadPong { found } => write!(
+                f,
+                "expected `* PONG <interval in ms>` with a whole number ≥ 1, found `{found}`"
+            ),
+            Self::EmptyCommand => write!(f, "expected a command after `*`, found nothing"),
+        }
+    }
+}
+
+impl std::error::Error for ShdrError {}
+
+/// Reads one SHDR line (with or without its line end). Pure; never panics.
+///
+/// ```
+/// use truepos_runtime::shdr::{parse_line, ShdrLine, ShdrValue};
+/// let line = parse_line("2024-05-01T10:00:00.000Z|Xact|125.5|Tspindle|UNAVAILABLE\r\n").unwrap();
+/// let ShdrLine::Data { items, .. } = line else { panic!() };
+/// assert_eq!(items[0].value, ShdrValue::Number(125.5));
+/// assert_eq!(items[1].value, ShdrValue::Unavailable);
+/// assert_eq!(parse_line("* PONG 10000").unwrap(), ShdrLine::Pong { interval_ms: 10000 });
+/// ```
+pub fn parse_line(line: &str) -> Result<ShdrLine<'_>, ShdrError> {
+    let line = line.trim_end_matches(['\r', '\n']);
+    if line.trim().is_empty() {
+        return Err(ShdrError::Empty);
+    }
+    if let Some(command) = line.strip_prefix('*') {
+        return parse_command(command.trim());
+    }
+    let mut fields = line.split('|');
+    // `split` always yields a first field.
+    let timestamp = fields.next().unwrap_or_default().trim();
+    let mut items = Vec::new();
+    let mut field = 1;
+    while let Some(id) = fields.next() {
+        field += 1;
+        let id = id.trim();
+        let Some(value) = fields.next() else {
+            return Err(ShdrError::MissingValue { id: id.to_string() });
+        };
+        if id.is_empty() {
+            return Err(ShdrError::EmptyId { field });
+        }
+        field += 1;
+        items.push(ShdrItem {
+            id,
+            value: parse_value(value),
+        });
+    }
+    if items.is_empty() {
+        return Err(ShdrError::NoItems);
+    }
+    Ok(ShdrLine::Data { timestamp, items })
+}
+
+fn parse_command(command: &str) -> Result<ShdrLine<'_>, ShdrError> {
+    let (name, value) = match command.find([':', ' ', '\t']) {
+        Some(i) => (&command[..i], command[i + 1..].trim()),
+        None => (command, ""),
+    };
+    let name = name.trim();
+    if name.is_empty() {
+        return Err(ShdrError::EmptyCommand);
+    }
+    if name == "PONG" {
+        return match value.parse::<u64>() {
+            Ok(ms) if ms >= 1 => Ok(ShdrLine::Pong { interval_ms: ms }),
+            _ => Err(ShdrError::BadPong {
+                found: value.to_string(),
+            }),
+        };
+    }
+    Ok(ShdrLine::Command { name, value })
+}
+
+/// A value field: `UNAVAILABLE`, a finite number, or text.
+pub fn parse_value(field: &str) -> ShdrValue<'_> {
+    let text = field.trim();
+    if text == "UNAVAILABLE" {
+        return ShdrValue::Unavailable;
+    }
+    match text.parse::<f64>() {
+        Ok(x) if x.is_finite() => ShdrValue::Number(x),
+        _ => ShdrValue::Text(text),
+    }
+}
+
+/// The longest line the client accepts, in bytes; a longer one is a protocol error and ends the
+/// connection.
+pub const MAX_LINE_BYTES: usize = 64 * 1024;
+
+/// Splits a byte stream into lines (`\n`, with an optional `\r`), across reads.
+#[derive(Debug, Default)]
+pub struct LineBuffer {
+    pending: Vec<u8>,
+}
+
+impl LineBuffer {
+    /// Appends received bytes and calls `line` for each complete line (as bytes, without its
+    /// end). Fails when a line exceeds [`MAX_LINE_BYTES`]; the buffer is then cleared.
+    pub fn push(&mut self, bytes: &[u8], mut line: impl FnMut(&[u8])) -> Result<(), String> {
+        self.pending.extend_from_slice(bytes);
+        let mut start = 0;
+        while let Some(n) = self.pending[start..].iter().position(|&b| b == b'\n') {
+            let end = start + n;
+            let body = &self.pending[start..end];
+            line(body.strip_suffix(b"\r").unwrap_or(body));
+            start = end + 1;
+        }
+        self.pending.drain(..start);
+        if self.pending.len() > MAX_LINE_BYTES {
+            let n = self.pending.len();
+            self.pending.clear();
+            return Err(format!(
+                "expected lines of at most {MAX_LINE_BYTES} bytes, found {n} bytes without a line end"
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// One SHDR data item feeding one machine channel (configuration, TOML). Give exactly one of
+/// `temperature`, `axis` or `operating`.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ShdrChannelConfig {
+    /// The adapter's dataItemId (e.g. `Xact`, `Tspindle`).
+    pub data_item: String,
+    /// Machine temperature channel id (°C).
+    #[serde(default)]
+    pub temperature: Option<String>,
+    /// Machine axis name (position in mm or degrees).
+    #[serde(default)]
+    pub axis: Option<String>,
+    /// Machine operating channel id.
+    #[serde(default)]
+    pub operating: Option<String>,
+}
+
+/// An MTConnect SHDR source (configuration, TOML).
+///
+/// ```toml
+/// address = "127.0.0.1:7878"
+/// [[channel]]
+/// data_item = "Xact"
+/// axis = "X"
+/// [[channel]]
+/// data_item = "Tspindle"
+/// temperature = "spindle_front_bearing"
+/// ```
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ShdrConfig {
+    /// The adapter's `host:port`.
+    pub address: String,
+    /// Longest wait for a TCP connection in ms (default 2000).
+    #[serde(default = "default_connect_timeout_ms")]
+    pub connect_timeout_ms: u64,
+    /// The client sends `* PING` this often in ms (default 1000), or at the adapter's announced
+    /// interval if that is shorter; every answer confirms the values of the connection.
+    #[serde(default = "default_ping_ms")]
+    pub ping_ms: u64,
+    /// Longest wait for the first `* PONG` in ms, before the adapter has announced its interval
+    /// (default 5000). Afterwards the announced interval is the limit.
+    #[serde(default = "default_first_pong_ms")]
+    pub first_pong_timeout_ms: u64,
+    /// Reconnection waits.
+    #[serde(default)]
+    pub backoff: BackoffConfig,
+    /// Which data item feeds which machine channel.
+    #[serde(rename = "channel")]
+    pub channels: Vec<ShdrChannelConfig>,
+}
+
+fn default_connect_timeout_ms() -> u64 {
+    2000
+}
+fn default_ping_ms() -> u64 {
+    1000
+}
+fn default_first_pong_ms() -> u64 {
+    5000
+}
+
+impl ShdrConfig {
+    /// Reads the configuration from TOML text (a table with the fields above).
+    pub fn from_toml(text: &str) -> Result<Self, ConfigError> {
+        toml::from_str(text).map_err(|e| ConfigError::new("shdr", e.to_string()))
+    }
+
+    /// Checks the bounds and resolves the channels against the machine.
+    pub fn resolve(&self, machine: &Machine) -> Result<Vec<Target>, ConfigError> {
+        resolve_address(&self.address, "shdr.address")?;
+        for (key, v) in [
+            ("shdr.connect_timeout_ms", self.connect_timeout_ms),
+            ("shdr.ping_ms", self.ping_ms),
+            ("shdr.first_pong_timeout_ms", self.first_pong_timeout_ms),
+        ] {
+            if v == 0 {
+                return Err(ConfigError::new(
+                    key,
+                    "expected a time of at least 1 ms, found 0",
+                ));
+            }
+        }
+        self.backoff.check("shdr.backoff")?;
+        if self.channels.is_empty() {
+            return Err(ConfigError::new(
+                "shdr.channel",
+                "expected at least one [[channel]] mapping a data item to a machine channel",
+            ));
+        }
+        let keys: Vec<String> = (0..self.channels.len())
+            .map(|i| format!("shdr.channel[{}]", i + 1))
+            .collect();
+        let mut targets = Vec::with_capacity(self.channels.len());
+        for (c, key) in self.channels.iter().zip(&keys) {
+            if c.data_item.trim().is_empty() || c.data_item.contains('|') {
+                return Err(ConfigError::new(
+                    format!("{key}.data_item"),
+                    format!("expected a dataItemId without `|`, found `{}`", c.data_item),
+                ));
+            }
+            targets.push(Target::resolve(
+                machine,
+                key,
+                c.temperature.as_deref(),
+                c.axis.as_deref(),
+                c.operating.as_deref(),
+            )?);
+        }
+        check_unique_targets(&targets, &keys)?;
+        Ok(targets)
+    }
+}
+
+/// Resolves `host:port` to a socket address; `key` names the setting in errors.
+pub(crate) fn resolve_address(address: &str, key: &str) -> Result<SocketAddr, ConfigError> {
+    address
+        .to_socket_addrs()
+        .ok()
+        .and_then(|mut a| a.next())
+        .ok_or_else(|| ConfigError::new(key, format!("expected host:port, found `{address}`")))
+}
+
+/// What the client thread and the cycle share.
+#[derive(Debug)]
+struct Shared {
+    channels: Arc<SharedChannels>,
+    /// Per channel, the connection number its value arrived on.
+    value_connection: Vec<AtomicU64>,
+    /// Service time of the last line or PONG on the current connection (f64 bits).
+    alive_s: AtomicU64,
+    status: LinkStatus,
+    stop: AtomicBool,
+}
+
+/// An MTConnect SHDR source: a client thread connected to an adapter, and the cycle's view of
+/// the values it received.
+#[derive(Debug)]
+pub struct ShdrSource {
+    name: String,
+    targets: Vec<Target>,
+    shared: Arc<Shared>,
+    outage: OutageReporter,
+    thread: Option<JoinHandle<()>>,
+}
+
+impl ShdrSource {
+    /// Starts the client thread for a checked configuration. `epoch` is the service clock's
+    /// zero: stamps are seconds since it.
+    pub fn start(
+        config: &ShdrConfig,
+        machine: &Machine,
+        epoch: Instant,
+    ) -> Result<Self, ConfigError> {
+        let targets = config.resolve(machine)?;
+        let n = targets.len();
+        let shared = Arc::new(Shared {
+            channels: SharedChannels::new(n),
+            value_connection: (0..n).map(|_| AtomicU64::new(0)).collect(),
+            alive_s: AtomicU64::new(NEVER.to_bits()),
+            status: LinkStatus::default(),
+            stop: AtomicBool::new(false),
+        });
+        let mut by_id: HashMap<String, Vec<usize>> = HashMap::new();
+        for (k, c) in config.channels.iter().enumerate() {
+            by_id
+                .entry(c.data_item.trim().to_string())
+                .or_default()
+                .push(k);
+        }
+        let client = Client {
+            config: config.clone(),
+            by_id,
+            shared: Arc::clone(&shared),
+            epoch,
+        };
+        let name = format!("shdr {}", config.address);
+        let thread = std::thread::Builder::new()
+            .name(name.clone())
+            .spawn(move || client.run())
+            .map_err(|e| {
+                ConfigError::new("shdr", format!("cannot start the client thread: {e}"))
+            })?;
+        Ok(Self {
+            name,
+            targets,
+            shared,
+            outage: OutageReporter::default(),
+            thread: Some(thread),
+        })
+    }
+
+    /// The link's state for the status line.
+    pub fn status(&self) -> LinkSnapshot {
+        self.shared.status.snapshot()
+    }
+
+    /// The link's state, including its events to drain (off the cycle).
+    pub fn link(&self) -> &LinkStatus {
+        &self.shared.status
+    }
+
+    /// The machine channels this source feeds, in configuration order.
+    pub fn targets(&self) -> &[Target] {
+        &self.targets
+    }
+}
+
+impl Source for ShdrSource {
+    fn name(&self) -> &str {
+        &self.name
+    }
+
+    /// Copies the latest values with their confirmation stamps (no lock, no allocation).
+    fn read(&mut self, frame: &mut Frame) -> Result<(), LinkError> {
+        let current = self.shared.status.connection_number();
+        let alive = f64::from_bits(self.shared.alive_s.load(Ordering::Acquire));
+        for (k, target) in self.targets.iter().enumerate() {
+            let (value, stamp) = self.shared.channels.get(k);
+            let confirmed = if self.shared.value_connection[k].load(Ordering::Acquire) == current {
+                stamp.max(alive)
+            } else {
+                stamp
+            };
+            target.write(frame, value, confirmed);
+        }
+        self.outage.check(&self.shared.status)
+    }
+}
+
+impl Drop for ShdrSource {
+    fn drop(&mut self) {
+        self.shared.stop.store(true, Ordering::Release);
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
+/// The client thread.
+struct Client {
+    config: ShdrConfig,
+    by_id: HashMap<String, Vec<usize>>,
+    shared: Arc<Shared>,
+    epoch: Instant,
+}
+
+/// How a connection ended.
+enum End {
+    Stopped,
+    Lost(String),
+}
+
+impl Client {
+    fn now_s(&self) -> f64 {
+        seconds_since(self.epoch)
+    }
+
+    fn run(self) {
+        let mut backoff = Backoff::new(self.config.backoff);
+        let status = &self.shared.status;
+        while !self.shared.stop.load(Ordering::Acquire) {
+            match self.connect() {
+                Ok(stream) => {
+                    backoff.reset();
+                    status.set_connected(
+                        self.now_s(),
+                        format!("connected to {}", self.config.address),
+                    );
+                    match self.serve(stream) {
+                        End::Stopped => return,
+                        End::Lost(why) => status.set_lost(self.now_s(), why),
+                    }
+                }
+                Err(why) => status.set_lost(self.now_s(), why),
+            }
+            if !sleep_unless_stopped(backoff.next_delay(), &self.shared.stop) {
+                return;
+            }
+        }
+    }
+
+    fn connect(&self) -> Result<TcpStream, String> {
+        let address =
+            resolve_address(&self.config.address, "shdr.address").map_err(|e| e.message)?;
+        let stream = TcpStream::connect_timeout(
+            &address,
+            Duration::from_millis(self.config.connect_timeout_ms),
+        )
+        .map_err(|e| format!("cannot connect to adapter {address}: {e}"))?;
+        stream
+            .set_read_timeout(Some(Duration::from_millis(20)))
+            .and_then(|_| stream.set_write_timeout(Some(Duration::from_millis(500))))
+            .and_then(|_| stream.set_nodelay(true))
+            .map_err(|e| format!("cannot set up the connection to {address}: {e}"))?;
+        Ok(stream)
+    }
+
+    /// Reads lines and keeps the heartbeat until the connection ends.
+    fn serve(&self, mut stream: TcpStream) -> End {
+        let connection = self.shared.status.connection_number();
+        let mut lines = LineBuffer::default();
+        let mut chunk = [0u8; 4096];
+        // The limit for the PONG we wait for: the configured one until the adapter announces its
+        // interval.
+        let mut pong_limit = Duration::from_millis(self.config.first_pong_timeout_ms);
+        let mut ping_every = Duration::from_millis(self.config.ping_ms);
+        let mut outstanding: Option<Instant> = None;
+        let mut last_ping: Option<Instant> = None;
+        let mut skip_until: Option<String> = None;
+        loop {
+            if self.shared.stop.load(Ordering::Acquire) {
+                return End::Stopped;
+            }
+            let now = Instant::now();
+            if let Some(sent) = outstanding {
+                if now.duration_since(sent) > pong_limit {
+                    return End::Lost(format!(
+                        "no `* PONG` from {} within {} ms of `* PING`",
+                        self.config.address,
+                        pong_limit.as_millis()
+                    ));
+                }
+            } else if last_ping.is_none_or(|t| now.duration_since(t) >= ping_every) {
+                if let Err(e) = stream.write_all(b"* PING\n") {
+                    return End::Lost(format!(
+                        "cannot send `* PING` to {}: {e}",
+                        self.config.address
+                    ));
+                }
+                outstanding = Some(now);
+                last_ping = Some(now);
+            }
+            let n = match stream.read(&mut chunk) {
+                Ok(0) => {
+                    return End::Lost(format!(
+                        "adapter {} closed the connection",
+                        self.config.address
+                    ))
+                }
+                Ok(n) => n,
+                Err(e)
+                    if matches!(
+                        e.kind(),
+                        std::io::ErrorKind::WouldBlock
+                            | std::io::ErrorKind::TimedOut
+                            | std::io::ErrorKind::Interrupted
+                    ) =>
+                {
+                    continue
+                }
+                Err(e) => {
+                    return End::Lost(format!(
+                        "cannot read from adapter {}: {e}",
+                        self.config.address
+                    ))
+                }
+            };
+            let mut pong: Option<u64> = None;
+            let pushed = lines.push(&chunk[..n], |bytes| {
+                if let Some(ms) = self.handle_line(bytes, connection, &mut skip_until) {
+                    pong = Some(ms);
+                }
+            });
+            if let Err(why) = pushed {
+                return End::Lost(format!("adapter {}: {why}", self.config.address));
+            }
+            if let Some(ms) = pong {
+                outstanding = None;
+                pong_limit = Duration::from_millis(ms);
+                ping_every = Duration::from_millis(self.config.ping_ms.min(ms));
+            }
+        }
+    }
+
+    /// Handles one complete line; returns the announced interval of a PONG.
+    fn handle_line(
+        &self,
+        bytes: &[u8],
+        connection: u64,
+        skip_until: &mut Option<String>,
+    ) -> Option<u64> {
+        let now = self.now_s();
+        let status = &self.shared.status;
+        let Ok(text) = std::str::from_utf8(bytes) else {
+            status.bad_data(
+                now,
+                format!("adapter {}: a line is not UTF-8 text", self.config.address),
+            );
+            return None;
+        };
+        if let Some(marker) = skip_until.as_deref() {
+            if text.trim() == marker {
+                *skip_until = None;
+            }
+            return None;
+        }
+        if text.trim().is_empty() {
+            return None;
+        }
+        match parse_line(text) {
+            Ok(ShdrLine::Pong { interval_ms }) => {
+                self.shared.alive_s.store(now.to_bits(), Ordering::Release);
+                Some(interval_ms)
+            }
+            Ok(ShdrLine::Command { .. }) => None,
+            Ok(ShdrLine::Data { items, .. }) => {
+                for item in &items {
+                    if let ShdrValue::Text(t) = item.value {
+                        if t.starts_with("--multiline--") {
+                            *skip_until = Some(t.to_string());
+                        }
+                    }
+                    let Some(ks) = self.by_id.get(item.id) else {
+                        continue;
+                    };
+                    let value = match item.value {
+                        ShdrValue::Number(x) => x,
+                        ShdrValue::Unavailable => f64::NAN,
+                        ShdrValue::Text(t) => {
+                            status.bad_data(
+                                now,
+                                format!(
+                                    "adapter {}: data item `{}`: expected a number or UNAVAILABLE, found `{t}`",
+                                    self.config.address, item.id
+                                ),
+                            );
+                            f64::NAN
+                        }
+                    };
+                    for &k in ks {
+                        self.shared.channels.publish(k, value, now);
+                        self.shared.value_connection[k].store(connection, Ordering::Release);
+                    }
+                }
+                self.shared.alive_s.store(now.to_bits(), Ordering::Release);
+                None
+            }
+            Err(e) => {
+                status.bad_data(now, format!("adapter {}: {e}", self.config.address));
+                None
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn data(line: &str) -> Vec<ShdrItem<'_>> {
+        match parse_line(line) {
+            Ok(ShdrLine::Data { items, .. }) => items,
+            other => panic!("expected data from {line:?}, got {other:?}"),
+        }
+    }
+
+    #[test]
+    fn data_lines() {
+        let items = data("2024-05-01T10:00:00.123456Z|Xact|125.500|Tspindle|24.1\n");
+        assert_eq!(items.len(), 2);
+        assert_eq!(
+            items[0],
+            ShdrItem {
+                id: "Xact",
+                value: ShdrValue::Number(125.5)
+            }
+        );
+        assert_eq!(
+            items[1],
+            ShdrItem {
+                id: "Tspindle",
+                value: ShdrValue::Number(24.1)
+            }
+        );
+        // Empty timestamp, CRLF, spaces around fields, negative and exponent numbers.
+        let items = data("| Zact | -3.5e1 |exec|ACTIVE|T1|UNAVAILABLE\r\n");
+        assert_eq!(items[0].value, ShdrValue::Number(-35.0));
+        assert_eq!(items[1].value, ShdrValue::Text("ACTIVE"));
+        assert_eq!(items[2].value, ShdrValue::Unavailable);
+        // An empty value is text, not a number; non-finite numbers are text too.
+        assert_eq!(data("t|a|")[0].value, ShdrValue::Text(""));
+        assert_eq!(data("t|a|NaN|b|inf")[0].value, ShdrValue::Text("NaN"));
+        assert_eq!(data("t|a|NaN|b|inf")[1].value, ShdrValue::Text("inf"));
+        match parse_line("2024-05-01T10:00:00Z@100.0|x|1").unwrap() {
+            ShdrLine::Data { timestamp, .. } => assert_eq!(timestamp, "2024-05-01T10:00:00Z@100.0"),
+            other => panic!("{other:?}"),
+        }
+    }
+
+    #[test]
+    fn protocol_lines() {
+        assert_eq!(
+            parse_line("* PONG 10000\r\n"),
+            Ok(ShdrLine::Pong { interval_ms: 10000 })
+        );
+        assert_eq!(
+            parse_line("*PONG 250"),
+            Ok(ShdrLine::Pong { interval_ms: 250 })
+        );
+        assert_eq!(
+            parse_line("* shdrVersion: 2"),
+            Ok(ShdrLine::Command {
+                name: "shdrVersion",
+                value: "2"
+            })
+        );
+        assert_eq!(
+            parse_line("* PING"),
+            Ok(ShdrLine::Command {
+                name: "PING",
+                value: ""
+            })
+        );
+    }
+
+    #[test]
+    fn malformed_lines_are_errors_naming_the_problem() {
+        assert_eq!(parse_line(""), Err(ShdrError::Empty));
+        assert_eq!(parse_line(" \r\n"), Err(ShdrError::Empty));
+        assert_eq!(parse_line("2024-05-01T10:00:00Z"), Err(ShdrError::NoItems));
+        assert_eq!(
+            parse_line("t|Xact|1|Yact"),
+            Err(ShdrError::MissingValue { id: "Yact".into() })
+        );
+        assert_eq!(parse_line("t||1"), Err(ShdrError::EmptyId { field: 2 }));
+        assert_eq!(
+            parse_line("t|a|1| |2"),
+            Err(ShdrError::EmptyId { field: 4 })
+        );
+        assert_eq!(
+            parse_line("* PONG"),
+            Err(ShdrError::BadPong { found: "".into() })
+        );
+        assert_eq!(
+            parse_line("* PONG 0"),
+            Err(ShdrError::BadPong { found: "0".into() })
+        );
+        assert_eq!(
+            parse_line("* PONG -5"),
+            Err(ShdrError::BadPong { found: "-5".into() })
+        );
+        assert_eq!(parse_line("*  "), Err(ShdrError::EmptyCommand));
+        assert_eq!(
+            ShdrError::MissingValue { id: "Yact".into() }.to_string(),
+            "expected dataItemId|value pairs after the timestamp; data item `Yact` has no value"
+        );
+    }
+
+    #[test]
+    fn line_buffer_splits_across_reads() {
+        let mut b = LineBuffer::default();
+        let mut got: Vec<String> = Vec::new();
+        b.push(b"t|a|1\r\nt|b", |l| {
+            got.push(String::from_utf8_lossy(l).into())
+        })
+        .unwrap();
+        assert_eq!(got, ["t|a|1"]);
+        b.push(b"|2\n\n* PONG 5\n", |l| {
+            got.push(String::from_utf8_lossy(l).into())
+        })
+        .unwrap();
+        assert_eq!(got, ["t|a|1", "t|b|2", "", "* PONG 5"]);
+        let long = vec![b'x'; MAX_LINE_BYTES + 1];
+        assert!(b.push(&long, |_| {}).is_err());
+        b.push(b"ok\n", |l| assert_eq!(l, b"ok")).unwrap();
+    }
+
+    #[test]
+    fn config_defaults_and_errors() {
+        let c = ShdrConfig::from_toml(
+            "address = \"127.0.0.1:7878\"\n[[channel]]\ndata_item = \"Xact\"\naxis = \"X\"\n",
+        )
+        .unwrap();
+        assert_eq!(
+            (c.connect_timeout_ms, c.ping_ms, c.first_pong_timeout_ms),
+            (2000, 1000, 5000)
+        );
+        assert_eq!(c.backoff, BackoffConfig::default());
+        let e = ShdrConfig::from_toml("address = \"a\"\nchannels = []").unwrap_err();
+        assert!(e.message.contains("unknown field `channels`"), "{e}");
+    }
+}
