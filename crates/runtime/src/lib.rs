@@ -5,13 +5,21 @@
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
+pub mod envelope;
+pub mod events;
 pub mod frame;
 pub mod io_traits;
+pub mod log;
 pub mod modbus;
+pub mod model_set;
 pub mod output;
 pub mod reconnect;
+pub mod replay;
+pub mod service;
 pub mod shdr;
+pub mod validate;
 
 pub use frame::{Frame, NEVER};
 pub use io_traits::{LinkError, SharedChannels, Sink, Source};
 pub use output::{CompensationState, Output};
+pub use service::{PathState, Service, ServiceConfig};

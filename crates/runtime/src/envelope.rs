@@ -1,0 +1,200 @@
+//! The last stage before the control: bumpless blending and the safety envelope.
+//!
+//! Switching models, enabling or disabling compensation, or falling back to holding must never
+//! make the output jump (seed D's prior art, JP 2017-170532: blend via the difference of the
+//! two values). When the origin of an axis' raw offset changes, the difference between what was
+//! last sent and the new raw value is kept and faded out linearly over the blend time. Then the
+//! envelope clamps the rate (µm/s against the last sent value) and the magnitude (µm).
+
+use truepos_io::machine_file::AxisRuntime;
+use truepos_model::MAX_AXES;
+
+use crate::events::{Event, EventKind, EventQueue};
+
+/// Per-axis blending and clamping state.
+#[derive(Debug, Clone)]
+pub struct Envelope {
+    limits: Vec<AxisRuntime>,
+    last_out: [f64; MAX_AXES],
+    /// Difference faded out since `blend_start`.
+    blend_from: [f64; MAX_AXES],
+    blend_start: [f64; MAX_AXES],
+    blend_s: [f64; MAX_AXES],
+    clamping: [bool; MAX_AXES],
+    last_time: f64,
+    started: bool,
+}
+
+impl Envelope {
+    /// An envelope for the machine's axes, all outputs at zero.
+    pub fn new(limits: &[AxisRuntime]) -> Self {
+        Self {
+            limits: limits.iter().take(MAX_AXES).copied().collect(),
+            last_out: [0.0; MAX_AXES],
+            blend_from: [0.0; MAX_AXES],
+            blend_start: [0.0; MAX_AXES],
+            blend_s: [0.0; MAX_AXES],
+            clamping: [false; MAX_AXES],
+            last_time: 0.0,
+            started: false,
+        }
+    }
+
+    /// The offsets last sent.
+    pub fn last(&self) -> &[f64] {
+        &self.last_out[..self.limits.len()]
+    }
+
+    /// Starts a bumpless transition of `axis` to a new origin whose raw value now is `raw_um`:
+    /// the output continues from what was last sent and reaches the new origin after
+    /// `blend_s` seconds.
+    pub fn begin_blend(&mut self, axis: usize, raw_um: f64, now_s: f64, blend_s: f64) {
+        if axis < self.limits.len() {
+            self.blend_from[axis] = self.last_out[axis] - raw_um;
+            self.blend_start[axis] = now_s;
+            self.blend_s[axis] = blend_s.max(0.0);
+        }
+    }
+
+    /// Takes the raw offsets of one cycle (finite), applies blending and the envelope, writes
+    /// the result to `out` and returns whether any axis was clamped. Raises an event when an
+    /// axis starts or stops being clamped.
+    pub fn apply(
+        &mut self,
+        raw_um: &[f64],
+        now_s: f64,
+        out: &mut [f64],
+        events: &EventQueue,
+    ) -> bool {
+        let dt = if self.started {
+            (now_s - self.last_time).max(0.0)
+        } else {
+            0.0
+        };
+        self.started = true;
+        self.last_time = now_s;
+        let mut any = false;
+        for (a, lim) in self.limits.iter().enumerate() {
+            let mut v = raw_um.get(a).copied().unwrap_or(0.0);
+            if !v.is_finite() {
+                v = 0.0;
+            }
+            if self.blend_from[a] != 0.0 {
+                let elapsed = now_s - self.blend_start[a];
+                let left = if self.blend_s[a] > 0.0 {
+                    (1.0 - elapsed / self.blend_s[a]).clamp(0.0, 1.0)
+                } else {
+                    0.0
+                };
+                if left == 0.0 {
+                    self.blend_from[a] = 0.0;
+                } else {
+                    v += self.blend_from[a] * left;
+                }
+            }
+            let mut clamped_rate = false;
+            let max_step = lim.max_rate_um_per_s * dt;
+            let step = v - self.last_out[a];
+            if step.abs() > max_step {
+                v = self.last_out[a] + max_step.copysign(step);
+                clamped_rate = true;
+            }
+            let mut clamped_abs = false;
+            if v.abs() > lim.max_offset_um {
+                v = lim.max_offset_um.copysign(v);
+                clamped_abs = true;
+            }
+            let clamped = clamped_rate || clamped_abs;
+            if clamped != self.clamping[a] {
+                let kind = if clamped {
+                    EventKind::Clamped {
+                        axis: a,
+                        rate: clamped_rate,
+                    }
+                } else {
+                    EventKind::ClampReleased { axis: a }
+                };
+                events.push(Event {
+                    time_s: now_s,
+                    kind,
+                });
+                self.clamping[a] = clamped;
+            }
+            any |= clamped;
+            self.last_out[a] = v;
+            if let Some(o) = out.get_mut(a) {
+                *o = v;
+            }
+        }
+        any
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const LIMIT: AxisRuntime = AxisRuntime {
+        max_offset_um: 100.0,
+        max_rate_um_per_s: 50.0,
+        path: 1,
+        number: 1,
+    };
+
+    #[test]
+    fn rate_and_magnitude_are_clamped() {
+        let q = EventQueue::new(16);
+        let mut e = Envelope::new(&[LIMIT]);
+        let mut out = [0.0];
+        e.apply(&[0.0], 0.0, &mut out, &q);
+        // A jump to 80 µm within 0.1 s: at most 50 µm/s · 0.1 s = 5 µm.
+        assert!(e.apply(&[80.0], 0.1, &mut out, &q));
+        assert!((out[0] - 5.0).abs() < 1e-12);
+        // Much later the rate allows it, but 300 µm is beyond the 100 µm magnitude.
+        assert!(e.apply(&[300.0], 100.0, &mut out, &q));
+        assert_eq!(out[0], 100.0);
+        // Back inside: released.
+        assert!(!e.apply(&[90.0], 101.0, &mut out, &q));
+        assert_eq!(out[0], 90.0);
+        let kinds: Vec<_> = std::iter::from_fn(|| q.pop()).map(|e| e.kind).collect();
+        assert_eq!(
+            kinds,
+            vec![
+                EventKind::Clamped {
+                    axis: 0,
+                    rate: true
+                },
+                EventKind::ClampReleased { axis: 0 }
+            ]
+        );
+    }
+
+    #[test]
+    fn blending_is_bumpless_and_reaches_the_new_value() {
+        // Sending 20 µm; the new model says 30 µm: the output starts at 20 and is at 25 half
+        // way through a 10 s blend, 30 at its end (well within 50 µm/s).
+        let q = EventQueue::new(16);
+        let mut e = Envelope::new(&[LIMIT]);
+        let mut out = [0.0];
+        e.apply(&[0.0], 0.0, &mut out, &q);
+        e.apply(&[20.0], 1.0, &mut out, &q);
+        assert_eq!(out[0], 20.0);
+        e.begin_blend(0, 30.0, 1.0, 10.0);
+        e.apply(&[30.0], 1.0, &mut out, &q);
+        assert!((out[0] - 20.0).abs() < 1e-12);
+        e.apply(&[30.0], 6.0, &mut out, &q);
+        assert!((out[0] - 25.0).abs() < 1e-12);
+        e.apply(&[30.0], 11.0, &mut out, &q);
+        assert!((out[0] - 30.0).abs() < 1e-12);
+        assert!(q.pop().is_none());
+    }
+
+    #[test]
+    fn non_finite_raw_values_never_pass() {
+        let q = EventQueue::new(16);
+        let mut e = Envelope::new(&[LIMIT]);
+        let mut out = [1.0];
+        e.apply(&[f64::NAN], 0.0, &mut out, &q);
+        assert_eq!(out[0], 0.0);
+    }
+}

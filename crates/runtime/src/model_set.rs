@@ -1,0 +1,204 @@
+//! Model sets (seed D, DE 10 2019 215 634 B4): every model carries an axis-combination index
+//! B = (b1, b2, b3), b_i = 100·path + axis number; the service builds the target index D of each
+//! path from the control's axis configuration and sets the matching model for that path.
+
+use truepos_model::Model;
+
+/// Slots of an axis-combination index (seed D uses three).
+pub const INDEX_SLOTS: usize = 3;
+
+/// A model with the axis combination it serves.
+#[derive(Debug, Clone)]
+pub struct ModelEntry {
+    /// Name for events and status.
+    pub name: String,
+    /// The model.
+    pub model: Model,
+    /// Its index B, 0 in unused slots.
+    pub index: [u32; INDEX_SLOTS],
+}
+
+/// Builds an index from axis codes (100·path + number), 0 in unused slots; codes beyond the
+/// slots are ignored (a path with more axes than slots matches on its first three).
+pub fn index_of(codes: impl IntoIterator<Item = u32>) -> [u32; INDEX_SLOTS] {
+    let mut index = [0; INDEX_SLOTS];
+    for (slot, code) in index.iter_mut().zip(codes) {
+        *slot = code;
+    }
+    index
+}
+
+/// The models and, per path, which of them match its current axis combination.
+#[derive(Debug, Clone)]
+pub struct ModelSet {
+    entries: Vec<ModelEntry>,
+    /// Per path: the target index D and the matching models in set order (preferred first).
+    targets: Vec<[u32; INDEX_SLOTS]>,
+    candidates: Vec<Vec<usize>>,
+}
+
+impl ModelSet {
+    /// A set of models; `paths` is the largest number of paths the control may have.
+    pub fn new(entries: Vec<ModelEntry>, paths: usize) -> Self {
+        let n = entries.len();
+        Self {
+            entries,
+            targets: vec![[0; INDEX_SLOTS]; paths],
+            // Capacity for every model, so that re-selecting never allocates.
+            candidates: (0..paths).map(|_| Vec::with_capacity(n)).collect(),
+        }
+    }
+
+    /// The models.
+    pub fn entries(&self) -> &[ModelEntry] {
+        &self.entries
+    }
+
+    /// Mutable access to a model (to switch its parts on or off).
+    pub fn entry_mut(&mut self, i: usize) -> Option<&mut ModelEntry> {
+        self.entries.get_mut(i)
+    }
+
+    /// Number of paths.
+    pub fn paths(&self) -> usize {
+        self.targets.len()
+    }
+
+    /// The target index D of a path (0-based).
+    pub fn target(&self, path: usize) -> [u32; INDEX_SLOTS] {
+        self.targets[path]
+    }
+
+    /// The models matching a path, preferred first.
+    pub fn candidates(&self, path: usize) -> &[usize] {
+        &self.candidates[path]
+    }
+
+    /// Builds the target index of every path from the control's axis configuration (machine
+    /// axis indices per path) and the axes' codes, and compares it with every model's index
+    /// (seed D, Fig. 7). Returns whether anything changed. Allocates nothing.
+    pub fn select(&mut self, paths: &[Vec<usize>], codes: &[u32]) -> bool {
+        let mut changed = false;
+        for p in 0..self.targets.len() {
+            let axes = paths.get(p).map(Vec::as_slice).unwrap_or(&[]);
+            let target = index_of(axes.iter().filter_map(|&a| codes.get(a).copied()));
+            if target == self.targets[p] && !self.candidates[p].is_empty() {
+                continue;
+            }
+            changed |= target != self.targets[p];
+            self.targets[p] = target;
+            let list = &mut self.candidates[p];
+            list.clear();
+            if target != [0; INDEX_SLOTS] {
+                for (i, e) in self.entries.iter().enumerate() {
+                    if e.index == target {
+                        list.push(i);
+                    }
+                }
+            }
+        }
+        changed
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use truepos_model::{Axis, AxisKind, Carriage, Machine};
+
+    fn model() -> Model {
+        let axis = |n: &str| Axis {
+            name: n.into(),
+            kind: AxisKind::Linear,
+            travel_min: 0.0,
+            travel_max: 100.0,
+            carried_by: None,
+            carriage: Carriage::Cantilever,
+        };
+        let m = Machine {
+            name: "two-path lathe".into(),
+            axes: vec![axis("X1"), axis("Z1"), axis("X2"), axis("Z2")],
+            temperatures: vec![],
+            differences: vec![],
+            operating: vec![],
+        };
+        Model::new("m", &m, vec![]).unwrap()
+    }
+
+    /// Seed D's example: path 1 = X1, Z1 → [101, 102, 0]; path 2 = X2, Z2 → [201, 202, 0].
+    /// After X1 and X2 are switched: path 1 → [201, 102, 0] (model 3), path 2 → [101, 202, 0]
+    /// (model 4).
+    #[test]
+    fn seed_d_example_with_axis_switching() {
+        let entry = |name: &str, index| ModelEntry {
+            name: name.into(),
+            model: model(),
+            index,
+        };
+        let mut set = ModelSet::new(
+            vec![
+                entry("model 1", [101, 102, 0]),
+                entry("model 2", [201, 202, 0]),
+                entry("model 3", [201, 102, 0]),
+                entry("model 4", [101, 202, 0]),
+            ],
+            2,
+        );
+        // Machine axes X1, Z1, X2, Z2 with codes 101, 102, 201, 202.
+        let codes = [101, 102, 201, 202];
+        assert!(set.select(&[vec![0, 1], vec![2, 3]], &codes));
+        assert_eq!(set.target(0), [101, 102, 0]);
+        assert_eq!(set.target(1), [201, 202, 0]);
+        assert_eq!(set.candidates(0), &[0]);
+        assert_eq!(set.candidates(1), &[1]);
+        // Nothing changed: no new selection.
+        assert!(!set.select(&[vec![0, 1], vec![2, 3]], &codes));
+        // X1 and X2 switched between the paths.
+        assert!(set.select(&[vec![2, 1], vec![0, 3]], &codes));
+        assert_eq!(set.target(0), [201, 102, 0]);
+        assert_eq!(set.target(1), [101, 202, 0]);
+        assert_eq!(set.candidates(0), &[2]);
+        assert_eq!(set.candidates(1), &[3]);
+    }
+
+    #[test]
+    fn no_match_leaves_no_candidate() {
+        let mut set = ModelSet::new(
+            vec![ModelEntry {
+                name: "only".into(),
+                model: model(),
+                index: [101, 102, 0],
+            }],
+            1,
+        );
+        set.select(&[vec![0, 2]], &[101, 102, 201, 202]);
+        assert_eq!(set.target(0), [101, 201, 0]);
+        assert!(set.candidates(0).is_empty());
+    }
+
+    #[test]
+    fn selecting_allocates_nothing() {
+        let mut set = ModelSet::new(
+            (0..4)
+                .map(|i| ModelEntry {
+                    name: format!("m{i}"),
+                    model: model(),
+                    index: [101, 102, 0],
+                })
+                .collect(),
+            2,
+        );
+        let codes = [101, 102, 201, 202];
+        let a = [vec![0, 1], vec![2, 3]];
+        let b = [vec![2, 1], vec![0, 3]];
+        set.select(&a, &codes);
+        let counted = allocation_counter::measure(|| {
+            for _ in 0..100 {
+                set.select(&b, &codes);
+                set.select(&a, &codes);
+            }
+        });
+        assert_eq!(counted.count_total, 0);
+        assert_eq!(set.candidates(0).len(), 4);
+    }
+}

@@ -1,0 +1,548 @@
+//! The cycle: sources → validation → model set → evaluation → safety envelope → sinks.
+//!
+//! [`Service::cycle`] runs one control cycle. It allocates nothing, takes no lock and does no
+//! I/O of its own (sources and sinks promise the same); events and log records leave through
+//! lock-free queues that the logger thread drains.
+
+use std::sync::Arc;
+
+use crossbeam_queue::ArrayQueue;
+use truepos_io::machine_file::MachineFile;
+use truepos_model::{CycleInput, MAX_AXES};
+
+use crate::envelope::Envelope;
+use crate::events::{Event, EventKind, EventQueue};
+use crate::frame::{Frame, NEVER};
+use crate::io_traits::{LinkError, Sink, Source};
+use crate::model_set::{ModelEntry, ModelSet};
+use crate::output::{CompensationState, Output};
+use crate::validate::SensorValidator;
+
+/// Most temperature channels a log record carries.
+pub const MAX_LOG_TEMPERATURES: usize = 64;
+/// Most operating channels a log record carries.
+pub const MAX_LOG_OPERATING: usize = 16;
+/// Most paths.
+pub const MAX_PATHS: usize = 4;
+
+/// Settings of the cycle.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ServiceConfig {
+    /// Blend time in s for model switches and for switching compensation on or off.
+    pub blend_s: f64,
+    /// Time in s over which a held compensation ramps to zero when no valid model is left.
+    pub hold_ramp_s: f64,
+    /// Oldest usable axis position in s (the control's feedback must be current).
+    pub position_max_age_s: f64,
+    /// Interval in s between cycle records sent to the log (events are always logged).
+    pub log_every_s: f64,
+}
+
+impl Default for ServiceConfig {
+    fn default() -> Self {
+        Self {
+            blend_s: 5.0,
+            hold_ramp_s: 60.0,
+            position_max_age_s: 0.5,
+            log_every_s: 0.1,
+        }
+    }
+}
+
+/// What a path is doing.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PathState {
+    /// Compensating with this model of the set.
+    Model(usize),
+    /// Holding the last compensation and ramping it to zero.
+    Holding,
+    /// No model matches the path's axis combination.
+    NoModel,
+    /// Compensation is off.
+    Disabled,
+}
+
+/// One cycle as the log keeps it (fixed size, so queuing it allocates nothing).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CycleRecord {
+    /// Service time in s.
+    pub time_s: f64,
+    /// Overall state.
+    pub state: CompensationState,
+    /// Axis positions.
+    pub positions: [f64; MAX_AXES],
+    /// Offsets sent (µm).
+    pub offsets_um: [f64; MAX_AXES],
+    /// Temperatures (first [`MAX_LOG_TEMPERATURES`] channels).
+    pub temperatures_c: [f64; MAX_LOG_TEMPERATURES],
+    /// Operating state (first [`MAX_LOG_OPERATING`] channels).
+    pub operating: [f64; MAX_LOG_OPERATING],
+    /// Model per path (−1: none).
+    pub model_per_path: [i32; MAX_PATHS],
+}
+
+/// The cyclic compensation service.
+pub struct Service {
+    machine: MachineFile,
+    config: ServiceConfig,
+    set: ModelSet,
+    validator: SensorValidator,
+    envelope: Envelope,
+    sources: Vec<Box<dyn Source>>,
+    sinks: Vec<Box<dyn Sink>>,
+    source_ok: Vec<bool>,
+    sink_ok: Vec<bool>,
+    finished: bool,
+    frame: Frame,
+    configured_paths: Vec<Vec<usize>>,
+    selected_once: bool,
+    output: Output,
+    events: Arc<EventQueue>,
+    records: Arc<ArrayQueue<CycleRecord>>,
+    records_dropped: u64,
+    enabled: bool,
+    codes: Vec<u32>,
+    states: Vec<PathState>,
+    preferred: Vec<Option<usize>>,
+    axis_path: [Option<usize>; MAX_AXES],
+    raw: [f64; MAX_AXES],
+    hold_from: [f64; MAX_AXES],
+    hold_start: [f64; MAX_AXES],
+    positions_ok: bool,
+    last_log: f64,
+    cycles: u64,
+}
+
+impl Service {
+    /// A service for a machine and a model set. The initial axis configuration groups the axes
+    /// by the `path` of the machine file, ordered by `number`; a control source may change it.
+    pub fn new(
+        machine: MachineFile,
+        models: Vec<ModelEntry>,
+        sources: Vec<Box<dyn Source>>,
+        sinks: Vec<Box<dyn Sink>>,
+        config: ServiceConfig,
+    ) -> Self {
+        let m = &machine.machine;
+        let codes: Vec<u32> = machine.axis_runtime.iter().map(|a| a.code()).collect();
+        let max_path = machine
+            .axis_runtime
+            .iter()
+            .map(|a| a.path as usize)
+            .max()
+            .unwrap_or(1)
+            .clamp(1, MAX_PATHS);
+        let mut paths: Vec<Vec<usize>> = (1..=max_path)
+            .map(|p| {
+                let mut axes: Vec<usize> = (0..m.axes.len())
+                    .filter(|&a| machine.axis_runtime[a].path as usize == p)
+                    .collect();
+                axes.sort_by_key(|&a| machine.axis_runtime[a].number);
+                axes
+            })
+            .collect();
+        // Room for axis switching without allocating on the cycle.
+        for p in &mut paths {
+            p.reserve(m.axes.len());
+        }
+        let mut frame = Frame::new(m.temperatures.len(), m.axes.len(), m.operating.len());
+        frame.paths = paths.clone();
+        let n_paths = paths.len();
+        let set = ModelSet::new(models, n_paths);
+        Self {
+            validator: SensorValidator::new(m, &machine.sensor_checks),
+            envelope: Envelope::new(&machine.axis_runtime),
+            output: Output::zero(m.axes.len()),
+            source_ok: vec![true; sources.len()],
+            sink_ok: vec![true; sinks.len()],
+            sources,
+            sinks,
+            finished: false,
+            frame,
+            configured_paths: (0..n_paths)
+                .map(|_| Vec::with_capacity(m.axes.len()))
+                .collect(),
+            selected_once: false,
+            events: Arc::new(EventQueue::new(1 << 16)),
+            records: Arc::new(ArrayQueue::new(1 << 14)),
+            records_dropped: 0,
+            enabled: true,
+            codes,
+            states: vec![PathState::Disabled; n_paths],
+            preferred: vec![None; n_paths],
+            axis_path: [None; MAX_AXES],
+            raw: [0.0; MAX_AXES],
+            hold_from: [0.0; MAX_AXES],
+            hold_start: [0.0; MAX_AXES],
+            positions_ok: false,
+            last_log: NEVER,
+            cycles: 0,
+            set,
+            config,
+            machine,
+        }
+    }
+
+    /// The queue of events, for the logger.
+    pub fn events(&self) -> Arc<EventQueue> {
+        Arc::clone(&self.events)
+    }
+
+    /// The queue of cycle records, for the logger.
+    pub fn records(&self) -> Arc<ArrayQueue<CycleRecord>> {
+        Arc::clone(&self.records)
+    }
+
+    /// The machine.
+    pub fn machine(&self) -> &MachineFile {
+        &self.machine
+    }
+
+    /// The model set.
+    pub fn model_set(&self) -> &ModelSet {
+        &self.set
+    }
+
+    /// The last output.
+    pub fn output(&self) -> &Output {
+        &self.output
+    }
+
+    /// The frame of the last cycle.
+    pub fn frame(&self) -> &Frame {
+        &self.frame
+    }
+
+    /// What each path is doing.
+    pub fn path_states(&self) -> &[PathState] {
+        &self.states
+    }
+
+    /// The validator (sensor health).
+    pub fn validator(&self) -> &SensorValidator {
+        &self.validator
+    }
+
+    /// Whether a source has said it has nothing more to give.
+    pub fn finished(&self) -> bool {
+        self.finished
+    }
+
+    /// Cycles run.
+    pub fn cycles(&self) -> u64 {
+        self.cycles
+    }
+
+    /// Cycle records dropped because the logger fell behind.
+    pub fn records_dropped(&self) -> u64 {
+        self.records_dropped
+    }
+
+    /// Switches compensation on or off; the output blends to the new value (bumpless).
+    pub fn set_enabled(&mut self, enabled: bool) {
+        if enabled != self.enabled {
+            self.enabled = enabled;
+            self.events.push(Event {
+                time_s: self.frame.time_s,
+                kind: EventKind::Enabled(enabled),
+            });
+        }
+    }
+
+    /// Prefers a model of the set for a path (0-based) when it matches and its sensors are
+    /// good; `None` returns to the set's order. The switch blends (bumpless).
+    pub fn prefer_model(&mut self, path: usize, model: Option<usize>) {
+        if let Some(p) = self.preferred.get_mut(path) {
+            *p = model;
+        }
+    }
+
+    /// Runs one cycle at service time `now_s` and returns its output.
+    pub fn cycle(&mut self, now_s: f64) -> &Output {
+        self.cycles += 1;
+        self.frame.time_s = now_s;
+        self.read_sources(now_s);
+        self.validator.check(&self.frame, &self.events);
+        self.check_positions(now_s);
+        self.select_models(now_s);
+        for p in 0..self.states.len() {
+            self.update_path(p, now_s);
+        }
+        let n = self.output.axes;
+        let clamped = self.envelope.apply(
+            &self.raw[..n],
+            now_s,
+            &mut self.output.offset_um[..n],
+            &self.events,
+        );
+        self.output.time_s = now_s;
+        self.output.clamped = clamped;
+        self.output.state = self.overall_state();
+        for (a, p) in self.output.positions[..n].iter_mut().enumerate() {
+            *p = self.frame.positions[a];
+        }
+        self.write_sinks(now_s);
+        self.log_cycle(now_s);
+        &self.output
+    }
+
+    fn read_sources(&mut self, now_s: f64) {
+        for (i, s) in self.sources.iter_mut().enumerate() {
+            let ok = match s.read(&mut self.frame) {
+                Ok(()) => true,
+                Err(LinkError::Finished) => {
+                    self.finished = true;
+                    true
+                }
+                Err(_) => false,
+            };
+            if ok != self.source_ok[i] {
+                self.source_ok[i] = ok;
+                let kind = if ok {
+                    EventKind::SourceBack { source: i }
+                } else {
+                    EventKind::SourceLost { source: i }
+                };
+                self.events.push(Event {
+                    time_s: now_s,
+                    kind,
+                });
+            }
+        }
+    }
+
+    fn check_positions(&mut self, now_s: f64) {
+        let mut bad = None;
+        for (a, (&p, &stamp)) in self
+            .frame
+            .positions
+            .iter()
+            .zip(&self.frame.position_stamp_s)
+            .enumerate()
+        {
+            if !p.is_finite() || stamp == NEVER || now_s - stamp > self.config.position_max_age_s {
+                bad = Some(a);
+                break;
+            }
+        }
+        let ok = bad.is_none();
+        if ok != self.positions_ok {
+            let kind = match bad {
+                Some(axis) => EventKind::PositionFault { axis },
+                None => EventKind::PositionRecovered,
+            };
+            // Positions not yet delivered at start-up are not worth an event.
+            if self.cycles > 1 || ok {
+                self.events.push(Event {
+                    time_s: now_s,
+                    kind,
+                });
+            }
+            self.positions_ok = ok;
+        }
+    }
+
+    fn select_models(&mut self, now_s: f64) {
+        let same = (0..self.configured_paths.len()).all(|p| {
+            self.frame.paths.get(p).map(Vec::as_slice).unwrap_or(&[])
+                == self.configured_paths[p].as_slice()
+        });
+        if same && self.selected_once {
+            return;
+        }
+        let first = !self.selected_once;
+        self.selected_once = true;
+        // Copied into reserved capacity: an axis switch allocates nothing.
+        for (p, kept) in self.configured_paths.iter_mut().enumerate() {
+            kept.clear();
+            if let Some(axes) = self.frame.paths.get(p) {
+                kept.extend_from_slice(axes);
+            }
+        }
+        self.set.select(&self.frame.paths, &self.codes);
+        self.axis_path = [None; MAX_AXES];
+        for (p, axes) in self.frame.paths.iter().enumerate().take(self.states.len()) {
+            for &a in axes {
+                if a < MAX_AXES {
+                    self.axis_path[a] = Some(p);
+                }
+            }
+        }
+        if !first {
+            self.events.push(Event {
+                time_s: now_s,
+                kind: EventKind::AxisSwitch,
+            });
+        }
+    }
+
+    /// The state a path should be in now.
+    fn wanted_state(&self, p: usize) -> PathState {
+        if !self.enabled {
+            return PathState::Disabled;
+        }
+        let candidates = self.set.candidates(p);
+        if candidates.is_empty() {
+            return PathState::NoModel;
+        }
+        if !self.positions_ok {
+            return PathState::Holding;
+        }
+        let good = |&c: &usize| {
+            self.validator
+                .all_good(self.set.entries()[c].model.used_sensors())
+        };
+        if let Some(pref) = self.preferred[p] {
+            if candidates.contains(&pref) && good(&pref) {
+                return PathState::Model(pref);
+            }
+        }
+        match candidates.iter().find(|c| good(c)) {
+            Some(&c) => PathState::Model(c),
+            None => PathState::Holding,
+        }
+    }
+
+    fn update_path(&mut self, p: usize, now_s: f64) {
+        let mut wanted = self.wanted_state(p);
+        // Evaluate first: a model that fails on this cycle's values (a position outside
+        // travel) is treated like a bad sensor.
+        let mut fresh = [0.0; MAX_AXES];
+        if let PathState::Model(m) = wanted {
+            let input = CycleInput {
+                temperatures_c: &self.frame.temperatures_c,
+                positions: &self.frame.positions,
+                operating: &self.frame.operating,
+            };
+            match self.set.entries()[m].model.evaluate(&input) {
+                Ok(c) => {
+                    for (a, f) in fresh.iter_mut().enumerate().take(c.axis_count()) {
+                        *f = c.compensation_um(a);
+                    }
+                }
+                Err(_) => wanted = PathState::Holding,
+            }
+        }
+        let previous = self.states[p];
+        if wanted != previous {
+            self.states[p] = wanted;
+            let path = p as u32 + 1;
+            let kind = match wanted {
+                PathState::Model(m) => {
+                    let first = self.set.candidates(p).first().copied();
+                    match first {
+                        Some(f) if f != m && self.preferred[p] != Some(m) => {
+                            EventKind::ModelSubstituted {
+                                path,
+                                from: f,
+                                to: m,
+                            }
+                        }
+                        _ => EventKind::ModelSelected { path, model: m },
+                    }
+                }
+                PathState::Holding => EventKind::Holding { path },
+                PathState::NoModel => EventKind::NoModel {
+                    path,
+                    target: self.set.target(p),
+                },
+                PathState::Disabled => EventKind::Enabled(false),
+            };
+            if !matches!(kind, EventKind::Enabled(_)) {
+                self.events.push(Event {
+                    time_s: now_s,
+                    kind,
+                });
+            }
+        }
+        #[allow(clippy::needless_range_loop)] // a indexes five per-axis arrays in step
+        for a in 0..self.output.axes {
+            if self.axis_path[a] != Some(p) {
+                if self.axis_path[a].is_none() {
+                    self.raw[a] = 0.0;
+                }
+                continue;
+            }
+            let raw = match wanted {
+                PathState::Model(_) => fresh[a],
+                PathState::Holding => {
+                    if previous != PathState::Holding {
+                        self.hold_from[a] = self.envelope.last()[a];
+                        self.hold_start[a] = now_s;
+                    }
+                    let left = if self.config.hold_ramp_s > 0.0 {
+                        (1.0 - (now_s - self.hold_start[a]) / self.config.hold_ramp_s).max(0.0)
+                    } else {
+                        0.0
+                    };
+                    self.hold_from[a] * left
+                }
+                PathState::NoModel | PathState::Disabled => 0.0,
+            };
+            if wanted != previous && wanted != PathState::Holding {
+                self.envelope
+                    .begin_blend(a, raw, now_s, self.config.blend_s);
+            }
+            self.raw[a] = raw;
+        }
+    }
+
+    fn overall_state(&self) -> CompensationState {
+        let all = |f: fn(&PathState) -> bool| self.states.iter().all(f);
+        let any = |f: fn(&PathState) -> bool| self.states.iter().any(f);
+        if all(|s| matches!(s, PathState::Model(_))) {
+            CompensationState::Active
+        } else if any(|s| *s == PathState::NoModel) {
+            CompensationState::NoModel
+        } else if any(|s| *s == PathState::Holding) {
+            CompensationState::Holding
+        } else {
+            CompensationState::Disabled
+        }
+    }
+
+    fn write_sinks(&mut self, now_s: f64) {
+        for (i, s) in self.sinks.iter_mut().enumerate() {
+            let ok = s.write(&self.output).is_ok();
+            if ok != self.sink_ok[i] {
+                self.sink_ok[i] = ok;
+                if !ok {
+                    self.events.push(Event {
+                        time_s: now_s,
+                        kind: EventKind::SinkFailed { sink: i },
+                    });
+                }
+            }
+        }
+    }
+
+    fn log_cycle(&mut self, now_s: f64) {
+        if now_s - self.last_log < self.config.log_every_s {
+            return;
+        }
+        self.last_log = now_s;
+        let mut r = CycleRecord {
+            time_s: now_s,
+            state: self.output.state,
+            positions: self.output.positions,
+            offsets_um: self.output.offset_um,
+            temperatures_c: [f64::NAN; MAX_LOG_TEMPERATURES],
+            operating: [f64::NAN; MAX_LOG_OPERATING],
+            model_per_path: [-1; MAX_PATHS],
+        };
+        for (d, s) in r.temperatures_c.iter_mut().zip(&self.frame.temperatures_c) {
+            *d = *s;
+        }
+        for (d, s) in r.operating.iter_mut().zip(&self.frame.operating) {
+            *d = *s;
+        }
+        for (d, s) in r.model_per_path.iter_mut().zip(&self.states) {
+            if let PathState::Model(m) = s {
+                *d = *m as i32;
+            }
+        }
+        if self.records.push(r).is_err() {
+            self.records_dropped += 1;
+        }
+    }
+}

@@ -1,0 +1,297 @@
+//! Validation of every input before it may reach a model (seed C: verify the sensed values and
+//! their valid range before compensating): NaN/∞, range, rate of change, stuck value, missing
+//! updates. The verdict per channel is kept, and transitions raise events.
+
+use truepos_io::machine_file::SensorChecks;
+use truepos_model::Machine;
+
+use crate::events::{Event, EventKind, EventQueue};
+use crate::frame::{Frame, NEVER};
+
+/// Why a reading is not usable.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Fault {
+    /// No reading has ever arrived.
+    NeverUpdated,
+    /// NaN or infinite.
+    NotANumber,
+    /// Outside the channel's valid range (open circuit, short, wrong wiring).
+    OutOfRange {
+        /// The reading in °C.
+        value: f64,
+    },
+    /// Changed faster than physically plausible since the last good reading (a spike).
+    TooFast {
+        /// Rate in K/s.
+        rate_k_per_s: f64,
+    },
+    /// Has not changed at all for longer than the stuck limit.
+    Stuck {
+        /// How long in s.
+        for_s: f64,
+    },
+    /// No update for longer than the staleness limit (a lost source).
+    Stale {
+        /// Age in s.
+        age_s: f64,
+    },
+}
+
+impl std::fmt::Display for Fault {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match *self {
+            Self::NeverUpdated => write!(f, "no reading yet"),
+            Self::NotANumber => write!(f, "not a number"),
+            Self::OutOfRange { value } => write!(f, "{value} °C is outside the valid range"),
+            Self::TooFast { rate_k_per_s } => {
+                write!(
+                    f,
+                    "changes at {:.2} K/min, faster than plausible",
+                    rate_k_per_s * 60.0
+                )
+            }
+            Self::Stuck { for_s } => write!(f, "has not changed for {for_s:.0} s"),
+            Self::Stale { age_s } => write!(f, "no update for {age_s:.1} s"),
+        }
+    }
+}
+
+/// The validator of the temperature channels.
+#[derive(Debug, Clone)]
+pub struct SensorValidator {
+    checks: Vec<SensorChecks>,
+    ranges: Vec<(f64, f64)>,
+    last_stamp: Vec<f64>,
+    last_good: Vec<f64>,
+    last_good_stamp: Vec<f64>,
+    last_value: Vec<f64>,
+    unchanged_since: Vec<f64>,
+    health: Vec<Option<Fault>>,
+}
+
+impl SensorValidator {
+    /// A validator for the machine's temperature channels.
+    pub fn new(machine: &Machine, checks: &[SensorChecks]) -> Self {
+        let n = machine.temperatures.len();
+        Self {
+            checks: checks.to_vec(),
+            ranges: machine
+                .temperatures
+                .iter()
+                .map(|t| (t.valid_min_c, t.valid_max_c))
+                .collect(),
+            last_stamp: vec![NEVER; n],
+            last_good: vec![f64::NAN; n],
+            last_good_stamp: vec![NEVER; n],
+            last_value: vec![f64::NAN; n],
+            unchanged_since: vec![NEVER; n],
+            health: vec![Some(Fault::NeverUpdated); n],
+        }
+    }
+
+    /// The verdict of every channel after the last [`check`](Self::check): `None` is good.
+    pub fn health(&self) -> &[Option<Fault>] {
+        &self.health
+    }
+
+    /// Whether every listed channel is good.
+    pub fn all_good(&self, channels: &[usize]) -> bool {
+        channels
+            .iter()
+            .all(|&c| self.health.get(c).is_some_and(|h| h.is_none()))
+    }
+
+    /// Judges every channel of the frame; raises an event for each channel whose verdict
+    /// changes. Allocates nothing.
+    pub fn check(&mut self, frame: &Frame, events: &EventQueue) {
+        let now = frame.time_s;
+        for c in 0..self.health.len() {
+            let value = frame.temperatures_c[c];
+            let stamp = frame.temperature_stamp_s[c];
+            let fresh = stamp != self.last_stamp[c];
+            let verdict = self.judge(c, value, stamp, fresh, now);
+            if fresh {
+                self.last_stamp[c] = stamp;
+                if value != self.last_value[c] {
+                    self.unchanged_since[c] = stamp;
+                    self.last_value[c] = value;
+                }
+            }
+            if verdict.is_none() && fresh {
+                self.last_good[c] = value;
+                self.last_good_stamp[c] = stamp;
+            }
+            let from_start = self.health[c] == Some(Fault::NeverUpdated);
+            let transition = match (&self.health[c], &verdict) {
+                (None, Some(_)) | (Some(_), None) => true,
+                // A different kind of fault is news; the same kind with another value is not.
+                (Some(a), Some(b)) => std::mem::discriminant(a) != std::mem::discriminant(b),
+                (None, None) => false,
+            };
+            self.health[c] = verdict;
+            if transition {
+                let kind = match verdict {
+                    Some(fault) => EventKind::SensorFault { channel: c, fault },
+                    None => EventKind::SensorRecovered { channel: c },
+                };
+                // The first good reading after start-up is not worth an event.
+                if !(from_start && verdict.is_none()) {
+                    events.push(Event { time_s: now, kind });
+                }
+            }
+        }
+    }
+
+    fn judge(&self, c: usize, value: f64, stamp: f64, fresh: bool, now: f64) -> Option<Fault> {
+        if stamp == NEVER {
+            return Some(Fault::NeverUpdated);
+        }
+        if !value.is_finite() {
+            return Some(Fault::NotANumber);
+        }
+        let (lo, hi) = self.ranges[c];
+        if value < lo || value > hi {
+            return Some(Fault::OutOfRange { value });
+        }
+        let checks = &self.checks[c];
+        let age = now - stamp;
+        if age > checks.max_age_s {
+            return Some(Fault::Stale { age_s: age });
+        }
+        if fresh || self.health[c].is_some() {
+            // Against the last good reading, so a spike is caught and the next sound reading
+            // after it is accepted; a genuine fast change is accepted once the average rate
+            // since the last good reading becomes plausible.
+            let dt = stamp - self.last_good_stamp[c];
+            if self.last_good_stamp[c] != NEVER && dt > 0.0 {
+                let rate = (value - self.last_good[c]).abs() / dt;
+                if rate > checks.max_rate_k_per_s {
+                    return Some(Fault::TooFast { rate_k_per_s: rate });
+                }
+            }
+        }
+        if checks.stuck_after_s > 0.0 {
+            let since = if value == self.last_value[c] {
+                self.unchanged_since[c]
+            } else {
+                stamp
+            };
+            let for_s = now - since;
+            if since != NEVER && for_s > checks.stuck_after_s {
+                return Some(Fault::Stuck { for_s });
+            }
+        }
+        None
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use truepos_model::{Axis, AxisKind, Carriage, TemperatureChannel};
+
+    fn machine() -> Machine {
+        Machine {
+            name: "m".into(),
+            axes: vec![Axis {
+                name: "X".into(),
+                kind: AxisKind::Linear,
+                travel_min: 0.0,
+                travel_max: 100.0,
+                carried_by: None,
+                carriage: Carriage::Cantilever,
+            }],
+            temperatures: vec![TemperatureChannel {
+                id: "t".into(),
+                location: String::new(),
+                valid_min_c: 0.0,
+                valid_max_c: 60.0,
+            }],
+            differences: vec![],
+            operating: vec![],
+        }
+    }
+
+    const CHECKS: SensorChecks = SensorChecks {
+        max_rate_k_per_s: 2.0 / 60.0,
+        max_age_s: 10.0,
+        stuck_after_s: 300.0,
+    };
+
+    /// Feeds (time, value, updated?) and returns the verdict after each.
+    fn run(samples: &[(f64, f64, bool)]) -> (Vec<Option<Fault>>, Vec<Event>) {
+        let m = machine();
+        let mut v = SensorValidator::new(&m, &[CHECKS]);
+        let q = EventQueue::new(64);
+        let mut frame = Frame::new(1, 1, 0);
+        let mut out = Vec::new();
+        for &(t, value, updated) in samples {
+            frame.time_s = t;
+            if updated {
+                frame.set_temperature(0, value);
+            }
+            v.check(&frame, &q);
+            out.push(v.health()[0]);
+        }
+        let mut events = Vec::new();
+        while let Some(e) = q.pop() {
+            events.push(e);
+        }
+        (out, events)
+    }
+
+    #[test]
+    fn good_readings_pass() {
+        // 20.0 → 20.1 in 10 s is 0.6 K/min, below 2 K/min.
+        let (h, e) = run(&[(0.0, 20.0, true), (10.0, 20.1, true), (20.0, 20.2, true)]);
+        assert_eq!(h, vec![None, None, None]);
+        assert!(e.is_empty());
+    }
+
+    #[test]
+    fn nan_range_and_never() {
+        let (h, _) = run(&[(0.0, 0.0, false), (1.0, f64::NAN, true), (2.0, 850.0, true)]);
+        assert_eq!(h[0], Some(Fault::NeverUpdated));
+        assert_eq!(h[1], Some(Fault::NotANumber));
+        assert_eq!(h[2], Some(Fault::OutOfRange { value: 850.0 }));
+    }
+
+    #[test]
+    fn a_spike_is_caught_and_the_next_sound_reading_accepted() {
+        // 20 → 25 °C in 1 s is 300 K/min: a spike; back to 20.01 one second later is fine.
+        let (h, e) = run(&[(0.0, 20.0, true), (1.0, 25.0, true), (2.0, 20.01, true)]);
+        assert_eq!(h[0], None);
+        assert!(
+            matches!(h[1], Some(Fault::TooFast { rate_k_per_s }) if (rate_k_per_s - 5.0).abs() < 1e-9)
+        );
+        assert_eq!(h[2], None);
+        assert_eq!(e.len(), 2, "fault and recovery: {e:?}");
+        assert!(matches!(
+            e[1].kind,
+            EventKind::SensorRecovered { channel: 0 }
+        ));
+    }
+
+    #[test]
+    fn a_lost_source_goes_stale() {
+        let (h, e) = run(&[(0.0, 20.0, true), (5.0, 0.0, false), (10.5, 0.0, false)]);
+        assert_eq!(h[1], None);
+        assert!(matches!(h[2], Some(Fault::Stale { age_s }) if (age_s - 10.5).abs() < 1e-9));
+        assert!(matches!(
+            e[0].kind,
+            EventKind::SensorFault {
+                channel: 0,
+                fault: Fault::Stale { .. }
+            }
+        ));
+    }
+
+    #[test]
+    fn a_stuck_reading_is_caught() {
+        // Updated every 5 s with exactly the same value: stuck after 300 s.
+        let samples: Vec<_> = (0..=62).map(|i| (i as f64 * 5.0, 21.25, true)).collect();
+        let (h, _) = run(&samples);
+        assert_eq!(h[60], None); // 300 s: not yet more than 300
+        assert!(matches!(h[61], Some(Fault::Stuck { .. })));
+    }
+}

@@ -1,0 +1,439 @@
+//! The cycle end to end without hardware: replayed and scripted sources, model sets, faults,
+//! bumpless switching, the envelope, the log.
+
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
+
+use truepos_io::{cycles, machine_file, model_file};
+use truepos_model::CycleInput;
+use truepos_runtime::events::EventKind;
+use truepos_runtime::log::{self, LogSetup, Logger};
+use truepos_runtime::model_set::ModelEntry;
+use truepos_runtime::replay::ReplaySource;
+use truepos_runtime::*;
+
+fn repo(path: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../..")
+        .join(path)
+}
+
+fn vmc() -> machine_file::MachineFile {
+    machine_file::load(&repo("examples/vmc3/machine.toml")).unwrap()
+}
+
+fn vmc_model(name: &str) -> ModelEntry {
+    let m = vmc();
+    ModelEntry {
+        name: name.into(),
+        model: model_file::load(&repo("examples/vmc3/model.toml"), &m.machine).unwrap(),
+        index: [101, 102, 103],
+    }
+}
+
+/// A source whose values the test sets between cycles.
+struct Scripted {
+    values: Arc<Mutex<(Vec<f64>, Vec<f64>)>>,
+}
+
+impl Source for Scripted {
+    fn name(&self) -> &str {
+        "scripted"
+    }
+    fn read(&mut self, frame: &mut Frame) -> Result<(), LinkError> {
+        let v = self.values.lock().unwrap();
+        for (c, &t) in v.0.iter().enumerate() {
+            frame.set_temperature(c, t);
+        }
+        for (a, &p) in v.1.iter().enumerate() {
+            frame.set_position(a, p);
+        }
+        Ok(())
+    }
+}
+
+type Shared = Arc<Mutex<(Vec<f64>, Vec<f64>)>>;
+
+fn scripted(temps: Vec<f64>, positions: Vec<f64>) -> (Box<dyn Source>, Shared) {
+    let values = Arc::new(Mutex::new((temps, positions)));
+    (
+        Box::new(Scripted {
+            values: Arc::clone(&values),
+        }),
+        values,
+    )
+}
+
+fn drain(service: &Service) -> Vec<EventKind> {
+    let q = service.events();
+    std::iter::from_fn(|| q.pop()).map(|e| e.kind).collect()
+}
+
+/// Replaying the example run through the service gives −(model output) on every cycle once the
+/// start-up blend is over, within the envelope.
+#[test]
+fn replay_gives_the_model_output() {
+    let machine = vmc();
+    let run = cycles::load(&repo("examples/vmc3/run.csv"), &machine.machine, &[]).unwrap();
+    let reference = vmc_model("reference").model;
+    let source = ReplaySource::new("replay", run.clone(), 1.0);
+    let mut service = Service::new(
+        machine,
+        vec![vmc_model("vmc3")],
+        vec![Box::new(source)],
+        vec![],
+        ServiceConfig::default(),
+    );
+    let mut checked = 0;
+    for (i, &t) in run.time_s.iter().enumerate() {
+        let out = *service.cycle(t);
+        if t < 10.0 {
+            continue;
+        }
+        let c = reference
+            .evaluate(&CycleInput {
+                temperatures_c: &run.temperatures_c[i],
+                positions: &run.positions[i],
+                operating: &run.operating[i],
+            })
+            .unwrap();
+        assert_eq!(out.state, CompensationState::Active);
+        for a in 0..3 {
+            // The run moves slowly enough (60 s samples) that the envelope never binds.
+            assert!(
+                (out.offset_um[a] - c.compensation_um(a)).abs() < 1e-9,
+                "t = {t}, axis {a}: {} vs {}",
+                out.offset_um[a],
+                c.compensation_um(a)
+            );
+        }
+        checked += 1;
+    }
+    assert!(checked > 200);
+    assert!(service.finished());
+}
+
+/// A NaN on a sensor the only model reads: the service holds the last compensation and ramps it
+/// to zero; the output never steps faster than the envelope allows; the fault is an event.
+#[test]
+fn a_bad_sensor_holds_and_ramps_to_zero() {
+    let machine = vmc();
+    let n_t = machine.machine.temperatures.len();
+    let mut temps = vec![20.0; n_t];
+    temps[1] = 25.0; // x_slide_bottom: dT_x_slide = 5 K → Z error 2·5 + 4·5·r_X
+    let (source, values) = scripted(temps, vec![800.0, 250.0, 250.0]);
+    let config = ServiceConfig {
+        blend_s: 2.0,
+        hold_ramp_s: 10.0,
+        ..ServiceConfig::default()
+    };
+    let mut service = Service::new(
+        machine,
+        vec![vmc_model("vmc3")],
+        vec![source],
+        vec![],
+        config,
+    );
+    struct Track {
+        t: f64,
+        last: [f64; 3],
+        max_rate: f64,
+    }
+    fn run(service: &mut Service, until: f64, k: &mut Track) {
+        let dt = 0.01;
+        while k.t < until {
+            k.t += dt;
+            let out = *service.cycle(k.t);
+            for a in 0..3 {
+                k.max_rate = k.max_rate.max((out.offset_um[a] - k.last[a]).abs() / dt);
+                k.last[a] = out.offset_um[a];
+            }
+        }
+    }
+    let mut k = Track {
+        t: 0.0,
+        last: [0.0; 3],
+        max_rate: 0.0,
+    };
+    run(&mut service, 5.0, &mut k);
+    // Z error = 5·(2 + 4·1) = 30 µm → compensation −30 µm.
+    assert!((k.last[2] + 30.0).abs() < 1e-9, "{:?}", k.last);
+    assert_eq!(service.path_states()[0], PathState::Model(0));
+    values.lock().unwrap().0[1] = f64::NAN;
+    run(&mut service, 10.0, &mut k);
+    assert_eq!(service.path_states()[0], PathState::Holding);
+    // 5 s into a 10 s ramp: half of −30 µm.
+    assert!((k.last[2] + 15.0).abs() < 0.2, "{:?}", k.last);
+    run(&mut service, 16.0, &mut k);
+    assert_eq!(k.last[2], 0.0);
+    assert!(k.max_rate <= 50.0 + 1e-6, "step rate {} µm/s", k.max_rate);
+    let events = drain(&service);
+    assert!(events.iter().any(|e| matches!(
+        e,
+        EventKind::SensorFault {
+            channel: 1,
+            fault: validate::Fault::NotANumber
+        }
+    )));
+    assert!(events.contains(&EventKind::Holding { path: 1 }));
+}
+
+/// With two models for the same axis combination, a fault on a sensor only the first reads
+/// makes the service substitute the second, bumplessly (seed C + seed D).
+#[test]
+fn a_bad_sensor_substitutes_a_model_without_it() {
+    let machine = vmc();
+    let mut primary = vmc_model("with-spindle-sensors");
+    // The fallback: the same structure part, without the spindle part (no spindle sensors).
+    let mut fallback = vmc_model("structure-only");
+    let parts: Vec<_> = fallback.model.parts()[..1].to_vec();
+    fallback.model = truepos_model::Model::new("structure-only", &machine.machine, parts).unwrap();
+    primary.name = "with-spindle-sensors".into();
+    let n_t = machine.machine.temperatures.len();
+    let mut temps = vec![20.0; n_t];
+    temps[10] = 30.0; // spindle front bearing: +3.1 µm/K · 10 K = 31 µm along Z
+    let (source, values) = scripted(temps, vec![0.0, 0.0, 0.0]);
+    let mut service = Service::new(
+        machine,
+        vec![primary, fallback],
+        vec![source],
+        vec![],
+        ServiceConfig {
+            blend_s: 4.0,
+            ..ServiceConfig::default()
+        },
+    );
+    let mut t = 0.0;
+    let mut last = 0.0;
+    let mut max_rate = 0.0_f64;
+    for i in 0..2000 {
+        t += 0.01;
+        if i == 1000 {
+            values.lock().unwrap().0[10] = 400.0; // open circuit
+        }
+        let z = service.cycle(t).offset_um[2];
+        max_rate = max_rate.max((z - last).abs() / 0.01);
+        last = z;
+        if i == 999 {
+            assert!((z + 31.0).abs() < 1e-9, "{z}");
+        }
+    }
+    assert_eq!(service.path_states()[0], PathState::Model(1));
+    // After the 4 s blend the structure-only model gives 0 along Z at these temperatures.
+    assert!(last.abs() < 1e-9);
+    assert!(max_rate <= 50.0 + 1e-6);
+    let events = drain(&service);
+    assert!(
+        events.contains(&EventKind::ModelSubstituted {
+            path: 1,
+            from: 0,
+            to: 1
+        }),
+        "{events:?}"
+    );
+}
+
+/// Seed D in the service: when the control switches an axis to a combination no model serves,
+/// the user is told (no-model event) and the output blends to zero; switching back selects the
+/// model again.
+#[test]
+fn axis_switch_reselects_and_reports_no_model() {
+    let machine = vmc();
+    let n_t = machine.machine.temperatures.len();
+    let mut temps = vec![20.0; n_t];
+    temps[1] = 25.0;
+    let (source, _values) = scripted(temps, vec![800.0, 250.0, 250.0]);
+    let mut service = Service::new(
+        machine,
+        vec![vmc_model("vmc3")],
+        vec![
+            source,
+            Box::new(PathSwitcher {
+                at_s: 3.0,
+                back_s: 8.0,
+            }),
+        ],
+        vec![],
+        ServiceConfig {
+            blend_s: 1.0,
+            ..ServiceConfig::default()
+        },
+    );
+    let mut t = 0.0;
+    while t < 6.0 {
+        t += 0.01;
+        service.cycle(t);
+    }
+    assert_eq!(service.path_states()[0], PathState::NoModel);
+    assert_eq!(service.output().offset_um[2], 0.0);
+    while t < 12.0 {
+        t += 0.01;
+        service.cycle(t);
+    }
+    assert_eq!(service.path_states()[0], PathState::Model(0));
+    assert!((service.output().offset_um[2] + 30.0).abs() < 1e-9);
+    let events = drain(&service);
+    assert!(events.contains(&EventKind::AxisSwitch));
+    assert!(events.contains(&EventKind::NoModel {
+        path: 1,
+        target: [101, 103, 0]
+    }));
+}
+
+/// A control source that takes axis Y out of path 1 between two times.
+struct PathSwitcher {
+    at_s: f64,
+    back_s: f64,
+}
+
+impl Source for PathSwitcher {
+    fn name(&self) -> &str {
+        "control"
+    }
+    fn read(&mut self, frame: &mut Frame) -> Result<(), LinkError> {
+        let p = &mut frame.paths[0];
+        p.clear();
+        if frame.time_s >= self.at_s && frame.time_s < self.back_s {
+            p.extend_from_slice(&[0, 2]);
+        } else {
+            p.extend_from_slice(&[0, 1, 2]);
+        }
+        Ok(())
+    }
+}
+
+/// Switching compensation off and on blends; nothing jumps.
+#[test]
+fn enable_and_disable_are_bumpless() {
+    let machine = vmc();
+    let n_t = machine.machine.temperatures.len();
+    let mut temps = vec![20.0; n_t];
+    temps[1] = 25.0;
+    let (source, _values) = scripted(temps, vec![800.0, 250.0, 250.0]);
+    let mut service = Service::new(
+        machine,
+        vec![vmc_model("vmc3")],
+        vec![source],
+        vec![],
+        ServiceConfig {
+            blend_s: 2.0,
+            ..ServiceConfig::default()
+        },
+    );
+    let mut t = 0.0;
+    let mut last = 0.0;
+    let mut biggest = 0.0_f64;
+    for i in 0..1500 {
+        t += 0.01;
+        if i == 500 {
+            service.set_enabled(false);
+        }
+        if i == 1000 {
+            service.set_enabled(true);
+        }
+        let z = service.cycle(t).offset_um[2];
+        biggest = biggest.max((z - last).abs());
+        last = z;
+        if i == 499 {
+            assert!((z + 30.0).abs() < 1e-9);
+        }
+        if i == 999 {
+            assert_eq!(z, 0.0);
+        }
+    }
+    assert!((last + 30.0).abs() < 1e-9);
+    // 30 µm over 2 s at 10 ms steps: 0.15 µm per cycle, never more.
+    assert!(biggest <= 0.15 + 1e-9, "{biggest}");
+}
+
+/// A cycle allocates nothing: sources, validation, selection, evaluation, envelope, queues.
+#[test]
+fn a_cycle_allocates_nothing() {
+    let machine = vmc();
+    let run = cycles::load(&repo("examples/vmc3/run.csv"), &machine.machine, &[]).unwrap();
+    let source = ReplaySource::new("replay", run, 60.0);
+    let mut service = Service::new(
+        machine,
+        vec![vmc_model("vmc3")],
+        vec![
+            Box::new(source),
+            Box::new(PathSwitcher {
+                at_s: 1.0,
+                back_s: 2.0,
+            }),
+        ],
+        vec![],
+        ServiceConfig::default(),
+    );
+    service.cycle(0.0);
+    let events = service.events();
+    let mut t = 0.0;
+    let counted = allocation_counter::measure(|| {
+        for _ in 0..5000 {
+            t += 0.001;
+            service.cycle(t);
+        }
+    });
+    assert_eq!(counted.count_total, 0);
+    assert!(events.pop().is_some(), "the axis switch raised events");
+}
+
+/// The log holds cycles and events with names, and passes SQLite's integrity check.
+#[test]
+fn the_log_keeps_cycles_and_named_events() {
+    let dir = std::env::temp_dir().join(format!("truepos-log-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let db = dir.join("log.sqlite");
+    let _ = std::fs::remove_file(&db);
+    let machine = vmc();
+    let n_t = machine.machine.temperatures.len();
+    let (source, values) = scripted(vec![21.0; n_t], vec![100.0, 100.0, 100.0]);
+    let mut service = Service::new(
+        machine.clone(),
+        vec![vmc_model("vmc3")],
+        vec![source],
+        vec![],
+        ServiceConfig::default(),
+    );
+    let logger = Logger::start(
+        LogSetup {
+            path: &db,
+            machine: &machine,
+            models: vec!["vmc3".into()],
+            sources: vec!["scripted".into()],
+            sinks: vec![],
+            paths: 1,
+            commit_every: std::time::Duration::from_millis(20),
+        },
+        service.events(),
+        service.records(),
+    )
+    .unwrap();
+    let mut t = 0.0;
+    for i in 0..300 {
+        t += 0.01;
+        if i == 150 {
+            values.lock().unwrap().0[3] = f64::INFINITY;
+        }
+        service.cycle(t);
+    }
+    logger.stop().unwrap();
+    assert_eq!(log::integrity_check(&db).unwrap(), "ok");
+    let events = log::read_events(&db).unwrap();
+    let fault = events
+        .iter()
+        .find(|e| e.kind == "sensor-fault")
+        .expect("a sensor-fault event");
+    assert_eq!(fault.subject, "y_slide_bottom");
+    assert_eq!(fault.detail, "not a number");
+    assert!(events
+        .iter()
+        .any(|e| e.kind == "model-selected" && e.detail == "vmc3"));
+    let (names, rows) = log::read_cycles(&db, None).unwrap();
+    assert!(names.contains(&"X_mm".to_string()));
+    assert!(names.contains(&"ambient".to_string()));
+    assert!(names.contains(&"Z_offset_um".to_string()));
+    // 3 s at one record per 0.1 s.
+    assert!((29..=31).contains(&rows.len()), "{}", rows.len());
+    std::fs::remove_dir_all(&dir).ok();
+}
