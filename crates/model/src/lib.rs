@@ -62,6 +62,7 @@ extern crate alloc;
 #[cfg(feature = "std")]
 extern crate std;
 
+pub mod dynamic;
 pub mod evaluate;
 pub mod kinematics;
 pub mod machine;
@@ -69,6 +70,7 @@ pub mod model;
 pub mod table;
 pub mod timing;
 
+pub use dynamic::{DynamicError, DynamicModel, Feature, FeatureBank, FeatureKind, FeatureSpec};
 pub use evaluate::{Correction, CycleInput, EvalError, TRAVEL_TOLERANCE};
 pub use machine::{
     Axis, AxisKind, Carriage, Machine, MachineError, OperatingChannel, OperatingKind, Reference,
