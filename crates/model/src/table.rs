@@ -131,6 +131,9 @@ pub struct CompTable {
     // Hermite slopes at each support point (monotone cubic only), per column.
     slopes_forward: Vec<f64>,
     slopes_reverse: Vec<f64>,
+    // 1 / step if the support points are equidistant (to 1e-12 of the span): the segment is
+    // then found by one division instead of a binary search.
+    inverse_step: Option<f64>,
 }
 
 impl CompTable {
@@ -209,7 +212,10 @@ impl CompTable {
             interpolation,
             slopes_forward: Vec::new(),
             slopes_reverse: Vec::new(),
+            inverse_step: None,
         };
+        let span = table.positions[n - 1] - table.positions[0];
+        table.inverse_step = table.step(1e-12 * span).map(|h| 1.0 / h);
         if interpolation == Interpolation::MonotoneCubic {
             table.slopes_forward = table.slopes(&table.forward);
             if let Some(r) = &table.reverse {
@@ -317,12 +323,18 @@ impl CompTable {
     /// support values).
     #[inline]
     pub fn value(&self, position: f64, direction: Direction) -> f64 {
-        self.value_and_slope(position, direction).0
+        self.lookup::<false>(position, direction).0
     }
 
     /// The interpolated value and its derivative with respect to position (value unit per mm or
     /// per degree) at `position`. Where a linear axis' table holds its end value the slope is 0.
+    #[inline]
     pub fn value_and_slope(&self, position: f64, direction: Direction) -> (f64, f64) {
+        self.lookup::<true>(position, direction)
+    }
+
+    #[inline]
+    fn lookup<const SLOPE: bool>(&self, position: f64, direction: Direction) -> (f64, f64) {
         let (values, slopes) = match (direction, &self.reverse) {
             (Direction::Reverse, Some(r)) => (r.as_slice(), self.slopes_reverse.as_slice()),
             _ => (self.forward.as_slice(), self.slopes_forward.as_slice()),
@@ -343,21 +355,41 @@ impl CompTable {
                 position
             }
             Wrap::Rotary => {
-                let mut r = libm::fmod(position - p[0], ROTARY_PERIOD_DEG);
-                if r < 0.0 {
-                    r += ROTARY_PERIOD_DEG;
-                }
-                let x = p[0] + r;
-                // Adding 360 to a tiny negative remainder may round up to exactly the period.
-                if x >= p[0] + ROTARY_PERIOD_DEG {
-                    p[0]
+                let top = p[0] + ROTARY_PERIOD_DEG;
+                if position >= p[0] && position < top {
+                    position
                 } else {
-                    x
+                    let mut r = libm::fmod(position - p[0], ROTARY_PERIOD_DEG);
+                    if r < 0.0 {
+                        r += ROTARY_PERIOD_DEG;
+                    }
+                    // Adding 360 to a tiny negative remainder may round up to the period.
+                    let x = p[0] + r;
+                    if x >= top {
+                        p[0]
+                    } else {
+                        x
+                    }
                 }
             }
         };
-        // Segment [x0, x1] containing x.
-        let i = p.partition_point(|&q| q <= x);
+        // Index i of the support point at or after x: the segment is [i − 1, i]; i = n is the
+        // rotary joint segment.
+        let i = match self.inverse_step {
+            Some(inv) => {
+                let k = ((x - p[0]) * inv) as usize + 1;
+                // Rounding may put x one segment off: step back or forward once.
+                let mut k = k.min(n);
+                if k < n && p[k] <= x {
+                    k += 1;
+                }
+                if k > 1 && p[k - 1] > x {
+                    k -= 1;
+                }
+                k
+            }
+            None => p.partition_point(|&q| q <= x),
+        };
         let (x0, x1, y0, y1, i0, i1) = if i >= n {
             // Rotary joint: between the last point and the first + 360°.
             (
@@ -375,7 +407,10 @@ impl CompTable {
         let h = x1 - x0;
         let t = (x - x0) / h;
         match self.interpolation {
-            Interpolation::Linear => (y0 + t * (y1 - y0), (y1 - y0) / h),
+            Interpolation::Linear => {
+                let slope = if SLOPE { (y1 - y0) / h } else { 0.0 };
+                (y0 + t * (y1 - y0), slope)
+            }
             Interpolation::MonotoneCubic => {
                 let (m0, m1) = (slopes[i0] * h, slopes[i1] * h);
                 // Cubic Hermite basis on t ∈ [0, 1].
@@ -386,11 +421,15 @@ impl CompTable {
                 let h01 = -2.0 * t3 + 3.0 * t2;
                 let h11 = t3 - t2;
                 let value = h00 * y0 + h10 * m0 + h01 * y1 + h11 * m1;
-                let d00 = 6.0 * t2 - 6.0 * t;
-                let d10 = 3.0 * t2 - 4.0 * t + 1.0;
-                let d01 = -6.0 * t2 + 6.0 * t;
-                let d11 = 3.0 * t2 - 2.0 * t;
-                let slope = (d00 * y0 + d10 * m0 + d01 * y1 + d11 * m1) / h;
+                let slope = if SLOPE {
+                    let d00 = 6.0 * t2 - 6.0 * t;
+                    let d10 = 3.0 * t2 - 4.0 * t + 1.0;
+                    let d01 = -6.0 * t2 + 6.0 * t;
+                    let d11 = 3.0 * t2 - 2.0 * t;
+                    (d00 * y0 + d10 * m0 + d01 * y1 + d11 * m1) / h
+                } else {
+                    0.0
+                };
                 (value, slope)
             }
         }
@@ -566,6 +605,38 @@ mod tests {
             - t.value(2.5 - 1e-6, Direction::Forward))
             / 2e-6;
         assert!((s - fd).abs() < 1e-6);
+    }
+
+    #[test]
+    fn equidistant_lookup_agrees_with_binary_search() {
+        // The same support points, once exactly equidistant (direct index) and once with the
+        // last point nudged (binary search): values agree everywhere but the last segment.
+        let p: Vec<f64> = (0..37).map(|i| 10.0 * i as f64 - 180.0).collect();
+        let v: Vec<f64> = p.iter().map(|x| libm::sin(x * 0.05) * 3.0).collect();
+        let a = CompTable::new(
+            p.clone(),
+            v.clone(),
+            Wrap::Hold,
+            Interpolation::MonotoneCubic,
+        )
+        .unwrap();
+        assert!(a.inverse_step.is_some());
+        let mut q = p.clone();
+        q[36] += 1e-3;
+        let b = CompTable::new(q, v, Wrap::Hold, Interpolation::MonotoneCubic).unwrap();
+        assert!(b.inverse_step.is_none());
+        for k in 0..=3400 {
+            let x = -180.0 + 0.1 * k as f64;
+            let (ya, yb) = (
+                a.value(x, Direction::Forward),
+                b.value(x, Direction::Forward),
+            );
+            assert!((ya - yb).abs() < 1e-9, "x={x} {ya} {yb}");
+        }
+        // Support points themselves, where rounding of (x − p0)/h matters.
+        for (x, y) in p.iter().zip(a.forward()) {
+            assert!((a.value(*x, Direction::Forward) - y).abs() < 1e-12);
+        }
     }
 
     #[test]

@@ -121,9 +121,7 @@ impl Chain {
                     scale,
                 } => {
                     if actual {
-                        let (v, slope) = self.tables[table]
-                            .table
-                            .value_and_slope(q[axis], dirs.of(axis));
+                        let (v, slope) = self.table_value::<JAC>(table, q[axis], dirs.of(axis));
                         p[k] += offset + scale * v;
                         if JAC {
                             if let Some(t) = tangents.as_deref_mut() {
@@ -169,9 +167,7 @@ impl Chain {
                     scale,
                 } => {
                     let (angle, slope) = if actual {
-                        let (v, slope) = self.tables[table]
-                            .table
-                            .value_and_slope(q[axis], dirs.of(axis));
+                        let (v, slope) = self.table_value::<JAC>(table, q[axis], dirs.of(axis));
                         (offset + scale * v, scale * slope)
                     } else {
                         (offset, 0.0)
@@ -198,6 +194,22 @@ impl Chain {
         Pose {
             position: p,
             direction: d,
+        }
+    }
+
+    /// Table value and (if `SLOPE`) its slope.
+    #[inline(always)]
+    fn table_value<const SLOPE: bool>(
+        &self,
+        table: usize,
+        x: f64,
+        dir: crate::table::Direction,
+    ) -> (f64, f64) {
+        let t = &self.tables[table].table;
+        if SLOPE {
+            t.value_and_slope(x, dir)
+        } else {
+            (t.value(x, dir), 0.0)
         }
     }
 
