@@ -527,13 +527,29 @@ impl Client {
                     );
                     match self.serve(stream) {
                         End::Stopped => return,
-                        End::Lost(why) => status.set_lost(self.now_s(), why),
+                        End::Lost(why) => {
+                            self.freeze_confirmations();
+                            status.set_lost(self.now_s(), why)
+                        }
                     }
                 }
                 Err(why) => status.set_lost(self.now_s(), why),
             }
             if !sleep_unless_stopped(backoff.next_delay(), &self.shared.stop) {
                 return;
+            }
+        }
+    }
+
+    /// At the end of a connection: the values it delivered keep, as their stamps, the last time
+    /// it confirmed them (later connections do not confirm them; stamps never go backwards).
+    fn freeze_confirmations(&self) {
+        let connection = self.shared.status.connection_number();
+        let alive = f64::from_bits(self.shared.alive_s.load(Ordering::Acquire));
+        for (k, c) in self.shared.value_connection.iter().enumerate() {
+            if c.load(Ordering::Acquire) == connection {
+                let (value, stamp) = self.shared.channels.get(k);
+                self.shared.channels.publish(k, value, stamp.max(alive));
             }
         }
     }
