@@ -8,6 +8,7 @@ use clap::{Parser, Subcommand};
 mod eval;
 mod kin;
 mod lag;
+mod run;
 
 /// truepos keeps the tool tip of a CNC machine tool where the program says it is, while the
 /// machine warms up, bends and carries geometric errors.
@@ -26,6 +27,12 @@ enum Command {
     Kin(kin::Args),
     /// Seed A's timing argument: worst-case error of position-dependent terms updated every T ms.
     Lag(lag::Args),
+    /// Show the event log of a running or finished service, or export its cycles as a run CSV.
+    Log(run::LogArgs),
+    /// Run the cyclic compensation service: sources → validation → model set → envelope → sinks.
+    Run(run::RunArgs),
+    /// Show the state of a running or finished service from its log.
+    Status(run::StatusArgs),
 }
 
 fn main() -> ExitCode {
@@ -34,6 +41,9 @@ fn main() -> ExitCode {
         Command::Eval(args) => eval::run(args),
         Command::Kin(args) => kin::run(args),
         Command::Lag(args) => lag::run(args),
+        Command::Log(args) => run::show_log(args),
+        Command::Run(args) => run::run(args),
+        Command::Status(args) => run::show_status(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -302,22 +302,20 @@ pub fn parse(path: &Path, text: &str) -> Result<MachineFile, InputError> {
         });
     }
 
-    let positive = |v: &Option<Spanned<f64>>, key: String, default: f64, allow_zero: bool| {
-        match v {
-            None => Ok(default),
-            Some(x) => {
-                let ok = x.get_ref().is_finite()
-                    && (*x.get_ref() > 0.0 || (allow_zero && *x.get_ref() == 0.0));
-                if ok {
-                    Ok(*x.get_ref())
-                } else {
-                    let what = if allow_zero { "≥ 0" } else { "> 0" };
-                    Err(err(
-                        x.span(),
-                        key,
-                        format!("expected a finite number {what}, got {}", x.get_ref()),
-                    ))
-                }
+    let positive = |v: &Option<Spanned<f64>>, key: String, default: f64, allow_zero: bool| match v {
+        None => Ok(default),
+        Some(x) => {
+            let ok = x.get_ref().is_finite()
+                && (*x.get_ref() > 0.0 || (allow_zero && *x.get_ref() == 0.0));
+            if ok {
+                Ok(*x.get_ref())
+            } else {
+                let what = if allow_zero { "≥ 0" } else { "> 0" };
+                Err(err(
+                    x.span(),
+                    key,
+                    format!("expected a finite number {what}, got {}", x.get_ref()),
+                ))
             }
         }
     };

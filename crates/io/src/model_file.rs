@@ -231,6 +231,39 @@ fn spanned<T>(value: T) -> Spanned<T> {
     Spanned::new(0..0, value)
 }
 
+/// A bound model with what the file says about where it serves.
+#[derive(Debug, Clone)]
+pub struct LoadedModel {
+    /// The model.
+    pub model: Model,
+    /// Seed D's axis-combination index from the file, if it has one.
+    pub axis_index: Option<Vec<u32>>,
+}
+
+/// Reads a model file like [`load`] and keeps its axis-combination index.
+pub fn load_entry(path: &Path, machine: &Machine) -> Result<LoadedModel, InputError> {
+    let text = read_text(path)?;
+    let is_json = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("json"));
+    let axis_index = if is_json {
+        serde_json::from_str::<serde_json::Value>(&text)
+            .ok()
+            .and_then(|v| v.get("axis_index").cloned())
+            .and_then(|v| serde_json::from_value(v).ok())
+    } else {
+        parse_toml::<ModelFile>(path, &text)
+            .ok()
+            .and_then(|f| f.axis_index)
+    };
+    let model = if is_json {
+        parse_json(path, &text, machine)?
+    } else {
+        parse(path, &text, machine)?
+    };
+    Ok(LoadedModel { model, axis_index })
+}
+
 /// Reads a model file (`.json` as JSON, anything else as TOML) and binds it to a machine.
 pub fn load(path: &Path, machine: &Machine) -> Result<Model, InputError> {
     let text = read_text(path)?;

@@ -241,7 +241,11 @@ fn m14_no_axes() {
 
 #[test]
 fn m15_envelope_not_positive() {
-    let text = edit(MACHINE, "carried_by = \"X\"", "carried_by = \"X\"\nmax_rate_um_per_s = -5.0");
+    let text = edit(
+        MACHINE,
+        "carried_by = \"X\"",
+        "carried_by = \"X\"\nmax_rate_um_per_s = -5.0",
+    );
     assert_eq!(
         machine_error(&text),
         "m.toml:14:21: `axis[1].max_rate_um_per_s`: expected a finite number > 0, got -5"
@@ -250,7 +254,11 @@ fn m15_envelope_not_positive() {
 
 #[test]
 fn m16_two_axes_with_one_seed_d_code() {
-    let text = edit(MACHINE, "carried_by = \"X\"", "carried_by = \"X\"\nnumber = 1");
+    let text = edit(
+        MACHINE,
+        "carried_by = \"X\"",
+        "carried_by = \"X\"\nnumber = 1",
+    );
     assert_eq!(
         machine_error(&text),
         "m.toml:14:10: `axis[1].number`: axis `Y` has path 1 number 1, like axis `X`; each axis needs its own"

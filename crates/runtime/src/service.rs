@@ -109,6 +109,7 @@ pub struct Service {
     hold_from: [f64; MAX_AXES],
     hold_start: [f64; MAX_AXES],
     positions_ok: bool,
+    position_fault_seen: bool,
     last_log: f64,
     cycles: u64,
 }
@@ -175,6 +176,7 @@ impl Service {
             hold_from: [0.0; MAX_AXES],
             hold_start: [0.0; MAX_AXES],
             positions_ok: false,
+            position_fault_seen: false,
             last_log: NEVER,
             cycles: 0,
             set,
@@ -331,13 +333,15 @@ impl Service {
                 Some(axis) => EventKind::PositionFault { axis },
                 None => EventKind::PositionRecovered,
             };
-            // Positions not yet delivered at start-up are not worth an event.
-            if self.cycles > 1 || ok {
+            // Positions arriving at start-up are not worth an event; their loss (which can only
+            // follow a good state) and every recovery after a loss are.
+            if !ok || self.position_fault_seen {
                 self.events.push(Event {
                     time_s: now_s,
                     kind,
                 });
             }
+            self.position_fault_seen |= !ok;
             self.positions_ok = ok;
         }
     }

@@ -117,7 +117,10 @@ impl SensorValidator {
                     self.last_value[c] = value;
                 }
             }
-            if verdict.is_none() && fresh {
+            // The rate is judged between changes of value: a source that re-delivers a held
+            // value every cycle (a polled module, a replay) must not make the next change look
+            // like it happened within one cycle.
+            if verdict.is_none() && fresh && value != self.last_good[c] {
                 self.last_good[c] = value;
                 self.last_good_stamp[c] = stamp;
             }
@@ -270,6 +273,16 @@ mod tests {
             e[1].kind,
             EventKind::SensorRecovered { channel: 0 }
         ));
+    }
+
+    #[test]
+    fn a_held_value_redelivered_every_cycle_does_not_shrink_the_rate_interval() {
+        // 20.0 delivered every second for a minute, then 20.5: 0.5 K/min, not 30 K/min.
+        let mut samples: Vec<_> = (0..60).map(|i| (i as f64, 20.0, true)).collect();
+        samples.push((60.0, 20.5, true));
+        let (h, e) = run(&samples);
+        assert_eq!(h[60], None);
+        assert!(e.is_empty(), "{e:?}");
     }
 
     #[test]

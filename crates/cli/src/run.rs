@@ -1,0 +1,482 @@
+//! `truepos run`, `truepos status` and `truepos log`: the cyclic service beside a control, and
+//! the inspection of its log.
+
+use std::io::{IsTerminal, Write};
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use truepos_io::{cycles, machine_file, model_file};
+use truepos_runtime::log::{self, LogSetup, Logger};
+use truepos_runtime::model_set::{index_of, ModelEntry};
+use truepos_runtime::replay::{state_name, CsvSink, ReplaySource};
+use truepos_runtime::{PathState, Service, ServiceConfig, Sink, Source};
+
+/// Arguments of `truepos run`.
+#[derive(clap::Args)]
+pub struct RunArgs {
+    /// Machine description (TOML).
+    #[arg(long, default_value = "examples/vmc3/machine.toml")]
+    machine: PathBuf,
+    /// Model files of the model set, in order of preference (repeat, or separate with commas).
+    #[arg(
+        long = "models",
+        value_delimiter = ',',
+        default_value = "examples/vmc3/model.toml"
+    )]
+    models: Vec<PathBuf>,
+    /// Sources: `replay:RUN.csv` or `replay:RUN.csv@SPEED` (SPEED × real time).
+    #[arg(long = "source", default_value = "replay:examples/vmc3/run.csv")]
+    sources: Vec<String>,
+    /// Sinks: `csv:OUT.csv` (one row per `--sink-every-s`).
+    #[arg(long = "sink")]
+    sinks: Vec<String>,
+    /// SQLite log of inputs, outputs and events (WAL mode).
+    #[arg(long)]
+    log: Option<PathBuf>,
+    /// Cycle period in ms.
+    #[arg(long, default_value_t = 1.0)]
+    period_ms: f64,
+    /// Stop after this many seconds (default: when a replay ends).
+    #[arg(long)]
+    duration_s: Option<f64>,
+    /// Run as fast as possible on a simulated clock (replays and tests), not in real time.
+    #[arg(long)]
+    fast: bool,
+    /// Blend time in s for model switches and enabling/disabling.
+    #[arg(long, default_value_t = 5.0)]
+    blend_s: f64,
+    /// Time in s over which a held compensation ramps to zero.
+    #[arg(long, default_value_t = 60.0)]
+    hold_ramp_s: f64,
+    /// Interval in s between cycle records in the log.
+    #[arg(long, default_value_t = 0.1)]
+    log_every_s: f64,
+    /// Interval in s between rows of a CSV sink.
+    #[arg(long, default_value_t = 0.1)]
+    sink_every_s: f64,
+    /// Print a summary as JSON at the end (and no status line).
+    #[arg(long)]
+    json: bool,
+}
+
+/// Arguments of `truepos status`.
+#[derive(clap::Args)]
+pub struct StatusArgs {
+    /// The service's log.
+    #[arg(long)]
+    log: PathBuf,
+    /// Print as JSON.
+    #[arg(long)]
+    json: bool,
+}
+
+/// Arguments of `truepos log`.
+#[derive(clap::Args)]
+pub struct LogArgs {
+    /// The service's log.
+    #[arg(long)]
+    log: PathBuf,
+    /// Write the logged cycles as a run CSV (readable by `truepos eval` and `truepos fit`).
+    #[arg(long)]
+    csv: Option<PathBuf>,
+    /// Print the events as JSON.
+    #[arg(long)]
+    json: bool,
+}
+
+/// Cycle-time statistics in µs.
+struct Timing {
+    samples: Vec<u32>,
+    late_max_us: f64,
+    overruns: u64,
+    /// Cycles by how late they finished after their deadline: < 0.1, 0.25, 0.5, 1, 2 ms, ≥ 2 ms.
+    histogram: [u64; 6],
+}
+
+/// Upper edges of the lateness histogram in µs.
+const LATENESS_EDGES_US: [f64; 5] = [100.0, 250.0, 500.0, 1000.0, 2000.0];
+
+/// CPU time (user + system) of this process in s, from /proc (Linux).
+fn cpu_time_s() -> Option<f64> {
+    let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
+    // Fields after the command name, which is in parentheses and may hold spaces.
+    let rest = stat.rsplit_once(')')?.1;
+    let f: Vec<&str> = rest.split_whitespace().collect();
+    let utime: f64 = f.get(11)?.parse().ok()?;
+    let stime: f64 = f.get(12)?.parse().ok()?;
+    // The kernel's clock tick is 100 Hz on every Linux this runs on (USER_HZ).
+    Some((utime + stime) / 100.0)
+}
+
+impl Timing {
+    fn percentile(&mut self, q: f64) -> u32 {
+        if self.samples.is_empty() {
+            return 0;
+        }
+        self.samples.sort_unstable();
+        let i = ((self.samples.len() - 1) as f64 * q).round() as usize;
+        self.samples[i]
+    }
+}
+
+pub fn run(args: RunArgs) -> Result<(), String> {
+    if !(args.period_ms.is_finite() && args.period_ms > 0.0) {
+        return Err(format!("--period-ms must be > 0, got {}", args.period_ms));
+    }
+    let machine = machine_file::load(&args.machine).map_err(|e| e.to_string())?;
+    let m = &machine.machine;
+    let default_index = index_of(
+        machine
+            .axis_runtime
+            .iter()
+            .filter(|a| a.path == 1)
+            .map(|a| a.code()),
+    );
+    let mut entries = Vec::new();
+    for path in &args.models {
+        let loaded = model_file::load_entry(path, m).map_err(|e| e.to_string())?;
+        let index = match &loaded.axis_index {
+            Some(b) => index_of(b.iter().copied()),
+            None => default_index,
+        };
+        entries.push(ModelEntry {
+            name: loaded.model.name().to_string(),
+            model: loaded.model,
+            index,
+        });
+    }
+    let mut sources: Vec<Box<dyn Source>> = Vec::new();
+    let mut replay_end_s = None;
+    for spec in &args.sources {
+        let Some(rest) = spec.strip_prefix("replay:") else {
+            return Err(format!(
+                "--source `{spec}`: expected `replay:FILE.csv[@SPEED]`; network sources (Modbus, SHDR) and LinuxCNC are configured by their own commands"
+            ));
+        };
+        let (file, speed) = match rest.rsplit_once('@') {
+            Some((f, s)) => (
+                f,
+                s.parse::<f64>()
+                    .ok()
+                    .filter(|v| v.is_finite() && *v > 0.0)
+                    .ok_or_else(|| format!("--source `{spec}`: expected a speed > 0 after @"))?,
+            ),
+            None => (rest, 1.0),
+        };
+        let run = cycles::load(std::path::Path::new(file), m, &[]).map_err(|e| e.to_string())?;
+        let source = ReplaySource::new(format!("replay {file}"), run, speed);
+        replay_end_s = Some(source.duration_s() / speed);
+        sources.push(Box::new(source));
+    }
+    let axis_names: Vec<String> = m.axes.iter().map(|a| a.name.clone()).collect();
+    let mut sinks: Vec<Box<dyn Sink>> = Vec::new();
+    for spec in &args.sinks {
+        let Some(file) = spec.strip_prefix("csv:") else {
+            return Err(format!("--sink `{spec}`: expected `csv:FILE.csv`"));
+        };
+        let sink = CsvSink::create(std::path::Path::new(file), &axis_names, args.sink_every_s)
+            .map_err(|e| e.to_string())?;
+        sinks.push(Box::new(sink));
+    }
+    let model_names: Vec<String> = entries.iter().map(|e| e.name.clone()).collect();
+    let source_names: Vec<String> = sources.iter().map(|s| s.name().to_string()).collect();
+    let sink_names: Vec<String> = sinks.iter().map(|s| s.name().to_string()).collect();
+    let config = ServiceConfig {
+        blend_s: args.blend_s,
+        hold_ramp_s: args.hold_ramp_s,
+        log_every_s: args.log_every_s,
+        ..ServiceConfig::default()
+    };
+    let mut service = Service::new(machine.clone(), entries, sources, sinks, config);
+    let logger = match &args.log {
+        Some(path) => Some(
+            Logger::start(
+                LogSetup {
+                    path,
+                    machine: &machine,
+                    models: model_names.clone(),
+                    sources: source_names,
+                    sinks: sink_names,
+                    paths: service.path_states().len(),
+                    commit_every: Duration::from_millis(250),
+                },
+                service.events(),
+                service.records(),
+            )
+            .map_err(|e| e.to_string())?,
+        ),
+        None => None,
+    };
+    let stop = Arc::new(AtomicBool::new(false));
+    for signal in [signal_hook::consts::SIGTERM, signal_hook::consts::SIGINT] {
+        signal_hook::flag::register(signal, Arc::clone(&stop))
+            .map_err(|e| format!("cannot install the signal handler: {e}"))?;
+    }
+
+    let period = Duration::from_secs_f64(args.period_ms / 1000.0);
+    let period_ns = period.as_nanos() as u64;
+    let end_s = args
+        .duration_s
+        .or(replay_end_s.map(|e| e + args.period_ms / 1000.0));
+    let status_line = !args.json && std::io::stderr().is_terminal();
+    let mut timing = Timing {
+        samples: Vec::with_capacity(1 << 20),
+        late_max_us: 0.0,
+        overruns: 0,
+        histogram: [0; 6],
+    };
+    let cpu_start = cpu_time_s();
+    let start = Instant::now();
+    let mut k: u64 = 0;
+    let mut next_status = 1.0;
+    let mut last_status = String::new();
+    loop {
+        let deadline = start + Duration::from_nanos(period_ns.saturating_mul(k));
+        let now_s = if args.fast {
+            k as f64 * period.as_secs_f64()
+        } else {
+            let now = Instant::now();
+            if now < deadline {
+                std::thread::sleep(deadline - now);
+            }
+            let late = Instant::now().saturating_duration_since(deadline);
+            let late_us = late.as_secs_f64() * 1e6;
+            timing.late_max_us = timing.late_max_us.max(late_us);
+            if late > period {
+                timing.overruns += 1;
+            }
+            (deadline - start).as_secs_f64()
+        };
+        if stop.load(Ordering::Relaxed) || end_s.is_some_and(|e| now_s > e) {
+            break;
+        }
+        let t0 = Instant::now();
+        service.cycle(now_s);
+        let took = t0.elapsed().as_micros().min(u32::MAX as u128) as u32;
+        if timing.samples.len() < timing.samples.capacity() {
+            timing.samples.push(took);
+        }
+        if !args.fast {
+            let done_late_us = Instant::now()
+                .saturating_duration_since(deadline)
+                .as_secs_f64()
+                * 1e6;
+            let bucket = LATENESS_EDGES_US
+                .iter()
+                .position(|&e| done_late_us < e)
+                .unwrap_or(LATENESS_EDGES_US.len());
+            timing.histogram[bucket] += 1;
+        }
+        k += 1;
+        if now_s >= next_status {
+            next_status += 1.0;
+            last_status = status(&service, &model_names, took);
+            if status_line {
+                eprint!("\r{last_status}\x1b[K");
+                let _ = std::io::stderr().flush();
+            }
+        }
+    }
+    if status_line {
+        eprintln!();
+    }
+    let wall_s = start.elapsed().as_secs_f64();
+    let cpu_percent = match (cpu_start, cpu_time_s()) {
+        (Some(a), Some(b)) if wall_s > 0.0 => Some(100.0 * (b - a) / wall_s),
+        _ => None,
+    };
+    if let Some(l) = logger {
+        l.stop().map_err(|e| e.to_string())?;
+    }
+    let out = *service.output();
+    let p50 = timing.percentile(0.5);
+    let p99 = timing.percentile(0.99);
+    let max = timing.percentile(1.0);
+    if args.json {
+        let v = serde_json::json!({
+            "cycles": service.cycles(),
+            "service_time_s": out.time_s,
+            "wall_time_s": wall_s,
+            "cycle_us": { "p50": p50, "p99": p99, "max": max },
+            "late_max_us": if args.fast { None } else { Some(timing.late_max_us) },
+            "overruns": timing.overruns,
+            "cpu_percent_of_one_core": cpu_percent,
+            "finished_late_histogram": if args.fast { None } else { Some(serde_json::json!({
+                "under_100us": timing.histogram[0],
+                "100_250us": timing.histogram[1],
+                "250_500us": timing.histogram[2],
+                "500us_1ms": timing.histogram[3],
+                "1_2ms": timing.histogram[4],
+                "over_2ms": timing.histogram[5],
+            })) },
+            "state": state_name(out.state),
+            "offsets_um": axis_names.iter().zip(out.offsets()).map(|(a, v)| (a.clone(), serde_json::Value::from(*v))).collect::<serde_json::Map<_, _>>(),
+            "log_records_dropped": service.records_dropped(),
+        });
+        println!("{v}");
+    } else {
+        if !status_line && !last_status.is_empty() {
+            eprintln!("{last_status}");
+        }
+        eprintln!(
+            "{} cycles in {wall_s:.1} s; cycle time p50 {p50} µs, p99 {p99} µs, max {max} µs; {} overruns; CPU {}",
+            service.cycles(),
+            timing.overruns,
+            cpu_percent.map_or("unknown".into(), |c| format!("{c:.1} % of one core"))
+        );
+        if !args.fast {
+            eprintln!(
+                "finished after the deadline by: <0.1 ms {} | 0.1–0.25 ms {} | 0.25–0.5 ms {} | 0.5–1 ms {} | 1–2 ms {} | ≥2 ms {}",
+                timing.histogram[0],
+                timing.histogram[1],
+                timing.histogram[2],
+                timing.histogram[3],
+                timing.histogram[4],
+                timing.histogram[5]
+            );
+        }
+    }
+    Ok(())
+}
+
+/// The status line: time, cycle time, offsets, model per path, sensor health.
+fn status(service: &Service, models: &[String], took_us: u32) -> String {
+    let out = service.output();
+    let m = &service.machine().machine;
+    let offsets: Vec<String> = m
+        .axes
+        .iter()
+        .zip(out.offsets())
+        .map(|(a, v)| format!("{} {v:+.2}", a.name))
+        .collect();
+    let paths: Vec<String> = service
+        .path_states()
+        .iter()
+        .enumerate()
+        .map(|(p, s)| {
+            let what = match s {
+                PathState::Model(i) => models.get(*i).cloned().unwrap_or_default(),
+                PathState::Holding => "holding".into(),
+                PathState::NoModel => "no model".into(),
+                PathState::Disabled => "off".into(),
+            };
+            format!("path {}: {what}", p + 1)
+        })
+        .collect();
+    let health = service.validator().health();
+    let good = health.iter().filter(|h| h.is_none()).count();
+    format!(
+        "t {:.1} s | cycle {took_us} µs | {} µm | {} | sensors {good}/{} ok | {}",
+        out.time_s,
+        offsets.join(" "),
+        paths.join(", "),
+        health.len(),
+        state_name(out.state)
+    )
+}
+
+pub fn show_status(args: StatusArgs) -> Result<(), String> {
+    let (names, rows) = log::read_cycles(&args.log, Some(1)).map_err(|e| e.to_string())?;
+    let events = log::read_events(&args.log).map_err(|e| e.to_string())?;
+    let last = rows.last();
+    // Sensor health from the last fault or recovery event of each sensor.
+    let mut faults: Vec<(String, String)> = Vec::new();
+    for e in &events {
+        match e.kind.as_str() {
+            "sensor-fault" => {
+                faults.retain(|(s, _)| s != &e.subject);
+                faults.push((e.subject.clone(), e.detail.clone()));
+            }
+            "sensor-recovered" => faults.retain(|(s, _)| s != &e.subject),
+            _ => {}
+        }
+    }
+    if args.json {
+        let cycle: serde_json::Map<String, serde_json::Value> = match last {
+            Some(row) => names
+                .iter()
+                .zip(row)
+                .map(|(n, v)| {
+                    let value = v
+                        .parse::<f64>()
+                        .map(serde_json::Value::from)
+                        .unwrap_or_else(|_| serde_json::Value::from(v.clone()));
+                    (n.clone(), value)
+                })
+                .collect(),
+            None => serde_json::Map::new(),
+        };
+        let v = serde_json::json!({
+            "last_cycle": cycle,
+            "events": events.len(),
+            "bad_sensors": faults.iter().map(|(s, d)| serde_json::json!({"sensor": s, "reason": d})).collect::<Vec<_>>(),
+            "recent_events": events.iter().rev().take(5).collect::<Vec<_>>(),
+        });
+        println!("{v}");
+        return Ok(());
+    }
+    match last {
+        Some(row) => {
+            for (n, v) in names.iter().zip(row) {
+                if n == "time_s"
+                    || n == "state"
+                    || n.starts_with("model_path")
+                    || n.ends_with("_offset_um")
+                {
+                    println!("{n:>16}: {v}");
+                }
+            }
+        }
+        None => println!("no cycle logged yet"),
+    }
+    if faults.is_empty() {
+        println!("sensors: all good");
+    } else {
+        for (s, d) in &faults {
+            println!("sensor {s}: {d}");
+        }
+    }
+    for e in events.iter().rev().take(5).rev() {
+        println!(
+            "{:>10.3} s  {:<18} {:<16} {}",
+            e.time_s, e.kind, e.subject, e.detail
+        );
+    }
+    Ok(())
+}
+
+pub fn show_log(args: LogArgs) -> Result<(), String> {
+    if let Some(out) = &args.csv {
+        let (names, rows) = log::read_cycles(&args.log, None).map_err(|e| e.to_string())?;
+        let mut w = csv::Writer::from_path(out)
+            .map_err(|e| format!("{}: cannot write: {e}", out.display()))?;
+        w.write_record(&names).map_err(|e| e.to_string())?;
+        for r in &rows {
+            w.write_record(r).map_err(|e| e.to_string())?;
+        }
+        w.flush().map_err(|e| e.to_string())?;
+        eprintln!("{} cycles written to {}", rows.len(), out.display());
+        return Ok(());
+    }
+    let events = log::read_events(&args.log).map_err(|e| e.to_string())?;
+    let mut out = std::io::stdout().lock();
+    let written = if args.json {
+        let text = serde_json::to_string(&events).map_err(|e| e.to_string())?;
+        writeln!(out, "{text}")
+    } else {
+        events.iter().try_for_each(|e| {
+            writeln!(
+                out,
+                "{:>10.3} s  {:<18} {:<16} {}",
+                e.time_s, e.kind, e.subject, e.detail
+            )
+        })
+    };
+    match written {
+        // The reader (`head`, a pager) has seen enough.
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
+        r => r.map_err(|e| format!("cannot write to standard output: {e}")),
+    }
+}
