@@ -9,6 +9,7 @@ mod eval;
 mod kin;
 mod lag;
 mod run;
+mod sim;
 
 /// truepos keeps the tool tip of a CNC machine tool where the program says it is, while the
 /// machine warms up, bends and carries geometric errors.
@@ -31,6 +32,8 @@ enum Command {
     Log(run::LogArgs),
     /// Run the cyclic compensation service: sources → validation → model set → envelope → sinks.
     Run(run::RunArgs),
+    /// Run the thermal twin on a scenario and write the run as CSV (works with no files).
+    Sim(sim::Args),
     /// Show the state of a running or finished service from its log.
     Status(run::StatusArgs),
 }
@@ -44,6 +47,7 @@ fn main() -> ExitCode {
         Command::Log(args) => run::show_log(args),
         Command::Run(args) => run::run(args),
         Command::Status(args) => run::show_status(args),
+        Command::Sim(args) => sim::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -1,0 +1,217 @@
+//! `truepos sim`: run the thermal twin on a scenario and write the run as CSV.
+
+use std::io::IsTerminal;
+use std::path::PathBuf;
+
+use truepos_sim::{Scenario, Twin, AXES, BUILTIN};
+
+/// Arguments of `truepos sim`.
+#[derive(clap::Args)]
+pub struct Args {
+    /// A built-in scenario (spindle-warmup, linear-axis, environment, mixed-shift,
+    /// mixed-shift-b) or a scenario TOML file.
+    #[arg(long, default_value = "mixed-shift")]
+    scenario: String,
+    /// Output CSV (`-` for standard output). Default: `sim-<scenario>.csv`.
+    #[arg(long, short)]
+    out: Option<PathBuf>,
+    /// Seed of the random draws (noise, random motion); the same seed gives the same run.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Sampling period of the CSV rows in s (overrides the scenario's `sample_s`).
+    #[arg(long)]
+    sample_s: Option<f64>,
+    /// Also write the true ambient and every thermal node's temperature (`node:<name>`).
+    #[arg(long)]
+    nodes: bool,
+    /// Print a built-in scenario's TOML (to copy and edit) and exit.
+    #[arg(long, value_name = "NAME")]
+    print_scenario: Option<String>,
+    /// Print the summary as JSON.
+    #[arg(long)]
+    json: bool,
+}
+
+pub fn run(args: Args) -> Result<(), String> {
+    if let Some(name) = &args.print_scenario {
+        let text = Scenario::builtin_toml(name).ok_or_else(|| {
+            format!(
+                "no built-in scenario \"{name}\"; built-ins: {}",
+                BUILTIN.join(", ")
+            )
+        })?;
+        print!("{text}");
+        return Ok(());
+    }
+    let twin = Twin::reference();
+    let mut scenario = match Scenario::builtin(&args.scenario) {
+        Some(s) => s,
+        None => {
+            let path = PathBuf::from(&args.scenario);
+            let src = std::fs::read_to_string(&path).map_err(|e| {
+                format!(
+                    "--scenario {}: neither a built-in scenario ({}) nor a readable file: {e}",
+                    args.scenario,
+                    BUILTIN.join(", ")
+                )
+            })?;
+            Scenario::parse(&src, &path.display().to_string(), Some(twin.travel_mm))
+                .map_err(|e| e.to_string())?
+        }
+    };
+    if let Some(s) = args.sample_s {
+        let ratio = s / scenario.step_s;
+        if !(s.is_finite() && s >= scenario.step_s && (ratio - ratio.round()).abs() < 1e-9) {
+            return Err(format!(
+                "--sample-s must be a whole multiple of the scenario's step ({} s), got {s}",
+                scenario.step_s
+            ));
+        }
+        scenario.sample_s = s;
+    }
+    let show_bar = std::io::stderr().is_terminal() && std::env::var_os("CI").is_none();
+    let bar = show_bar.then(|| {
+        let b = indicatif::ProgressBar::new(1000);
+        b.set_style(
+            indicatif::ProgressStyle::with_template("{msg} [{bar:40}] {percent}% ({elapsed})")
+                .expect("valid template")
+                .progress_chars("=> "),
+        );
+        b.set_message(format!("simulating {} h", fmt_h(scenario.duration_s())));
+        b
+    });
+    let run = twin
+        .run_with_progress(&scenario, args.seed, &mut |f| {
+            if let Some(b) = &bar {
+                b.set_position((f * 1000.0) as u64);
+            }
+        })
+        .map_err(|e| e.to_string())?;
+    if let Some(b) = &bar {
+        b.finish_and_clear();
+    }
+    let out = args
+        .out
+        .unwrap_or_else(|| PathBuf::from(format!("sim-{}.csv", scenario.name)));
+    if out.as_os_str() == "-" {
+        run.write_csv(std::io::stdout().lock(), args.nodes)
+            .map_err(|e| format!("writing CSV: {e}"))?;
+    } else {
+        let f = std::fs::File::create(&out).map_err(|e| format!("{}: {e}", out.display()))?;
+        run.write_csv(std::io::BufWriter::new(f), args.nodes)
+            .map_err(|e| format!("{}: {e}", out.display()))?;
+    }
+    let s = run.summary();
+    if args.json {
+        let dirs = ["dx_um", "dy_um", "dz_um"];
+        let peak: serde_json::Map<String, serde_json::Value> = dirs
+            .iter()
+            .zip(&s.peak_error)
+            .map(|(d, (v, t, p))| {
+                let pos: serde_json::Map<String, serde_json::Value> = AXES
+                    .iter()
+                    .zip(p)
+                    .map(|(a, v)| (format!("{a}_mm"), serde_json::json!(v)))
+                    .collect();
+                (
+                    d.to_string(),
+                    serde_json::json!({ "value_um": v, "time_s": t, "position": pos }),
+                )
+            })
+            .collect();
+        let pos_json = |p: &[f64; 3]| -> serde_json::Value {
+            AXES.iter()
+                .zip(p)
+                .map(|(a, v)| (format!("{a}_mm"), serde_json::json!(v)))
+                .collect::<serde_json::Map<_, _>>()
+                .into()
+        };
+        let t63: serde_json::Map<String, serde_json::Value> = dirs
+            .iter()
+            .zip(&s.t63_s)
+            .map(|(d, t)| (d.to_string(), serde_json::json!(t)))
+            .collect();
+        let spread: serde_json::Map<String, serde_json::Value> = dirs
+            .iter()
+            .zip(&s.probe_spread)
+            .map(|(d, sp)| {
+                let v = match sp {
+                    Some((t, (lo, plo), (hi, phi))) => serde_json::json!({
+                        "time_s": t,
+                        "min": { "value_um": lo, "position": pos_json(plo) },
+                        "max": { "value_um": hi, "position": pos_json(phi) },
+                        "spread_um": hi - lo,
+                    }),
+                    None => serde_json::Value::Null,
+                };
+                (d.to_string(), v)
+            })
+            .collect();
+        let temps: serde_json::Map<String, serde_json::Value> = s
+            .peak_sensor_c
+            .iter()
+            .map(|(id, v)| (id.clone(), serde_json::json!(v)))
+            .collect();
+        let v = serde_json::json!({
+            "machine": run.machine,
+            "scenario": run.scenario,
+            "seed": run.seed,
+            "csv": if out.as_os_str() == "-" { serde_json::Value::Null } else { serde_json::json!(out.display().to_string()) },
+            "duration_s": s.duration_s,
+            "rows": s.rows,
+            "probe_points": s.probe_points,
+            "thermal_nodes": s.nodes,
+            "peak_error": peak,
+            "t63_s": t63,
+            "probe_spread": spread,
+            "peak_sensor_c": temps,
+            "peak_node": { "name": s.peak_node.0, "temperature_c": s.peak_node.1 },
+        });
+        println!("{v}");
+    } else if out.as_os_str() != "-" {
+        println!(
+            "{} on {}: {} h, {} rows, {} probe points, {} thermal nodes → {}",
+            run.scenario,
+            run.machine,
+            fmt_h(s.duration_s),
+            s.rows,
+            s.probe_points,
+            s.nodes,
+            out.display()
+        );
+        for (d, (v, t, p)) in ["dx", "dy", "dz"].iter().zip(&s.peak_error) {
+            println!(
+                "  peak {d} {v:+8.1} µm at {:.2} h, X {:.0} Y {:.0} Z {:.0} mm",
+                t / 3600.0,
+                p[0],
+                p[1],
+                p[2]
+            );
+        }
+        for (d, t) in ["dx", "dy", "dz"].iter().zip(&s.t63_s) {
+            if let Some((ts, (lo, plo), (hi, phi))) =
+                s.probe_spread[["dx", "dy", "dz"].iter().position(|x| x == d).unwrap_or(0)]
+            {
+                println!(
+                    "  {d}: 63 % of its peak after {:.2} h; largest spread over one probing cycle (at {:.2} h): {lo:+.1} µm at X {:.0} Y {:.0} Z {:.0} → {hi:+.1} µm at X {:.0} Y {:.0} Z {:.0}",
+                    t / 3600.0,
+                    ts / 3600.0,
+                    plo[0], plo[1], plo[2], phi[0], phi[1], phi[2]
+                );
+            } else {
+                println!("  {d}: 63 % of its peak after {:.2} h", t / 3600.0);
+            }
+        }
+        let hottest: Vec<String> = s
+            .peak_sensor_c
+            .iter()
+            .map(|(id, v)| format!("{id} {v:.1}"))
+            .collect();
+        println!("  peak sensor readings (°C): {}", hottest.join(", "));
+    }
+    Ok(())
+}
+
+fn fmt_h(s: f64) -> String {
+    format!("{:.1}", s / 3600.0)
+}
