@@ -271,7 +271,9 @@ impl OutageReporter {
             self.reported_for = None;
             return Ok(());
         }
-        let outage = status.failures.load(Ordering::Acquire);
+        // An outage lasts from the loss of connection n (or the start, n = 0) to the next
+        // connection, however many attempts fail in between.
+        let outage = status.connection_number();
         if self.reported_for == Some(outage) {
             return Err(LinkError::Disconnected(String::new()));
         }
@@ -471,39 +473,26 @@ mod tests {
     fn outage_is_reported_once_with_its_reason() {
         let status = LinkStatus::default();
         let mut r = OutageReporter::default();
-        assert_eq!(
-            r.check(&status),
-            Err(LinkError::Disconnected("not connected".into()))
-        );
+        let down = |why: &str| Err(LinkError::Disconnected(why.into()));
+        assert_eq!(r.check(&status), down("not connected"));
+        // Failed attempts during the same outage: no new reason on the cycle.
         status.set_lost(1.0, "connection refused".into());
-        assert_eq!(
-            r.check(&status),
-            Err(LinkError::Disconnected("connection refused".into()))
-        );
-        assert_eq!(
-            r.check(&status),
-            Err(LinkError::Disconnected(String::new()))
-        );
+        assert_eq!(r.check(&status), down(""));
         status.set_connected(2.0, "up".into());
         assert_eq!(r.check(&status), Ok(()));
         status.set_lost(3.0, "no PONG".into());
-        assert_eq!(
-            r.check(&status),
-            Err(LinkError::Disconnected("no PONG".into()))
-        );
+        assert_eq!(r.check(&status), down("no PONG"));
+        assert_eq!(r.check(&status), down(""));
+        status.set_lost(3.5, "connection refused".into());
+        assert_eq!(r.check(&status), down(""));
         let events = status.drain_events();
         let kinds: Vec<_> = events.iter().map(|e| e.kind).collect();
-        assert_eq!(
-            kinds,
-            [
-                LinkEventKind::Lost,
-                LinkEventKind::Connected,
-                LinkEventKind::Lost
-            ]
-        );
+        use LinkEventKind::*;
+        assert_eq!(kinds, [Lost, Connected, Lost, Lost]);
         assert!(status.drain_events().is_empty());
         let s = status.snapshot();
-        assert_eq!((s.connected, s.connections, s.failures), (false, 1, 2));
+        assert_eq!((s.connected, s.connections, s.failures), (false, 1, 3));
+        assert_eq!(s.last_error, "connection refused");
     }
 
     #[test]

@@ -1,0 +1,261 @@
+//! The Modbus client and source against a misbehaving server on loopback (a few lines of
+//! std::net written here, since a real server does not misbehave on request): silence,
+//! answers that do not match the request, a NaN float.
+
+use std::io::{ErrorKind, Read, Write};
+use std::net::{SocketAddr, TcpListener};
+use std::path::Path;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::Arc;
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use truepos_runtime::modbus::{
+    Addressing, Encoding, ModbusChannelConfig, ModbusClient, ModbusConfig, ModbusError,
+    ModbusSource, RegisterKind, WordOrder,
+};
+use truepos_runtime::reconnect::{BackoffConfig, LinkEventKind};
+use truepos_runtime::{Frame, LinkError, Source};
+
+type Answer = fn(&[u8; 12]) -> Option<Vec<u8>>;
+
+/// A loopback server answering every 12-byte request with `answer` (or not at all).
+struct FakeServer {
+    address: SocketAddr,
+    connections: Arc<AtomicU64>,
+    stop: Arc<AtomicBool>,
+    thread: Option<JoinHandle<()>>,
+}
+
+impl FakeServer {
+    fn start(answer: Answer) -> Self {
+        let listener = TcpListener::bind("127.0.0.1:0").unwrap();
+        listener.set_nonblocking(true).unwrap();
+        let address = listener.local_addr().unwrap();
+        let stop = Arc::new(AtomicBool::new(false));
+        let connections = Arc::new(AtomicU64::new(0));
+        let (s, c) = (Arc::clone(&stop), Arc::clone(&connections));
+        let thread = std::thread::spawn(move || {
+            let end = Instant::now() + Duration::from_secs(60);
+            while !s.load(Ordering::SeqCst) && Instant::now() < end {
+                let mut stream = match listener.accept() {
+                    Ok((stream, _)) => stream,
+                    Err(e) if e.kind() == ErrorKind::WouldBlock => {
+                        std::thread::sleep(Duration::from_millis(5));
+                        continue;
+                    }
+                    Err(e) => panic!("accept: {e}"),
+                };
+                c.fetch_add(1, Ordering::SeqCst);
+                stream.set_nonblocking(false).unwrap();
+                stream
+                    .set_read_timeout(Some(Duration::from_millis(10)))
+                    .unwrap();
+                let mut request = [0u8; 12];
+                let mut have = 0;
+                while !s.load(Ordering::SeqCst) && Instant::now() < end {
+                    match stream.read(&mut request[have..]) {
+                        Ok(0) => break,
+                        Ok(n) => have += n,
+                        Err(e)
+                            if matches!(e.kind(), ErrorKind::WouldBlock | ErrorKind::TimedOut) =>
+                        {
+                            continue
+                        }
+                        Err(_) => break,
+                    }
+                    if have == 12 {
+                        have = 0;
+                        if let Some(bytes) = answer(&request) {
+                            if stream.write_all(&bytes).is_err() {
+                                break;
+                            }
+                        }
+                    }
+                }
+            }
+        });
+        Self {
+            address,
+            connections,
+            stop,
+            thread: Some(thread),
+        }
+    }
+}
+
+impl Drop for FakeServer {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::SeqCst);
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
+/// A correct answer to a read of `count` registers, all with `value`.
+fn registers(request: &[u8; 12], value: [u16; 2]) -> Vec<u8> {
+    let count = u16::from_be_bytes([request[10], request[11]]);
+    let mut out = vec![request[0], request[1], 0, 0];
+    out.extend_from_slice(&(3 + 2 * count).to_be_bytes());
+    out.extend_from_slice(&[request[6], request[7], (2 * count) as u8]);
+    for i in 0..count {
+        out.extend_from_slice(&value[usize::from(i % 2)].to_be_bytes());
+    }
+    out
+}
+
+fn silent(_: &[u8; 12]) -> Option<Vec<u8>> {
+    None
+}
+
+fn wrong_transaction(request: &[u8; 12]) -> Option<Vec<u8>> {
+    let mut a = registers(request, [0x00F1, 0x00F1]);
+    a[1] = a[1].wrapping_add(1);
+    Some(a)
+}
+
+fn huge_length(request: &[u8; 12]) -> Option<Vec<u8>> {
+    Some(vec![request[0], request[1], 0, 0, 0xFF, 0xFF, 1, 3])
+}
+
+fn nan_float(request: &[u8; 12]) -> Option<Vec<u8>> {
+    Some(registers(request, [0x7FC0, 0x0000]))
+}
+
+fn config(address: SocketAddr, encoding: Encoding) -> ModbusConfig {
+    ModbusConfig {
+        address: address.to_string(),
+        poll_ms: 20,
+        timeout_ms: 150,
+        addressing: Addressing::ZeroBased,
+        backoff: BackoffConfig {
+            initial_ms: 20,
+            max_ms: 100,
+        },
+        channels: vec![ModbusChannelConfig {
+            temperature: Some("ambient".into()),
+            axis: None,
+            operating: None,
+            unit: 1,
+            function: RegisterKind::Input,
+            register: 0,
+            encoding,
+            word_order: WordOrder::HighFirst,
+        }],
+    }
+}
+
+fn machine() -> truepos_model::Machine {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/vmc3/machine.toml");
+    truepos_io::machine_file::load(&path).unwrap().machine
+}
+
+fn wait_until(limit: Duration, mut cond: impl FnMut() -> bool) -> bool {
+    let end = Instant::now() + limit;
+    while Instant::now() < end {
+        if cond() {
+            return true;
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    cond()
+}
+
+#[test]
+fn a_silent_server_times_out() {
+    let server = FakeServer::start(silent);
+    let mut client = ModbusClient::connect(server.address, Duration::from_millis(100)).unwrap();
+    let t = Instant::now();
+    let e = client
+        .read_registers(1, RegisterKind::Holding, 0, 1)
+        .unwrap_err();
+    assert!(t.elapsed() < Duration::from_secs(2));
+    assert_eq!(
+        e,
+        ModbusError::Io(format!(
+            "Modbus server {}: waiting for the answer: timed out",
+            server.address
+        ))
+    );
+    assert!(!e.keeps_connection());
+}
+
+#[test]
+fn mismatched_or_oversized_answers_are_protocol_errors() {
+    let server = FakeServer::start(wrong_transaction);
+    let mut client = ModbusClient::connect(server.address, Duration::from_millis(500)).unwrap();
+    let e = client
+        .read_registers(1, RegisterKind::Input, 0, 2)
+        .unwrap_err();
+    assert_eq!(
+        e,
+        ModbusError::Protocol("expected transaction 1, found 2".into())
+    );
+    let server = FakeServer::start(huge_length);
+    let mut client = ModbusClient::connect(server.address, Duration::from_millis(500)).unwrap();
+    let e = client
+        .read_registers(1, RegisterKind::Input, 0, 2)
+        .unwrap_err();
+    assert_eq!(
+        e,
+        ModbusError::Protocol("expected an MBAP length of 2 to 254, found 65535".into())
+    );
+}
+
+#[test]
+fn the_source_reconnects_after_protocol_errors_and_stays_stale() {
+    let server = FakeServer::start(wrong_transaction);
+    let m = machine();
+    let epoch = Instant::now();
+    let mut source =
+        ModbusSource::start(&config(server.address, Encoding::Int16Tenths), &m, epoch).unwrap();
+    let mut frame = Frame::new(m.temperatures.len(), m.axes.len(), m.operating.len());
+    // Every answer is refused, so the connection is dropped and made again, with backoff.
+    assert!(wait_until(Duration::from_secs(5), || server
+        .connections
+        .load(Ordering::SeqCst)
+        >= 3));
+    match source.read(&mut frame) {
+        Err(LinkError::Disconnected(_)) | Ok(()) => {}
+        other => panic!("{other:?}"),
+    }
+    let amb = m.temperature_index("ambient").unwrap();
+    assert!(frame.temperatures_c[amb].is_nan());
+    assert_eq!(frame.temperature_stamp_s[amb], truepos_runtime::NEVER);
+    let events = source.link().drain_events();
+    assert!(events
+        .iter()
+        .any(|e| e.kind == LinkEventKind::Lost && e.message == "expected transaction 1, found 2"));
+}
+
+#[test]
+fn a_nan_float_is_published_as_nan_and_reported_once() {
+    let server = FakeServer::start(nan_float);
+    let m = machine();
+    let epoch = Instant::now();
+    let mut source =
+        ModbusSource::start(&config(server.address, Encoding::Float32), &m, epoch).unwrap();
+    let mut frame = Frame::new(m.temperatures.len(), m.axes.len(), m.operating.len());
+    let amb = m.temperature_index("ambient").unwrap();
+    // The value is stamped (the module answered) but NaN, so validation rejects it.
+    assert!(wait_until(Duration::from_secs(5), || {
+        source.read(&mut frame).is_ok() && frame.temperature_stamp_s[amb] > 0.0
+    }));
+    assert!(frame.temperatures_c[amb].is_nan());
+    std::thread::sleep(Duration::from_millis(100));
+    let bad: Vec<_> = source
+        .link()
+        .drain_events()
+        .into_iter()
+        .filter(|e| e.kind == LinkEventKind::BadData)
+        .collect();
+    assert_eq!(bad.len(), 1, "{bad:?}");
+    assert!(
+        bad[0].message.ends_with(
+            "unit 1 register 0: expected a finite float32, found 0x7FC00000 (NaN or infinity)"
+        ),
+        "{}",
+        bad[0].message
+    );
+}
