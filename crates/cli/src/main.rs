@@ -8,6 +8,7 @@ use clap::{Parser, Subcommand};
 mod eval;
 mod kin;
 mod lag;
+mod report;
 mod run;
 mod sim;
 
@@ -28,6 +29,8 @@ enum Command {
     Kin(kin::Args),
     /// Seed A's timing argument: worst-case error of position-dependent terms updated every T ms.
     Lag(lag::Args),
+    /// Write an HTML report of a model on a run with measured errors (figures, coefficients).
+    Report(report::Args),
     /// Show the event log of a running or finished service, or export its cycles as a run CSV.
     Log(run::LogArgs),
     /// Run the cyclic compensation service: sources → validation → model set → envelope → sinks.
@@ -39,11 +42,27 @@ enum Command {
 }
 
 fn main() -> ExitCode {
+    // When the reader of our output goes away (`truepos … | head`), stop quietly as a Unix tool
+    // does on SIGPIPE, instead of reporting a panic; every other panic is reported as usual.
+    let default_hook = std::panic::take_hook();
+    std::panic::set_hook(Box::new(move |info| {
+        let message = info
+            .payload()
+            .downcast_ref::<String>()
+            .map(String::as_str)
+            .or_else(|| info.payload().downcast_ref::<&str>().copied())
+            .unwrap_or("");
+        if message.starts_with("failed printing to stdout") {
+            std::process::exit(0);
+        }
+        default_hook(info);
+    }));
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Eval(args) => eval::run(args),
         Command::Kin(args) => kin::run(args),
         Command::Lag(args) => lag::run(args),
+        Command::Report(args) => report::run(args),
         Command::Log(args) => run::show_log(args),
         Command::Run(args) => run::run(args),
         Command::Status(args) => run::show_status(args),

@@ -1,0 +1,259 @@
+//! `truepos report`: a model on a recorded run with measured errors, as one HTML file with
+//! figures — measured, predicted and residual per axis, residual histogram, temperatures,
+//! correlation heat map, coefficients and the validation protocol.
+
+use std::path::{Path, PathBuf};
+
+use truepos_io::{cycles, machine_file, model_file};
+use truepos_model::{CycleInput, Model, PartForm};
+use truepos_report::{channel_metrics, write_report, Channel, Coefficient, ReportData};
+
+/// Arguments of `truepos report`.
+#[derive(clap::Args)]
+pub struct Args {
+    /// Machine description (TOML).
+    #[arg(long)]
+    machine: PathBuf,
+    /// Model file.
+    #[arg(long)]
+    model: PathBuf,
+    /// Run CSV with the inputs and the measured errors.
+    #[arg(long)]
+    run: PathBuf,
+    /// Which column holds the measured error of which axis, as AXIS=COLUMN (µm, error =
+    /// actual − nominal), e.g. `X=dx_um,Y=dy_um,Z=dz_um`.
+    #[arg(long, value_delimiter = ',', required = true)]
+    measured: Vec<String>,
+    /// Time (s) from which the run is held out (was not used to make the model); the figures of
+    /// merit are computed from there on. Default: the whole run.
+    #[arg(long)]
+    test_from_s: Option<f64>,
+    /// Output folder.
+    #[arg(long, default_value = "report")]
+    out: PathBuf,
+    /// Print the figures of merit as JSON.
+    #[arg(long)]
+    json: bool,
+}
+
+/// Reads named numeric columns of a CSV (empty cells and unparsable text as NaN is not
+/// accepted: a bad cell is an error naming line and column).
+fn read_columns(path: &Path, names: &[String]) -> Result<Vec<Vec<f64>>, String> {
+    let mut rdr = csv::ReaderBuilder::new()
+        .trim(csv::Trim::All)
+        .from_path(path)
+        .map_err(|e| format!("{}: cannot read: {e}", path.display()))?;
+    let header: Vec<String> = rdr
+        .headers()
+        .map_err(|e| format!("{}: {e}", path.display()))?
+        .iter()
+        .map(str::to_string)
+        .collect();
+    let cols: Vec<usize> = names
+        .iter()
+        .map(|n| {
+            header.iter().position(|h| h == n).ok_or_else(|| {
+                format!(
+                    "{}:1:1: `{n}`: missing column; the header has: {}",
+                    path.display(),
+                    header.join(", ")
+                )
+            })
+        })
+        .collect::<Result<_, _>>()?;
+    let mut out = vec![Vec::new(); names.len()];
+    for rec in rdr.records() {
+        let rec = rec.map_err(|e| format!("{}: {e}", path.display()))?;
+        let line = rec.position().map_or(0, |p| p.line());
+        for (k, &c) in cols.iter().enumerate() {
+            let text = rec.get(c).unwrap_or("");
+            let v = if text.is_empty() {
+                f64::NAN
+            } else {
+                text.parse::<f64>().map_err(|_| {
+                    format!(
+                        "{}:{line}:{}: `{}`: expected a number, got `{text}`",
+                        path.display(),
+                        c + 1,
+                        names[k]
+                    )
+                })?
+            };
+            out[k].push(v);
+        }
+    }
+    Ok(out)
+}
+
+/// The model's coefficients as (channel, feature, value) for the table.
+fn coefficients(model: &Model, machine: &truepos_model::Machine) -> Vec<Coefficient> {
+    let mut out = Vec::new();
+    for p in model.parts() {
+        for s in &p.summands {
+            let channel = machine.axes[s.axis].name.clone();
+            let dt = &machine.differences[s.difference].name;
+            let mult = s
+                .bed_multiplier
+                .map(|b| format!(" · KFA({})", machine.axes[b].name))
+                .unwrap_or_default();
+            let form = match p.form {
+                PartForm::Regression => "regression",
+                PartForm::PositionDependent => "position-dependent",
+            };
+            out.push(Coefficient {
+                channel: channel.clone(),
+                feature: format!("[{}/{form}] {dt}{mult}", p.name),
+                value: s.k0_um_per_k,
+            });
+            for t in &s.position_terms {
+                out.push(Coefficient {
+                    channel: channel.clone(),
+                    feature: format!(
+                        "[{}] {dt} · {}({}){mult}",
+                        p.name,
+                        t.factor.name(),
+                        machine.axes[t.axis].name
+                    ),
+                    value: t.k_um_per_k,
+                });
+            }
+        }
+        for &(a, v) in &p.constants_um {
+            out.push(Coefficient {
+                channel: machine.axes[a].name.clone(),
+                feature: format!("[{}] constant (µm)", p.name),
+                value: v,
+            });
+        }
+    }
+    out
+}
+
+pub fn run(args: Args) -> Result<(), String> {
+    let machine = machine_file::load(&args.machine)
+        .map_err(|e| e.to_string())?
+        .machine;
+    let model = model_file::load(&args.model, &machine).map_err(|e| e.to_string())?;
+    let run = cycles::load(&args.run, &machine, model.used_sensors()).map_err(|e| e.to_string())?;
+    let mut pairs = Vec::new();
+    for spec in &args.measured {
+        let (axis, column) = spec
+            .split_once('=')
+            .ok_or_else(|| format!("--measured `{spec}`: expected AXIS=COLUMN"))?;
+        let a = machine.axis_index(axis).ok_or_else(|| {
+            format!(
+                "--measured `{spec}`: machine `{}` has no axis `{axis}`",
+                machine.name
+            )
+        })?;
+        pairs.push((a, column.to_string()));
+    }
+    let columns: Vec<String> = pairs.iter().map(|p| p.1.clone()).collect();
+    let measured = read_columns(&args.run, &columns)?;
+
+    let mut predicted = vec![Vec::with_capacity(run.time_s.len()); pairs.len()];
+    let mut failed = 0usize;
+    for i in 0..run.time_s.len() {
+        let r = model.evaluate(&CycleInput {
+            temperatures_c: &run.temperatures_c[i],
+            positions: &run.positions[i],
+            operating: &run.operating[i],
+        });
+        for (k, &(a, _)) in pairs.iter().enumerate() {
+            predicted[k].push(match &r {
+                Ok(c) => c.error_um()[a],
+                Err(_) => f64::NAN,
+            });
+        }
+        failed += usize::from(r.is_err());
+    }
+    let channels: Vec<Channel> = pairs
+        .iter()
+        .zip(measured)
+        .zip(predicted)
+        .map(|(((a, col), m), p)| Channel {
+            name: format!("{} ({col})", machine.axes[*a].name),
+            unit: "µm".into(),
+            measured: m,
+            predicted: p,
+        })
+        .collect();
+    let test_from = args.test_from_s.map(|t| {
+        run.time_s
+            .iter()
+            .position(|&x| x >= t)
+            .unwrap_or(run.time_s.len())
+    });
+    let temperatures = machine
+        .temperatures
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| run.temperatures_c.iter().any(|row| row[*i].is_finite()))
+        .map(|(i, t)| {
+            (
+                t.id.clone(),
+                run.temperatures_c.iter().map(|r| r[i]).collect(),
+            )
+        })
+        .collect();
+    let mut protocol = vec![
+        ("machine".to_string(), machine.name.clone()),
+        ("model".to_string(), model.name().to_string()),
+        ("run".to_string(), args.run.display().to_string()),
+        (
+            "evaluation".to_string(),
+            format!(
+                "the model file evaluated cycle by cycle as the control would ({} of {} cycles failed validation and show no prediction)",
+                failed,
+                run.time_s.len()
+            ),
+        ),
+        (
+            "sign".to_string(),
+            "error = actual − nominal; residual = measured − predicted; uncompensated = measured relative to the first sample".to_string(),
+        ),
+    ];
+    protocol.push((
+        "held-out part".to_string(),
+        match args.test_from_s {
+            Some(t) => format!("from t = {t} s on; the figures of merit cover only this part"),
+            None => "none given: the figures of merit cover the whole run".to_string(),
+        },
+    ));
+    let data = ReportData {
+        title: format!(
+            "truepos report: model `{}` on {}",
+            model.name(),
+            args.run.display()
+        ),
+        time_s: run.time_s.clone(),
+        test_from,
+        channels,
+        temperatures,
+        coefficients: coefficients(&model, &machine),
+        protocol,
+    };
+    let html = write_report(&args.out, &data).map_err(|e| e.to_string())?;
+    let range = test_from.unwrap_or(0)..run.time_s.len();
+    let metrics: Vec<_> = data
+        .channels
+        .iter()
+        .map(|c| (c.name.clone(), channel_metrics(c, range.clone())))
+        .collect();
+    if args.json {
+        let v = serde_json::json!({
+            "report": html.display().to_string(),
+            "channels": metrics.iter().map(|(n, m)| serde_json::json!({"channel": n, "metrics": m})).collect::<Vec<_>>(),
+        });
+        println!("{v}");
+    } else {
+        eprintln!("report written to {}", html.display());
+        for (n, m) in &metrics {
+            eprintln!(
+                "  {n}: RMSE {:.2} µm (uncompensated {:.2} µm), max {:.2} µm",
+                m.rmse_um, m.uncompensated_rmse_um, m.max_abs_um
+            );
+        }
+    }
+    Ok(())
+}

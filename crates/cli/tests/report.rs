@@ -1,0 +1,108 @@
+//! `truepos report` writes an HTML report whose figures of merit are computed by hand here.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn repo(path: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../..")
+        .join(path)
+}
+
+/// The cross-slide example run with measured errors added: measured X = predicted X + 1 µm on
+/// every row (predicted 4.5, 0, 9, 12, 8 → measured 5.5, 1, 10, 13, 9). Held out from
+/// t = 120 s (rows 3–5): residual 1, 1, 1 → RMSE 1, max 1, peak-to-peak 0; uncompensated =
+/// measured − first measured = 4.5, 7.5, 3.5 → RMS √((20.25 + 56.25 + 12.25)/3) = √29.583 =
+/// 5.4391.
+#[test]
+fn report_metrics_and_files() {
+    let dir = std::env::temp_dir().join(format!("truepos-report-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let original = std::fs::read_to_string(repo("examples/cross-slide/run.csv")).unwrap();
+    let measured = [5.5, 1.0, 10.0, 13.0, 9.0];
+    let mut text = String::new();
+    for (i, line) in original.lines().enumerate() {
+        if i == 0 {
+            text.push_str(&format!("{line},x_measured_um\n"));
+        } else {
+            text.push_str(&format!("{line},{}\n", measured[i - 1]));
+        }
+    }
+    let run = dir.join("run.csv");
+    std::fs::write(&run, text).unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_truepos"))
+        .current_dir(repo(""))
+        .args([
+            "report",
+            "--machine",
+            "examples/cross-slide/machine.toml",
+            "--model",
+            "examples/cross-slide/model.toml",
+            "--measured",
+            "X=x_measured_um",
+            "--test-from-s",
+            "120",
+            "--json",
+            "--run",
+        ])
+        .arg(&run)
+        .arg("--out")
+        .arg(dir.join("report"))
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let m = &v["channels"][0]["metrics"];
+    assert!((m["rmse_um"].as_f64().unwrap() - 1.0).abs() < 1e-9, "{v}");
+    assert!((m["max_abs_um"].as_f64().unwrap() - 1.0).abs() < 1e-9);
+    assert!(m["peak_to_peak_um"].as_f64().unwrap().abs() < 1e-9);
+    assert!((m["uncompensated_rmse_um"].as_f64().unwrap() - 5.439_056).abs() < 1e-5);
+    let html = std::fs::read_to_string(dir.join("report/report.html")).unwrap();
+    assert!(html.contains("<svg"));
+    assert!(html.contains("Validation protocol"));
+    assert!(
+        html.contains("dT_bed · bed(Z) · KFA(Z)"),
+        "coefficient names"
+    );
+    for f in [
+        "X__x_measured_um__over_time.svg",
+        "residual_histogram.svg",
+        "temperatures.svg",
+        "correlation.svg",
+    ] {
+        assert!(dir.join("report").join(f).exists(), "{f}");
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn report_names_a_missing_measured_column() {
+    let out = Command::new(env!("CARGO_BIN_EXE_truepos"))
+        .current_dir(repo(""))
+        .args([
+            "report",
+            "--machine",
+            "examples/cross-slide/machine.toml",
+            "--model",
+            "examples/cross-slide/model.toml",
+            "--run",
+            "examples/cross-slide/run.csv",
+            "--measured",
+            "X=dx_um",
+            "--out",
+        ])
+        .arg(std::env::temp_dir().join("truepos-report-missing"))
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("examples/cross-slide/run.csv:1:1: `dx_um`: missing column"),
+        "{err}"
+    );
+}
