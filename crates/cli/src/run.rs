@@ -26,7 +26,9 @@ pub struct RunArgs {
         default_value = "examples/vmc3/model.toml"
     )]
     models: Vec<PathBuf>,
-    /// Sources: `replay:RUN.csv` or `replay:RUN.csv@SPEED` (SPEED × real time).
+    /// Sources: `replay:RUN.csv[@SPEED]` (a recorded run at SPEED × real time), and
+    /// `twin:SCENARIO[@SPEED]` (the thermal twin's sensors on a built-in scenario or scenario
+    /// file; temperatures and operating state only, positions come from the other sources).
     #[arg(long = "source", default_value = "replay:examples/vmc3/run.csv")]
     sources: Vec<String>,
     /// Sinks: `csv:OUT.csv` (one row per `--sink-every-s`).
@@ -84,6 +86,54 @@ pub struct LogArgs {
     /// Print the events as JSON.
     #[arg(long)]
     json: bool,
+}
+
+/// The twin in the loop: the reference twin runs `scenario` (a built-in name or a TOML file)
+/// and its sensors are delivered by their ids, as a temperature module would; the axis
+/// positions stay with the control's source.
+fn twin_source(
+    scenario: &str,
+    machine: &truepos_model::Machine,
+    speed: f64,
+) -> Result<ReplaySource, String> {
+    let sc = match truepos_sim::Scenario::builtin(scenario) {
+        Some(s) => s,
+        None => {
+            let text = std::fs::read_to_string(scenario).map_err(|e| {
+                format!(
+                    "twin scenario `{scenario}`: not a built-in ({}) and not a readable file: {e}",
+                    truepos_sim::BUILTIN.join(", ")
+                )
+            })?;
+            truepos_sim::Scenario::parse(&text, scenario, None).map_err(|e| e.to_string())?
+        }
+    };
+    let twin = truepos_sim::Twin::reference();
+    let run = twin.run(&sc, 1).map_err(|e| e.to_string())?;
+    let time_s = run.column("time_s").unwrap_or_default();
+    let rows = time_s.len();
+    let column = |id: &str| run.column(id).unwrap_or_else(|| vec![f64::NAN; rows]);
+    let temps: Vec<Vec<f64>> = machine.temperatures.iter().map(|t| column(&t.id)).collect();
+    let ops: Vec<Vec<f64>> = machine.operating.iter().map(|o| column(&o.id)).collect();
+    if temps.iter().all(|c| c.iter().all(|v| v.is_nan())) {
+        return Err(format!(
+            "twin: none of machine `{}`'s temperature ids is a sensor of the twin ({}); use examples/twin/machine.toml",
+            machine.name,
+            run.sensor_ids.join(", ")
+        ));
+    }
+    let run = cycles::Cycles {
+        line: (0..rows as u64).collect(),
+        temperatures_c: (0..rows)
+            .map(|i| temps.iter().map(|c| c[i]).collect())
+            .collect(),
+        positions: vec![vec![f64::NAN; machine.axes.len()]; rows],
+        operating: (0..rows)
+            .map(|i| ops.iter().map(|c| c[i]).collect())
+            .collect(),
+        time_s,
+    };
+    Ok(ReplaySource::new(format!("twin {scenario}"), run, speed).without_positions())
 }
 
 /// Cycle-time statistics in µs.
@@ -150,12 +200,8 @@ pub fn run(args: RunArgs) -> Result<(), String> {
     let mut sources: Vec<Box<dyn Source>> = Vec::new();
     let mut replay_end_s = None;
     for spec in &args.sources {
-        let Some(rest) = spec.strip_prefix("replay:") else {
-            return Err(format!(
-                "--source `{spec}`: expected `replay:FILE.csv[@SPEED]`; network sources (Modbus, SHDR) and LinuxCNC are configured by their own commands"
-            ));
-        };
-        let (file, speed) = match rest.rsplit_once('@') {
+        let (kind, rest) = spec.split_once(':').unwrap_or(("", spec));
+        let (what, speed) = match rest.rsplit_once('@') {
             Some((f, s)) => (
                 f,
                 s.parse::<f64>()
@@ -165,9 +211,20 @@ pub fn run(args: RunArgs) -> Result<(), String> {
             ),
             None => (rest, 1.0),
         };
-        let run = cycles::load(std::path::Path::new(file), m, &[]).map_err(|e| e.to_string())?;
-        let source = ReplaySource::new(format!("replay {file}"), run, speed);
-        replay_end_s = Some(source.duration_s() / speed);
+        let source = match kind {
+            "replay" => {
+                let run =
+                    cycles::load(std::path::Path::new(what), m, &[]).map_err(|e| e.to_string())?;
+                ReplaySource::new(format!("replay {what}"), run, speed)
+            }
+            "twin" => twin_source(what, m, speed)?,
+            _ => return Err(format!(
+                "--source `{spec}`: expected `replay:FILE.csv[@SPEED]` or `twin:SCENARIO[@SPEED]`"
+            )),
+        };
+        if kind == "replay" {
+            replay_end_s = Some(source.duration_s() / speed);
+        }
         sources.push(Box::new(source));
     }
     let axis_names: Vec<String> = m.axes.iter().map(|a| a.name.clone()).collect();

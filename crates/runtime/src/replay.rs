@@ -19,6 +19,7 @@ pub struct ReplaySource {
     start_s: f64,
     speed: f64,
     next: usize,
+    positions: bool,
 }
 
 impl ReplaySource {
@@ -31,7 +32,15 @@ impl ReplaySource {
             start_s,
             speed: if speed > 0.0 { speed } else { 1.0 },
             next: 0,
+            positions: true,
         }
+    }
+
+    /// Delivers temperatures and operating state only, leaving the axis positions to another
+    /// source (the control): the twin in the loop.
+    pub fn without_positions(mut self) -> Self {
+        self.positions = false;
+        self
     }
 
     /// Run time in s covered by the replay at `speed` 1.
@@ -61,8 +70,10 @@ impl Source for ReplaySource {
                     frame.set_temperature(c, v);
                 }
             }
-            for (a, &v) in self.run.positions[i].iter().enumerate() {
-                frame.set_position(a, v);
+            if self.positions {
+                for (a, &v) in self.run.positions[i].iter().enumerate() {
+                    frame.set_position(a, v);
+                }
             }
             for (o, &v) in self.run.operating[i].iter().enumerate() {
                 if !v.is_nan() {
