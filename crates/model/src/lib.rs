@@ -67,6 +67,8 @@ pub mod evaluate;
 pub mod kinematics;
 pub mod machine;
 pub mod model;
+pub mod parameters;
+pub mod rls;
 pub mod table;
 pub mod timing;
 
@@ -79,6 +81,7 @@ pub use machine::{
 pub use model::{
     Model, ModelError, Part, PartForm, PositionFactor, PositionTerm, Summand, MAX_MODEL_DIFFERENCES,
 };
+pub use rls::{Rls, SwitchRule};
 pub use timing::{lag_error_fraction, travel_per_update_mm};
 
 // Re-exported so that doc examples and hosted users can name `String`/`vec!` without `std`.

@@ -417,3 +417,39 @@ fn timing_argument_gives_1_3_percent() {
     // 1 kHz and 10 m/min (the runtime's end-to-end case): 0.1667 mm / 500 mm = 0.033 %.
     assert!(lag_error_fraction(10_000.0, 1.0, 500.0, Ratio) < 0.01);
 }
+
+/// The regressors reproduce the evaluation: error = Σ θ·φ, for embodiment 6 (bed multiplier)
+/// and embodiment 2 (cross terms), and a structure with new θ evaluates with them.
+#[test]
+fn regressors_times_parameters_equal_the_evaluation() {
+    let m = serial_machine(&[1000.0, 300.0]);
+    let mut s = summand(0, 0, 2.0, &[(0, BedFactor, 4.0), (1, Ratio, -2.0)]);
+    s.bed_multiplier = Some(0);
+    let mut parts = vec![part(vec![s, summand(1, 1, 1.5, &[(0, RatioSquared, 0.5)])])];
+    parts[0].constants_um.push((1, 0.25));
+    let model = Model::new("phi", &m, parts).unwrap();
+    // θ = (2, 4, −2 | 1.5, 0.5 | 0.25)
+    assert_eq!(model.parameters(), vec![2.0, 4.0, -2.0, 1.5, 0.5, 0.25]);
+    let t = temperatures_for(&[3.0, -1.0]);
+    let p = [750.0, 150.0];
+    let input = CycleInput {
+        temperatures_c: &t,
+        positions: &p,
+        operating: &[],
+    };
+    let c = model.evaluate(&input).unwrap();
+    let mut phi = vec![0.0; model.parameter_count()];
+    for axis in 0..2 {
+        model.regressors(&input, axis, &mut phi).unwrap();
+        let sum: f64 = phi.iter().zip(model.parameters()).map(|(a, b)| a * b).sum();
+        assert!((sum - c.error_um()[axis]).abs() < 1e-12);
+    }
+    // Axis 0: φ = ΔT·KFA·(1, KFA, r₂) = 3·0.5·(1, 0.5, 0.5) = (1.5, 0.75, 0.75), others 0.
+    model.regressors(&input, 0, &mut phi).unwrap();
+    assert_eq!(phi, vec![1.5, 0.75, 0.75, 0.0, 0.0, 0.0]);
+    let doubled: Vec<f64> = model.parameters().iter().map(|v| 2.0 * v).collect();
+    let m2 = model.with_parameters(&m, &doubled).unwrap();
+    let c2 = m2.evaluate(&input).unwrap();
+    assert!((c2.error_um()[0] - 2.0 * c.error_um()[0]).abs() < 1e-12);
+    assert!(model.with_parameters(&m, &[1.0]).is_err(), "θ too short");
+}
