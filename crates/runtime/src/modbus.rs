@@ -642,6 +642,19 @@ impl ModbusConfig {
         toml::from_str(text).map_err(|e| ConfigError::new("modbus", e.to_string()))
     }
 
+    /// Reads the configuration from a TOML file; errors name the file (and, for TOML mistakes,
+    /// the line and column).
+    pub fn load(path: &std::path::Path) -> Result<Self, ConfigError> {
+        let file = path.display().to_string();
+        let text = std::fs::read_to_string(path).map_err(|e| {
+            ConfigError::new(
+                &file,
+                format!("cannot read the Modbus source configuration: {e}"),
+            )
+        })?;
+        toml::from_str(&text).map_err(|e| ConfigError::new(file, e.to_string()))
+    }
+
     /// Checks the bounds and resolves the channels against the machine: their targets and
     /// register spans (protocol addresses).
     pub fn resolve(
@@ -687,15 +700,15 @@ impl ModbusConfig {
             };
             let last = 0xFFFF - u32::from(n - 1);
             let address = address.filter(|&a| a <= last).ok_or_else(|| {
-                let (lo, hi) = match self.addressing {
-                    Addressing::ZeroBased => (0, last),
-                    Addressing::OneBased => (1, last + 1),
+                let (lo, hi, how) = match self.addressing {
+                    Addressing::ZeroBased => (0, last, "0-based"),
+                    Addressing::OneBased => (1, last + 1, "1-based"),
                 };
                 ConfigError::new(
                     format!("{key}.register"),
                     format!(
-                        "expected a register number from {lo} to {hi} ({:?} addressing, {n} register(s)), found {}",
-                        self.addressing, c.register
+                        "expected a register number from {lo} to {hi} ({how} addressing, {n} register(s)), found {}",
+                        c.register
                     ),
                 )
             })?;

@@ -324,6 +324,19 @@ impl ShdrConfig {
         toml::from_str(text).map_err(|e| ConfigError::new("shdr", e.to_string()))
     }
 
+    /// Reads the configuration from a TOML file; errors name the file (and, for TOML mistakes,
+    /// the line and column).
+    pub fn load(path: &std::path::Path) -> Result<Self, ConfigError> {
+        let file = path.display().to_string();
+        let text = std::fs::read_to_string(path).map_err(|e| {
+            ConfigError::new(
+                &file,
+                format!("cannot read the SHDR source configuration: {e}"),
+            )
+        })?;
+        toml::from_str(&text).map_err(|e| ConfigError::new(file, e.to_string()))
+    }
+
     /// Checks the bounds and resolves the channels against the machine.
     pub fn resolve(&self, machine: &Machine) -> Result<Vec<Target>, ConfigError> {
         resolve_address(&self.address, "shdr.address")?;

@@ -259,3 +259,33 @@ fn a_nan_float_is_published_as_nan_and_reported_once() {
         bad[0].message
     );
 }
+
+#[test]
+fn configuration_errors_name_the_key_and_the_expectation() {
+    let m = machine();
+    let mut c = config("127.0.0.1:502".parse().unwrap(), Encoding::Float32);
+    c.addressing = Addressing::OneBased;
+    let e = c.resolve(&m).unwrap_err();
+    assert_eq!(e.key, "modbus.channel[1].register");
+    assert_eq!(
+        e.message,
+        "expected a register number from 1 to 65535 (1-based addressing, 2 register(s)), found 0"
+    );
+    c.addressing = Addressing::ZeroBased;
+    c.channels[0].register = 65535;
+    let e = c.resolve(&m).unwrap_err();
+    assert!(e.message.contains("from 0 to 65534"), "{e}");
+    c.channels[0].register = 65534;
+    let (targets, spans) = c.resolve(&m).unwrap();
+    assert_eq!(targets.len(), 1);
+    assert_eq!(spans, [(1, RegisterKind::Input, 65534, 2)]);
+    c.poll_ms = 0;
+    assert_eq!(c.resolve(&m).unwrap_err().key, "modbus.poll_ms");
+    let e = ModbusConfig::load(Path::new("/nonexistent/modbus.toml")).unwrap_err();
+    assert_eq!(e.key, "/nonexistent/modbus.toml");
+    assert!(
+        e.message
+            .starts_with("cannot read the Modbus source configuration"),
+        "{e}"
+    );
+}

@@ -380,3 +380,33 @@ fn a_lost_server_makes_the_channels_stale_until_it_is_back() {
     assert_eq!(frame.temperatures_c[amb], 24.2);
     assert!(source.status().connections >= 2);
 }
+
+/// The TOML block of `docs/network_sources.md` whose first line is `marker`.
+fn doc_block(marker: &str) -> String {
+    let doc = std::fs::read_to_string(repo().join("docs/network_sources.md")).unwrap();
+    let start = doc
+        .find(marker)
+        .unwrap_or_else(|| panic!("no `{marker}` block"));
+    let end = start + doc[start..].find("```").unwrap();
+    doc[start..end].to_string()
+}
+
+#[test]
+fn the_documented_example_reads_the_server() {
+    let server = Server::start(free_port());
+    let text = doc_block("# truepos: modbus source")
+        .replace("127.0.0.1:5020", &format!("127.0.0.1:{}", server.port));
+    let config = ModbusConfig::from_toml(&text).unwrap();
+    let m = machine();
+    let epoch = Instant::now();
+    let mut source = ModbusSource::start(&config, &m, epoch).unwrap();
+    let mut frame = Frame::new(m.temperatures.len(), m.axes.len(), m.operating.len());
+    let rpm = m.operating_index("spindle_rpm").unwrap();
+    assert!(wait_until(Duration::from_secs(5), || {
+        source.read(&mut frame).is_ok() && frame.operating[rpm] == 4660.0
+    }));
+    let t = |id: &str| frame.temperatures_c[m.temperature_index(id).unwrap()];
+    assert_eq!(t("x_slide_top"), 24.1);
+    assert_eq!(t("x_slide_bottom"), 23.45);
+    assert_eq!(t("ambient"), 21.25);
+}

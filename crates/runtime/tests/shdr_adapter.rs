@@ -478,4 +478,41 @@ fn configuration_errors_name_the_key_and_the_expectation() {
     assert_eq!(c.ping_ms, 500);
     assert_eq!(c.backoff.max_ms, 1000);
     assert_eq!(c.resolve(&m).unwrap().len(), 1);
+    let e = ShdrConfig::load(Path::new("/nonexistent/shdr.toml")).unwrap_err();
+    assert_eq!(e.key, "/nonexistent/shdr.toml");
+    assert!(
+        e.message
+            .starts_with("cannot read the SHDR source configuration"),
+        "{e}"
+    );
+}
+
+#[test]
+fn the_documented_example_reads_an_adapter() {
+    let doc = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../docs/network_sources.md"),
+    )
+    .unwrap();
+    let start = doc.find("# truepos: shdr source").unwrap();
+    let text = &doc[start..start + doc[start..].find("```").unwrap()];
+    let adapter = Adapter::start(
+        1000,
+        vec![vec!["|Xact|12.5|Zact|-3|Tspindle|31.5|Tamb|20.5"]],
+    );
+    let config =
+        ShdrConfig::from_toml(&text.replace("127.0.0.1:7878", &adapter.address())).unwrap();
+    let m = machine();
+    let epoch = Instant::now();
+    let mut source = ShdrSource::start(&config, &m, epoch).unwrap();
+    let mut frame = frame_for(&m);
+    let amb = m.temperature_index("ambient").unwrap();
+    assert!(wait_until(Duration::from_secs(5), || {
+        read(&mut source, &mut frame, epoch).is_ok() && frame.temperatures_c[amb] == 20.5
+    }));
+    assert_eq!(frame.positions[m.axis_index("X").unwrap()], 12.5);
+    assert_eq!(frame.positions[m.axis_index("Z").unwrap()], -3.0);
+    assert_eq!(
+        frame.temperatures_c[m.temperature_index("spindle_front_bearing").unwrap()],
+        31.5
+    );
 }
