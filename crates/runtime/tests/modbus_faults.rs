@@ -289,3 +289,42 @@ fn configuration_errors_name_the_key_and_the_expectation() {
         "{e}"
     );
 }
+
+fn ambient_24_1(request: &[u8; 12]) -> Option<Vec<u8>> {
+    Some(registers(request, [0x00F1, 0x00F1]))
+}
+
+/// `read` runs on the cycle: it must not allocate, connected or not (only the first read of an
+/// outage carries its reason).
+#[test]
+fn reading_allocates_nothing() {
+    let server = FakeServer::start(ambient_24_1);
+    let m = machine();
+    let epoch = Instant::now();
+    let mut source =
+        ModbusSource::start(&config(server.address, Encoding::Int16Tenths), &m, epoch).unwrap();
+    let mut frame = Frame::new(m.temperatures.len(), m.axes.len(), m.operating.len());
+    let amb = m.temperature_index("ambient").unwrap();
+    assert!(wait_until(Duration::from_secs(5), || {
+        source.read(&mut frame).is_ok() && frame.temperatures_c[amb] == 24.1
+    }));
+    let counted = allocation_counter::measure(|| {
+        for _ in 0..10_000 {
+            assert!(source.read(&mut frame).is_ok());
+        }
+    });
+    assert_eq!(counted.count_total, 0);
+    drop(server);
+    assert!(wait_until(Duration::from_secs(5), || source
+        .read(&mut frame)
+        .is_err()));
+    let counted = allocation_counter::measure(|| {
+        for _ in 0..10_000 {
+            assert_eq!(
+                source.read(&mut frame),
+                Err(LinkError::Disconnected(String::new()))
+            );
+        }
+    });
+    assert_eq!(counted.count_total, 0);
+}

@@ -516,3 +516,39 @@ fn the_documented_example_reads_an_adapter() {
         31.5
     );
 }
+
+/// `read` runs on the cycle: it must not allocate, connected or not (only the first read of an
+/// outage carries its reason).
+#[test]
+fn reading_allocates_nothing() {
+    let m = machine();
+    let adapter = Adapter::start(200, vec![vec!["|Xact|1.0|Tx|21.0|Tamb|UNAVAILABLE"]]);
+    let epoch = Instant::now();
+    let mut source = ShdrSource::start(&config(adapter.address()), &m, epoch).unwrap();
+    let mut frame = frame_for(&m);
+    let tx = m.temperature_index("x_slide_bottom").unwrap();
+    assert!(wait_until(Duration::from_secs(5), || {
+        source.read(&mut frame).is_ok() && frame.temperatures_c[tx] == 21.0
+    }));
+    let counted = allocation_counter::measure(|| {
+        for _ in 0..10_000 {
+            frame.time_s += 0.001;
+            assert!(source.read(&mut frame).is_ok());
+        }
+    });
+    assert_eq!(counted.count_total, 0);
+    drop(adapter);
+    assert!(wait_until(Duration::from_secs(5), || source
+        .read(&mut frame)
+        .is_err()));
+    let counted = allocation_counter::measure(|| {
+        for _ in 0..10_000 {
+            frame.time_s += 0.001;
+            assert_eq!(
+                source.read(&mut frame),
+                Err(LinkError::Disconnected(String::new()))
+            );
+        }
+    });
+    assert_eq!(counted.count_total, 0);
+}
