@@ -101,6 +101,8 @@ impl Chain {
             }
         }
         let actual = geometry == Geometry::Actual;
+        // Bit j set: the tangents of axis j are no longer zero.
+        let mut active: u32 = 0;
         for step in &self.steps {
             match *step {
                 Step::Translate { k, v } => p[k] += v,
@@ -110,6 +112,7 @@ impl Chain {
                     if JAC {
                         if let Some(t) = tangents.as_deref_mut() {
                             t.dp[axis][k] += sign;
+                            active |= 1 << axis;
                         }
                     }
                 }
@@ -126,6 +129,7 @@ impl Chain {
                         if JAC {
                             if let Some(t) = tangents.as_deref_mut() {
                                 t.dp[axis][k] += scale * slope * self.per_unit(axis);
+                                active |= 1 << axis;
                             }
                         }
                     } else {
@@ -137,7 +141,11 @@ impl Chain {
                     rotate(&mut d, k, c, s);
                     if JAC {
                         if let Some(t) = tangents.as_deref_mut() {
-                            for j in 0..n {
+                            // Only tangents already non-zero need turning.
+                            let mut bits = active;
+                            while bits != 0 {
+                                let j = bits.trailing_zeros() as usize;
+                                bits &= bits - 1;
                                 rotate(&mut t.dp[j], k, c, s);
                                 rotate(&mut t.dd[j], k, c, s);
                             }
@@ -150,12 +158,17 @@ impl Chain {
                     rotate(&mut d, k, c, s);
                     if JAC {
                         if let Some(t) = tangents.as_deref_mut() {
-                            for j in 0..n {
+                            // Only tangents already non-zero need turning.
+                            let mut bits = active;
+                            while bits != 0 {
+                                let j = bits.trailing_zeros() as usize;
+                                bits &= bits - 1;
                                 rotate(&mut t.dp[j], k, c, s);
                                 rotate(&mut t.dd[j], k, c, s);
                             }
                             add_cross(&mut t.dp[axis], k, &p, sign);
                             add_cross(&mut t.dd[axis], k, &d, sign);
+                            active |= 1 << axis;
                         }
                     }
                 }
@@ -177,7 +190,11 @@ impl Chain {
                     rotate(&mut d, k, c, s);
                     if JAC {
                         if let Some(t) = tangents.as_deref_mut() {
-                            for j in 0..n {
+                            // Only tangents already non-zero need turning.
+                            let mut bits = active;
+                            while bits != 0 {
+                                let j = bits.trailing_zeros() as usize;
+                                bits &= bits - 1;
                                 rotate(&mut t.dp[j], k, c, s);
                                 rotate(&mut t.dd[j], k, c, s);
                             }
@@ -185,6 +202,7 @@ impl Chain {
                                 let g = slope * self.per_unit(axis);
                                 add_cross(&mut t.dp[axis], k, &p, g);
                                 add_cross(&mut t.dd[axis], k, &d, g);
+                                active |= 1 << axis;
                             }
                         }
                     }

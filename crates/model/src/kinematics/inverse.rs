@@ -37,6 +37,8 @@ const DIRECTION_WEIGHT_MM: f64 = 100.0;
 /// Below this distance of the tool direction from a rotary axis (rad) the angle of that axis
 /// is undetermined (the pole) and keeps its previous value.
 const POLE: f64 = 1e-12;
+/// Newton steps of the fast path (away from the pole, from the nominal solution).
+const FAST_NEWTON_ITERATIONS: u32 = 6;
 /// A set-point this far beyond the end of travel is still accepted (rounding).
 const TRAVEL_SLACK: f64 = 1e-9;
 
@@ -367,23 +369,28 @@ impl Chain {
             }
             layout => {
                 self.closed_form(layout, &target, tool_mm, &prev, &mut q)?;
-                if with_errors {
-                    if let Layout::FiveAxis(fa) = layout {
-                        let fixed = fixed_dirs.then_some(previous_dirs);
-                        self.refine_frozen(
-                            fa,
-                            &target,
-                            tool_mm,
-                            &prev,
-                            previous_dirs,
-                            fixed,
-                            &mut q,
-                        );
-                    }
-                }
                 true
             }
         };
+        // Away from the pole Newton converges from the nominal solution in two or three steps;
+        // near it (or if Newton fails) the error pre-correction comes first.
+        let near_pole = match &self.layout {
+            Layout::FiveAxis(fa) => {
+                let outer = mul_mv(&fa.g2, &fa.u2);
+                norm(&cross(&outer, &target.direction)) < 1e-2
+            }
+            _ => false,
+        };
+        let refine = |q: &mut [f64; MAX_AXES]| {
+            if let (Layout::FiveAxis(fa), true) = (&self.layout, with_errors) {
+                let fixed = fixed_dirs.then_some(previous_dirs);
+                self.refine_frozen(fa, &target, tool_mm, &prev, previous_dirs, fixed, q);
+            }
+        };
+        let nominal_start = q;
+        if near_pole {
+            refine(&mut q);
+        }
         let dirs = directions_from(&q, &prev, previous_dirs, n);
         let mut report = InverseReport {
             iterations: 0,
@@ -393,30 +400,55 @@ impl Chain {
         };
         if with_errors || !closed {
             let max_iter = if closed { 100 } else { 200 };
-            let start = q;
-            let mut result = self.newton(
-                &target,
-                tool_mm,
-                dirs,
-                geometry,
-                use_direction,
-                max_iter,
-                &mut q,
-            );
+            let mut result = if closed && with_errors && !near_pole {
+                // Fast path: a few Newton steps from the nominal solution.
+                self.newton(
+                    &target,
+                    tool_mm,
+                    dirs,
+                    geometry,
+                    use_direction,
+                    FAST_NEWTON_ITERATIONS,
+                    &mut q,
+                )
+            } else {
+                self.newton(
+                    &target,
+                    tool_mm,
+                    dirs,
+                    geometry,
+                    use_direction,
+                    max_iter,
+                    &mut q,
+                )
+            };
+            if result.is_err() && closed && with_errors && !near_pole {
+                q = nominal_start;
+                refine(&mut q);
+                result = self.newton(
+                    &target,
+                    tool_mm,
+                    dirs,
+                    geometry,
+                    use_direction,
+                    max_iter,
+                    &mut q,
+                );
+            }
             if let (Err(KinError::NotConverged { .. }), Layout::FiveAxis(fa), true) =
                 (&result, &self.layout, with_errors)
             {
                 // Within a few µrad of the real pole the outer angle is barely determined and
                 // Newton may creep: start again with the outer axis turned by 45°, 90°, …
                 let outer = fa.rotary[1];
+                let start = nominal_start;
                 for k in 1..8 {
                     let mut q2 = start;
                     q2[outer] += 45.0 * k as f64;
                     if !within_travel(&self.axes[outer], q2[outer]) {
                         q2[outer] -= 360.0;
                     }
-                    let fixed = fixed_dirs.then_some(previous_dirs);
-                    self.refine_frozen(fa, &target, tool_mm, &prev, previous_dirs, fixed, &mut q2);
+                    refine(&mut q2);
                     let r2 = self.newton(
                         &target,
                         tool_mm,
@@ -750,7 +782,7 @@ impl Chain {
         };
         let cost = |r: &[f64; 6]| r.iter().map(|v| v * v).sum::<f64>();
         let mut t = Tangents::ZERO;
-        let mut pose = self.eval::<true>(&q[..n], tool_mm, dirs, geometry, Some(&mut t));
+        let pose = self.eval::<true>(&q[..n], tool_mm, dirs, geometry, Some(&mut t));
         let (mut r, mut np, mut nd) = residual(&pose);
         let mut mu = 0.0_f64;
         let mut iterations = 0;
@@ -788,7 +820,14 @@ impl Chain {
             }
             let mut accepted = false;
             for _ in 0..12 {
-                let Some(step) = damped_step(&jac, &colscale, &r, n, mu.max(1e-20)) else {
+                // Away from the pole the scaled normal equations (Cholesky) are accurate enough
+                // and several times cheaper than QR.
+                let step = if max_iter <= FAST_NEWTON_ITERATIONS {
+                    normal_step(&jac, &colscale, &r, n, mu.max(1e-14))
+                } else {
+                    damped_step(&jac, &colscale, &r, n, mu.max(1e-20))
+                };
+                let Some(step) = step else {
                     mu = (mu * 10.0).max(1e-9);
                     continue;
                 };
@@ -796,10 +835,13 @@ impl Chain {
                 for j in 0..n {
                     trial[j] += step[j] * self.per_unit(j);
                 }
-                let p2 = self.eval::<false>(&trial[..n], tool_mm, dirs, geometry, None);
-                let (r2, _, _) = residual(&p2);
+                let mut t2 = Tangents::ZERO;
+                let p2 = self.eval::<true>(&trial[..n], tool_mm, dirs, geometry, Some(&mut t2));
+                let (r2, np2, nd2) = residual(&p2);
                 if cost(&r2) < cost(&r) || cost(&r2) == 0.0 {
                     *q = trial;
+                    t = t2;
+                    (r, np, nd) = (r2, np2, nd2);
                     mu *= 0.1;
                     if mu < 1e-12 {
                         mu = 0.0;
@@ -815,10 +857,73 @@ impl Chain {
                     direction_rad: nd,
                 });
             }
-            pose = self.eval::<true>(&q[..n], tool_mm, dirs, geometry, Some(&mut t));
-            (r, np, nd) = residual(&pose);
         }
     }
+}
+
+/// The same step as [`damped_step`] from the normal equations (SᵀJᵀJS + μI)·y = −SᵀJᵀr, Δ = S·y,
+/// by Cholesky factorisation; `None` if the matrix is not positive definite.
+fn normal_step(
+    jac: &[[f64; 6]; MAX_AXES],
+    colscale: &[f64; MAX_AXES],
+    r: &[f64; 6],
+    n: usize,
+    mu: f64,
+) -> Option<[f64; MAX_AXES]> {
+    let mut a = [[0.0; MAX_AXES]; MAX_AXES];
+    let mut b = [0.0; MAX_AXES];
+    for i in 0..n {
+        for j in 0..=i {
+            let mut s = 0.0;
+            for k in 0..6 {
+                s += jac[i][k] * jac[j][k];
+            }
+            a[i][j] = s * colscale[i] * colscale[j];
+        }
+        a[i][i] += mu;
+        let mut s = 0.0;
+        for k in 0..6 {
+            s += jac[i][k] * r[k];
+        }
+        b[i] = -s * colscale[i];
+    }
+    // Cholesky a = L·Lᵀ in the lower triangle.
+    for j in 0..n {
+        let mut d = a[j][j];
+        for k in 0..j {
+            d -= a[j][k] * a[j][k];
+        }
+        if d <= 0.0 || d.is_nan() {
+            return None;
+        }
+        let d = libm::sqrt(d);
+        a[j][j] = d;
+        for i in j + 1..n {
+            let mut s = a[i][j];
+            for k in 0..j {
+                s -= a[i][k] * a[j][k];
+            }
+            a[i][j] = s / d;
+        }
+    }
+    for i in 0..n {
+        let mut s = b[i];
+        for k in 0..i {
+            s -= a[i][k] * b[k];
+        }
+        b[i] = s / a[i][i];
+    }
+    for i in (0..n).rev() {
+        let mut s = b[i];
+        for k in i + 1..n {
+            s -= a[k][i] * b[k];
+        }
+        b[i] = s / a[i][i];
+    }
+    for j in 0..n {
+        b[j] *= colscale[j];
+    }
+    b[..n].iter().all(|v| v.is_finite()).then_some(b)
 }
 
 /// The step Δ minimising |J·Δ + r|² + μ·|S⁻¹Δ|² (S: column scaling), by Householder QR of the

@@ -1,0 +1,204 @@
+#!/usr/bin/python3
+"""truepos's kinematics side by side with Orocos KDL (python3-pykdl).
+
+For each example machine the script
+1. builds the same nominal chain in KDL from `truepos kin chain --json`,
+2. draws random axis positions inside travel and checks that truepos's forward transform
+   (`truepos kin fwd --nominal`) and KDL's ChainFkSolverPos_recursive agree within 1e-9 mm
+   (TCP) and 1e-12 (tool direction),
+3. times KDL's ChainIkSolverPos_NR (with ChainIkSolverVel_pinv, 100 iterations, eps 1e-6)
+   on the targets, seeded 0.5 mm / 0.5° away from the true set-points, and truepos's
+   compensated inverse transform (`truepos kin inv`, closed form + Newton through every error
+   table, tolerance 1e-7 mm / 1e-7 rad) on the same targets, and reports both throughputs.
+
+Usage: /usr/bin/python3 scripts/kdl_compare.py [--points N] [--truepos PATH] [--json]
+          [--min-ratio R]
+Exit status 1 if forward results disagree, a truepos target does not converge, or the
+throughput ratio is below --min-ratio (default 0: report only).
+"""
+
+import argparse
+import json
+import math
+import os
+import random
+import subprocess
+import sys
+import tempfile
+import time
+
+import PyKDL as K
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+MACHINES = ["head-ac", "table-ac", "head-bc", "vmc-21"]
+TOOL = 100.0
+
+
+def unit(dof):
+    return {"X": K.Vector(1, 0, 0), "Y": K.Vector(0, 1, 0), "Z": K.Vector(0, 0, 1),
+            "A": K.Vector(1, 0, 0), "B": K.Vector(0, 1, 0), "C": K.Vector(0, 0, 1)}[dof]
+
+
+def fixed_frame(dof, value):
+    """A fixed row: translation in mm or rotation in degrees."""
+    if dof in "XYZ":
+        return K.Frame(unit(dof) * value)
+    rot = {"A": K.Rotation.RotX, "B": K.Rotation.RotY, "C": K.Rotation.RotZ}[dof]
+    return K.Frame(rot(math.radians(value)))
+
+
+def build_chain(desc):
+    """truepos rows map frame i (tool side) to i+1; the pose is M_{n-1}...M_0. KDL multiplies
+    segments from the base: segment k is row n-1-k. Returns the chain and, per KDL joint, the
+    truepos axis index."""
+    chain = K.Chain()
+    joint_axes = []
+    joint_type = {"X": K.Joint.TransX, "Y": K.Joint.TransY, "Z": K.Joint.TransZ,
+                  "A": K.Joint.RotX, "B": K.Joint.RotY, "C": K.Joint.RotZ}
+    for row in reversed(desc["rows"]):
+        key, dof = row["key"], row["dof"]
+        if key == "axis":
+            chain.addSegment(K.Segment(K.Joint(joint_type[dof], row["sign"]), K.Frame.Identity()))
+            joint_axes.append(row["axis"])
+        elif key == "tool":
+            chain.addSegment(K.Segment(K.Joint(K.Joint.Fixed),
+                                       fixed_frame(dof, row["sign"] * TOOL + row["offset"])))
+        else:  # fixed, or an error row's nominal part
+            chain.addSegment(K.Segment(K.Joint(K.Joint.Fixed), fixed_frame(dof, row["value"])))
+    return chain, joint_axes
+
+
+def run(cmd):
+    out = subprocess.run(cmd, capture_output=True, text=True)
+    if out.returncode != 0:
+        sys.exit(f"{' '.join(cmd)} failed:\n{out.stdout}\n{out.stderr}")
+    return out.stdout
+
+
+def sample(desc, rng):
+    q = []
+    for a in desc["axes"]:
+        lo, hi = a["travel"]
+        if a["kind"] == "linear":
+            lo, hi = 0.7 * lo + 0.3 * hi, 0.7 * hi + 0.3 * lo
+        else:
+            lo, hi = max(lo, -90.0), min(hi, 90.0)
+        q.append(rng.uniform(lo, hi))
+    return q
+
+
+def compare(machine, points, truepos, tmp):
+    d = os.path.join(ROOT, "examples", "kinematics", machine)
+    ktab = os.path.join(d, "kinematics.ktab")
+    desc = json.loads(run([truepos, "kin", "chain", "--kinematics", ktab]))
+    chain, joint_axes = build_chain(desc)
+    names = [a["name"] for a in desc["axes"]]
+    rotary = [a["kind"] == "rotary" for a in desc["axes"]]
+    rng = random.Random(20261121)
+    qs = [sample(desc, rng) for _ in range(points)]
+    axes_csv = os.path.join(tmp, f"{machine}.axes.csv")
+    with open(axes_csv, "w") as f:
+        f.write(",".join(names) + "\n")
+        for q in qs:
+            f.write(",".join(repr(v) for v in q) + "\n")
+
+    # 1. Forward, nominal: truepos vs KDL.
+    poses_csv = os.path.join(tmp, f"{machine}.poses.csv")
+    fwd = json.loads(run([truepos, "kin", "fwd", "--kinematics", ktab, "--nominal",
+                          "--tool-length", str(TOOL), "--input", axes_csv,
+                          "--output", poses_csv, "--json"]))
+    with open(poses_csv) as f:
+        next(f)
+        tp = [list(map(float, line.split(","))) for line in f]
+    fk = K.ChainFkSolverPos_recursive(chain)
+    nj = chain.getNrOfJoints()
+
+    def kdl_q(q):
+        j = K.JntArray(nj)
+        for k, ax in enumerate(joint_axes):
+            j[k] = math.radians(q[ax]) if rotary[ax] else q[ax]
+        return j
+
+    frames = []
+    max_dp = max_dd = 0.0
+    for q, p in zip(qs, tp):
+        fr = K.Frame()
+        fk.JntToCart(kdl_q(q), fr)
+        frames.append(fr)
+        z = fr.M.UnitZ()
+        max_dp = max(max_dp, max(abs(fr.p[i] - p[i]) for i in range(3)))
+        max_dd = max(max_dd, max(abs(z[i] - p[3 + i]) for i in range(3)))
+
+    # 2. KDL inverse (nominal chain), seeded near the true set-points.
+    ikv = K.ChainIkSolverVel_pinv(chain)
+    ik = K.ChainIkSolverPos_NR(chain, fk, ikv, 100, 1e-6)
+    seeds = []
+    for q in qs:
+        seeds.append(kdl_q([v + 0.5 for v in q]))
+    out = K.JntArray(nj)
+    kdl_ok = 0
+    t0 = time.perf_counter()
+    for fr, seed in zip(frames, seeds):
+        if ik.CartToJnt(seed, fr, out) >= 0:
+            kdl_ok += 1
+    kdl_s = time.perf_counter() - t0
+
+    # 3. truepos inverse through every error table, on the same targets.
+    inv = json.loads(run([truepos, "kin", "inv", "--kinematics", ktab,
+                          "--tool-length", str(TOOL), "--input", poses_csv,
+                          "--output", os.path.join(tmp, f"{machine}.inv.csv"), "--json"]))
+    return {
+        "machine": machine,
+        "points": points,
+        "forward_max_tcp_difference_mm": max_dp,
+        "forward_max_direction_difference": max_dd,
+        "truepos_forward_points_per_second": fwd["points_per_second"],
+        "kdl_ik_seconds": kdl_s,
+        "kdl_ik_points_per_second": points / kdl_s,
+        "kdl_ik_converged": kdl_ok,
+        "truepos_inverse_seconds": inv["solve_seconds"],
+        "truepos_inverse_points_per_second": inv["points_per_second"],
+        "truepos_inverse_converged": inv["converged"],
+        "truepos_max_position_residual_mm": inv["max_position_residual_mm"],
+        "truepos_max_direction_residual_rad": inv["max_direction_residual_rad"],
+        "throughput_ratio": (points / inv["solve_seconds"]) / (points / kdl_s),
+    }
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--points", type=int, default=100_000)
+    ap.add_argument("--truepos", default=os.path.join(ROOT, "target", "release", "truepos"))
+    ap.add_argument("--json", action="store_true")
+    ap.add_argument("--min-ratio", type=float, default=0.0)
+    ap.add_argument("--machines", default=",".join(MACHINES))
+    args = ap.parse_args()
+    failed = []
+    results = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for m in args.machines.split(","):
+            r = compare(m, args.points, args.truepos, tmp)
+            results.append(r)
+            if r["forward_max_tcp_difference_mm"] > 1e-9 or r["forward_max_direction_difference"] > 1e-12:
+                failed.append(f"{m}: forward results differ from KDL")
+            if r["truepos_inverse_converged"] != r["points"]:
+                failed.append(f"{m}: {r['points'] - r['truepos_inverse_converged']} targets did not converge")
+            if r["throughput_ratio"] < args.min_ratio:
+                failed.append(f"{m}: throughput ratio {r['throughput_ratio']:.1f} < {args.min_ratio}")
+    if args.json:
+        print(json.dumps({"results": results, "failures": failed}, indent=1))
+    else:
+        print(f"{'machine':10s} {'fwd Δ mm':>9s} {'KDL IK/s':>10s} {'conv':>7s} "
+              f"{'truepos inv/s':>13s} {'conv':>7s} {'ratio':>6s} {'fwd/s':>10s}")
+        for r in results:
+            print(f"{r['machine']:10s} {r['forward_max_tcp_difference_mm']:9.1e} "
+                  f"{r['kdl_ik_points_per_second']:10.0f} {r['kdl_ik_converged']:7d} "
+                  f"{r['truepos_inverse_points_per_second']:13.0f} {r['truepos_inverse_converged']:7d} "
+                  f"{r['throughput_ratio']:6.1f} {r['truepos_forward_points_per_second']:10.0f}")
+        for f in failed:
+            print("FAIL:", f)
+    sys.exit(1 if failed else 0)
+
+
+if __name__ == "__main__":
+    main()
