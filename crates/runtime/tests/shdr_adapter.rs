@@ -552,3 +552,33 @@ fn reading_allocates_nothing() {
     });
     assert_eq!(counted.count_total, 0);
 }
+
+/// Multi-line assets (`--multiline--<marker>` … `--multiline--<marker>`) are skipped whole.
+#[test]
+fn multiline_assets_are_skipped() {
+    let m = machine();
+    let adapter = Adapter::start(
+        500,
+        vec![vec![
+            "2024-05-01T10:00:00Z|@ASSET@|T1|CuttingTool|--multiline--AAAA",
+            "<CuttingTool assetId=\"T1\">",
+            "  <Description>an end mill | with a pipe</Description>",
+            "</CuttingTool>",
+            "--multiline--AAAA",
+            "|Tx|25.5",
+        ]],
+    );
+    let epoch = Instant::now();
+    let mut source = ShdrSource::start(&config(adapter.address()), &m, epoch).unwrap();
+    let mut frame = frame_for(&m);
+    let tx = m.temperature_index("x_slide_bottom").unwrap();
+    assert!(wait_until(Duration::from_secs(5), || {
+        read(&mut source, &mut frame, epoch).is_ok() && frame.temperatures_c[tx] == 25.5
+    }));
+    assert_eq!(
+        source.status().bad_data,
+        0,
+        "{:?}",
+        source.link().drain_events()
+    );
+}
