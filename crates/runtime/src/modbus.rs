@@ -39,10 +39,9 @@ use truepos_model::Machine;
 use crate::frame::Frame;
 use crate::io_traits::{LinkError, SharedChannels, Source};
 use crate::reconnect::{
-    check_unique_targets, seconds_since, sleep_unless_stopped, Backoff, BackoffConfig, ConfigError,
-    LinkSnapshot, LinkStatus, OutageReporter, Target,
+    check_unique_targets, resolve_address, seconds_since, sleep_unless_stopped, Backoff,
+    BackoffConfig, ConfigError, LinkSnapshot, LinkStatus, OutageReporter, Target,
 };
-use crate::shdr::resolve_address;
 
 /// Which register table a value is read from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Deserialize)]

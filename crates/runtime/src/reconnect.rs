@@ -9,6 +9,7 @@
 //! `max_ms`; a successful connection resets the wait.
 
 use std::collections::VecDeque;
+use std::net::{SocketAddr, ToSocketAddrs};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
@@ -416,6 +417,15 @@ pub fn check_unique_targets(targets: &[Target], keys: &[String]) -> Result<(), C
         }
     }
     Ok(())
+}
+
+/// Resolves `host:port` to a socket address; `key` names the setting in errors.
+pub fn resolve_address(address: &str, key: &str) -> Result<SocketAddr, ConfigError> {
+    address
+        .to_socket_addrs()
+        .ok()
+        .and_then(|mut a| a.next())
+        .ok_or_else(|| ConfigError::new(key, format!("expected host:port, found `{address}`")))
 }
 
 /// Seconds since `epoch` (the service clock when `epoch` is the service's start).

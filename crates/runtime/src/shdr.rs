@@ -28,7 +28,7 @@
 
 use std::collections::HashMap;
 use std::io::{Read, Write};
-use std::net::{SocketAddr, TcpStream, ToSocketAddrs};
+use std::net::TcpStream;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Arc;
 use std::thread::JoinHandle;
@@ -40,8 +40,8 @@ use truepos_model::Machine;
 use crate::frame::{Frame, NEVER};
 use crate::io_traits::{LinkError, SharedChannels, Source};
 use crate::reconnect::{
-    check_unique_targets, seconds_since, sleep_unless_stopped, Backoff, BackoffConfig, ConfigError,
-    LinkSnapshot, LinkStatus, OutageReporter, Target,
+    check_unique_targets, resolve_address, seconds_since, sleep_unless_stopped, Backoff,
+    BackoffConfig, ConfigError, LinkSnapshot, LinkStatus, OutageReporter, Target,
 };
 
 /// One line from an adapter.
@@ -381,15 +381,6 @@ impl ShdrConfig {
         check_unique_targets(&targets, &keys)?;
         Ok(targets)
     }
-}
-
-/// Resolves `host:port` to a socket address; `key` names the setting in errors.
-pub(crate) fn resolve_address(address: &str, key: &str) -> Result<SocketAddr, ConfigError> {
-    address
-        .to_socket_addrs()
-        .ok()
-        .and_then(|mut a| a.next())
-        .ok_or_else(|| ConfigError::new(key, format!("expected host:port, found `{address}`")))
 }
 
 /// What the client thread and the cycle share.
