@@ -799,11 +799,12 @@ impl Source for ModbusSource {
     }
 
     /// Copies the latest values with the time of the answer that carried them (no lock, no
-    /// allocation).
+    /// allocation). A value that arrived after the frame's clock reading is stamped with the
+    /// frame's time: stamps never lie after `frame.time_s`.
     fn read(&mut self, frame: &mut Frame) -> Result<(), LinkError> {
         for (k, target) in self.targets.iter().enumerate() {
             let (value, stamp) = self.channels.get(k);
-            target.write(frame, value, stamp);
+            target.write(frame, value, stamp.min(frame.time_s));
         }
         self.outage.check(&self.status)
     }

@@ -151,6 +151,12 @@ fn machine() -> truepos_model::Machine {
     truepos_io::machine_file::load(&path).unwrap().machine
 }
 
+/// Reads the source into the frame at service time `epoch.elapsed()`.
+fn read(source: &mut ModbusSource, frame: &mut Frame, epoch: Instant) -> Result<(), LinkError> {
+    frame.time_s = epoch.elapsed().as_secs_f64();
+    source.read(frame)
+}
+
 fn wait_until(limit: Duration, mut cond: impl FnMut() -> bool) -> bool {
     let end = Instant::now() + limit;
     while Instant::now() < end {
@@ -216,7 +222,7 @@ fn the_source_reconnects_after_protocol_errors_and_stays_stale() {
         .connections
         .load(Ordering::SeqCst)
         >= 3));
-    match source.read(&mut frame) {
+    match read(&mut source, &mut frame, epoch) {
         Err(LinkError::Disconnected(_)) | Ok(()) => {}
         other => panic!("{other:?}"),
     }
@@ -240,7 +246,7 @@ fn a_nan_float_is_published_as_nan_and_reported_once() {
     let amb = m.temperature_index("ambient").unwrap();
     // The value is stamped (the module answered) but NaN, so validation rejects it.
     assert!(wait_until(Duration::from_secs(5), || {
-        source.read(&mut frame).is_ok() && frame.temperature_stamp_s[amb] > 0.0
+        read(&mut source, &mut frame, epoch).is_ok() && frame.temperature_stamp_s[amb] > 0.0
     }));
     assert!(frame.temperatures_c[amb].is_nan());
     std::thread::sleep(Duration::from_millis(100));
@@ -306,22 +312,29 @@ fn reading_allocates_nothing() {
     let mut frame = Frame::new(m.temperatures.len(), m.axes.len(), m.operating.len());
     let amb = m.temperature_index("ambient").unwrap();
     assert!(wait_until(Duration::from_secs(5), || {
-        source.read(&mut frame).is_ok() && frame.temperatures_c[amb] == 24.1
+        read(&mut source, &mut frame, epoch).is_ok() && frame.temperatures_c[amb] == 24.1
     }));
+    // A value newer than the frame's clock reading gets the frame's time.
+    frame.time_s = 0.0;
+    source.read(&mut frame).unwrap();
+    assert_eq!(frame.temperature_stamp_s[amb], 0.0);
     let counted = allocation_counter::measure(|| {
         for _ in 0..10_000 {
-            assert!(source.read(&mut frame).is_ok());
+            assert!(read(&mut source, &mut frame, epoch).is_ok());
         }
     });
     assert_eq!(counted.count_total, 0);
     drop(server);
-    assert!(wait_until(Duration::from_secs(5), || source
-        .read(&mut frame)
-        .is_err()));
+    assert!(wait_until(Duration::from_secs(5), || read(
+        &mut source,
+        &mut frame,
+        epoch
+    )
+    .is_err()));
     let counted = allocation_counter::measure(|| {
         for _ in 0..10_000 {
             assert_eq!(
-                source.read(&mut frame),
+                read(&mut source, &mut frame, epoch),
                 Err(LinkError::Disconnected(String::new()))
             );
         }

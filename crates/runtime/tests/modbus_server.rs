@@ -91,6 +91,12 @@ impl Drop for Server {
     }
 }
 
+/// Reads the source into the frame at service time `epoch.elapsed()`.
+fn read(source: &mut ModbusSource, frame: &mut Frame, epoch: Instant) -> Result<(), LinkError> {
+    frame.time_s = epoch.elapsed().as_secs_f64();
+    source.read(frame)
+}
+
 fn wait_until(limit: Duration, mut cond: impl FnMut() -> bool) -> bool {
     let end = Instant::now() + limit;
     while Instant::now() < end {
@@ -255,7 +261,7 @@ fn source_feeds_the_frame_with_one_based_addressing() {
     assert!(
         wait_until(Duration::from_secs(5), || {
             frame.time_s = epoch.elapsed().as_secs_f64();
-            source.read(&mut frame).is_ok() && frame.operating[feed] > 1.0
+            read(&mut source, &mut frame, epoch).is_ok() && frame.operating[feed] > 1.0
         }),
         "no values: {:?}",
         source.status()
@@ -279,7 +285,7 @@ fn source_feeds_the_frame_with_one_based_addressing() {
         frame.temperature_stamp_s[t("ambient")],
     );
     assert!(wait_until(Duration::from_secs(5), || {
-        source.read(&mut frame).is_ok()
+        read(&mut source, &mut frame, epoch).is_ok()
             && frame.operating[feed] >= count + 3.0
             && frame.temperature_stamp_s[t("ambient")] > stamp
     }));
@@ -311,10 +317,10 @@ fn an_exception_leaves_its_channels_unstamped_and_is_reported_once() {
     let amb = m.temperature_index("ambient").unwrap();
     let bed = m.temperature_index("bed_top").unwrap();
     assert!(wait_until(Duration::from_secs(5), || {
-        source.read(&mut frame).is_ok() && frame.temperatures_c[amb] == 24.2
+        read(&mut source, &mut frame, epoch).is_ok() && frame.temperatures_c[amb] == 24.2
     }));
     std::thread::sleep(Duration::from_millis(200)); // ten more polls
-    source.read(&mut frame).unwrap();
+    read(&mut source, &mut frame, epoch).unwrap();
     assert_eq!(frame.temperature_stamp_s[bed], NEVER);
     assert!(frame.temperatures_c[bed].is_nan());
     let events = source.link().drain_events();
@@ -342,12 +348,12 @@ fn a_lost_server_makes_the_channels_stale_until_it_is_back() {
     let mut frame = Frame::new(m.temperatures.len(), m.axes.len(), m.operating.len());
     let amb = m.temperature_index("ambient").unwrap();
     assert!(wait_until(Duration::from_secs(5), || {
-        source.read(&mut frame).is_ok() && frame.temperatures_c[amb] == 24.2
+        read(&mut source, &mut frame, epoch).is_ok() && frame.temperatures_c[amb] == 24.2
     }));
     drop(server); // SIGKILL: the connection breaks without a goodbye
     let mut why = None;
     assert!(wait_until(Duration::from_secs(5), || {
-        match source.read(&mut frame) {
+        match read(&mut source, &mut frame, epoch) {
             Err(LinkError::Disconnected(w)) => {
                 why = Some(w);
                 true
@@ -363,7 +369,7 @@ fn a_lost_server_makes_the_channels_stale_until_it_is_back() {
     let stamp = frame.temperature_stamp_s[amb];
     std::thread::sleep(Duration::from_millis(300));
     assert_eq!(
-        source.read(&mut frame),
+        read(&mut source, &mut frame, epoch),
         Err(LinkError::Disconnected(String::new()))
     );
     assert_eq!(frame.temperature_stamp_s[amb], stamp, "stale while lost");
@@ -372,7 +378,7 @@ fn a_lost_server_makes_the_channels_stale_until_it_is_back() {
     let _server = Server::start(port);
     assert!(
         wait_until(Duration::from_secs(10), || {
-            source.read(&mut frame).is_ok() && frame.temperature_stamp_s[amb] > stamp
+            read(&mut source, &mut frame, epoch).is_ok() && frame.temperature_stamp_s[amb] > stamp
         }),
         "no reconnection: {:?}",
         source.status()
@@ -403,7 +409,7 @@ fn the_documented_example_reads_the_server() {
     let mut frame = Frame::new(m.temperatures.len(), m.axes.len(), m.operating.len());
     let rpm = m.operating_index("spindle_rpm").unwrap();
     assert!(wait_until(Duration::from_secs(5), || {
-        source.read(&mut frame).is_ok() && frame.operating[rpm] == 4660.0
+        read(&mut source, &mut frame, epoch).is_ok() && frame.operating[rpm] == 4660.0
     }));
     let t = |id: &str| frame.temperatures_c[m.temperature_index(id).unwrap()];
     assert_eq!(t("x_slide_top"), 24.1);

@@ -207,6 +207,11 @@ fn read(source: &mut ShdrSource, frame: &mut Frame, epoch: Instant) -> Result<()
         .chain(before.1.iter().zip(&frame.position_stamp_s))
     {
         assert!(new >= old, "a stamp went back from {old} to {new}");
+        assert!(
+            *new <= frame.time_s,
+            "stamp {new} after the cycle {}",
+            frame.time_s
+        );
     }
     result
 }
