@@ -21,7 +21,8 @@
 //! address `n − 1`.
 //!
 //! [`ModbusSource`] polls on its own thread, reading neighbouring registers of a unit in one
-//! request. A value is stamped with the service time of the answer that carried it; an
+//! request (or one by one, if the module refuses such a grouped read with exception 02 because it
+//! lacks registers in between). A value is stamped with the service time of the answer that carried it; an
 //! exception answer leaves the channels of that request unstamped (reported as bad data, the
 //! connection stays); a timeout or a malformed answer ends the connection, and the thread
 //! reconnects with backoff ([`crate::reconnect`]) while the stamps stand still.
@@ -635,6 +636,32 @@ pub fn plan_reads(spans: &[RegisterSpan]) -> Vec<ReadBlock> {
     blocks
 }
 
+/// Replaces the blocks at `indices` by one block per channel (its own registers only).
+pub fn split_blocks(
+    blocks: &[ReadBlock],
+    indices: &[usize],
+    decoders: &[(Encoding, WordOrder)],
+) -> Vec<ReadBlock> {
+    let mut out = Vec::with_capacity(blocks.len());
+    for (b, block) in blocks.iter().enumerate() {
+        if !indices.contains(&b) {
+            out.push(block.clone());
+            continue;
+        }
+        for &(k, offset) in &block.members {
+            let count = decoders.get(k).map_or(1, |(e, _)| e.registers());
+            out.push(ReadBlock {
+                unit: block.unit,
+                kind: block.kind,
+                address: block.address.saturating_add(offset),
+                count,
+                members: vec![(k, 0)],
+            });
+        }
+    }
+    out
+}
+
 impl ModbusConfig {
     /// Reads the configuration from TOML text (a table with the fields above).
     pub fn from_toml(text: &str) -> Result<Self, ConfigError> {
@@ -834,7 +861,7 @@ struct Poller {
 }
 
 impl Poller {
-    fn run(self) {
+    fn run(mut self) {
         let mut backoff = Backoff::new(self.backoff);
         // The last problem reported per block and per channel, so that a lasting one is reported
         // once, not at every poll.
@@ -866,13 +893,14 @@ impl Poller {
 
     /// Polls until the connection is lost (returns why) or the source stops (returns `None`).
     fn poll_until_lost(
-        &self,
+        &mut self,
         client: &mut ModbusClient,
-        block_problem: &mut [Option<String>],
+        block_problem: &mut Vec<Option<String>>,
         value_problem: &mut [Option<DecodeError>],
     ) -> Option<String> {
         let mut next = Instant::now();
         loop {
+            let mut split = Vec::new();
             for (b, block) in self.blocks.iter().enumerate() {
                 if self.stop.load(Ordering::Acquire) {
                     return None;
@@ -917,6 +945,24 @@ impl Poller {
                             }
                         }
                     }
+                    // A module may refuse a read that spans registers it does not have (between
+                    // the ones configured): read the channels of that block one by one.
+                    Err(ModbusError::Exception { code: 0x02, .. }) if block.members.len() > 1 => {
+                        split.push(b);
+                        self.status.bad_data(
+                            seconds_since(self.epoch),
+                            format!(
+                                "Modbus server {} unit {} function {:02X} registers {}–{}: exception 02 \
+                                 (illegal data address) to a grouped read; reading its {} channels one by one",
+                                self.peer,
+                                block.unit,
+                                block.kind.function_code(),
+                                block.address,
+                                u32::from(block.address) + u32::from(block.count) - 1,
+                                block.members.len()
+                            ),
+                        );
+                    }
                     Err(e) if e.keeps_connection() => {
                         let why = format!(
                             "Modbus server {} unit {} function {:02X} registers {}–{}: {e}",
@@ -933,6 +979,11 @@ impl Poller {
                     }
                     Err(e) => return Some(e.to_string()),
                 }
+            }
+            if !split.is_empty() {
+                self.blocks = split_blocks(&self.blocks, &split, &self.decoders);
+                block_problem.clear();
+                block_problem.resize(self.blocks.len(), None);
             }
             next += self.poll;
             let now = Instant::now();
@@ -1158,6 +1209,42 @@ mod tests {
         assert_eq!(
             (blocks[0].count, blocks[1].address, blocks[1].count),
             (125, 125, 5)
+        );
+    }
+
+    #[test]
+    fn refused_blocks_are_split_per_channel() {
+        use RegisterKind::*;
+        let spans = [(1, Input, 0, 1), (1, Input, 10, 2), (1, Holding, 0, 1)];
+        let decoders = [
+            (Encoding::Int16Tenths, WordOrder::HighFirst),
+            (Encoding::Float32, WordOrder::LowFirst),
+            (Encoding::Uint16, WordOrder::HighFirst),
+        ];
+        let blocks = plan_reads(&spans);
+        assert_eq!(blocks.len(), 2); // holding 0; input 0–11
+        let split = split_blocks(&blocks, &[1], &decoders);
+        assert_eq!(split.len(), 3);
+        assert_eq!(split[0], blocks[0]);
+        assert_eq!(
+            split[1],
+            ReadBlock {
+                unit: 1,
+                kind: Input,
+                address: 0,
+                count: 1,
+                members: vec![(0, 0)]
+            }
+        );
+        assert_eq!(
+            split[2],
+            ReadBlock {
+                unit: 1,
+                kind: Input,
+                address: 10,
+                count: 2,
+                members: vec![(1, 0)]
+            }
         );
     }
 

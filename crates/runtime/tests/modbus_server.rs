@@ -416,3 +416,64 @@ fn the_documented_example_reads_the_server() {
     assert_eq!(t("x_slide_bottom"), 23.45);
     assert_eq!(t("ambient"), 21.25);
 }
+
+#[test]
+fn a_refused_grouped_read_is_split_into_single_reads() {
+    let server = Server::start(free_port());
+    let m = machine();
+    let mut config = one_based_config(server.port);
+    config.addressing = Addressing::ZeroBased;
+    // Input registers 0 and 12 are close enough to be read together (0–12), but the server has
+    // no registers 3–12: exception 02 to the grouped read. Read one by one, register 0 works.
+    config.channels = vec![
+        channel(
+            Some("ambient"),
+            None,
+            RegisterKind::Input,
+            0,
+            Encoding::Int16Tenths,
+            WordOrder::HighFirst,
+        ),
+        channel(
+            Some("bed_top"),
+            None,
+            RegisterKind::Input,
+            12,
+            Encoding::Int16Tenths,
+            WordOrder::HighFirst,
+        ),
+    ];
+    let epoch = Instant::now();
+    let mut source = ModbusSource::start(&config, &m, epoch).unwrap();
+    let mut frame = Frame::new(m.temperatures.len(), m.axes.len(), m.operating.len());
+    let amb = m.temperature_index("ambient").unwrap();
+    let bed = m.temperature_index("bed_top").unwrap();
+    assert!(
+        wait_until(Duration::from_secs(5), || {
+            read(&mut source, &mut frame, epoch).is_ok() && frame.temperatures_c[amb] == 24.2
+        }),
+        "{:?}",
+        source.link().drain_events()
+    );
+    std::thread::sleep(Duration::from_millis(100));
+    read(&mut source, &mut frame, epoch).unwrap();
+    assert_eq!(frame.temperature_stamp_s[bed], NEVER);
+    let bad: Vec<String> = source
+        .link()
+        .drain_events()
+        .into_iter()
+        .filter(|e| e.kind == LinkEventKind::BadData)
+        .map(|e| e.message)
+        .collect();
+    assert_eq!(bad.len(), 2, "{bad:?}");
+    assert!(
+        bad[0].ends_with("registers 0–12: exception 02 (illegal data address) to a grouped read; reading its 2 channels one by one"),
+        "{}",
+        bad[0]
+    );
+    assert!(
+        bad[1].ends_with("registers 12–12: exception 02 (illegal data address) to function 04"),
+        "{}",
+        bad[1]
+    );
+}
