@@ -22,7 +22,7 @@
 
 use super::forward::Tangents;
 use super::{Chain, Directions, Geometry, KinAxis, KinError, Layout, Pose, Step, DEG};
-use crate::machine::{AxisKind, MAX_AXES};
+use crate::machine::MAX_AXES;
 
 /// The inverse transform stops when the TCP is this close to the target (0.1 nm, a tenth of
 /// the 1 nm the issue asks for).
@@ -227,40 +227,6 @@ fn nearest_turn(q: f64, prev: f64, axis: &KinAxis) -> Option<f64> {
 
 fn within_travel(axis: &KinAxis, v: f64) -> bool {
     v >= axis.travel_min - TRAVEL_SLACK && v <= axis.travel_max + TRAVEL_SLACK
-}
-
-/// Solves the n×n system `a x = b` in place by Gaussian elimination with partial pivoting.
-fn solve(a: &mut [[f64; MAX_AXES]; MAX_AXES], b: &mut [f64; MAX_AXES], n: usize) -> bool {
-    for col in 0..n {
-        let mut piv = col;
-        for r in col + 1..n {
-            if libm::fabs(a[r][col]) > libm::fabs(a[piv][col]) {
-                piv = r;
-            }
-        }
-        if libm::fabs(a[piv][col]) <= 1e-300 || a[piv][col].is_nan() {
-            return false;
-        }
-        a.swap(col, piv);
-        b.swap(col, piv);
-        for r in col + 1..n {
-            let f = a[r][col] / a[col][col];
-            if f != 0.0 {
-                for c in col..n {
-                    a[r][c] -= f * a[col][c];
-                }
-                b[r] -= f * b[col];
-            }
-        }
-    }
-    for col in (0..n).rev() {
-        let mut s = b[col];
-        for c in col + 1..n {
-            s -= a[col][c] * b[c];
-        }
-        b[col] = s / a[col][col];
-    }
-    b[..n].iter().all(|v| v.is_finite())
 }
 
 impl Chain {
@@ -591,17 +557,20 @@ impl Chain {
         target: &Pose,
         q: &mut [f64; MAX_AXES],
     ) -> Result<(), KinError> {
-        let mut a = [[0.0; MAX_AXES]; MAX_AXES];
-        let mut b = [0.0; MAX_AXES];
-        for r in 0..3 {
-            for (c, &j) in linear.iter().enumerate() {
-                a[r][c] = t.dp[j][r];
-            }
-            b[r] = target.position[r] - pose.position[r];
-        }
-        if !solve(&mut a, &mut b, 3) {
+        // 3×3 system by Cramer's rule: columns are the TCP's derivatives along each axis.
+        let col = |c: usize| -> V3 { t.dp[linear[c]] };
+        let (c0, c1, c2) = (col(0), col(1), col(2));
+        let rhs = sub(&target.position, &pose.position);
+        let det = dot(&c0, &cross(&c1, &c2));
+        let scale_ = norm(&c0) * norm(&c1) * norm(&c2);
+        if libm::fabs(det) <= 1e-12 * scale_ || det.is_nan() {
             return Err(KinError::Singular);
         }
+        let b = [
+            dot(&rhs, &cross(&c1, &c2)) / det,
+            dot(&c0, &cross(&rhs, &c2)) / det,
+            dot(&c0, &cross(&c1, &rhs)) / det,
+        ];
         for (c, &j) in linear.iter().enumerate() {
             q[j] += b[c];
         }
@@ -645,10 +614,11 @@ impl Chain {
         }
         let gamma = libm::sqrt(g2.max(0.0));
         let nrm = cross(u1, u2);
-        let mut best: Option<(f64, [f64; MAX_AXES])> = None;
         let mut failure = KinError::UnreachableDirection;
+        // The rotary set-points of both branches, with their distance from the previous ones.
+        let mut cands: [(f64, [f64; MAX_AXES]); 2] = [(f64::INFINITY, *prev); 2];
         let branches: &[f64] = if gamma == 0.0 { &[1.0] } else { &[1.0, -1.0] };
-        for &sg in branches {
+        for (b, &sg) in branches.iter().enumerate() {
             let mut c = [0.0; 3];
             for i in 0..3 {
                 c[i] = alpha * u1[i] + beta * u2[i] + sg * gamma * nrm[i];
@@ -659,52 +629,50 @@ impl Chain {
             let phi1 = angle_about(u1, &vp, &c);
             let phi2 = angle_about(u2, &c, &w);
             let mut ok = true;
+            let mut cost = 0.0;
             for (idx, (axis, phi)) in [(r1, phi1), (r2, phi2)].into_iter().enumerate() {
                 let Some(phi) = phi else {
                     continue;
                 };
                 let raw = phi / DEG * fa.sign[idx];
                 match nearest_turn(raw, prev[axis], &self.axes[axis]) {
-                    Some(v) => cand[axis] = v,
+                    Some(v) => {
+                        cand[axis] = v;
+                        cost += libm::fabs(v - prev[axis]);
+                    }
                     None => {
                         failure = KinError::OutsideTravel { axis, value: raw };
                         ok = false;
                     }
                 }
             }
-            if !ok {
+            if ok {
+                cands[b] = (cost, cand);
+            }
+        }
+        if cands[1].0 < cands[0].0 {
+            cands.swap(0, 1);
+        }
+        // The nearest branch whose linear axes stay within travel.
+        let (geometry, dirs) = match actual {
+            Some(d) => (Geometry::Actual, d),
+            None => (Geometry::Nominal, Directions(0)),
+        };
+        for (cost, mut cand) in cands {
+            if !cost.is_finite() {
                 continue;
             }
             let mut t = Tangents::ZERO;
-            let (geometry, dirs) = match actual {
-                Some(d) => (Geometry::Actual, d),
-                None => (Geometry::Nominal, Directions(0)),
-            };
             let pose = self.eval::<true>(&cand[..n], tool_mm, dirs, geometry, Some(&mut t));
-            if let Err(e) = self.solve_linear(&fa.linear, &pose, &t, target, &mut cand) {
-                failure = e;
-                continue;
-            }
-            let mut cost = 0.0;
-            for j in 0..n {
-                let d = libm::fabs(cand[j] - prev[j]);
-                cost += if self.axes[j].kind == AxisKind::Rotary {
-                    d
-                } else {
-                    1e-3 * d
-                };
-            }
-            if best.as_ref().is_none_or(|(bc, _)| cost < *bc) {
-                best = Some((cost, cand));
+            match self.solve_linear(&fa.linear, &pose, &t, target, &mut cand) {
+                Ok(()) => {
+                    *q = cand;
+                    return Ok(());
+                }
+                Err(e) => failure = e,
             }
         }
-        match best {
-            Some((_, cand)) => {
-                *q = cand;
-                Ok(())
-            }
-            None => Err(failure),
-        }
+        Err(failure)
     }
 
     /// The rotation structure of the erroneous chain with every error rotation read from its
@@ -1023,6 +991,7 @@ fn directions_from(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::machine::AxisKind;
 
     #[test]
     fn subproblem_two_recovers_known_angles() {
