@@ -1,4 +1,4 @@
-//! 24 simulated hours at 1 s steps on the reference machine (76 thermal nodes): the whole run,
+//! 24 simulated hours at 1 s steps on the reference machine (84 thermal nodes): the whole run,
 //! from building the integrator to the recorded rows (sampled every 10 s, ground-truth error
 //! evaluated at each row).
 
@@ -31,7 +31,7 @@ fn day_mixed_24h(bencher: divan::Bencher) {
     bencher.bench(|| twin.run(divan::black_box(&sc), 1).expect("runs"));
 }
 
-/// One integrator step alone (76 nodes).
+/// One integrator step alone (84 nodes).
 #[divan::bench]
 fn network_step(bencher: divan::Bencher) {
     let twin = Twin::reference();

@@ -237,7 +237,7 @@ pub struct Operating {
 }
 
 impl Twin {
-    /// The built-in reference machine (`twin-vmc3`, described for the other tools in `examples/twin/machine.toml`): 76 nodes, 16 sensors.
+    /// The built-in reference machine (`twin-vmc3`, described for the other tools in `examples/twin/machine.toml`): 84 nodes, 16 sensors.
     pub fn reference() -> Self {
         let beam = |name: &str,
                     e_len,
@@ -289,7 +289,7 @@ impl Twin {
             front,
             x,
             [1600.0, 400.0, 500.0],
-            4,
+            6,
             ci,
             [0.3, 0.1],
             Support::Clamped { at_mm: 0.0 },
@@ -380,7 +380,7 @@ impl Twin {
         joint(
             &mut net,
             &face(&head, 0..3, Some(false)),
-            &face(&column, 0..4, Some(true)),
+            &face(&column, 0..6, Some(true)),
             8.0,
         );
         joint(
@@ -444,7 +444,7 @@ impl Twin {
             s(
                 "column_top",
                 "column, top under the Z motor",
-                nodes(&column, 3, None),
+                nodes(&column, 5, None),
                 bore,
             ),
             s(
