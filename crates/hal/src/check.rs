@@ -1,0 +1,446 @@
+//! The verdict of the end-to-end test: did LinuxCNC apply the model's offsets?
+//!
+//! LinuxCNC's `sampler` component records, every servo cycle, what the control actually did;
+//! `halsampler -t` writes it as text lines. Two samplers run on the same enable signal:
+//!
+//! - **motion** (`sampler.0`): `tag`, then per axis `axis.L.pos-cmd` (nominal, mm), per axis
+//!   `axis.L.eoffset` (applied external offset, mm), per joint `joint.N.pos-fb` (mm), per axis
+//!   `truepos.axis.L.offset-um` (sent, µm), then `truepos.status` and `truepos.model-select`.
+//! - **temperatures** (`sampler.1`): `tag`, then every `truepos.temp.<id>` pin in machine order.
+//!
+//! For every cycle the check evaluates the selected model on the temperatures and nominal
+//! positions of that very cycle and compares the compensation (−error) with the offset
+//! LinuxCNC applied. The difference is the lag of the position-dependent terms (the axis moved
+//! between the component's read and the application) plus quantisation; seed A's figure of
+//! merit divides it by the span of the position-dependent terms over the travel (1.3 % at 4 ms
+//! and 100 m/min on 500 mm). Cycles within `settle_s` of a start, a fault, a recovery or a
+//! model switch — where the envelope ramps on purpose — are left out of that comparison and
+//! checked against the envelope's rate instead.
+
+use std::fmt;
+use std::path::Path;
+
+use truepos_io::machine_file::AxisRuntime;
+use truepos_model::{CycleInput, Machine, Model};
+
+/// One servo cycle as the samplers recorded it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Sample {
+    /// Nominal axis positions (`axis.L.pos-cmd`), mm.
+    pub nominal: Vec<f64>,
+    /// Applied external offsets (`axis.L.eoffset`), mm.
+    pub applied_mm: Vec<f64>,
+    /// Joint feedback (`joint.N.pos-fb`), mm; trivial kinematics: joint N = axis N.
+    pub joint: Vec<f64>,
+    /// What truepos sent (`truepos.axis.L.offset-um`), µm.
+    pub sent_um: Vec<f64>,
+    /// `truepos.status`.
+    pub status: i32,
+    /// `truepos.model-select`.
+    pub select: i32,
+    /// Temperatures on the `truepos.temp.*` pins, °C.
+    pub temperatures_c: Vec<f64>,
+}
+
+/// A malformed sampler file.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SampleError {
+    /// The file.
+    pub file: String,
+    /// 1-based line.
+    pub line: usize,
+    /// What was expected.
+    pub message: String,
+}
+
+impl fmt::Display for SampleError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}:{}: {}", self.file, self.line, self.message)
+    }
+}
+
+impl std::error::Error for SampleError {}
+
+fn parse_lines(
+    file: &str,
+    text: &str,
+    columns: usize,
+) -> Result<Vec<(u64, Vec<f64>)>, SampleError> {
+    let mut rows = Vec::new();
+    for (i, line) in text.lines().enumerate() {
+        if line.trim().is_empty() {
+            continue;
+        }
+        let err = |message: String| SampleError {
+            file: file.to_string(),
+            line: i + 1,
+            message,
+        };
+        let fields: Vec<&str> = line.split_whitespace().collect();
+        if fields.len() != columns + 1 {
+            return Err(err(format!(
+                "expected a sample tag and {columns} values, found {} fields",
+                fields.len()
+            )));
+        }
+        let tag: u64 = fields[0]
+            .parse()
+            .map_err(|_| err(format!("sample tag {:?} is not an integer", fields[0])))?;
+        let values = fields[1..]
+            .iter()
+            .enumerate()
+            .map(|(c, f)| {
+                f.parse::<f64>()
+                    .map_err(|_| err(format!("column {}: {f:?} is not a number", c + 2)))
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        rows.push((tag, values));
+    }
+    Ok(rows)
+}
+
+/// Joins the motion and temperature sampler texts (by sample tag) into samples for a machine
+/// with `axes` axes and `temperatures` temperature channels.
+pub fn parse_samples(
+    motion_file: &str,
+    motion: &str,
+    temperature_file: &str,
+    temperatures: &str,
+    axes: usize,
+    temperature_count: usize,
+) -> Result<Vec<Sample>, SampleError> {
+    let m = parse_lines(motion_file, motion, 4 * axes + 2)?;
+    let t = parse_lines(temperature_file, temperatures, temperature_count)?;
+    let mut out = Vec::with_capacity(m.len().min(t.len()));
+    let mut j = 0;
+    for (tag, v) in m {
+        while j < t.len() && t[j].0 < tag {
+            j += 1;
+        }
+        if j < t.len() && t[j].0 == tag {
+            out.push(Sample {
+                nominal: v[..axes].to_vec(),
+                applied_mm: v[axes..2 * axes].to_vec(),
+                joint: v[2 * axes..3 * axes].to_vec(),
+                sent_um: v[3 * axes..4 * axes].to_vec(),
+                status: v[4 * axes] as i32,
+                select: v[4 * axes + 1] as i32,
+                temperatures_c: t[j].1.clone(),
+            });
+        }
+    }
+    Ok(out)
+}
+
+/// Reads and joins two `halsampler -t` files.
+pub fn load_samples(
+    motion: &Path,
+    temperatures: &Path,
+    machine: &Machine,
+) -> Result<Vec<Sample>, SampleError> {
+    let read = |p: &Path| {
+        std::fs::read_to_string(p).map_err(|e| SampleError {
+            file: p.display().to_string(),
+            line: 0,
+            message: format!("cannot read: {e}"),
+        })
+    };
+    parse_samples(
+        &motion.display().to_string(),
+        &read(motion)?,
+        &temperatures.display().to_string(),
+        &read(temperatures)?,
+        machine.axes.len(),
+        machine.temperatures.len(),
+    )
+}
+
+/// Settings of the check.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CheckConfig {
+    /// Servo period in s (LinuxCNC `[EMCMOT] SERVO_PERIOD`).
+    pub period_s: f64,
+    /// Cycles this long after a start, fault, recovery or switch are not compared with the
+    /// model (the envelope ramps there on purpose), s.
+    pub settle_s: f64,
+    /// Spans of the position-dependent terms below this (µm) give no lag fraction (a cold
+    /// machine has nothing to lag behind).
+    pub min_span_um: f64,
+    /// Window over which the offset rate is measured, s (the component and the servo thread
+    /// run on different clocks, so single cycles see two updates or none).
+    pub rate_window_s: f64,
+    /// Largest lag fraction that passes (the issue: 1 %).
+    pub max_lag_fraction: f64,
+}
+
+impl Default for CheckConfig {
+    fn default() -> Self {
+        Self {
+            period_s: 0.001,
+            settle_s: 3.0,
+            min_span_um: 2.0,
+            rate_window_s: 0.05,
+            max_lag_fraction: 0.01,
+        }
+    }
+}
+
+/// The figures of one end-to-end run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CheckReport {
+    /// Servo cycles recorded.
+    pub samples: usize,
+    /// Cycles compared with the model (active, settled).
+    pub compared: usize,
+    /// Largest |joint(k) − (nominal + applied offset)(k − d)|, mm: LinuxCNC added the offset to
+    /// the joint, `joint_delay_cycles` = d servo cycles later (its interpolator's pipeline).
+    pub joint_mismatch_mm: f64,
+    /// The pipeline delay d between axis commands and joint feedback that fits best, cycles.
+    pub joint_delay_cycles: usize,
+    /// Largest |applied − model| over compared cycles, µm.
+    pub max_diff_um: f64,
+    /// RMS of applied − model over compared cycles, µm.
+    pub rms_diff_um: f64,
+    /// Largest |applied − model| / span of the position-dependent terms.
+    pub max_lag_fraction: f64,
+    /// Largest |applied offset| seen, µm.
+    pub max_offset_um: f64,
+    /// Largest axis speed reached, mm/min.
+    pub max_feed_mm_per_min: f64,
+    /// Largest offset rate per axis over the rate window, µm/s.
+    pub max_rate_um_per_s: Vec<f64>,
+    /// The envelope's rate per axis, µm/s.
+    pub rate_limit_um_per_s: Vec<f64>,
+    /// Cycles with status "holding" (a sensor fault).
+    pub holding_samples: usize,
+    /// Model switches seen on `truepos.model-select`.
+    pub model_switches: usize,
+    /// What failed (empty: the run passed).
+    pub failures: Vec<String>,
+}
+
+impl CheckReport {
+    /// Whether every check passed.
+    pub fn passed(&self) -> bool {
+        self.failures.is_empty()
+    }
+
+    /// The report as JSON.
+    pub fn to_json(&self) -> serde_json::Value {
+        serde_json::json!({
+            "samples": self.samples,
+            "compared": self.compared,
+            "joint_mismatch_mm": self.joint_mismatch_mm,
+            "joint_delay_cycles": self.joint_delay_cycles,
+            "max_diff_um": self.max_diff_um,
+            "rms_diff_um": self.rms_diff_um,
+            "max_lag_fraction": self.max_lag_fraction,
+            "max_offset_um": self.max_offset_um,
+            "max_feed_mm_per_min": self.max_feed_mm_per_min,
+            "max_rate_um_per_s": self.max_rate_um_per_s,
+            "rate_limit_um_per_s": self.rate_limit_um_per_s,
+            "holding_samples": self.holding_samples,
+            "model_switches": self.model_switches,
+            "passed": self.passed(),
+            "failures": self.failures,
+        })
+    }
+}
+
+/// Span over the travel of each axis' compensation when one axis moves end to end (the others
+/// where they are): the size of the position-dependent terms at these temperatures, µm.
+fn position_span_um(model: &Model, machine: &Machine, s: &Sample, operating: &[f64]) -> Vec<f64> {
+    let axes = machine.axes.len();
+    let mut span = vec![0.0f64; axes];
+    let mut pos = s.nominal.clone();
+    for (j, axis) in machine.axes.iter().enumerate() {
+        let at = |p: f64, pos: &mut Vec<f64>| {
+            pos[j] = p;
+            model
+                .evaluate(&CycleInput {
+                    temperatures_c: &s.temperatures_c,
+                    positions: pos,
+                    operating,
+                })
+                .ok()
+        };
+        let lo = at(axis.travel_min, &mut pos);
+        let hi = at(axis.travel_max, &mut pos);
+        pos[j] = s.nominal[j];
+        if let (Some(lo), Some(hi)) = (lo, hi) {
+            for (a, sp) in span.iter_mut().enumerate() {
+                *sp = sp.max((hi.compensation_um(a) - lo.compensation_um(a)).abs());
+            }
+        }
+    }
+    span
+}
+
+/// Compares what LinuxCNC applied with the models (`models[select]`) and the envelope.
+pub fn check(
+    machine: &Machine,
+    models: &[Model],
+    limits: &[AxisRuntime],
+    samples: &[Sample],
+    config: &CheckConfig,
+) -> CheckReport {
+    let axes = machine.axes.len();
+    let operating = vec![0.0; machine.operating.len()];
+    let settle = (config.settle_s / config.period_s).round() as usize;
+    let window = ((config.rate_window_s / config.period_s).round() as usize).max(1);
+    let mut report = CheckReport {
+        samples: samples.len(),
+        compared: 0,
+        joint_mismatch_mm: 0.0,
+        joint_delay_cycles: 0,
+        max_diff_um: 0.0,
+        rms_diff_um: 0.0,
+        max_lag_fraction: 0.0,
+        max_offset_um: 0.0,
+        max_feed_mm_per_min: 0.0,
+        max_rate_um_per_s: vec![0.0; axes],
+        rate_limit_um_per_s: limits.iter().map(|l| l.max_rate_um_per_s).collect(),
+        holding_samples: 0,
+        model_switches: 0,
+        failures: Vec::new(),
+    };
+    let mut sum_sq = 0.0;
+    let mut since_change = 0usize;
+    for (k, s) in samples.iter().enumerate() {
+        let prev = k.checked_sub(1).map(|p| &samples[p]);
+        if let Some(p) = prev {
+            if p.select != s.select {
+                report.model_switches += 1;
+            }
+            if p.select != s.select || p.status != s.status {
+                since_change = 0;
+            }
+            for a in 0..axes {
+                let feed = (s.nominal[a] - p.nominal[a]).abs() / config.period_s * 60.0;
+                report.max_feed_mm_per_min = report.max_feed_mm_per_min.max(feed);
+            }
+        }
+        if k >= window {
+            let w = &samples[k - window];
+            for a in 0..axes {
+                let rate = (s.applied_mm[a] - w.applied_mm[a]).abs() * 1000.0
+                    / (window as f64 * config.period_s);
+                report.max_rate_um_per_s[a] = report.max_rate_um_per_s[a].max(rate);
+            }
+        }
+        since_change += 1;
+        if s.status == 2 {
+            report.holding_samples += 1;
+        }
+        for a in 0..axes {
+            report.max_offset_um = report.max_offset_um.max(s.applied_mm[a].abs() * 1000.0);
+        }
+        let Some(model) = usize::try_from(s.select).ok().and_then(|i| models.get(i)) else {
+            continue;
+        };
+        if s.status != 1 || since_change <= settle {
+            continue;
+        }
+        let Ok(correction) = model.evaluate(&CycleInput {
+            temperatures_c: &s.temperatures_c,
+            positions: &s.nominal,
+            operating: &operating,
+        }) else {
+            continue;
+        };
+        let span = position_span_um(model, machine, s, &operating);
+        report.compared += 1;
+        for (a, &span_a) in span.iter().enumerate() {
+            let diff = s.applied_mm[a] * 1000.0 - correction.compensation_um(a);
+            sum_sq += diff * diff;
+            report.max_diff_um = report.max_diff_um.max(diff.abs());
+            if span_a >= config.min_span_um {
+                report.max_lag_fraction = report.max_lag_fraction.max(diff.abs() / span_a);
+            }
+        }
+    }
+    // LinuxCNC's joints follow the axis commands through its interpolator a few cycles later.
+    let (delay, mismatch) = (0..10)
+        .map(|d| {
+            let worst = samples
+                .iter()
+                .skip(d)
+                .zip(samples)
+                .flat_map(|(s, p)| {
+                    (0..axes).map(move |a| (s.joint[a] - p.nominal[a] - p.applied_mm[a]).abs())
+                })
+                .fold(0.0f64, f64::max);
+            (d, worst)
+        })
+        .fold(
+            (0, f64::INFINITY),
+            |best, x| if x.1 < best.1 { x } else { best },
+        );
+    report.joint_delay_cycles = delay;
+    report.joint_mismatch_mm = if samples.is_empty() { 0.0 } else { mismatch };
+    if report.compared > 0 {
+        report.rms_diff_um = (sum_sq / (report.compared * axes.max(1)) as f64).sqrt();
+    }
+
+    if report.compared == 0 {
+        report
+            .failures
+            .push("no settled, active cycle to compare with the model".into());
+    }
+    // 2 µm: the interpolator rounds corners of the summed command where the axes accelerate.
+    if report.joint_mismatch_mm > 0.002 {
+        report.failures.push(format!(
+            "joint positions differ from nominal + external offset by {} mm",
+            report.joint_mismatch_mm
+        ));
+    }
+    if report.max_lag_fraction >= config.max_lag_fraction {
+        report.failures.push(format!(
+            "lag error {:.3} % of the position-dependent span is not below {:.3} %",
+            report.max_lag_fraction * 100.0,
+            config.max_lag_fraction * 100.0
+        ));
+    }
+    for (a, (&rate, &limit)) in report
+        .max_rate_um_per_s
+        .iter()
+        .zip(&report.rate_limit_um_per_s)
+        .enumerate()
+    {
+        // The component's rate limit guarantees rate × (T + one period) over any time T; allow
+        // two periods for the two clocks (see `rate_window_s`) and two counts of quantisation.
+        let allowed = limit * (config.rate_window_s + 2.0 * config.period_s) / config.rate_window_s
+            + 2.0 * crate::eoffset::RESOLUTION_UM / config.rate_window_s;
+        if rate > allowed {
+            report.failures.push(format!(
+                "axis {}: offset rate {rate:.2} µm/s exceeds the envelope's {limit} µm/s",
+                machine.axes[a].name
+            ));
+        }
+    }
+    report
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn joins_by_tag_and_names_bad_lines() {
+        // One axis, one temperature: motion has tag + 4·1 + 2 = 7 fields.
+        let motion = "0 1.0 0.001 1.001 1.0 1 0\n1 2.0 0.002 2.002 2.0 1 0\n2 3 0 3 0 1 0\n";
+        let temps = "1 20.5\n2 21.0\n";
+        let s = parse_samples("m", motion, "t", temps, 1, 1).unwrap();
+        assert_eq!(s.len(), 2); // tag 0 has no temperature line
+        assert_eq!(s[0].nominal, vec![2.0]);
+        assert_eq!(s[0].temperatures_c, vec![20.5]);
+        assert_eq!(s[1].select, 0);
+        let bad = parse_samples("m.txt", "0 1 2\n", "t", temps, 1, 1).unwrap_err();
+        assert_eq!(
+            bad.to_string(),
+            "m.txt:1: expected a sample tag and 6 values, found 3 fields"
+        );
+        let bad = parse_samples("m.txt", motion, "t.txt", "1 x\n", 1, 1).unwrap_err();
+        assert_eq!(bad.to_string(), "t.txt:1: column 2: \"x\" is not a number");
+    }
+}

@@ -1,0 +1,380 @@
+//! # The one place with `unsafe` in truepos: the C interface of LinuxCNC's HAL library.
+//!
+//! LinuxCNC 2.9 (Debian `linuxcnc-uspace`) ships `liblinuxcnchal.so.0`; its header
+//! `/usr/include/linuxcnc/hal.h` (package `linuxcnc-uspace-dev`) declares what a userspace
+//! component calls: `hal_init`, `hal_malloc`, `hal_pin_{bit,s32,float}_new`, `hal_ready` and
+//! `hal_exit`. The library is opened at run time (`dlopen` through `libloading`) rather than
+//! linked, so that truepos builds and tests on machines without LinuxCNC; only running the
+//! component needs it.
+//!
+//! The safe surface is [`Component`] and the typed pins [`FloatPin`], [`BitPin`] and
+//! [`S32Pin`]. HAL's model, from `hal.h`: a pin is a pointer *slot* in HAL shared memory
+//! (allocated with `hal_malloc`); `hal_pin_*_new` stores in the slot the address of the pin's
+//! value, and `halcmd net` later re-points the slot at the signal's value. Reading a pin is
+//! therefore two volatile loads (slot, then value), writing is a volatile load of the slot and a
+//! volatile store. Every pin keeps the component alive (an [`Arc`]), so no slot is used after
+//! `hal_exit` has freed the shared memory.
+
+use std::ffi::{c_char, c_int, c_long, c_void, CString};
+use std::fmt;
+use std::sync::Arc;
+
+/// Direction of a pin, as `hal_pin_dir_t` in `hal.h` (`HAL_IN = 16`, `HAL_OUT = 32`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Direction {
+    /// The component reads the pin.
+    In,
+    /// The component writes the pin.
+    Out,
+}
+
+impl Direction {
+    fn code(self) -> c_int {
+        match self {
+            Self::In => 16,
+            Self::Out => 32,
+        }
+    }
+}
+
+/// What went wrong talking to HAL.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum HalError {
+    /// `liblinuxcnchal.so.0` or one of its functions could not be loaded.
+    Library(String),
+    /// A HAL call returned an error code (negative errno, see `rtapi_errno.h`).
+    Call {
+        /// The C function.
+        function: &'static str,
+        /// Its argument (component or pin name).
+        name: String,
+        /// The code it returned.
+        code: i32,
+    },
+    /// `hal_malloc` returned no memory.
+    OutOfMemory,
+    /// A name contains a NUL byte or is longer than HAL's 47 characters (`HAL_NAME_LEN`).
+    BadName(String),
+}
+
+impl fmt::Display for HalError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::Library(why) => write!(
+                f,
+                "cannot load LinuxCNC's HAL library (install linuxcnc-uspace): {why}"
+            ),
+            Self::Call {
+                function,
+                name,
+                code,
+            } => {
+                let hint = if *function == "hal_init" {
+                    " (is LinuxCNC or halrun running, and is the name free?)"
+                } else {
+                    ""
+                };
+                write!(f, "{function}(\"{name}\") failed with code {code}{hint}")
+            }
+            Self::OutOfMemory => write!(f, "hal_malloc: HAL shared memory is exhausted"),
+            Self::BadName(name) => write!(
+                f,
+                "HAL name {name:?} must be at most 47 bytes long and contain no NUL"
+            ),
+        }
+    }
+}
+
+impl std::error::Error for HalError {}
+
+/// `HAL_NAME_LEN` in `hal.h`.
+const HAL_NAME_LEN: usize = 47;
+
+type InitFn = unsafe extern "C" fn(*const c_char) -> c_int;
+type ExitFn = unsafe extern "C" fn(c_int) -> c_int;
+type MallocFn = unsafe extern "C" fn(c_long) -> *mut c_void;
+type ReadyFn = unsafe extern "C" fn(c_int) -> c_int;
+type PinNewFn<T> = unsafe extern "C" fn(*const c_char, c_int, *mut *mut T, c_int) -> c_int;
+
+/// The loaded library and the functions truepos uses.
+struct Library {
+    // Kept so that the function pointers below stay valid.
+    _lib: libloading::Library,
+    init: InitFn,
+    exit: ExitFn,
+    malloc: MallocFn,
+    ready: ReadyFn,
+    pin_bit_new: PinNewFn<u8>,
+    pin_s32_new: PinNewFn<i32>,
+    pin_float_new: PinNewFn<f64>,
+}
+
+impl Library {
+    fn open() -> Result<Self, HalError> {
+        let err = |e: libloading::Error| HalError::Library(e.to_string());
+        // SAFETY: loading liblinuxcnchal runs its ELF constructors; the library is LinuxCNC's
+        // own, written to be loaded by userspace components (halcmd, the Python `hal` module).
+        let lib = unsafe { libloading::Library::new("liblinuxcnchal.so.0") }.map_err(err)?;
+        // SAFETY: each symbol is looked up with the exact C signature declared in LinuxCNC 2.9's
+        // hal.h (`int hal_init(const char*)`, `int hal_exit(int)`, `void *hal_malloc(long)`,
+        // `int hal_ready(int)`, `int hal_pin_X_new(const char*, hal_pin_dir_t, hal_X_t**, int)`
+        // where hal_pin_dir_t is a C enum (int), hal_bit_t is `volatile bool`, hal_s32_t
+        // `volatile int32_t` and hal_float_t `volatile double`). The copied function pointers
+        // are only used while `_lib` (stored alongside) keeps the library mapped.
+        unsafe {
+            Ok(Self {
+                init: *lib.get::<InitFn>(b"hal_init\0").map_err(err)?,
+                exit: *lib.get::<ExitFn>(b"hal_exit\0").map_err(err)?,
+                malloc: *lib.get::<MallocFn>(b"hal_malloc\0").map_err(err)?,
+                ready: *lib.get::<ReadyFn>(b"hal_ready\0").map_err(err)?,
+                pin_bit_new: *lib.get::<PinNewFn<u8>>(b"hal_pin_bit_new\0").map_err(err)?,
+                pin_s32_new: *lib
+                    .get::<PinNewFn<i32>>(b"hal_pin_s32_new\0")
+                    .map_err(err)?,
+                pin_float_new: *lib
+                    .get::<PinNewFn<f64>>(b"hal_pin_float_new\0")
+                    .map_err(err)?,
+                _lib: lib,
+            })
+        }
+    }
+}
+
+/// A registered HAL component; `hal_exit` runs when it and every pin made from it are dropped.
+struct Inner {
+    lib: Library,
+    id: c_int,
+    name: String,
+}
+
+impl Drop for Inner {
+    fn drop(&mut self) {
+        // SAFETY: `id` came from a successful `hal_init` and is exited exactly once, here, after
+        // the last pin (each holds an `Arc<Inner>`) is gone, so no slot is used afterwards.
+        unsafe {
+            (self.lib.exit)(self.id);
+        }
+    }
+}
+
+/// A userspace HAL component (`halcmd show comp` lists it under its name).
+#[derive(Clone)]
+pub struct Component {
+    inner: Arc<Inner>,
+}
+
+impl fmt::Debug for Component {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("Component")
+            .field("name", &self.inner.name)
+            .field("id", &self.inner.id)
+            .finish()
+    }
+}
+
+fn c_name(name: &str) -> Result<CString, HalError> {
+    if name.len() > HAL_NAME_LEN {
+        return Err(HalError::BadName(name.to_string()));
+    }
+    CString::new(name).map_err(|_| HalError::BadName(name.to_string()))
+}
+
+impl Component {
+    /// Loads the HAL library and registers a component called `name` (`hal_init`). HAL (a
+    /// running LinuxCNC, or `halrun`) must be up.
+    pub fn new(name: &str) -> Result<Self, HalError> {
+        let lib = Library::open()?;
+        let c = c_name(name)?;
+        // SAFETY: `c` is a NUL-terminated string that outlives the call; hal_init copies it.
+        let id = unsafe { (lib.init)(c.as_ptr()) };
+        if id <= 0 {
+            return Err(HalError::Call {
+                function: "hal_init",
+                name: name.to_string(),
+                code: id,
+            });
+        }
+        Ok(Self {
+            inner: Arc::new(Inner {
+                lib,
+                id,
+                name: name.to_string(),
+            }),
+        })
+    }
+
+    /// The component's name.
+    pub fn name(&self) -> &str {
+        &self.inner.name
+    }
+
+    /// Allocates one pin slot in HAL shared memory and registers `component.suffix` on it.
+    fn pin_slot<T>(
+        &self,
+        suffix: &str,
+        dir: Direction,
+        new: PinNewFn<T>,
+        function: &'static str,
+    ) -> Result<*mut *mut T, HalError> {
+        let full = format!("{}.{}", self.inner.name, suffix);
+        let c = c_name(&full)?;
+        let size = std::mem::size_of::<*mut T>() as c_long;
+        // SAFETY: hal_malloc takes a size and returns memory in HAL shared memory (aligned for
+        // any HAL type) or NULL; it is called from the thread that owns the component, before
+        // hal_ready, as hal.h requires.
+        let slot = unsafe { (self.inner.lib.malloc)(size) } as *mut *mut T;
+        if slot.is_null() {
+            return Err(HalError::OutOfMemory);
+        }
+        // SAFETY: `slot` is a fresh pointer-sized block in HAL shared memory, which is what
+        // hal_pin_*_new requires for `data_ptr_addr`; `c` is NUL-terminated and outlives the
+        // call; the component id is live (held by `self`).
+        let code = unsafe { new(c.as_ptr(), dir.code(), slot, self.inner.id) };
+        if code != 0 {
+            return Err(HalError::Call {
+                function,
+                name: full,
+                code,
+            });
+        }
+        Ok(slot)
+    }
+
+    /// A float pin `component.suffix` (`hal_float_t`, a C double).
+    pub fn float_pin(&self, suffix: &str, dir: Direction) -> Result<FloatPin, HalError> {
+        let slot = self.pin_slot(
+            suffix,
+            dir,
+            self.inner.lib.pin_float_new,
+            "hal_pin_float_new",
+        )?;
+        Ok(FloatPin {
+            slot,
+            _owner: self.inner.clone(),
+        })
+    }
+
+    /// A bit pin `component.suffix` (`hal_bit_t`, a C bool).
+    pub fn bit_pin(&self, suffix: &str, dir: Direction) -> Result<BitPin, HalError> {
+        let slot = self.pin_slot(suffix, dir, self.inner.lib.pin_bit_new, "hal_pin_bit_new")?;
+        Ok(BitPin {
+            slot,
+            _owner: self.inner.clone(),
+        })
+    }
+
+    /// A signed 32-bit pin `component.suffix` (`hal_s32_t`).
+    pub fn s32_pin(&self, suffix: &str, dir: Direction) -> Result<S32Pin, HalError> {
+        let slot = self.pin_slot(suffix, dir, self.inner.lib.pin_s32_new, "hal_pin_s32_new")?;
+        Ok(S32Pin {
+            slot,
+            _owner: self.inner.clone(),
+        })
+    }
+
+    /// Tells HAL that every pin exists (`hal_ready`); `loadusr -W` waits for this.
+    pub fn ready(&self) -> Result<(), HalError> {
+        // SAFETY: the id is live (held by `self`); hal_ready only flags the component.
+        let code = unsafe { (self.inner.lib.ready)(self.inner.id) };
+        if code != 0 {
+            return Err(HalError::Call {
+                function: "hal_ready",
+                name: self.inner.name.clone(),
+                code,
+            });
+        }
+        Ok(())
+    }
+}
+
+/// A float pin.
+pub struct FloatPin {
+    slot: *mut *mut f64,
+    _owner: Arc<Inner>,
+}
+
+/// A bit pin.
+pub struct BitPin {
+    // hal_bit_t is a one-byte C bool; read as a byte so that a stray value is not UB in Rust.
+    slot: *mut *mut u8,
+    _owner: Arc<Inner>,
+}
+
+/// A signed 32-bit pin.
+pub struct S32Pin {
+    slot: *mut *mut i32,
+    _owner: Arc<Inner>,
+}
+
+macro_rules! pin_access {
+    ($pin:ty, $t:ty, $raw:ty, $from:expr, $to:expr) => {
+        impl $pin {
+            /// The pin's current value (the signal's, when it is netted).
+            pub fn get(&self) -> $t {
+                let from: fn($raw) -> $t = $from;
+                // SAFETY: `slot` was registered by hal_pin_*_new, which stored a valid pointer
+                // in it (HAL re-points it atomically on `net`/`unlinkp`, always at a live value
+                // of this type in shared memory); the shared memory stays mapped while `_owner`
+                // keeps the component from hal_exit. Volatile: the realtime side changes both.
+                from(unsafe {
+                    let value: *mut $raw = std::ptr::read_volatile(self.slot.cast_const());
+                    std::ptr::read_volatile(value.cast_const())
+                })
+            }
+
+            /// Sets the pin's value (for output pins; HAL lets the owner write any pin).
+            pub fn set(&self, value: $t) {
+                let to: fn($t) -> $raw = $to;
+                let raw = to(value);
+                // SAFETY: as in `get`: the slot holds a valid, aligned pointer to this pin's
+                // value in mapped HAL shared memory; HAL values are plain words written
+                // without locks by design (one writer per signal).
+                unsafe {
+                    let value: *mut $raw = std::ptr::read_volatile(self.slot.cast_const());
+                    std::ptr::write_volatile(value, raw)
+                }
+            }
+        }
+
+        impl fmt::Debug for $pin {
+            fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+                f.debug_struct(stringify!($pin))
+                    .field("value", &self.get())
+                    .finish()
+            }
+        }
+
+        // SAFETY: a pin is a pointer into process-wide HAL shared memory that any thread may
+        // access (HAL itself is shared with other processes and the realtime thread); the
+        // `Arc<Inner>` it holds is Send + Sync. Moving a pin to the cycle thread is sound.
+        unsafe impl Send for $pin {}
+    };
+}
+
+pin_access!(FloatPin, f64, f64, |v| v, |v| v);
+pin_access!(BitPin, bool, u8, |v| v != 0, u8::from);
+pin_access!(S32Pin, i32, i32, |v| v, |v| v);
+
+/// Runs the calling thread under the `SCHED_FIFO` policy at `priority` (1–99) and locks the
+/// process' memory (`mlockall`), so that the cycle is not delayed by ordinary processes or page
+/// faults. Needs root or `CAP_SYS_NICE`/`CAP_IPC_LOCK`; the error names the call that failed.
+pub fn set_realtime_priority(priority: i32) -> Result<(), String> {
+    let param = libc::sched_param {
+        sched_priority: priority,
+    };
+    // SAFETY: `param` is an initialised sched_param on the stack that outlives the call;
+    // pid 0 means the calling thread; the call changes nothing but its scheduling.
+    let rc = unsafe { libc::sched_setscheduler(0, libc::SCHED_FIFO, &param) };
+    if rc != 0 {
+        return Err(format!(
+            "sched_setscheduler(SCHED_FIFO, {priority}): {}",
+            std::io::Error::last_os_error()
+        ));
+    }
+    // SAFETY: mlockall takes flags only and affects the process' paging, not memory contents.
+    let rc = unsafe { libc::mlockall(libc::MCL_CURRENT | libc::MCL_FUTURE) };
+    if rc != 0 {
+        return Err(format!("mlockall: {}", std::io::Error::last_os_error()));
+    }
+    Ok(())
+}

@@ -1,0 +1,182 @@
+//! The pins of the `truepos` HAL component, named the way LinuxCNC names its own
+//! (`axis.x.eoffset-counts` → `truepos.axis.x.eoffset-counts`).
+//!
+//! | pin | type | dir | meaning |
+//! |---|---|---|---|
+//! | `truepos.enable` | bit | in | compensate (false: ramp the offsets to zero) |
+//! | `truepos.model-select` | s32 | in | model to use, index of `--model` (0-based) |
+//! | `truepos.axis.<a>.pos` | float | in | nominal axis position, mm (net `axis.<a>.pos-cmd`) |
+//! | `truepos.temp.<id>` | float | in | temperature channel of the machine file, °C |
+//! | `truepos.operating.<id>` | float | in | operating channel (spindle speed, …) |
+//! | `truepos.axis.<a>.offset-um` | float | out | compensation sent, µm (−error) |
+//! | `truepos.axis.<a>.eoffset-counts` | s32 | out | net to `axis.<a>.eoffset-counts` |
+//! | `truepos.axis.<a>.eoffset-scale` | float | out | net to `axis.<a>.eoffset-scale` |
+//! | `truepos.axis.<a>.eoffset-enable` | bit | out | net to `axis.<a>.eoffset-enable` |
+//! | `truepos.axis.<a>.eoffset-request` | float | in | net from `axis.<a>.eoffset-request` |
+//! | `truepos.motion-enabled` | bit | in | net from `motion.motion-enabled` |
+//! | `truepos.all-homed` | bit | in | net from `motion.is-all-homed` |
+//! | `truepos.status` | s32 | out | 0 disabled, 1 active, 2 holding, 3 no model |
+//! | `truepos.clamped` | bit | out | the safety envelope limited an axis this cycle |
+//! | `truepos.cycle-us` | float | out | duration of the last cycle's work, µs |
+//! | `truepos.cycles` | s32 | out | cycles run (wraps) |
+//!
+//! Axis names are lower-cased (`X` → `x`, as in LinuxCNC); channel ids are used as written.
+
+use truepos_model::Machine;
+use truepos_runtime::CompensationState;
+
+use crate::ffi::{BitPin, Component, Direction, FloatPin, HalError, S32Pin};
+
+/// The pin-name suffix of an axis (`X` → `axis.x`).
+pub fn axis_prefix(name: &str) -> String {
+    format!("axis.{}", name.to_lowercase())
+}
+
+/// The pin-name suffix of a temperature channel (`ambient` → `temp.ambient`).
+pub fn temperature_pin(id: &str) -> String {
+    format!("temp.{id}")
+}
+
+/// The pin-name suffix of an operating channel (`spindle_rpm` → `operating.spindle_rpm`).
+pub fn operating_pin(id: &str) -> String {
+    format!("operating.{id}")
+}
+
+/// The value of `truepos.status` for a compensation state.
+pub fn status_code(state: CompensationState) -> i32 {
+    match state {
+        CompensationState::Disabled => 0,
+        CompensationState::Active => 1,
+        CompensationState::Holding => 2,
+        CompensationState::NoModel => 3,
+    }
+}
+
+/// The pins by which the integrator controls the service.
+#[derive(Debug)]
+pub struct ControlPins {
+    /// `truepos.enable`.
+    pub enable: BitPin,
+    /// `truepos.model-select`.
+    pub model_select: S32Pin,
+}
+
+/// The input pins of the cycle's data.
+#[derive(Debug)]
+pub struct InputPins {
+    /// `truepos.axis.<a>.pos`, machine axis order.
+    pub positions: Vec<FloatPin>,
+    /// `truepos.temp.<id>`, machine temperature order.
+    pub temperatures: Vec<FloatPin>,
+    /// `truepos.operating.<id>`, machine operating order.
+    pub operating: Vec<FloatPin>,
+}
+
+/// The output pins of one axis.
+#[derive(Debug)]
+pub struct AxisOutputPins {
+    /// `truepos.axis.<a>.offset-um`.
+    pub offset_um: FloatPin,
+    /// `truepos.axis.<a>.eoffset-counts`.
+    pub counts: S32Pin,
+    /// `truepos.axis.<a>.eoffset-scale`.
+    pub scale: FloatPin,
+    /// `truepos.axis.<a>.eoffset-enable`.
+    pub enable: BitPin,
+    /// `truepos.axis.<a>.eoffset-request` (input: what LinuxCNC has requested so far, mm).
+    pub request: FloatPin,
+}
+
+/// The output pins.
+#[derive(Debug)]
+pub struct OutputPins {
+    /// Per machine axis.
+    pub axes: Vec<AxisOutputPins>,
+    /// `truepos.status`.
+    pub status: S32Pin,
+    /// `truepos.clamped`.
+    pub clamped: BitPin,
+    /// `truepos.cycle-us`.
+    pub cycle_us: FloatPin,
+    /// `truepos.cycles`.
+    pub cycles: S32Pin,
+    /// `truepos.motion-enabled` (input).
+    pub motion_enabled: BitPin,
+    /// `truepos.all-homed` (input).
+    pub all_homed: BitPin,
+}
+
+/// Every pin of the component.
+#[derive(Debug)]
+pub struct Pins {
+    /// Enable and model selection.
+    pub control: ControlPins,
+    /// Positions, temperatures, operating values.
+    pub inputs: InputPins,
+    /// Offsets and status.
+    pub outputs: OutputPins,
+}
+
+/// Creates every pin of `machine` on `component` (before [`Component::ready`]).
+pub fn create(component: &Component, machine: &Machine) -> Result<Pins, HalError> {
+    let mut positions = Vec::new();
+    let mut axes = Vec::new();
+    for axis in &machine.axes {
+        let p = axis_prefix(&axis.name);
+        positions.push(component.float_pin(&format!("{p}.pos"), Direction::In)?);
+        axes.push(AxisOutputPins {
+            offset_um: component.float_pin(&format!("{p}.offset-um"), Direction::Out)?,
+            counts: component.s32_pin(&format!("{p}.eoffset-counts"), Direction::Out)?,
+            scale: component.float_pin(&format!("{p}.eoffset-scale"), Direction::Out)?,
+            enable: component.bit_pin(&format!("{p}.eoffset-enable"), Direction::Out)?,
+            request: component.float_pin(&format!("{p}.eoffset-request"), Direction::In)?,
+        });
+    }
+    let temperatures = machine
+        .temperatures
+        .iter()
+        .map(|t| component.float_pin(&temperature_pin(&t.id), Direction::In))
+        .collect::<Result<Vec<_>, _>>()?;
+    let operating = machine
+        .operating
+        .iter()
+        .map(|o| component.float_pin(&operating_pin(&o.id), Direction::In))
+        .collect::<Result<Vec<_>, _>>()?;
+    let control = ControlPins {
+        enable: component.bit_pin("enable", Direction::In)?,
+        model_select: component.s32_pin("model-select", Direction::In)?,
+    };
+    let inputs = InputPins {
+        positions,
+        temperatures,
+        operating,
+    };
+    let outputs = OutputPins {
+        axes,
+        status: component.s32_pin("status", Direction::Out)?,
+        clamped: component.bit_pin("clamped", Direction::Out)?,
+        cycle_us: component.float_pin("cycle-us", Direction::Out)?,
+        cycles: component.s32_pin("cycles", Direction::Out)?,
+        motion_enabled: component.bit_pin("motion-enabled", Direction::In)?,
+        all_homed: component.bit_pin("all-homed", Direction::In)?,
+    };
+    Ok(Pins {
+        control,
+        inputs,
+        outputs,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_follow_linuxcnc() {
+        assert_eq!(axis_prefix("X"), "axis.x");
+        assert_eq!(temperature_pin("x_slide_top"), "temp.x_slide_top");
+        assert_eq!(operating_pin("spindle_rpm"), "operating.spindle_rpm");
+        assert_eq!(status_code(CompensationState::Active), 1);
+        assert_eq!(status_code(CompensationState::NoModel), 3);
+    }
+}

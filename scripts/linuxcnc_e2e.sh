@@ -1,0 +1,74 @@
+#!/usr/bin/env bash
+# End-to-end test of truepos on a real LinuxCNC 2.9 (simulated machine, no hardware):
+# runs tests/linuxcnc/vmc3.ini headless, whose display is tests/linuxcnc/e2e.py, with the truepos
+# HAL component compensating through external offsets; then `truepos-hal check` compares what
+# LinuxCNC applied with the model and the envelope. Exits non-zero on any failure; never skips.
+# Usage: bash scripts/linuxcnc_e2e.sh [output dir]   (default: target/linuxcnc-e2e)
+set -euo pipefail
+REPO="$(cd "$(dirname "$0")/.." && pwd)"
+cd "$REPO"
+OUT="${1:-$REPO/target/linuxcnc-e2e}"
+
+bash scripts/install_linuxcnc.sh
+echo "== build truepos-hal (release)"
+cargo build --release -p truepos-hal
+BIN="$(cargo metadata --format-version 1 --no-deps | /usr/bin/python3 -c 'import json,sys; print(json.load(sys.stdin)["target_directory"])')/release"
+# Debian's python modules live in the system interpreter; truepos-hal must be on PATH for loadusr.
+export PATH="$BIN:/usr/bin:/bin:/usr/sbin:/sbin:$PATH"
+
+rm -rf "$OUT" && mkdir -p "$OUT"
+chmod 0777 "$OUT"
+for f in vmc3.ini vmc3.hal; do
+    sed -e "s|@REPO@|$REPO|g" -e "s|@OUT@|$OUT|g" "tests/linuxcnc/$f.in" > "$OUT/$f"
+done
+cp tests/linuxcnc/tool.tbl "$OUT/"
+: > "$OUT/sim.var"
+
+# LinuxCNC's rtapi_app refuses to run realtime as root unless RTAPI_UID names another user, and
+# puts its socket in $HOME, which that user must be able to write.
+if [ "$(id -u)" -eq 0 ]; then
+    if ! id truepos-ci >/dev/null 2>&1; then
+        useradd --system --no-create-home --shell /usr/sbin/nologin truepos-ci
+    fi
+    export RTAPI_UID="$(id -u truepos-ci)"
+    export HOME="$OUT/home"
+    mkdir -p "$HOME" && chown truepos-ci "$HOME"
+fi
+
+echo "== run LinuxCNC headless ($OUT)"
+status=0
+# No terminal in CI: `script` gives the launcher one, so its output lands in linuxcnc.log.
+timeout 300 script -qec "linuxcnc $OUT/vmc3.ini" /dev/null > "$OUT/linuxcnc.log" 2>&1 || status=$?
+# Should the run hang, end what it left behind: only processes of this very configuration.
+for pid in $(pgrep -f "$OUT/vmc3.ini" || true); do kill "$pid" 2>/dev/null || true; done
+halrun -U >/dev/null 2>&1 || true
+grep -E "^e2e:|truepos-hal" "$OUT/linuxcnc.log" || true
+if [ "$status" -ne 0 ] || [ "$(cat "$OUT/e2e_result.txt" 2>/dev/null)" != "PASS" ]; then
+    echo "FAIL: LinuxCNC run (exit $status, result '$(cat "$OUT/e2e_result.txt" 2>/dev/null)')"
+    tail -40 "$OUT/linuxcnc.log"
+    exit 1
+fi
+
+echo "== compare what LinuxCNC applied with the models"
+fail=0
+truepos-hal check --machine examples/vmc3/machine.toml --model examples/vmc3/model.toml \
+    --model tests/linuxcnc/model_b.toml --motion "$OUT/motion.txt" \
+    --temperatures "$OUT/temperatures.txt" || fail=1
+truepos-hal check --json --machine examples/vmc3/machine.toml --model examples/vmc3/model.toml \
+    --model tests/linuxcnc/model_b.toml --motion "$OUT/motion.txt" \
+    --temperatures "$OUT/temperatures.txt" > "$OUT/check.json" || true
+
+echo "== events logged"
+cat "$OUT/events.jsonl"
+grep -q '"kind":"fault".*x_slide_bottom\|"channel":"x_slide_bottom".*"kind":"fault"' "$OUT/events.jsonl" \
+    || { echo "FAIL: no fault event for x_slide_bottom"; fail=1; }
+grep -q '"kind":"recovered"' "$OUT/events.jsonl" || { echo "FAIL: no recovery event"; fail=1; }
+grep -q '"kind":"model-switch"' "$OUT/events.jsonl" || { echo "FAIL: no model-switch event"; fail=1; }
+
+echo "== component timing"
+cat "$OUT/stats.json" || { echo "FAIL: truepos-hal wrote no stats (did it get SIGTERM?)"; fail=1; }
+if [ "$fail" -ne 0 ]; then
+    echo "linuxcnc_e2e: FAIL"
+    exit 1
+fi
+echo "linuxcnc_e2e: PASS"

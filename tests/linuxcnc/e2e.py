@@ -1,0 +1,171 @@
+#!/usr/bin/python3
+"""truepos end-to-end test, run by LinuxCNC as the [DISPLAY] of vmc3.ini (no GUI).
+
+Machine on, home, then run e2e.ngc (X, Y, Z across their travel at 10 m/min) while a twin
+component plays examples/vmc3/run.csv (time-compressed) into the truepos.temp.* pins. Mid-program
+it injects a sensor fault (x_slide_bottom reads 200 degC, outside its valid range, for 4 s) and a
+model switch (truepos.model-select 0 -> 1). Two halsampler processes record every servo cycle
+into OUT/motion.txt and OUT/temperatures.txt for `truepos-hal check`. Exits non-zero on any
+failure; LinuxCNC then shuts down (and sends SIGTERM to truepos-hal).
+"""
+import configparser
+import csv
+import os
+import subprocess
+import sys
+import threading
+import time
+
+import hal
+import linuxcnc
+
+
+def log(msg):
+    print(f"e2e: {msg}", flush=True)
+
+
+ini_path = sys.argv[sys.argv.index("-ini") + 1]
+ini = configparser.ConfigParser(strict=False, interpolation=None)
+ini.read(ini_path)
+cfg = ini["TRUEPOS"]
+out = cfg["OUT"]
+
+# ---- the twin's temperatures: run.csv rows between FROM_S and TO_S, played over PLAY_S ----
+rows = list(csv.DictReader(open(cfg["RUN_CSV"])))
+header = list(rows[0].keys())
+# Temperature columns sit between the positions (*_mm) and the operating channels.
+temp_ids = [h for h in header[1:] if not h.endswith("_mm")][:16]
+FROM_S, TO_S, PLAY_S = 1800.0, 9000.0, 75.0
+times = [float(r["time_s"]) for r in rows]
+
+
+def temperatures_at(run_s):
+    for i in range(len(times) - 1):
+        if times[i] <= run_s <= times[i + 1]:
+            w = (run_s - times[i]) / (times[i + 1] - times[i])
+            return [float(rows[i][t]) * (1 - w) + float(rows[i + 1][t]) * w for t in temp_ids]
+    r = rows[-1] if run_s > times[-1] else rows[0]
+    return [float(r[t]) for t in temp_ids]
+
+
+twin = hal.component("twin")
+for t in temp_ids:
+    twin.newpin(t, hal.HAL_FLOAT, hal.HAL_OUT)
+twin.ready()
+for k, t in enumerate(temp_ids):
+    sig = f"tp-t-{t}"
+    hal.new_sig(sig, hal.HAL_FLOAT)
+    hal.connect(f"twin.{t}", sig)
+    hal.connect(f"truepos.temp.{t}", sig)
+    hal.connect(f"sampler.1.pin.{k}", sig)
+start_temps = temperatures_at(FROM_S)
+for t, v in zip(temp_ids, start_temps):
+    twin[t] = v
+
+fault = {"on": False}
+play = {"t0": None, "stop": False}
+
+
+def feeder():
+    while not play["stop"]:
+        t0 = play["t0"]
+        if t0 is not None:
+            run_s = FROM_S + (time.time() - t0) / PLAY_S * (TO_S - FROM_S)
+            for t, v in zip(temp_ids, temperatures_at(min(run_s, TO_S))):
+                twin[t] = 200.0 if (fault["on"] and t == "x_slide_bottom") else v
+        time.sleep(0.005)
+
+
+threading.Thread(target=feeder, daemon=True).start()
+
+s = linuxcnc.stat()
+c = linuxcnc.command()
+
+
+def wait(what, cond, timeout=30.0):
+    end = time.time() + timeout
+    while time.time() < end:
+        s.poll()
+        if cond():
+            return
+        time.sleep(0.02)
+    raise SystemExit(f"e2e: timeout waiting for {what}")
+
+
+def halcmd(*args):
+    subprocess.run(["halcmd", *args], check=True)
+
+
+failed = False
+samplers = []
+try:
+    c.state(linuxcnc.STATE_ESTOP_RESET)
+    c.state(linuxcnc.STATE_ON)
+    wait("machine on", lambda: s.task_state == linuxcnc.STATE_ON)
+    c.home(-1)
+    wait("homing", lambda: all(s.homed[:3]))
+    log(f"homed at {s.joint_actual_position[:3]}")
+    wait("truepos active", lambda: hal.get_value("truepos.status") == 1, 10.0)
+
+    for n, name in enumerate(["motion", "temperatures"]):
+        f = open(os.path.join(out, f"{name}.txt"), "w")
+        samplers.append((subprocess.Popen(["halsampler", "-t", "-c", str(n)], stdout=f), f))
+    time.sleep(0.5)
+    halcmd("sets", "sample-enable", "1")
+    play["t0"] = time.time()
+    time.sleep(4.0)  # settle at the start position with warm temperatures
+
+    c.mode(linuxcnc.MODE_AUTO)
+    c.wait_complete()
+    c.program_open(cfg["PROGRAM"])
+    c.auto(linuxcnc.AUTO_RUN, 0)
+    started = time.time()
+    log("program running")
+
+    events = [
+        (18.0, "fault on", lambda: fault.update(on=True)),
+        (22.0, "fault off", lambda: fault.update(on=False)),
+        (40.0, "switch to model 1", lambda: halcmd("sets", "tp-select", "1")),
+    ]
+    wait("program start", lambda: s.interp_state != linuxcnc.INTERP_IDLE, 5.0)
+    while True:
+        s.poll()
+        if s.interp_state == linuxcnc.INTERP_IDLE:
+            break
+        if s.task_state != linuxcnc.STATE_ON:
+            raise SystemExit("e2e: machine went off during the program")
+        now = time.time() - started
+        while events and now >= events[0][0]:
+            at, what, act = events.pop(0)
+            act()
+            log(f"{what} at {now:.1f} s")
+        if now > 180:
+            raise SystemExit("e2e: program did not finish in 180 s")
+        time.sleep(0.01)
+    log(f"program finished after {time.time() - started:.1f} s; events left: {len(events)}")
+    if events:
+        failed = True
+    time.sleep(2.0)
+except SystemExit as e:
+    print(e, flush=True)
+    failed = True
+except Exception as e:  # report, then let LinuxCNC shut down
+    log(f"error: {e!r}")
+    failed = True
+finally:
+    try:
+        halcmd("sets", "sample-enable", "0")
+    except Exception:
+        pass
+    time.sleep(0.5)
+    for p, f in samplers:
+        p.terminate()
+        p.wait(5)
+        f.close()
+    play["stop"] = True
+    with open(os.path.join(out, "e2e_result.txt"), "w") as r:
+        r.write("FAIL\n" if failed else "PASS\n")
+    log("FAIL" if failed else "done")
+    c.state(linuxcnc.STATE_OFF)
+    time.sleep(0.5)
+sys.exit(1 if failed else 0)
