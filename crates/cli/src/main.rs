@@ -6,6 +6,7 @@ use std::process::ExitCode;
 use clap::{Parser, Subcommand};
 
 mod eval;
+mod fit;
 mod kin;
 mod lag;
 mod report;
@@ -25,6 +26,8 @@ struct Cli {
 enum Command {
     /// Evaluate a compensation model on a recorded run (CSV of cycles) and write per-axis offsets.
     Eval(eval::Args),
+    /// Learn a dynamic compensation model from recorded runs (CSV/XLSX) and validate it honestly.
+    Fit(fit::Args),
     /// Seed B's kinematics table: forward/inverse transforms with error tables, G-code rewrite.
     Kin(kin::Args),
     /// Seed A's timing argument: worst-case error of position-dependent terms updated every T ms.
@@ -60,6 +63,7 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Eval(args) => eval::run(args),
+        Command::Fit(args) => fit::run(args),
         Command::Kin(args) => kin::run(args),
         Command::Lag(args) => lag::run(args),
         Command::Report(args) => report::run(args),

@@ -29,5 +29,6 @@ pub mod error;
 pub mod kinematics_file;
 pub mod machine_file;
 pub mod model_file;
+pub mod run;
 
 pub use error::InputError;

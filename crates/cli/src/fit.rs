@@ -1,0 +1,298 @@
+//! `truepos fit`: learn a dynamic compensation model from recorded runs and validate it honestly.
+
+use std::io::IsTerminal;
+use std::path::PathBuf;
+use std::time::Instant;
+
+use truepos_fit::dataset::{Dataset, InputKind, Run};
+use truepos_fit::features::{candidates, Family};
+use truepos_fit::model_file::{DynamicModelFile, InputEntry};
+use truepos_fit::train::Settings;
+use truepos_fit::validate::{validate, Split};
+use truepos_io::run::{glob_match, read, Table};
+
+/// Arguments of `truepos fit`.
+#[derive(clap::Args)]
+pub struct Args {
+    /// A run: CSV, or a workbook (.xlsx; every sheet is a run). Repeat for several runs, which are
+    /// fitted together and validated apart.
+    #[arg(long = "run", required = true)]
+    runs: Vec<PathBuf>,
+    /// Only this sheet of each workbook.
+    #[arg(long)]
+    sheet: Option<String>,
+    /// Target columns (measured errors in µm): names or globs, comma-separated.
+    #[arg(long, default_value = "*_um")]
+    target: String,
+    /// Input columns (what the control knows): names or globs, comma-separated.
+    #[arg(long)]
+    inputs: String,
+    /// Which inputs are operating state (filtered as is, and squared) rather than temperatures.
+    #[arg(long, default_value = "*rpm*,*speed*,*feed*,*power*,*torque*")]
+    operating: String,
+    /// The time column, in seconds.
+    #[arg(long, default_value = "time_s")]
+    time: String,
+    /// Validation: chrono:<train fraction>, runs (leave one run out) or kfold:<k>.
+    #[arg(long, default_value = "chrono:0.6")]
+    split: String,
+    /// Fix the model family (static, operating, dynamic, dynamic-rates; comma-separated to
+    /// choose among several). Default: chosen automatically.
+    #[arg(long)]
+    family: Option<String>,
+    /// Fix the ridge parameter(s), comma-separated. Default: chosen automatically.
+    #[arg(long)]
+    ridge: Option<String>,
+    /// Use at most this many temperature sensors (correlation ranking + greedy forward selection).
+    #[arg(long)]
+    max_sensors: Option<usize>,
+    /// Blocks of the inner cross-validation on the training part.
+    #[arg(long, default_value_t = 8)]
+    folds: usize,
+    /// Machine name written into the model file.
+    #[arg(long, default_value = "unnamed")]
+    machine: String,
+    /// Write the model fitted on the (last) training part here (JSON).
+    #[arg(long)]
+    model: Option<PathBuf>,
+    /// Write measured and predicted values of every run here (CSV), for reports.
+    #[arg(long)]
+    predictions: Option<PathBuf>,
+    /// Print the figures as JSON.
+    #[arg(long)]
+    json: bool,
+}
+
+fn patterns(s: &str) -> Vec<&str> {
+    s.split(',')
+        .map(str::trim)
+        .filter(|p| !p.is_empty())
+        .collect()
+}
+
+fn load(args: &Args) -> Result<Dataset, String> {
+    let mut tables: Vec<Table> = Vec::new();
+    for path in &args.runs {
+        tables.extend(read(path, args.sheet.as_deref()).map_err(|e| e.to_string())?);
+    }
+    let first = &tables[0];
+    let input_cols = first
+        .select(&patterns(&args.inputs))
+        .map_err(|e| e.to_string())?;
+    let target_cols = first
+        .select(&patterns(&args.target))
+        .map_err(|e| e.to_string())?;
+    let input_names: Vec<String> = input_cols
+        .iter()
+        .map(|&c| first.columns[c].clone())
+        .collect();
+    let target_names: Vec<String> = target_cols
+        .iter()
+        .map(|&c| first.columns[c].clone())
+        .collect();
+    if let Some(both) = input_names.iter().find(|n| target_names.contains(n)) {
+        return Err(format!(
+            "column `{both}` is both an input and a target: a model must never read the measured error"
+        ));
+    }
+    let ops = patterns(&args.operating);
+    let input_kinds = input_names
+        .iter()
+        .map(|n| {
+            if ops.iter().any(|p| glob_match(p, n)) {
+                InputKind::Operating
+            } else {
+                InputKind::Temperature
+            }
+        })
+        .collect();
+    let mut runs = Vec::new();
+    for t in &tables {
+        let col = |name: &String| t.select(&[name.as_str()]).map(|v| v[0]);
+        let numbers = |names: &[String]| -> Result<Vec<Vec<f64>>, String> {
+            names
+                .iter()
+                .map(|n| col(n).and_then(|c| t.numbers(c)).map_err(|e| e.to_string()))
+                .collect()
+        };
+        let time_col = col(&args.time).map_err(|e| e.to_string())?;
+        runs.push(Run {
+            name: t.name(),
+            time_s: t.time(time_col).map_err(|e| e.to_string())?,
+            inputs: numbers(&input_names)?,
+            targets: numbers(&target_names)?,
+        });
+    }
+    let ds = Dataset {
+        input_names,
+        input_kinds,
+        target_names,
+        runs,
+    };
+    ds.check().map_err(|e| e.to_string())?;
+    Ok(ds)
+}
+
+fn settings(args: &Args) -> Result<Settings, String> {
+    let mut s = Settings {
+        folds: args.folds,
+        max_sensors: args.max_sensors,
+        ..Settings::default()
+    };
+    if let Some(f) = &args.family {
+        s.families = patterns(f)
+            .into_iter()
+            .map(|name| {
+                Family::parse(name).ok_or_else(|| {
+                    format!(
+                        "--family `{name}`: expected static, operating, dynamic or dynamic-rates"
+                    )
+                })
+            })
+            .collect::<Result<_, _>>()?;
+    }
+    if let Some(r) = &args.ridge {
+        s.ridges = patterns(r)
+            .into_iter()
+            .map(|v| match v.parse::<f64>() {
+                Ok(x) if x >= 0.0 && x.is_finite() => Ok(x),
+                _ => Err(format!("--ridge `{v}`: expected a number ≥ 0")),
+            })
+            .collect::<Result<_, _>>()?;
+    }
+    Ok(s)
+}
+
+/// A progress bar on stderr for fits that take longer than a second.
+struct Progress {
+    start: Instant,
+    shown: bool,
+}
+
+impl Progress {
+    fn update(&mut self, done: usize, total: usize) {
+        let secs = self.start.elapsed().as_secs_f64();
+        if secs < 1.0 || !std::io::stderr().is_terminal() && done < total {
+            return;
+        }
+        let width = 30;
+        let filled = (done * width).checked_div(total).unwrap_or(width).min(width);
+        eprint!(
+            "\r[{}{}] fold {done}/{total}  {secs:.1} s",
+            "#".repeat(filled),
+            "-".repeat(width - filled)
+        );
+        self.shown = true;
+        if done == total {
+            eprintln!();
+        }
+    }
+}
+
+/// Runs `truepos fit`.
+pub fn run(args: Args) -> Result<(), String> {
+    let ds = load(&args)?;
+    let split = Split::parse(&args.split)?;
+    let settings = settings(&args)?;
+    let cand = candidates(&ds, &settings.taus).map_err(|e| e.to_string())?;
+    let mut progress = Progress {
+        start: Instant::now(),
+        shown: false,
+    };
+    let (validation, trained, pred) = validate(&ds, &cand, split, &settings, &mut |d, t| {
+        progress.update(d, t)
+    })?;
+    let _ = progress.shown;
+    let report = serde_json::json!({
+        "runs": ds.runs.iter().map(|r| serde_json::json!({"name": r.name, "samples": r.len()})).collect::<Vec<_>>(),
+        "inputs": ds.input_names,
+        "targets": ds.target_names,
+        "validation": validation,
+    });
+    if let Some(path) = &args.model {
+        let inputs = trained
+            .inputs
+            .iter()
+            .map(|&i| InputEntry {
+                name: ds.input_names[i].clone(),
+                kind: ds.input_kinds[i],
+            })
+            .collect();
+        let file = DynamicModelFile::new(
+            &args.machine,
+            &trained.model,
+            inputs,
+            &ds.target_names,
+            serde_json::json!({
+                "created_by": format!("truepos fit {}", env!("CARGO_PKG_VERSION")),
+                "runs": ds.runs.iter().map(|r| r.name.clone()).collect::<Vec<_>>(),
+                "fitted_on": "the training part of the (last) validation fold",
+                "settings": settings,
+                "choices": trained.choices,
+            }),
+            serde_json::to_value(&validation).unwrap_or_default(),
+        );
+        std::fs::write(path, file.to_json() + "\n")
+            .map_err(|e| format!("{}: cannot write: {e}", path.display()))?;
+    }
+    if let Some(path) = &args.predictions {
+        write_predictions(path, &ds, &pred)?;
+    }
+    if args.json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?
+        );
+        return Ok(());
+    }
+    println!("validation: {}", validation.protocol_text);
+    println!(
+        "{:<12} {:>10} {:>10} {:>10} {:>10} {:>9}  chosen (inner CV on the training part)",
+        "target", "uncomp µm", "RMSE µm", "max|e| µm", "p-p µm", "reduction"
+    );
+    for (m, c) in validation.metrics.iter().zip(&trained.choices) {
+        println!(
+            "{:<12} {:>10.2} {:>10.2} {:>10.2} {:>10.2} {:>8.1}%  {} λ={:e} (CV {:.2} µm)",
+            m.target,
+            m.uncompensated_rmse_um,
+            m.rmse_um,
+            m.max_abs_um,
+            m.peak_to_peak_um,
+            m.rmse_reduction_percent,
+            c.family.name(),
+            c.ridge,
+            c.cv_rmse_um
+        );
+    }
+    let sensors = validation.sensors.last().cloned().unwrap_or_default();
+    println!("temperature sensors used: {}", sensors.join(", "));
+    for w in &validation.warnings {
+        eprintln!("warning: {w}");
+    }
+    Ok(())
+}
+
+fn write_predictions(
+    path: &std::path::Path,
+    ds: &Dataset,
+    pred: &truepos_fit::validate::Predictions,
+) -> Result<(), String> {
+    let mut out = String::from("run,time_s");
+    for t in &ds.target_names {
+        out += &format!(",{t},{t}_predicted");
+    }
+    out.push('\n');
+    for (r, run) in ds.runs.iter().enumerate() {
+        let rel: Vec<Vec<f64>> = (0..ds.target_names.len())
+            .map(|k| run.relative_target(k))
+            .collect();
+        for i in 0..run.len() {
+            out += &format!("{r},{}", run.time_s[i]);
+            for k in 0..ds.target_names.len() {
+                out += &format!(",{},{}", rel[k][i], pred[r][k][i]);
+            }
+            out.push('\n');
+        }
+    }
+    std::fs::write(path, out).map_err(|e| format!("{}: cannot write: {e}", path.display()))
+}

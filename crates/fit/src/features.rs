@@ -1,0 +1,219 @@
+//! Regressors from a run: the candidate features of every input, computed by the real-time
+//! crate's own [`FeatureBank`] so that the features fitted offline are exactly those the control
+//! computes online.
+
+use faer::Mat;
+use truepos_model::{Feature, FeatureBank, FeatureKind, FeatureSpec};
+
+use crate::dataset::{Dataset, InputKind};
+
+/// Time constants of the candidate features.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct TimeConstants {
+    /// Low-pass filters of temperature rises (s).
+    pub temperature_s: Vec<f64>,
+    /// Filtered rates of change of temperature (s).
+    pub rate_s: Vec<f64>,
+    /// Low-pass filters of operating state and its square (s).
+    pub operating_s: Vec<f64>,
+}
+
+impl Default for TimeConstants {
+    /// Spindle heat reaches a structure over minutes to hours; thermal time constants of machine
+    /// tool structures are typically 0.5 … 4 h. The grid spans 5 min … 4 h, one point per factor
+    /// of two to three, so that a sum of first-order lags can approximate the real response.
+    fn default() -> Self {
+        Self {
+            temperature_s: vec![900.0, 3600.0],
+            rate_s: vec![1800.0],
+            operating_s: vec![300.0, 900.0, 1800.0, 3600.0, 7200.0, 14400.0],
+        }
+    }
+}
+
+/// Every candidate feature of a dataset, per run.
+#[derive(Debug, Clone)]
+pub struct Candidates {
+    /// The spec of the bank (temperatures first, then operating inputs).
+    pub spec: FeatureSpec,
+    /// Dataset input index of each bank input.
+    pub bank_inputs: Vec<usize>,
+    /// The features (their `input` indexes the bank inputs).
+    pub features: Vec<Feature>,
+    /// Feature names.
+    pub names: Vec<String>,
+    /// Per run: samples × features.
+    pub runs: Vec<Mat<f64>>,
+}
+
+/// The bank spec and input order for a subset of a dataset's inputs.
+pub fn bank_for(
+    dataset: &Dataset,
+    inputs: &[usize],
+    taus: &TimeConstants,
+) -> (FeatureSpec, Vec<usize>) {
+    let temps: Vec<usize> = inputs
+        .iter()
+        .copied()
+        .filter(|&i| dataset.input_kinds[i] == InputKind::Temperature)
+        .collect();
+    let ops: Vec<usize> = inputs
+        .iter()
+        .copied()
+        .filter(|&i| dataset.input_kinds[i] == InputKind::Operating)
+        .collect();
+    let spec = FeatureSpec {
+        temperatures: temps.len(),
+        operating: ops.len(),
+        temperature_rise: true,
+        temperature_taus_s: taus.temperature_s.clone(),
+        rate_taus_s: taus.rate_s.clone(),
+        operating_taus_s: taus.operating_s.clone(),
+        operating_square: true,
+    };
+    (spec, temps.into_iter().chain(ops).collect())
+}
+
+/// Runs the bank over every run of the dataset. Time steps come from the time column.
+pub fn candidates(
+    dataset: &Dataset,
+    taus: &TimeConstants,
+) -> Result<Candidates, truepos_model::DynamicError> {
+    let all: Vec<usize> = (0..dataset.input_names.len()).collect();
+    let (spec, bank_inputs) = bank_for(dataset, &all, taus);
+    let mut bank = FeatureBank::new(spec.clone())?;
+    let features = bank.features().to_vec();
+    let names = features
+        .iter()
+        .map(|f| f.name(&dataset.input_names[bank_inputs[f.input]]))
+        .collect();
+    let mut runs = Vec::with_capacity(dataset.runs.len());
+    let mut row = vec![0.0; bank_inputs.len()];
+    for run in &dataset.runs {
+        bank.reset();
+        let mut m = Mat::<f64>::zeros(run.len(), features.len());
+        for i in 0..run.len() {
+            for (slot, &d) in row.iter_mut().zip(&bank_inputs) {
+                *slot = run.inputs[d][i];
+            }
+            let dt = if i == 0 {
+                0.0
+            } else {
+                run.time_s[i] - run.time_s[i - 1]
+            };
+            let values = bank.step(dt, &row)?;
+            for (j, v) in values.iter().enumerate() {
+                m[(i, j)] = *v;
+            }
+        }
+        runs.push(m);
+    }
+    Ok(Candidates {
+        spec,
+        bank_inputs,
+        features,
+        names,
+        runs,
+    })
+}
+
+/// A family of models: which kinds of features it may use.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Family {
+    /// Temperature rises only: the static regression of seed C and the prior art of seed A.
+    Static,
+    /// Temperature rises and filtered operating state (spindle speed, its square).
+    Operating,
+    /// Adds low-pass filtered temperature rises: structures lag their sensors.
+    Dynamic,
+    /// Adds filtered rates of change of temperature.
+    DynamicRates,
+}
+
+impl Family {
+    /// Every family, simplest first.
+    pub const ALL: [Family; 4] = [
+        Family::Static,
+        Family::Operating,
+        Family::Dynamic,
+        Family::DynamicRates,
+    ];
+
+    /// The name used on the command line and in files.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Static => "static",
+            Self::Operating => "operating",
+            Self::Dynamic => "dynamic",
+            Self::DynamicRates => "dynamic-rates",
+        }
+    }
+
+    /// Parses [`Family::name`].
+    pub fn parse(s: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|f| f.name() == s)
+    }
+
+    /// Whether a feature of this kind belongs to the family.
+    pub fn includes(self, kind: FeatureKind) -> bool {
+        match kind {
+            FeatureKind::Rise => true,
+            FeatureKind::Operating { .. } | FeatureKind::OperatingSquared { .. } => {
+                self != Self::Static
+            }
+            FeatureKind::LowPass { .. } => matches!(self, Self::Dynamic | Self::DynamicRates),
+            FeatureKind::Rate { .. } => self == Self::DynamicRates,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::dataset::Run;
+
+    #[test]
+    fn candidates_follow_the_bank_and_time_steps() {
+        // One temperature rising 1 K at t = 10 s, one spindle at 1000 rpm; τ = 10 s.
+        // At t = 20 s (dt = 10): LPF = 1 − e^−1 = 0.632120559 of the 1 K rise.
+        let ds = Dataset {
+            input_names: vec!["rpm".into(), "t1".into()],
+            input_kinds: vec![InputKind::Operating, InputKind::Temperature],
+            target_names: vec!["d".into()],
+            runs: vec![Run {
+                name: "r".into(),
+                time_s: vec![0.0, 10.0, 20.0],
+                inputs: vec![vec![1000.0; 3], vec![20.0, 21.0, 21.0]],
+                targets: vec![vec![0.0; 3]],
+            }],
+        };
+        let taus = TimeConstants {
+            temperature_s: vec![10.0],
+            rate_s: vec![],
+            operating_s: vec![10.0],
+        };
+        let c = candidates(&ds, &taus).unwrap();
+        assert_eq!(c.bank_inputs, vec![1, 0]);
+        assert_eq!(
+            c.names,
+            vec!["rise(t1)", "lp10(t1)", "lp10(rpm)", "lp10(rpm^2)"]
+        );
+        let m = &c.runs[0];
+        assert_eq!(m[(1, 0)], 1.0);
+        // Step 1: 0.632120559 · 1; step 2: 0.632120559 + 0.632120559·(1 − 0.632120559).
+        assert!((m[(1, 1)] - 0.632_120_558_8).abs() < 1e-9);
+        assert!((m[(2, 1)] - 0.864_664_716_8).abs() < 1e-9);
+        assert_eq!(m[(2, 2)], 1000.0);
+        assert_eq!(m[(2, 3)], 1.0e6);
+    }
+
+    #[test]
+    fn families_nest() {
+        let lp = FeatureKind::LowPass { tau_s: 1.0 };
+        assert!(!Family::Static.includes(lp) && Family::Dynamic.includes(lp));
+        assert!(!Family::Static.includes(FeatureKind::Operating { tau_s: 1.0 }));
+        assert!(!Family::Dynamic.includes(FeatureKind::Rate { tau_s: 1.0 }));
+        assert_eq!(Family::parse("dynamic-rates"), Some(Family::DynamicRates));
+    }
+}

@@ -1,0 +1,664 @@
+//! Least squares by Householder QR, never by unguarded normal equations.
+//!
+//! Rows stream into an [`Accumulator`] that keeps only the triangular factor R of the augmented
+//! matrix [A | B] (regressors and targets side by side): rows are gathered in blocks, and each
+//! block is stacked under the current R and factored again (a tall-skinny QR, "TSQR"). Because
+//! Q is orthogonal, R carries everything least squares needs: Rᵀ·R = [A|B]ᵀ·[A|B] without ever
+//! forming that product (forming it squares the condition number). Row blocks factor in parallel
+//! on every core ([`Accumulator::from_matrix`]) and their R factors merge by one more QR.
+//!
+//! [`Triangle::solve`] then scales the columns of A to unit norm (column norms of A are the column
+//! norms of R), optionally stacks √λ·I under it (ridge), and solves through the singular value
+//! decomposition of the small n × n triangle: singular values below `rcond · s_max` are dropped,
+//! giving the minimum-norm solution, and each dropped direction is reported with the columns that
+//! span it (the culprits of the rank deficiency).
+//!
+//! Weights: a row with weight w enters as √w·[a | b], so the fit minimises Σ w·(a·x − b)².
+
+#![allow(clippy::needless_range_loop)] // index loops mirror the matrix formulas
+
+use std::fmt;
+
+use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::linalg::qr::no_pivoting::factor::{
+    qr_in_place, qr_in_place_scratch, recommended_block_size,
+};
+use faer::reborrow::{Reborrow, ReborrowMut};
+use faer::{Mat, MatRef, Par};
+
+/// Rows gathered before each block QR.
+const BLOCK_ROWS: usize = 1024;
+
+/// Bad data handed to the solver.
+#[derive(Debug, Clone, PartialEq)]
+pub enum SolveError {
+    /// A row or weight holds NaN or ∞, or a weight is negative.
+    NonFinite {
+        /// Row index (counted from the first row pushed).
+        row: usize,
+    },
+    /// A row does not have the declared number of regressors or targets.
+    Shape {
+        /// What was expected.
+        expected: usize,
+        /// What was given.
+        got: usize,
+    },
+    /// There are no regressors or no rows.
+    Empty,
+    /// The SVD of the triangle did not converge (should not happen for finite data).
+    NoConvergence,
+}
+
+impl fmt::Display for SolveError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::NonFinite { row } => write!(
+                f,
+                "row {row}: a regressor, target or weight is NaN or infinite (or a weight is negative)"
+            ),
+            Self::Shape { expected, got } => write!(f, "expected {expected} values, got {got}"),
+            Self::Empty => write!(f, "no rows or no regressors to fit"),
+            Self::NoConvergence => write!(f, "the singular value decomposition did not converge"),
+        }
+    }
+}
+
+impl std::error::Error for SolveError {}
+
+/// Streaming QR of [A | B]: push rows, keep only R.
+#[derive(Debug, Clone)]
+pub struct Accumulator {
+    n: usize,
+    k: usize,
+    /// Rows 0..p hold R (upper triangle); rows p..p+filled the rows waiting for the next block QR.
+    buf: Mat<f64>,
+    filled: usize,
+    rows: usize,
+}
+
+impl Accumulator {
+    /// An empty accumulator for `regressors` columns of A and `targets` columns of B.
+    pub fn new(regressors: usize, targets: usize) -> Self {
+        let p = regressors + targets;
+        Self {
+            n: regressors,
+            k: targets,
+            buf: Mat::zeros(BLOCK_ROWS + p, p),
+            filled: 0,
+            rows: 0,
+        }
+    }
+
+    fn p(&self) -> usize {
+        self.n + self.k
+    }
+
+    /// Number of rows pushed so far.
+    pub fn rows(&self) -> usize {
+        self.rows
+    }
+
+    /// Adds one row: regressors `a`, targets `b`, weight `w` (≥ 0).
+    pub fn push_row(&mut self, a: &[f64], b: &[f64], w: f64) -> Result<(), SolveError> {
+        if a.len() != self.n {
+            return Err(SolveError::Shape {
+                expected: self.n,
+                got: a.len(),
+            });
+        }
+        if b.len() != self.k {
+            return Err(SolveError::Shape {
+                expected: self.k,
+                got: b.len(),
+            });
+        }
+        let finite = a.iter().chain(b).all(|v| v.is_finite());
+        if !(w.is_finite() && w >= 0.0 && finite) {
+            return Err(SolveError::NonFinite { row: self.rows });
+        }
+        let s = w.sqrt();
+        let i = self.p() + self.filled;
+        for (j, v) in a.iter().chain(b).enumerate() {
+            self.buf[(i, j)] = s * v;
+        }
+        self.filled += 1;
+        self.rows += 1;
+        if self.filled == BLOCK_ROWS {
+            self.flush();
+        }
+        Ok(())
+    }
+
+    /// Factors the waiting rows into R.
+    fn flush(&mut self) {
+        if self.filled == 0 {
+            return;
+        }
+        let p = self.p();
+        let m = p + self.filled;
+        let bs = recommended_block_size::<f64>(m, p);
+        let mut q_coeff = Mat::<f64>::zeros(bs, p);
+        let mut mem = MemBuffer::new(qr_in_place_scratch::<f64>(
+            m,
+            p,
+            bs,
+            Par::Seq,
+            Default::default(),
+        ));
+        qr_in_place(
+            self.buf.as_mut().get_mut(..m, ..),
+            q_coeff.as_mut(),
+            Par::Seq,
+            MemStack::new(&mut mem),
+            Default::default(),
+        );
+        for j in 0..p {
+            for i in j + 1..p {
+                self.buf[(i, j)] = 0.0;
+            }
+        }
+        self.filled = 0;
+    }
+
+    /// Adds a whole block of rows at once (A and B with equal row counts, optional weights).
+    pub fn push_block(
+        &mut self,
+        a: MatRef<'_, f64>,
+        b: MatRef<'_, f64>,
+        weights: Option<&[f64]>,
+    ) -> Result<(), SolveError> {
+        if a.ncols() != self.n || b.ncols() != self.k {
+            return Err(SolveError::Shape {
+                expected: self.p(),
+                got: a.ncols() + b.ncols(),
+            });
+        }
+        if b.nrows() != a.nrows() || weights.is_some_and(|w| w.len() != a.nrows()) {
+            return Err(SolveError::Shape {
+                expected: a.nrows(),
+                got: b.nrows(),
+            });
+        }
+        let p = self.p();
+        let mut start = 0;
+        while start < a.nrows() {
+            let take = (BLOCK_ROWS - self.filled).min(a.nrows() - start);
+            let top = p + self.filled;
+            let mut dst = self.buf.as_mut().get_mut(top..top + take, ..);
+            dst.rb_mut()
+                .get_mut(.., ..self.n)
+                .copy_from(a.get(start..start + take, ..));
+            dst.rb_mut()
+                .get_mut(.., self.n..)
+                .copy_from(b.get(start..start + take, ..));
+            for i in 0..take {
+                let w = weights.map_or(1.0, |w| w[start + i]);
+                let bad =
+                    !(w.is_finite() && w >= 0.0) || (0..p).any(|j| !dst.rb().get(i, j).is_finite());
+                if bad {
+                    // Forget the rows of this block: the accumulator stays as before the call
+                    // would have left it up to the bad row.
+                    self.rows += i;
+                    self.filled += i;
+                    return Err(SolveError::NonFinite { row: self.rows });
+                }
+                if weights.is_some() {
+                    let s = w.sqrt();
+                    for j in 0..p {
+                        *dst.rb_mut().get_mut(i, j) *= s;
+                    }
+                }
+            }
+            self.filled += take;
+            self.rows += take;
+            start += take;
+            if self.filled == BLOCK_ROWS {
+                self.flush();
+            }
+        }
+        Ok(())
+    }
+
+    /// Adds the rows another accumulator has seen (merging two R factors is one more QR).
+    pub fn merge(&mut self, mut other: Accumulator) -> Result<(), SolveError> {
+        other.flush();
+        if other.n != self.n || other.k != self.k {
+            return Err(SolveError::Shape {
+                expected: self.p(),
+                got: other.p(),
+            });
+        }
+        let p = self.p();
+        let rows = self.rows + other.rows;
+        let ones = vec![1.0; p];
+        self.push_block(
+            other.buf.as_ref().get(..p, ..self.n),
+            other.buf.as_ref().get(..p, self.n..),
+            Some(&ones),
+        )?;
+        self.rows = rows;
+        Ok(())
+    }
+
+    /// Factors a whole matrix, splitting its rows over every available core.
+    pub fn from_matrix(
+        a: MatRef<'_, f64>,
+        b: MatRef<'_, f64>,
+        weights: Option<&[f64]>,
+    ) -> Result<Self, SolveError> {
+        let m = a.nrows();
+        let threads = std::thread::available_parallelism()
+            .map_or(1, |n| n.get())
+            .min(m / (4 * BLOCK_ROWS))
+            .max(1);
+        let chunk = m.div_ceil(threads);
+        let parts: Vec<Result<Accumulator, SolveError>> = std::thread::scope(|scope| {
+            let handles: Vec<_> = (0..threads)
+                .map(|t| {
+                    let (r0, r1) = (t * chunk, ((t + 1) * chunk).min(m));
+                    let (n, k) = (a.ncols(), b.ncols());
+                    scope.spawn(move || {
+                        let mut acc = Accumulator::new(n, k);
+                        acc.push_block(
+                            a.get(r0..r1, ..),
+                            b.get(r0..r1, ..),
+                            weights.map(|w| &w[r0..r1]),
+                        )
+                        .map_err(|e| match e {
+                            SolveError::NonFinite { row } => {
+                                SolveError::NonFinite { row: row + r0 }
+                            }
+                            e => e,
+                        })?;
+                        Ok(acc)
+                    })
+                })
+                .collect();
+            handles
+                .into_iter()
+                .map(|h| h.join().unwrap_or(Err(SolveError::NoConvergence)))
+                .collect()
+        });
+        let mut parts = parts.into_iter();
+        let mut acc = parts
+            .next()
+            .unwrap_or(Ok(Accumulator::new(a.ncols(), b.ncols())))?;
+        for part in parts {
+            acc.merge(part?)?;
+        }
+        Ok(acc)
+    }
+
+    /// The final triangle.
+    pub fn finish(mut self) -> Triangle {
+        self.flush();
+        let p = self.p();
+        Triangle {
+            n: self.n,
+            k: self.k,
+            rows: self.rows,
+            r: self.buf.as_ref().get(..p, ..).to_owned(),
+        }
+    }
+}
+
+/// The R factor of [A | B]: everything needed to solve for any ridge parameter.
+#[derive(Debug, Clone)]
+pub struct Triangle {
+    n: usize,
+    k: usize,
+    rows: usize,
+    r: Mat<f64>,
+}
+
+/// How to solve.
+#[derive(Debug, Clone, Default)]
+pub struct SolveOptions {
+    /// Ridge parameter λ ≥ 0 on unit-norm columns: minimises ‖A·x − b‖² + λ·Σ_j (‖A_j‖·x_j)²,
+    /// so λ is relative to the data's own sum of squares and independent of units.
+    pub ridge: f64,
+    /// Columns exempt from the ridge penalty (the intercept).
+    pub unpenalized: Vec<usize>,
+    /// Singular values below `rcond · s_max` count as zero; `None` = ε·max(rows, columns), the
+    /// default of LAPACK's `gelsd` as numpy uses it.
+    pub rcond: Option<f64>,
+}
+
+/// A direction in which the columns are (nearly) linearly dependent.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RankDeficiency {
+    /// s / s_max of the dropped singular value (0 for an all-zero column).
+    pub singular_value_ratio: f64,
+    /// The columns spanning it, with their weight in the null direction, largest first.
+    pub columns: Vec<(usize, f64)>,
+}
+
+impl RankDeficiency {
+    /// A warning naming the culprit columns.
+    pub fn describe(&self, names: &[String]) -> String {
+        let name = |j: usize| names.get(j).cloned().unwrap_or_else(|| format!("#{j}"));
+        let cols: Vec<String> = self.columns.iter().map(|&(j, _)| name(j)).collect();
+        if self.singular_value_ratio == 0.0 && cols.len() == 1 {
+            format!("column {} is all zero: it carries no information", cols[0])
+        } else {
+            format!(
+                "columns {} are (nearly) linearly dependent (singular value ratio {:.1e}); their coefficients are not identifiable and were solved for the minimum norm",
+                cols.join(", "),
+                self.singular_value_ratio
+            )
+        }
+    }
+}
+
+/// Coefficients and diagnostics.
+#[derive(Debug, Clone)]
+pub struct Solution {
+    /// Coefficients, one vector of n per target.
+    pub coefficients: Vec<Vec<f64>>,
+    /// Numerical rank of the (scaled, possibly ridge-stacked) regressor matrix.
+    pub rank: usize,
+    /// s_max / s_min of the column-scaled matrix (∞ when rank deficient).
+    pub condition: f64,
+    /// Weighted residual sum of squares per target (data term only).
+    pub rss: Vec<f64>,
+    /// Dropped directions with their culprit columns; empty when of full rank.
+    pub rank_deficiencies: Vec<RankDeficiency>,
+}
+
+impl Triangle {
+    /// Rows that went in.
+    pub fn rows(&self) -> usize {
+        self.rows
+    }
+
+    /// Solves for the coefficients.
+    pub fn solve(&self, options: &SolveOptions) -> Result<Solution, SolveError> {
+        let (n, k) = (self.n, self.k);
+        if n == 0 || self.rows == 0 {
+            return Err(SolveError::Empty);
+        }
+        let r = self.r.as_ref();
+        let mut norms = vec![0.0; n];
+        let mut scale = vec![1.0; n];
+        for j in 0..n {
+            norms[j] = r.get(..j + 1, j).norm_l2();
+            if norms[j] > 0.0 {
+                scale[j] = 1.0 / norms[j];
+            }
+        }
+        // T = R·D (upper triangle), C = Qᵀ·B (top n rows).
+        let mut t = Mat::<f64>::zeros(n, n);
+        for j in 0..n {
+            for i in 0..=j {
+                t[(i, j)] = r[(i, j)] * scale[j];
+            }
+        }
+        let mut c = r.get(..n, n..).to_owned();
+        if options.ridge > 0.0 {
+            let root = options.ridge.sqrt();
+            let mut m = Mat::<f64>::zeros(2 * n, n + k);
+            m.as_mut().get_mut(..n, ..n).copy_from(t.as_ref());
+            m.as_mut().get_mut(..n, n..).copy_from(c.as_ref());
+            for j in 0..n {
+                if !options.unpenalized.contains(&j) {
+                    m[(n + j, j)] = root;
+                }
+            }
+            let qr = m.qr();
+            let rr = qr.thin_R();
+            t = Mat::zeros(n, n);
+            for j in 0..n {
+                for i in 0..=j {
+                    t[(i, j)] = rr[(i, j)];
+                }
+            }
+            c = rr.get(..n, n..).to_owned();
+        }
+        let svd = t.thin_svd().map_err(|_| SolveError::NoConvergence)?;
+        let s = svd.S().column_vector();
+        let (u, v) = (svd.U(), svd.V());
+        let s_max = (0..n).map(|i| s[i]).fold(0.0_f64, f64::max);
+        let rcond = options
+            .rcond
+            .unwrap_or(f64::EPSILON * self.rows.max(n) as f64);
+        let threshold = rcond * s_max;
+        let kept: Vec<usize> = (0..n).filter(|&i| s[i] > threshold).collect();
+        let mut deficiencies = Vec::new();
+        for j in 0..n {
+            if norms[j] == 0.0 {
+                deficiencies.push(RankDeficiency {
+                    singular_value_ratio: 0.0,
+                    columns: vec![(j, 1.0)],
+                });
+            }
+        }
+        for i in (0..n).filter(|&i| s[i] <= threshold) {
+            let mut cols: Vec<(usize, f64)> = (0..n)
+                .map(|j| (j, v[(j, i)]))
+                .filter(|&(j, w)| w.abs() >= 0.1 && norms[j] > 0.0)
+                .collect();
+            if cols.is_empty() {
+                continue;
+            }
+            cols.sort_by(|a, b| b.1.abs().total_cmp(&a.1.abs()));
+            cols.truncate(8);
+            deficiencies.push(RankDeficiency {
+                singular_value_ratio: if s_max > 0.0 { s[i] / s_max } else { 0.0 },
+                columns: cols,
+            });
+        }
+        let mut coefficients = Vec::with_capacity(k);
+        let mut rss = Vec::with_capacity(k);
+        for target in 0..k {
+            // γ = V_r · S_r⁻¹ · U_rᵀ · c, x = D·γ.
+            let mut gamma = vec![0.0; n];
+            for &i in &kept {
+                let mut proj = 0.0;
+                for row in 0..n {
+                    proj += u[(row, i)] * c[(row, target)];
+                }
+                let f = proj / s[i];
+                for (j, g) in gamma.iter_mut().enumerate() {
+                    *g += v[(j, i)] * f;
+                }
+            }
+            let x: Vec<f64> = gamma.iter().zip(&scale).map(|(g, d)| g * d).collect();
+            // ‖A·x − b‖² = ‖R·[x; −e_target]‖² since Q is orthogonal.
+            let mut sum = 0.0;
+            for row in 0..n + k {
+                let mut e = -r[(row, n + target)];
+                for (j, xj) in x.iter().enumerate().skip(row.min(n)) {
+                    e += r[(row, j)] * xj;
+                }
+                sum += e * e;
+            }
+            rss.push(sum);
+            coefficients.push(x);
+        }
+        let s_min = kept.iter().map(|&i| s[i]).fold(f64::INFINITY, f64::min);
+        Ok(Solution {
+            coefficients,
+            rank: kept.len(),
+            condition: if kept.len() == n && s_min > 0.0 {
+                s_max / s_min
+            } else {
+                f64::INFINITY
+            },
+            rss,
+            rank_deficiencies: deficiencies,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn fit(rows: &[(Vec<f64>, f64)], opts: &SolveOptions) -> Solution {
+        let n = rows[0].0.len();
+        let mut acc = Accumulator::new(n, 1);
+        for (a, b) in rows {
+            acc.push_row(a, &[*b], 1.0).unwrap();
+        }
+        acc.finish().solve(opts).unwrap()
+    }
+
+    #[test]
+    fn line_through_points_by_hand() {
+        // y = 1 + 2x sampled at x = 0, 1, 2, 3 with residuals +0.1, −0.1, −0.1, +0.1:
+        // the residual pattern is orthogonal to [1, x]·… only for the intercept, so by hand:
+        // Σx = 6, Σx² = 14, Σy = 16, Σxy = 27.9+… — solved: slope 2, intercept 1 (the pattern
+        // +,−,−,+ has Σe = 0 and Σx·e = 0 − 0.1 − 0.2 + 0.3 = 0).
+        let ys = [1.1, 2.9, 4.9, 7.1];
+        let rows: Vec<_> = ys
+            .iter()
+            .enumerate()
+            .map(|(i, &y)| (vec![1.0, i as f64], y))
+            .collect();
+        let s = fit(&rows, &SolveOptions::default());
+        assert!((s.coefficients[0][0] - 1.0).abs() < 1e-12);
+        assert!((s.coefficients[0][1] - 2.0).abs() < 1e-12);
+        // RSS = 4 · 0.01 = 0.04.
+        assert!((s.rss[0] - 0.04).abs() < 1e-12);
+        assert_eq!(s.rank, 2);
+        assert!(s.rank_deficiencies.is_empty());
+    }
+
+    #[test]
+    fn many_blocks_weights_and_merge_agree_with_direct() {
+        // 5000 rows (several blocks): y = 3 − 0.5·x1 + 1e4·x2 exactly, x2 tiny (badly scaled).
+        let mut acc1 = Accumulator::new(3, 1);
+        let mut acc2 = Accumulator::new(3, 1);
+        let mut acc3 = Accumulator::new(3, 1);
+        for i in 0..5000 {
+            let x1 = (i as f64 * 0.37).sin() * 100.0;
+            let x2 = (i as f64 * 0.11).cos() * 1e-4;
+            let y = 3.0 - 0.5 * x1 + 1e4 * x2;
+            acc1.push_row(&[1.0, x1, x2], &[y], 1.0).unwrap();
+            let half = if i < 2500 { &mut acc2 } else { &mut acc3 };
+            half.push_row(&[1.0, x1, x2], &[y], 2.0).unwrap();
+        }
+        acc2.merge(acc3).unwrap();
+        for acc in [acc1, acc2] {
+            assert_eq!(acc.rows(), 5000);
+            let s = acc.finish().solve(&SolveOptions::default()).unwrap();
+            let x = &s.coefficients[0];
+            assert!((x[0] - 3.0).abs() < 1e-10, "{x:?}");
+            assert!((x[1] + 0.5).abs() < 1e-12, "{x:?}");
+            assert!((x[2] - 1e4).abs() < 1e-6, "{x:?}");
+            assert!(s.rss[0] < 1e-18);
+        }
+    }
+
+    #[test]
+    fn weights_weigh() {
+        // Two rows for a constant: y = 0 (w = 1) and y = 3 (w = 2): weighted mean 2.
+        let mut acc = Accumulator::new(1, 1);
+        acc.push_row(&[1.0], &[0.0], 1.0).unwrap();
+        acc.push_row(&[1.0], &[3.0], 2.0).unwrap();
+        let s = acc.finish().solve(&SolveOptions::default()).unwrap();
+        assert!((s.coefficients[0][0] - 2.0).abs() < 1e-14);
+        // RSS = 1·(0−2)² + 2·(3−2)² = 6.
+        assert!((s.rss[0] - 6.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn ridge_by_hand() {
+        // One unit-norm column a = [1, 0]… scaled: a = [3, 4] (norm 5), b = [3, 4]: the OLS
+        // x = 1. With λ on the unit-norm column γ = x·5: min (γ − 5)² + λγ² ⇒ γ = 5/(1 + λ);
+        // λ = 1 ⇒ γ = 2.5, x = 0.5.
+        let rows = vec![(vec![3.0], 3.0), (vec![4.0], 4.0)];
+        let s = fit(
+            &rows,
+            &SolveOptions {
+                ridge: 1.0,
+                ..Default::default()
+            },
+        );
+        assert!((s.coefficients[0][0] - 0.5).abs() < 1e-14);
+        // Unpenalised: plain OLS.
+        let s = fit(
+            &rows,
+            &SolveOptions {
+                ridge: 1.0,
+                unpenalized: vec![0],
+                ..Default::default()
+            },
+        );
+        assert!((s.coefficients[0][0] - 1.0).abs() < 1e-14);
+    }
+
+    #[test]
+    fn rank_deficiency_names_the_culprits() {
+        // x3 = x1 + x2 exactly; column 4 is all zero.
+        let rows: Vec<_> = (0..50)
+            .map(|i| {
+                let x1 = (i as f64).sin();
+                let x2 = (i as f64 * 0.7).cos();
+                (vec![1.0, x1, x2, x1 + x2, 0.0], 2.0 * x1 + 1.0)
+            })
+            .collect();
+        let s = fit(&rows, &SolveOptions::default());
+        assert_eq!(s.rank, 3);
+        let names: Vec<String> = ["c", "x1", "x2", "x3", "z"].map(String::from).into();
+        let msgs: Vec<String> = s
+            .rank_deficiencies
+            .iter()
+            .map(|d| d.describe(&names))
+            .collect();
+        assert!(
+            msgs.iter().any(|m| m.contains("column z is all zero")),
+            "{msgs:?}"
+        );
+        let dep = msgs
+            .iter()
+            .find(|m| m.contains("linearly dependent"))
+            .unwrap();
+        assert!(
+            dep.contains("x1") && dep.contains("x2") && dep.contains("x3") && !dep.contains(" c,")
+        );
+        // Minimum-norm solution still predicts exactly: x1 + x2 + x3 combination gives 2·x1.
+        assert!(s.rss[0] < 1e-20, "{}", s.rss[0]);
+        assert!(s.condition.is_infinite());
+    }
+
+    #[test]
+    fn bad_rows_are_errors() {
+        let mut acc = Accumulator::new(2, 1);
+        assert_eq!(
+            acc.push_row(&[1.0, f64::NAN], &[0.0], 1.0),
+            Err(SolveError::NonFinite { row: 0 })
+        );
+        assert!(acc.push_row(&[1.0], &[0.0], 1.0).is_err());
+        assert!(acc.push_row(&[1.0, 0.0], &[0.0], -1.0).is_err());
+        assert_eq!(
+            acc.finish().solve(&SolveOptions::default()).unwrap_err(),
+            SolveError::Empty
+        );
+    }
+
+    #[test]
+    fn from_matrix_matches_streaming() {
+        let m = 20_000;
+        let a = Mat::<f64>::from_fn(m, 4, |i, j| ((i * (j + 3)) as f64 * 0.001).sin() + j as f64);
+        let b = Mat::<f64>::from_fn(m, 2, |i, j| (i as f64 * 0.01).cos() * (j + 1) as f64);
+        let whole = Accumulator::from_matrix(a.as_ref(), b.as_ref(), None)
+            .unwrap()
+            .finish()
+            .solve(&SolveOptions::default())
+            .unwrap();
+        let mut acc = Accumulator::new(4, 2);
+        for i in 0..m {
+            let row: Vec<f64> = (0..4).map(|j| a[(i, j)]).collect();
+            acc.push_row(&row, &[b[(i, 0)], b[(i, 1)]], 1.0).unwrap();
+        }
+        let streamed = acc.finish().solve(&SolveOptions::default()).unwrap();
+        for t in 0..2 {
+            for j in 0..4 {
+                let (x, y) = (whole.coefficients[t][j], streamed.coefficients[t][j]);
+                assert!((x - y).abs() <= 1e-10 * x.abs().max(1.0), "{x} {y}");
+            }
+        }
+    }
+}

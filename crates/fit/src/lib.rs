@@ -1,0 +1,57 @@
+//! # truepos-fit — learning compensation models from measured runs
+//!
+//! From recorded runs (time, temperatures, operating state, measured errors) to a model the
+//! control can run, validated honestly:
+//!
+//! - [`dataset`]: runs in memory; targets are taken relative to each run's first sample.
+//! - [`features`]: candidate regressors — temperature rises, their first-order low-pass filters
+//!   and filtered rates of change, filtered spindle speed and its square — computed by the
+//!   real-time crate's own [`truepos_model::FeatureBank`], so offline and online features agree.
+//! - [`least_squares`]: Householder QR of row blocks (TSQR, parallel), column scaling, weights,
+//!   ridge, SVD-based rank decisions that name the culprit columns. Never the normal equations.
+//! - [`train`]: family, sensors and ridge chosen by blocked time-series cross-validation inside
+//!   the training rows only; export to a [`truepos_model::DynamicModel`].
+//! - [`validate`]: chronological split, leave one run out, blocked k-fold; RMSE, max |e|,
+//!   peak-to-peak and reduction versus uncompensated, per target channel.
+//! - [`model_file`]: the dynamic model file (`format = "truepos-dynamic-model"`, JSON).
+//!
+//! ## Example
+//! A structure whose growth lags the spindle speed by a first-order lag of 1800 s: the
+//! automatic selection finds a dynamic family and the validation on the last 40 % is tight.
+//!
+//! ```
+//! use truepos_fit::dataset::{Dataset, InputKind, Run};
+//! use truepos_fit::features::candidates;
+//! use truepos_fit::train::Settings;
+//! use truepos_fit::validate::{validate, Split};
+//!
+//! let (mut t, mut rpm, mut temp, mut growth) = (vec![], vec![], vec![], vec![]);
+//! let (mut lag, mut warm) = (0.0, 20.0);
+//! for i in 0..2000 {
+//!     let s = if (i / 300) % 2 == 1 { 3000.0 + 200.0 * (i / 600) as f64 } else { 0.0 };
+//!     lag += (1.0 - (-30.0f64 / 1800.0).exp()) * (s - lag);
+//!     warm += (1.0 - (-30.0f64 / 600.0).exp()) * (20.0 + s / 500.0 - warm);
+//!     t.push(30.0 * i as f64); rpm.push(s); temp.push(warm); growth.push(0.004 * lag);
+//! }
+//! let ds = Dataset {
+//!     input_names: vec!["t1_c".into(), "spindle_rpm".into()],
+//!     input_kinds: vec![InputKind::Temperature, InputKind::Operating],
+//!     target_names: vec!["dz_um".into()],
+//!     runs: vec![Run { name: "run".into(), time_s: t, inputs: vec![temp, rpm], targets: vec![growth] }],
+//! };
+//! ds.check().unwrap();
+//! let settings = Settings::default();
+//! let cand = candidates(&ds, &settings.taus).unwrap();
+//! let split = Split::parse("chrono:0.6").unwrap();
+//! let (v, _model, _pred) = validate(&ds, &cand, split, &settings, &mut |_, _| {}).unwrap();
+//! assert!(v.metrics[0].rmse_um < 0.05 * v.metrics[0].uncompensated_rmse_um);
+//! ```
+#![forbid(unsafe_code)]
+#![warn(missing_docs)]
+
+pub mod dataset;
+pub mod features;
+pub mod least_squares;
+pub mod model_file;
+pub mod train;
+pub mod validate;

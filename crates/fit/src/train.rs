@@ -1,0 +1,413 @@
+//! Training: choose family, sensors and ridge by blocked time-series cross-validation inside the
+//! training rows only, then fit and export a [`DynamicModel`].
+//!
+//! Blocked CV: the training rows (in time order, run after run) are cut into k contiguous blocks;
+//! each block is predicted by a model fitted on the other blocks. Contiguous blocks keep
+//! neighbouring, nearly identical samples on the same side, which a random split would not.
+//! Every block's QR factor is computed once; a fold's factor is the merge of the others'.
+
+#![allow(clippy::needless_range_loop)] // index loops mirror the matrix formulas
+
+use faer::Mat;
+use truepos_model::{DynamicModel, FeatureBank, FeatureKind};
+
+use crate::dataset::{Dataset, InputKind};
+use crate::features::{bank_for, Candidates, Family, TimeConstants};
+use crate::least_squares::{Accumulator, SolveOptions};
+
+/// What the automatic selection may choose from; fix anything by giving one choice.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Settings {
+    /// Candidate time constants.
+    pub taus: TimeConstants,
+    /// Candidate families.
+    pub families: Vec<Family>,
+    /// Candidate ridge parameters (relative, on unit-norm columns).
+    pub ridges: Vec<f64>,
+    /// Blocks of the inner cross-validation.
+    pub folds: usize,
+    /// Run with at most this many temperature sensors (chosen by correlation ranking and greedy
+    /// forward selection); `None` = all.
+    pub max_sensors: Option<usize>,
+}
+
+impl Default for Settings {
+    fn default() -> Self {
+        Self {
+            taus: TimeConstants::default(),
+            families: Family::ALL.to_vec(),
+            ridges: vec![0.0, 1e-6, 1e-5, 1e-4, 1e-3, 3e-3, 1e-2, 3e-2, 0.1, 0.3, 1.0],
+            folds: 8,
+            max_sensors: None,
+        }
+    }
+}
+
+/// What was chosen for one target.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Choice {
+    /// Target name.
+    pub target: String,
+    /// Family.
+    pub family: Family,
+    /// Ridge parameter.
+    pub ridge: f64,
+    /// Inner-CV RMSE of the choice (µm).
+    pub cv_rmse_um: f64,
+}
+
+/// A trained model with what was chosen.
+#[derive(Debug, Clone)]
+pub struct Trained {
+    /// The real-time model.
+    pub model: DynamicModel,
+    /// Dataset input index of each model input.
+    pub inputs: Vec<usize>,
+    /// Temperature sensors used (dataset input indices).
+    pub sensors: Vec<usize>,
+    /// One per target.
+    pub choices: Vec<Choice>,
+    /// Warnings (rank deficiency with culprit columns).
+    pub warnings: Vec<String>,
+}
+
+/// Training rows: (run, row) pairs in time order.
+pub type Rows = Vec<(usize, usize)>;
+
+struct Problem<'a> {
+    cand: &'a Candidates,
+    x: Mat<f64>,
+    y: Mat<f64>,
+    means: Vec<f64>,
+    blocks: Vec<std::ops::Range<usize>>,
+}
+
+impl<'a> Problem<'a> {
+    fn new(dataset: &Dataset, cand: &'a Candidates, rows: &[(usize, usize)], folds: usize) -> Self {
+        let nf = cand.features.len();
+        let nt = dataset.target_names.len();
+        let mut x = Mat::<f64>::zeros(rows.len(), nf);
+        let mut y = Mat::<f64>::zeros(rows.len(), nt);
+        let rel: Vec<Vec<Vec<f64>>> = dataset
+            .runs
+            .iter()
+            .map(|r| (0..nt).map(|k| r.relative_target(k)).collect())
+            .collect();
+        for (i, &(run, row)) in rows.iter().enumerate() {
+            for j in 0..nf {
+                x[(i, j)] = cand.runs[run][(row, j)];
+            }
+            for k in 0..nt {
+                y[(i, k)] = rel[run][k][row];
+            }
+        }
+        let mut means = vec![0.0; nf];
+        for (j, mean) in means.iter_mut().enumerate() {
+            *mean = (0..rows.len()).map(|i| x[(i, j)]).sum::<f64>() / rows.len().max(1) as f64;
+            for i in 0..rows.len() {
+                x[(i, j)] -= *mean;
+            }
+        }
+        let folds = folds.clamp(2, rows.len().max(2));
+        let blocks = (0..folds)
+            .map(|b| b * rows.len() / folds..(b + 1) * rows.len() / folds)
+            .collect();
+        Self {
+            cand,
+            x,
+            y,
+            means,
+            blocks,
+        }
+    }
+
+    fn accumulate(&self, cols: &[usize], range: std::ops::Range<usize>) -> Accumulator {
+        let n = cols.len() + 1;
+        let nt = self.y.ncols();
+        let mut acc = Accumulator::new(n, nt);
+        let mut a = vec![0.0; n];
+        let mut b = vec![0.0; nt];
+        a[0] = 1.0;
+        for i in range {
+            for (slot, &c) in a[1..].iter_mut().zip(cols) {
+                *slot = self.x[(i, c)];
+            }
+            for (k, slot) in b.iter_mut().enumerate() {
+                *slot = self.y[(i, k)];
+            }
+            // Finite by construction (checked dataset, checked filters).
+            let _ = acc.push_row(&a, &b, 1.0);
+        }
+        acc
+    }
+
+    /// CV RMSE per ridge per target for a column set.
+    fn cv(&self, cols: &[usize], ridges: &[f64]) -> Vec<Vec<f64>> {
+        let nt = self.y.ncols();
+        let parts: Vec<Accumulator> = self
+            .blocks
+            .iter()
+            .map(|r| self.accumulate(cols, r.clone()))
+            .collect();
+        let mut sse = vec![vec![0.0; nt]; ridges.len()];
+        for (f, block) in self.blocks.iter().enumerate() {
+            let mut acc = Accumulator::new(cols.len() + 1, nt);
+            for (g, p) in parts.iter().enumerate() {
+                if g != f {
+                    let _ = acc.merge(p.clone());
+                }
+            }
+            let tri = acc.finish();
+            for (ri, &ridge) in ridges.iter().enumerate() {
+                let opts = SolveOptions {
+                    ridge,
+                    unpenalized: vec![0],
+                    rcond: None,
+                };
+                let Ok(sol) = tri.solve(&opts) else {
+                    sse[ri].iter_mut().for_each(|s| *s = f64::INFINITY);
+                    continue;
+                };
+                for i in block.clone() {
+                    for k in 0..nt {
+                        let c = &sol.coefficients[k];
+                        let mut p = c[0];
+                        for (cj, &col) in c[1..].iter().zip(cols) {
+                            p += cj * self.x[(i, col)];
+                        }
+                        let e = self.y[(i, k)] - p;
+                        sse[ri][k] += e * e;
+                    }
+                }
+            }
+        }
+        let n = self.x.nrows().max(1) as f64;
+        sse.into_iter()
+            .map(|v| v.into_iter().map(|s| (s / n).sqrt()).collect())
+            .collect()
+    }
+
+    fn columns(&self, family: Family, sensors: &[usize]) -> Vec<usize> {
+        (0..self.cand.features.len())
+            .filter(|&j| {
+                let f = self.cand.features[j];
+                let is_temp = f.input < self.cand.spec.temperatures;
+                family.includes(f.kind) && (!is_temp || sensors.contains(&f.input))
+            })
+            .collect()
+    }
+}
+
+/// Best (family, ridge) per target for a sensor set: (score per target, family, ridge).
+fn best_per_target(
+    p: &Problem<'_>,
+    settings: &Settings,
+    sensors: &[usize],
+) -> Vec<(f64, Family, f64)> {
+    let nt = p.y.ncols();
+    let mut best = vec![(f64::INFINITY, Family::Static, 0.0); nt];
+    for &family in &settings.families {
+        let cols = p.columns(family, sensors);
+        if cols.is_empty() {
+            continue;
+        }
+        let scores = p.cv(&cols, &settings.ridges);
+        for (ri, row) in scores.iter().enumerate() {
+            for k in 0..nt {
+                if row[k] < best[k].0 {
+                    best[k] = (row[k], family, settings.ridges[ri]);
+                }
+            }
+        }
+    }
+    best
+}
+
+/// Chooses by inner blocked CV on `rows` (training rows only) and fits on all of them.
+pub fn train(
+    dataset: &Dataset,
+    cand: &Candidates,
+    rows: &[(usize, usize)],
+    settings: &Settings,
+) -> Result<Trained, String> {
+    if rows.len() < 4 * settings.folds.max(2) {
+        return Err(format!(
+            "only {} training samples: too few for {}-fold cross-validation",
+            rows.len(),
+            settings.folds
+        ));
+    }
+    let p = Problem::new(dataset, cand, rows, settings.folds);
+    let nt = dataset.target_names.len();
+    let all_sensors: Vec<usize> = (0..cand.spec.temperatures).collect();
+    let sensors = match settings.max_sensors {
+        Some(max) if max < all_sensors.len() => greedy_sensors(&p, settings, max),
+        _ => all_sensors,
+    };
+    let best = best_per_target(&p, settings, &sensors);
+    // Final fit per target on all training rows.
+    let nf = cand.features.len();
+    let mut coef = vec![vec![0.0; nf]; nt];
+    let mut intercepts = vec![0.0; nt];
+    let mut warnings = Vec::new();
+    let mut choices = Vec::new();
+    for k in 0..nt {
+        let (score, family, ridge) = best[k];
+        let cols = p.columns(family, &sensors);
+        let acc = p.accumulate(&cols, 0..p.x.nrows());
+        let sol = acc
+            .finish()
+            .solve(&SolveOptions {
+                ridge,
+                unpenalized: vec![0],
+                rcond: None,
+            })
+            .map_err(|e| e.to_string())?;
+        let names: Vec<String> = std::iter::once("intercept".to_string())
+            .chain(cols.iter().map(|&c| cand.names[c].clone()))
+            .collect();
+        for d in &sol.rank_deficiencies {
+            warnings.push(format!(
+                "{}: {}",
+                dataset.target_names[k],
+                d.describe(&names)
+            ));
+        }
+        let c = &sol.coefficients[k];
+        let mut b0 = c[0];
+        for (cj, &col) in c[1..].iter().zip(&cols) {
+            coef[k][col] = *cj;
+            b0 -= cj * p.means[col];
+        }
+        intercepts[k] = b0;
+        choices.push(Choice {
+            target: dataset.target_names[k].clone(),
+            family,
+            ridge,
+            cv_rmse_um: score,
+        });
+    }
+    // Export: inputs = the chosen sensors, plus operating inputs if any target reads them.
+    let uses = |pred: &dyn Fn(FeatureKind) -> bool| {
+        (0..nf).any(|j| pred(cand.features[j].kind) && coef.iter().any(|c| c[j] != 0.0))
+    };
+    let uses_operating = uses(&|k| {
+        matches!(
+            k,
+            FeatureKind::Operating { .. } | FeatureKind::OperatingSquared { .. }
+        )
+    });
+    let mut inputs: Vec<usize> = sensors.iter().map(|&s| cand.bank_inputs[s]).collect();
+    if uses_operating {
+        inputs.extend(
+            (0..dataset.input_names.len())
+                .filter(|&i| dataset.input_kinds[i] == InputKind::Operating),
+        );
+    }
+    let (spec, order) = bank_for(dataset, &inputs, &settings.taus);
+    let bank = FeatureBank::new(spec).map_err(|e| e.to_string())?;
+    let mut flat = Vec::new();
+    for c in &coef {
+        for f in bank.features() {
+            let d = order[f.input];
+            let j = cand
+                .features
+                .iter()
+                .position(|g| cand.bank_inputs[g.input] == d && g.kind == f.kind)
+                .ok_or("internal: feature not among the candidates")?;
+            flat.push(c[j]);
+        }
+    }
+    let model = DynamicModel::new(bank, intercepts, flat).map_err(|e| e.to_string())?;
+    Ok(Trained {
+        model,
+        inputs: order,
+        sensors: sensors.iter().map(|&s| cand.bank_inputs[s]).collect(),
+        choices,
+        warnings,
+    })
+}
+
+/// Correlation ranking, then greedy forward selection by CV score (mean over targets of the
+/// CV RMSE relative to the target's spread), among the best-ranked candidates.
+fn greedy_sensors(p: &Problem<'_>, settings: &Settings, max: usize) -> Vec<usize> {
+    let nt = p.y.ncols();
+    let temps = p.cand.spec.temperatures;
+    let rise_col = |s: usize| {
+        (0..p.cand.features.len()).find(|&j| {
+            p.cand.features[j].input == s && p.cand.features[j].kind == FeatureKind::Rise
+        })
+    };
+    let spread: Vec<f64> = (0..nt)
+        .map(|k| {
+            let n = p.y.nrows() as f64;
+            let m = (0..p.y.nrows()).map(|i| p.y[(i, k)]).sum::<f64>() / n;
+            ((0..p.y.nrows())
+                .map(|i| (p.y[(i, k)] - m).powi(2))
+                .sum::<f64>()
+                / n)
+                .sqrt()
+                .max(1e-12)
+        })
+        .collect();
+    // |Pearson correlation| of each sensor's rise with each target, averaged over targets.
+    let mut ranked: Vec<(f64, usize)> = (0..temps)
+        .filter_map(|s| {
+            let j = rise_col(s)?;
+            let xs = (0..p.x.nrows()).map(|i| p.x[(i, j)]);
+            let sx = xs.clone().map(|v| v * v).sum::<f64>().sqrt();
+            let r = (0..nt)
+                .map(|k| {
+                    let m = (0..p.y.nrows()).map(|i| p.y[(i, k)]).sum::<f64>() / p.y.nrows() as f64;
+                    let sxy: f64 = (0..p.x.nrows())
+                        .map(|i| p.x[(i, j)] * (p.y[(i, k)] - m))
+                        .sum();
+                    let sy = spread[k] * (p.y.nrows() as f64).sqrt();
+                    if sx > 0.0 {
+                        (sxy / (sx * sy)).abs()
+                    } else {
+                        0.0
+                    }
+                })
+                .sum::<f64>()
+                / nt as f64;
+            Some((r, s))
+        })
+        .collect();
+    ranked.sort_by(|a, b| b.0.total_cmp(&a.0));
+    let pool: Vec<usize> = ranked
+        .iter()
+        .take((3 * max).max(8))
+        .map(|&(_, s)| s)
+        .collect();
+    let score = |sensors: &[usize]| {
+        best_per_target(p, settings, sensors)
+            .iter()
+            .zip(&spread)
+            .map(|(b, s)| b.0 / s)
+            .sum::<f64>()
+            / nt as f64
+    };
+    let mut chosen: Vec<usize> = Vec::new();
+    let mut current = score(&chosen);
+    while chosen.len() < max {
+        let mut best: Option<(f64, usize)> = None;
+        for &s in pool.iter().filter(|s| !chosen.contains(s)) {
+            let mut trial = chosen.clone();
+            trial.push(s);
+            let sc = score(&trial);
+            if best.is_none_or(|b| sc < b.0) {
+                best = Some((sc, s));
+            }
+        }
+        match best {
+            Some((sc, s)) if sc < current * 0.99 => {
+                chosen.push(s);
+                current = sc;
+            }
+            _ => break,
+        }
+    }
+    chosen.sort_unstable();
+    chosen
+}
