@@ -260,8 +260,10 @@ fn source_feeds_the_frame_with_one_based_addressing() {
     let feed = m.operating_index("x_feed").unwrap();
     assert!(
         wait_until(Duration::from_secs(5), || {
-            frame.time_s = epoch.elapsed().as_secs_f64();
-            read(&mut source, &mut frame, epoch).is_ok() && frame.operating[feed] > 1.0
+            // Holding and input registers come in two requests: wait for both.
+            read(&mut source, &mut frame, epoch).is_ok()
+                && frame.operating[feed] > 1.0
+                && frame.temperatures_c[t("ambient")] == 24.2
         }),
         "no values: {:?}",
         source.status()
@@ -408,9 +410,18 @@ fn the_documented_example_reads_the_server() {
     let mut source = ModbusSource::start(&config, &m, epoch).unwrap();
     let mut frame = Frame::new(m.temperatures.len(), m.axes.len(), m.operating.len());
     let rpm = m.operating_index("spindle_rpm").unwrap();
-    assert!(wait_until(Duration::from_secs(5), || {
-        read(&mut source, &mut frame, epoch).is_ok() && frame.operating[rpm] == 4660.0
-    }));
+    let amb = m.temperature_index("ambient").unwrap();
+    assert!(
+        wait_until(Duration::from_secs(5), || {
+            // Holding and input registers come in two requests: wait for both.
+            read(&mut source, &mut frame, epoch).is_ok()
+                && frame.operating[rpm] == 4660.0
+                && frame.temperatures_c[amb] == 21.25
+        }),
+        "{:?} {:?}",
+        source.status(),
+        source.link().drain_events()
+    );
     let t = |id: &str| frame.temperatures_c[m.temperature_index(id).unwrap()];
     assert_eq!(t("x_slide_top"), 24.1);
     assert_eq!(t("x_slide_bottom"), 23.45);

@@ -237,7 +237,11 @@ fn values_positions_and_unavailable_reach_the_frame() {
     let amb = m.temperature_index("ambient").unwrap();
     assert!(
         wait_until(Duration::from_secs(5), || {
-            read(&mut source, &mut frame, epoch).is_ok() && frame.temperatures_c[tx] == 24.1
+            // The values arrive one after the other: wait for all of them.
+            read(&mut source, &mut frame, epoch).is_ok()
+                && frame.temperatures_c[tx] == 24.1
+                && frame.positions[x] == 125.5
+                && frame.positions[z] == -40.25
         }),
         "no values from the adapter: {:?}",
         source.status()
@@ -257,7 +261,9 @@ fn values_positions_and_unavailable_reach_the_frame() {
     adapter.send("this is not SHDR");
     adapter.send("|Tx|open-circuit");
     assert!(wait_until(Duration::from_secs(5), || {
-        read(&mut source, &mut frame, epoch).is_ok() && frame.temperatures_c[tx].is_nan()
+        read(&mut source, &mut frame, epoch).is_ok()
+            && frame.temperatures_c[tx].is_nan()
+            && frame.positions[x] == 130.0
     }));
     assert_eq!(frame.positions[x], 130.0);
     let events = source.link().drain_events();
@@ -512,7 +518,11 @@ fn the_documented_example_reads_an_adapter() {
     let mut frame = frame_for(&m);
     let amb = m.temperature_index("ambient").unwrap();
     assert!(wait_until(Duration::from_secs(5), || {
-        read(&mut source, &mut frame, epoch).is_ok() && frame.temperatures_c[amb] == 20.5
+        read(&mut source, &mut frame, epoch).is_ok()
+            && frame.temperatures_c[amb] == 20.5
+            && frame.positions[m.axis_index("X").unwrap()] == 12.5
+            && frame.positions[m.axis_index("Z").unwrap()] == -3.0
+            && frame.temperatures_c[m.temperature_index("spindle_front_bearing").unwrap()] == 31.5
     }));
     assert_eq!(frame.positions[m.axis_index("X").unwrap()], 12.5);
     assert_eq!(frame.positions[m.axis_index("Z").unwrap()], -3.0);
