@@ -597,3 +597,35 @@ fn multiline_assets_are_skipped() {
         source.link().drain_events()
     );
 }
+
+/// A line longer than 64 KiB is a protocol error: the connection is dropped and made again.
+#[test]
+fn an_endless_line_ends_the_connection() {
+    let m = machine();
+    let adapter = Adapter::start(500, vec![vec!["|Tx|22.5"]]);
+    let epoch = Instant::now();
+    let mut source = ShdrSource::start(&config(adapter.address()), &m, epoch).unwrap();
+    let mut frame = frame_for(&m);
+    let tx = m.temperature_index("x_slide_bottom").unwrap();
+    assert!(wait_until(Duration::from_secs(5), || {
+        read(&mut source, &mut frame, epoch).is_ok() && frame.temperatures_c[tx] == 22.5
+    }));
+    adapter.send(&"x".repeat(70_000));
+    assert!(wait_until(Duration::from_secs(5), || source
+        .status()
+        .connections
+        >= 2));
+    let lost: Vec<String> = source
+        .link()
+        .drain_events()
+        .into_iter()
+        .filter(|e| e.kind == LinkEventKind::Lost)
+        .map(|e| e.message)
+        .collect();
+    assert_eq!(lost.len(), 1, "{lost:?}");
+    assert!(
+        lost[0].contains("expected lines of at most 65536 bytes"),
+        "{}",
+        lost[0]
+    );
+}
