@@ -5,6 +5,11 @@ use std::path::PathBuf;
 
 use truepos_sim::{Scenario, Twin, AXES, BUILTIN};
 
+/// Rounds to 3 decimals for printing (µm, °C, mm).
+fn r3(v: f64) -> f64 {
+    (v * 1000.0).round() / 1000.0 + 0.0
+}
+
 /// Arguments of `truepos sim`.
 #[derive(clap::Args)]
 pub struct Args {
@@ -111,18 +116,18 @@ pub fn run(args: Args) -> Result<(), String> {
                 let pos: serde_json::Map<String, serde_json::Value> = AXES
                     .iter()
                     .zip(p)
-                    .map(|(a, v)| (format!("{a}_mm"), serde_json::json!(v)))
+                    .map(|(a, v)| (format!("{a}_mm"), serde_json::json!(r3(*v))))
                     .collect();
                 (
                     d.to_string(),
-                    serde_json::json!({ "value_um": v, "time_s": t, "position": pos }),
+                    serde_json::json!({ "value_um": r3(*v), "time_s": t, "position": pos }),
                 )
             })
             .collect();
         let pos_json = |p: &[f64; 3]| -> serde_json::Value {
             AXES.iter()
                 .zip(p)
-                .map(|(a, v)| (format!("{a}_mm"), serde_json::json!(v)))
+                .map(|(a, v)| (format!("{a}_mm"), serde_json::json!(r3(*v))))
                 .collect::<serde_json::Map<_, _>>()
                 .into()
         };
@@ -138,9 +143,9 @@ pub fn run(args: Args) -> Result<(), String> {
                 let v = match sp {
                     Some((t, (lo, plo), (hi, phi))) => serde_json::json!({
                         "time_s": t,
-                        "min": { "value_um": lo, "position": pos_json(plo) },
-                        "max": { "value_um": hi, "position": pos_json(phi) },
-                        "spread_um": hi - lo,
+                        "min": { "value_um": r3(*lo), "position": pos_json(plo) },
+                        "max": { "value_um": r3(*hi), "position": pos_json(phi) },
+                        "spread_um": r3(hi - lo),
                     }),
                     None => serde_json::Value::Null,
                 };
@@ -150,7 +155,7 @@ pub fn run(args: Args) -> Result<(), String> {
         let temps: serde_json::Map<String, serde_json::Value> = s
             .peak_sensor_c
             .iter()
-            .map(|(id, v)| (id.clone(), serde_json::json!(v)))
+            .map(|(id, v)| (id.clone(), serde_json::json!(r3(*v))))
             .collect();
         let v = serde_json::json!({
             "machine": run.machine,
@@ -165,7 +170,7 @@ pub fn run(args: Args) -> Result<(), String> {
             "t63_s": t63,
             "probe_spread": spread,
             "peak_sensor_c": temps,
-            "peak_node": { "name": s.peak_node.0, "temperature_c": s.peak_node.1 },
+            "peak_node": { "name": s.peak_node.0, "temperature_c": r3(s.peak_node.1) },
         });
         println!("{v}");
     } else if out.as_os_str() != "-" {

@@ -184,7 +184,8 @@ impl SimRun {
     pub fn write_csv<W: Write>(&self, w: W, with_nodes: bool) -> Result<(), csv::Error> {
         let mut out = csv::Writer::from_writer(w);
         out.write_record(self.header(with_nodes))?;
-        let f = |v: f64, d: usize| format!("{v:.d$}");
+        // `+ 0.0` turns −0 into 0 so that no "-0.000" is written.
+        let f = |v: f64, d: usize| format!("{:.d$}", v + 0.0);
         for (i, r) in self.rows.iter().enumerate() {
             let mut rec: Vec<String> = Vec::with_capacity(40);
             rec.push(f(r.time_s, 1));

@@ -547,7 +547,7 @@ impl Checker<'_> {
             line,
             column,
             key,
-            expected: expected.into(),
+            expected: format!("expected {}", expected.into()),
         }
     }
 
