@@ -269,3 +269,20 @@ fn error_anywhere_at_a_recorded_instant() {
         .fold(0.0, f64::max);
     assert!(worst > 20.0 && worst < 200.0, "{worst}");
 }
+
+/// `truepos eval` reads a twin run with the twin's machine description: every sensor, axis and
+/// operating column is found and numeric.
+#[test]
+fn a_twin_run_reads_as_cycles_of_the_example_machine() {
+    let path = workspace().join("examples/twin/machine.toml");
+    let file = truepos_io::machine_file::load(&path).unwrap();
+    let twin = Twin::reference();
+    let run = twin.run(&short("mixed-shift", 35.0), 2).unwrap();
+    let mut buf = Vec::new();
+    run.write_csv(&mut buf, false).unwrap();
+    let all: Vec<usize> = (0..file.machine.temperatures.len()).collect();
+    let cycles = truepos_io::cycles::read(Path::new("twin.csv"), buf.as_slice(), &file.machine, &all).unwrap();
+    assert_eq!(cycles.positions.len(), run.rows.len());
+    assert_eq!(cycles.positions[5], run.rows[5].position_mm.to_vec());
+    assert!(cycles.operating.iter().all(|o| o.iter().all(|v| v.is_finite())));
+}
