@@ -825,7 +825,7 @@ impl Source for ModbusSource {
         &self.name
     }
 
-    /// Copies the latest values with the time of the answer that carried them (no lock, no
+    /// Copies the latest values with the time of the answer that carried them (atomics only, no
     /// allocation). A value that arrived after the frame's clock reading is stamped with the
     /// frame's time: stamps never lie after `frame.time_s`.
     fn read(&mut self, frame: &mut Frame) -> Result<(), LinkError> {

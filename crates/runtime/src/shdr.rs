@@ -473,9 +473,9 @@ impl Source for ShdrSource {
         &self.name
     }
 
-    /// Copies the latest values with their confirmation stamps (no lock, no allocation). A value
-    /// that arrived after the frame's clock reading is stamped with the frame's time: stamps
-    /// never lie after `frame.time_s`.
+    /// Copies the latest values with their confirmation stamps (atomics only, no allocation; see
+    /// [`OutageReporter`] for an outage's first read). A value that arrived after the frame's
+    /// clock reading is stamped with the frame's time: stamps never lie after `frame.time_s`.
     fn read(&mut self, frame: &mut Frame) -> Result<(), LinkError> {
         let current = self.shared.status.connection_number();
         let alive = f64::from_bits(self.shared.alive_s.load(Ordering::Acquire));
