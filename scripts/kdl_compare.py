@@ -143,9 +143,15 @@ def compare(machine, points, truepos, tmp):
             kdl_ok += 1
     kdl_s = time.perf_counter() - t0
 
-    # 3. truepos inverse through every error table, on the same targets.
+    # 3. truepos inverse through every error table. Its targets are the poses the real
+    # (erroneous) chain reaches at the same axis samples: a nominal pose can lie a few µrad
+    # outside what the real machine can reach (at the pole, a tilt in the plane of the swivel
+    # axis cannot be undone), which would test reachability rather than the solver.
+    actual_csv = os.path.join(tmp, f"{machine}.actual.csv")
+    run([truepos, "kin", "fwd", "--kinematics", ktab, "--tool-length", str(TOOL),
+         "--input", axes_csv, "--output", actual_csv, "--json"])
     inv = json.loads(run([truepos, "kin", "inv", "--kinematics", ktab,
-                          "--tool-length", str(TOOL), "--input", poses_csv,
+                          "--tool-length", str(TOOL), "--input", actual_csv,
                           "--output", os.path.join(tmp, f"{machine}.inv.csv"), "--json"]))
     return {
         "machine": machine,

@@ -22,7 +22,7 @@
 
 use super::forward::Tangents;
 use super::{Chain, Directions, Geometry, KinAxis, KinError, Layout, Pose, Step, DEG};
-use crate::machine::MAX_AXES;
+use crate::machine::{AxisKind, MAX_AXES};
 
 /// The inverse transform stops when the TCP is this close to the target (0.1 nm, a tenth of
 /// the 1 nm the issue asks for).
@@ -447,7 +447,19 @@ impl Chain {
             report.position_residual_mm = norm(&sub(&pose.position, &target.position));
             report.direction_residual_rad = norm(&sub(&pose.direction, &target.direction));
         }
+        // A rotary axis may have wandered by whole turns during the iterations (rotary tables
+        // repeat every 360°): take the turn nearest the previous set-point within travel.
         for j in 0..n {
+            let periodic = self
+                .tables
+                .iter()
+                .filter(|t| t.axis == j)
+                .all(|t| t.table.wrap() == crate::table::Wrap::Rotary);
+            if self.axes[j].kind == AxisKind::Rotary && periodic {
+                if let Some(v) = nearest_turn(q[j], prev[j], &self.axes[j]) {
+                    q[j] = v;
+                }
+            }
             if !within_travel(&self.axes[j], q[j]) {
                 return Err(KinError::OutsideTravel {
                     axis: j,
@@ -484,8 +496,12 @@ impl Chain {
             let dirs = fixed_dirs.unwrap_or_else(|| directions_from(q, prev, previous_dirs, n));
             let frozen = self.frozen_rotations(fa, q, dirs);
             let mut q2 = *q;
+            // The branch and turn nearest the current iterate, not the previous set-point: near
+            // the pole both branches can be almost equally far from it, and switching between
+            // them would stall the iteration.
+            let current = *q;
             if self
-                .five_axis(&frozen, target, tool_mm, prev, &mut q2, Some(dirs))
+                .five_axis(&frozen, target, tool_mm, &current, &mut q2, Some(dirs))
                 .is_err()
             {
                 break;
@@ -991,7 +1007,6 @@ fn directions_from(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::machine::AxisKind;
 
     #[test]
     fn subproblem_two_recovers_known_angles() {
