@@ -5,6 +5,7 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
+mod demo;
 mod eval;
 mod fit;
 mod kin;
@@ -24,6 +25,8 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
+    /// The main job on built-in defaults: twin training and test days, fit, before/after, report.
+    Demo(demo::Args),
     /// Evaluate a compensation model on a recorded run (CSV of cycles) and write per-axis offsets.
     Eval(eval::Args),
     /// Learn a dynamic compensation model from recorded runs (CSV/XLSX) and validate it honestly.
@@ -62,6 +65,7 @@ fn main() -> ExitCode {
     }));
     let cli = Cli::parse();
     let result = match cli.command {
+        Command::Demo(args) => demo::run(args),
         Command::Eval(args) => eval::run(args),
         Command::Fit(args) => fit::run(args),
         Command::Kin(args) => kin::run(args),

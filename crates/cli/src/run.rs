@@ -9,8 +9,10 @@ use std::time::{Duration, Instant};
 
 use truepos_io::{cycles, machine_file, model_file};
 use truepos_runtime::log::{self, LogSetup, Logger};
+use truepos_runtime::modbus::{ModbusConfig, ModbusSource};
 use truepos_runtime::model_set::{index_of, ModelEntry};
 use truepos_runtime::replay::{state_name, CsvSink, ReplaySource};
+use truepos_runtime::shdr::{ShdrConfig, ShdrSource};
 use truepos_runtime::{PathState, Service, ServiceConfig, Sink, Source};
 
 /// Arguments of `truepos run`.
@@ -28,7 +30,9 @@ pub struct RunArgs {
     models: Vec<PathBuf>,
     /// Sources: `replay:RUN.csv[@SPEED]` (a recorded run at SPEED × real time), and
     /// `twin:SCENARIO[@SPEED]` (the thermal twin's sensors on a built-in scenario or scenario
-    /// file; temperatures and operating state only, positions come from the other sources).
+    /// file; temperatures and operating state only, positions come from the other sources),
+    /// `modbus:CONFIG.toml` (temperature modules) and `shdr:CONFIG.toml` (an MTConnect adapter);
+    /// see docs/network_sources.md for their configuration.
     #[arg(long = "source", default_value = "replay:examples/vmc3/run.csv")]
     sources: Vec<String>,
     /// Sinks: `csv:OUT.csv` (one row per `--sink-every-s`).
@@ -197,6 +201,8 @@ pub fn run(args: RunArgs) -> Result<(), String> {
             index,
         });
     }
+    // The service clock's zero, shared with network sources that stamp values themselves.
+    let epoch = Instant::now();
     let mut sources: Vec<Box<dyn Source>> = Vec::new();
     let mut replay_end_s = None;
     for spec in &args.sources {
@@ -211,21 +217,30 @@ pub fn run(args: RunArgs) -> Result<(), String> {
             ),
             None => (rest, 1.0),
         };
-        let source = match kind {
+        let source: Box<dyn Source> = match kind {
             "replay" => {
-                let run =
-                    cycles::load(std::path::Path::new(what), m, &[]).map_err(|e| e.to_string())?;
-                ReplaySource::new(format!("replay {what}"), run, speed)
+                let run = cycles::load(std::path::Path::new(what), m, &[])
+                    .map_err(|e| e.to_string())?;
+                let replay = ReplaySource::new(format!("replay {what}"), run, speed);
+                replay_end_s = Some(replay.duration_s() / speed);
+                Box::new(replay)
             }
-            "twin" => twin_source(what, m, speed)?,
-            _ => return Err(format!(
-                "--source `{spec}`: expected `replay:FILE.csv[@SPEED]` or `twin:SCENARIO[@SPEED]`"
-            )),
+            "twin" => Box::new(twin_source(what, m, speed)?),
+            "modbus" => {
+                let cfg = ModbusConfig::load(std::path::Path::new(what)).map_err(|e| e.to_string())?;
+                Box::new(ModbusSource::start(&cfg, m, epoch).map_err(|e| e.to_string())?)
+            }
+            "shdr" => {
+                let cfg = ShdrConfig::load(std::path::Path::new(what)).map_err(|e| e.to_string())?;
+                Box::new(ShdrSource::start(&cfg, m, epoch).map_err(|e| e.to_string())?)
+            }
+            _ => {
+                return Err(format!(
+                    "--source `{spec}`: expected `replay:FILE.csv[@SPEED]`, `twin:SCENARIO[@SPEED]`, `modbus:CONFIG.toml` or `shdr:CONFIG.toml`"
+                ))
+            }
         };
-        if kind == "replay" {
-            replay_end_s = Some(source.duration_s() / speed);
-        }
-        sources.push(Box::new(source));
+        sources.push(source);
     }
     let axis_names: Vec<String> = m.axes.iter().map(|a| a.name.clone()).collect();
     let mut sinks: Vec<Box<dyn Sink>> = Vec::new();
@@ -285,8 +300,14 @@ pub fn run(args: RunArgs) -> Result<(), String> {
         histogram: [0; 6],
     };
     let cpu_start = cpu_time_s();
-    let start = Instant::now();
-    let mut k: u64 = 0;
+    let start = epoch;
+    // The first deadline after start-up: the time spent loading is not a backlog of cycles.
+    let mut k: u64 = if args.fast {
+        0
+    } else {
+        (Instant::now().saturating_duration_since(start).as_nanos() as u64)
+            .div_ceil(period_ns.max(1))
+    };
     let mut next_status = 1.0;
     let mut last_status = String::new();
     loop {

@@ -53,5 +53,6 @@ pub mod dataset;
 pub mod features;
 pub mod least_squares;
 pub mod model_file;
+pub mod position_model;
 pub mod train;
 pub mod validate;

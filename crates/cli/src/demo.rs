@@ -1,0 +1,440 @@
+//! `truepos demo`: the main job on the built-in defaults. The thermal twin runs a training day
+//! and a different test day on the reference machine; truepos fits the prior-art
+//! (position-independent) and the position-dependent model of seed A on the training day only,
+//! evaluates both on the test day — at the tool's path and over the whole working volume — prints
+//! a before/after table, and writes the model file and the report.
+
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+
+use truepos_fit::position_model::{fit_structure, structure, Family, Fitted, Observation};
+use truepos_io::{machine_file, model_file::ModelFile};
+use truepos_model::{CycleInput, Machine, Model};
+use truepos_report::{write_report, Channel, Coefficient, ReportData};
+use truepos_sim::{Scenario, SimRun, Twin};
+
+/// The twin's machine description, built into the binary so the demo needs no files.
+const TWIN_MACHINE: &str = include_str!("../../../examples/twin/machine.toml");
+
+/// Arguments of `truepos demo`.
+#[derive(clap::Args)]
+pub struct Args {
+    /// Scenario of the training day (built-in name or TOML file).
+    #[arg(long, default_value = "mixed-shift")]
+    train: String,
+    /// Scenario of the test day, never seen by the fit.
+    #[arg(long, default_value = "mixed-shift-b")]
+    test: String,
+    /// Folder for the model files and the report.
+    #[arg(long, default_value = "demo")]
+    out: PathBuf,
+    /// Grid points per axis for the working-volume check (n × n × n positions).
+    #[arg(long, default_value_t = 3)]
+    grid: usize,
+    /// Print the figures as JSON.
+    #[arg(long)]
+    json: bool,
+}
+
+fn scenario(name: &str) -> Result<Scenario, String> {
+    match Scenario::builtin(name) {
+        Some(s) => Ok(s),
+        None => {
+            let text = std::fs::read_to_string(name).map_err(|e| {
+                format!(
+                    "scenario `{name}`: not a built-in ({}) and not a readable file: {e}",
+                    truepos_sim::BUILTIN.join(", ")
+                )
+            })?;
+            Scenario::parse(&text, name, None).map_err(|e| e.to_string())
+        }
+    }
+}
+
+/// A twin run as rows of machine-ordered inputs.
+struct Day {
+    run: SimRun,
+    temps: Vec<Vec<f64>>,
+    positions: Vec<Vec<f64>>,
+    operating: Vec<Vec<f64>>,
+}
+
+fn day(twin: &Twin, machine: &Machine, name: &str, seed: u64) -> Result<Day, String> {
+    let sc = scenario(name)?;
+    let run = twin.run(&sc, seed).map_err(|e| e.to_string())?;
+    let index: Vec<Option<usize>> = machine
+        .temperatures
+        .iter()
+        .map(|t| run.sensor_ids.iter().position(|s| *s == t.id))
+        .collect();
+    let temps = run
+        .rows
+        .iter()
+        .map(|r| {
+            index
+                .iter()
+                .map(|i| i.map_or(f64::NAN, |i| r.temperatures_c[i]))
+                .collect()
+        })
+        .collect();
+    let positions = run.rows.iter().map(|r| r.position_mm.to_vec()).collect();
+    let operating = run
+        .rows
+        .iter()
+        .map(|_| vec![f64::NAN; machine.operating.len()])
+        .collect();
+    Ok(Day {
+        run,
+        temps,
+        positions,
+        operating,
+    })
+}
+
+fn input<'a>(d: &'a Day, i: usize) -> CycleInput<'a> {
+    CycleInput {
+        temperatures_c: &d.temps[i],
+        positions: &d.positions[i],
+        operating: &d.operating[i],
+    }
+}
+
+/// Figures of one model on the test day.
+#[derive(Debug, Clone, serde::Serialize)]
+struct Figures {
+    /// RMS of the residual at the tool's path per direction, µm.
+    path_rmse_um: [f64; 3],
+    /// Largest |error vector| over the working volume and the day, µm.
+    volume_max_um: f64,
+}
+
+/// Error vectors of the twin (truth) and of a model over the working volume at every
+/// `stride`-th row of the test day; returns the largest |truth − prediction| (or |truth| when
+/// `model` is `None`).
+fn volume_max(twin: &Twin, d: &Day, model: Option<&Model>, grid: usize, stride: usize) -> f64 {
+    let travel = twin.travel_mm;
+    let at = |a: usize, k: usize| {
+        let [lo, hi] = travel[a];
+        if grid <= 1 {
+            0.5 * (lo + hi)
+        } else {
+            lo + (hi - lo) * k as f64 / (grid - 1) as f64
+        }
+    };
+    let mut worst = 0.0_f64;
+    for i in (0..d.run.rows.len()).step_by(stride.max(1)) {
+        let state = d.run.state(i);
+        for kx in 0..grid {
+            for ky in 0..grid {
+                for kz in 0..grid {
+                    let pos = [at(0, kx), at(1, ky), at(2, kz)];
+                    let truth = twin.error_um(state, pos);
+                    let pred = match model {
+                        Some(m) => {
+                            let c = m.evaluate(&CycleInput {
+                                temperatures_c: &d.temps[i],
+                                positions: &pos,
+                                operating: &d.operating[i],
+                            });
+                            match c {
+                                Ok(c) => [c.error_um()[0], c.error_um()[1], c.error_um()[2]],
+                                Err(_) => [f64::NAN; 3],
+                            }
+                        }
+                        None => [0.0; 3],
+                    };
+                    let r: f64 = (0..3).map(|a| (truth[a] - pred[a]).powi(2)).sum::<f64>();
+                    if r.is_finite() {
+                        worst = worst.max(r.sqrt());
+                    }
+                }
+            }
+        }
+    }
+    worst
+}
+
+fn path_rmse(d: &Day, model: Option<&Model>) -> [f64; 3] {
+    let mut se = [0.0; 3];
+    let mut n = 0usize;
+    for (i, row) in d.run.rows.iter().enumerate() {
+        let pred = match model {
+            Some(m) => match m.evaluate(&input(d, i)) {
+                Ok(c) => [c.error_um()[0], c.error_um()[1], c.error_um()[2]],
+                Err(_) => continue,
+            },
+            None => [0.0; 3],
+        };
+        for a in 0..3 {
+            se[a] += (row.error_um[a] - pred[a]).powi(2);
+        }
+        n += 1;
+    }
+    se.map(|s| (s / n.max(1) as f64).sqrt())
+}
+
+fn fit(machine: &Machine, train: &Day, family: Family) -> Result<Fitted, String> {
+    let differences: Vec<usize> = (0..machine.differences.len()).collect();
+    let s = structure(
+        &format!(
+            "twin-{}",
+            match family {
+                Family::PositionIndependent => "prior-art",
+                _ => "position-dependent",
+            }
+        ),
+        machine,
+        family,
+        &differences,
+        &[0, 1, 2],
+        true,
+    )
+    .map_err(|e| e.to_string())?;
+    // What a machine builder measures: the error at the tool's path, and the touch-probe grid
+    // of the scenario (seed C's on-line procedure), each with the temperatures of that instant.
+    let probes: Vec<(usize, [f64; 3], [f64; 3])> = train
+        .run
+        .rows
+        .iter()
+        .enumerate()
+        .filter_map(|(i, r)| r.probe.as_ref().map(|p| (i, p.position_mm, p.measured_um)))
+        .collect();
+    let mut obs = Vec::new();
+    let mut next_probe = 0;
+    for i in 0..train.run.rows.len() {
+        for a in 0..3 {
+            obs.push(Observation {
+                input: input(train, i),
+                axis: a,
+                error_um: train.run.rows[i].error_um[a],
+            });
+        }
+        while next_probe < probes.len() && probes[next_probe].0 == i {
+            let (_, pos, measured) = &probes[next_probe];
+            for (a, &e) in measured.iter().enumerate() {
+                obs.push(Observation {
+                    input: CycleInput {
+                        temperatures_c: &train.temps[i],
+                        positions: pos,
+                        operating: &train.operating[i],
+                    },
+                    axis: a,
+                    error_um: e,
+                });
+            }
+            next_probe += 1;
+        }
+    }
+    fit_structure(&s, machine, obs).map_err(|e| e.to_string())
+}
+
+fn save(
+    fitted: &Fitted,
+    machine: &Machine,
+    path: &Path,
+    family: Family,
+    train: &str,
+) -> Result<(), String> {
+    let mut file = ModelFile::from_model(&fitted.model, machine);
+    file.description = format!(
+        "{} fitted by `truepos demo` on the twin's `{train}` day",
+        family.name()
+    );
+    file.provenance.insert("tool".into(), "truepos demo".into());
+    file.provenance
+        .insert("training_scenario".into(), train.into());
+    file.provenance
+        .insert("family".into(), family.name().into());
+    file.provenance.insert("ridge".into(), fitted.ridge.into());
+    file.provenance
+        .insert("observations".into(), (fitted.observations as i64).into());
+    std::fs::write(path, file.to_toml())
+        .map_err(|e| format!("{}: cannot write: {e}", path.display()))
+}
+
+pub fn run(args: Args) -> Result<(), String> {
+    let machine = machine_file::parse(Path::new("examples/twin/machine.toml"), TWIN_MACHINE)
+        .map_err(|e| e.to_string())?
+        .machine;
+    let twin = Twin::reference();
+    let chatty = !args.json && std::io::stderr().is_terminal();
+    let say = |m: &str| {
+        if chatty || !args.json {
+            eprintln!("{m}");
+        }
+    };
+    say(&format!(
+        "twin: simulating the training day `{}` …",
+        args.train
+    ));
+    let train = day(&twin, &machine, &args.train, 1)?;
+    say(&format!("twin: simulating the test day `{}` …", args.test));
+    let test = day(&twin, &machine, &args.test, 2)?;
+    say("fit: prior-art and position-dependent models on the training day only …");
+    let prior = fit(&machine, &train, Family::PositionIndependent)?;
+    // The position-dependent family is chosen by the cross-validated error inside the training
+    // day: linear position terms (embodiment 5) or with squares too (example 2).
+    let candidates = [Family::AllAxes, Family::AllAxesSquared];
+    let mut fitted = Vec::new();
+    for f in candidates {
+        let m = fit(&machine, &train, f)?;
+        let cv = m
+            .cv_rmse_um
+            .iter()
+            .map(|c| c.1)
+            .fold(f64::INFINITY, f64::min);
+        say(&format!(
+            "  {}: cross-validated RMSE {cv:.2} µm (ridge {:e})",
+            f.name(),
+            m.ridge
+        ));
+        fitted.push((cv, f, m));
+    }
+    fitted.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let (_, family, posdep) = fitted.swap_remove(0);
+
+    std::fs::create_dir_all(&args.out)
+        .map_err(|e| format!("{}: cannot create: {e}", args.out.display()))?;
+    save(
+        &prior,
+        &machine,
+        &args.out.join("prior-art.model.toml"),
+        Family::PositionIndependent,
+        &args.train,
+    )?;
+    save(
+        &posdep,
+        &machine,
+        &args.out.join("position-dependent.model.toml"),
+        family,
+        &args.train,
+    )?;
+
+    say("evaluate: test day, at the tool's path and over the working volume …");
+    let stride = (test.run.rows.len() / 200).max(1);
+    let none = Figures {
+        path_rmse_um: path_rmse(&test, None),
+        volume_max_um: volume_max(&twin, &test, None, args.grid, stride),
+    };
+    let fig = |m: &Model| Figures {
+        path_rmse_um: path_rmse(&test, Some(m)),
+        volume_max_um: volume_max(&twin, &test, Some(m), args.grid, stride),
+    };
+    let prior_fig = fig(&prior.model);
+    let posdep_fig = fig(&posdep.model);
+    let reduction = |f: &Figures| 1.0 - f.volume_max_um / none.volume_max_um;
+
+    // The report: the position-dependent model on the test day at the tool's path.
+    let mut channels = Vec::new();
+    for (a, name) in ["dx", "dy", "dz"].iter().enumerate() {
+        let measured: Vec<f64> = test.run.rows.iter().map(|r| r.error_um[a]).collect();
+        let predicted: Vec<f64> = (0..test.run.rows.len())
+            .map(|i| {
+                posdep
+                    .model
+                    .evaluate(&input(&test, i))
+                    .map_or(f64::NAN, |c| c.error_um()[a])
+            })
+            .collect();
+        channels.push(Channel {
+            name: format!("{name} ({})", machine.axes[a].name),
+            unit: "µm".into(),
+            measured,
+            predicted,
+        });
+    }
+    let params = posdep.model.parameters();
+    let names = coefficient_names(&posdep.model, &machine);
+    let data = ReportData {
+        title: "truepos demo: position-dependent model of the twin, on a test day it never saw".into(),
+        time_s: test.run.rows.iter().map(|r| r.time_s).collect(),
+        test_from: Some(0),
+        channels,
+        temperatures: machine
+            .temperatures
+            .iter()
+            .enumerate()
+            .map(|(i, t)| (t.id.clone(), test.temps.iter().map(|r| r[i]).collect()))
+            .collect(),
+        coefficients: names
+            .into_iter()
+            .zip(params)
+            .filter(|(_, v)| *v != 0.0)
+            .map(|((channel, feature), value)| Coefficient { channel, feature, value })
+            .collect(),
+        protocol: vec![
+            ("machine".into(), format!("{} (the built-in thermal twin)", machine.name)),
+            ("training".into(), format!("twin scenario `{}`, seed 1: the only data the fit saw", args.train)),
+            ("test".into(), format!("twin scenario `{}`, seed 2: a different day, held out entirely", args.test)),
+            ("family".into(), format!("{} — chosen over the alternatives by cross-validated error inside the training day", family.name())),
+            ("regularisation".into(), format!("ridge λ = {:e}, chosen by {}-block time-series cross-validation inside the training day", posdep.ridge, truepos_fit::position_model::CV_BLOCKS)),
+            ("solver".into(), format!("QR of the regressors (rank {} of {}, condition {:.3e})", posdep.solution.rank, posdep.model.parameter_count(), posdep.solution.condition)),
+            ("working volume".into(), format!("{0}×{0}×{0} grid over the travel, every {stride}-th sample of the test day", args.grid)),
+        ],
+    };
+    let html = write_report(&args.out.join("report"), &data).map_err(|e| e.to_string())?;
+
+    if args.json {
+        let v = serde_json::json!({
+            "train": args.train, "test": args.test,
+            "uncompensated": none,
+            "prior_art": { "figures": prior_fig, "volume_reduction": reduction(&prior_fig), "ridge": prior.ridge },
+            "position_dependent": { "family": family.name(), "figures": posdep_fig, "volume_reduction": reduction(&posdep_fig), "ridge": posdep.ridge },
+            "report": html.display().to_string(),
+        });
+        println!("{v}");
+    } else {
+        println!(
+            "test day `{}` (never seen by the fit), errors of the tool relative to the workpiece:",
+            args.test
+        );
+        println!(
+            "{:<34} {:>9} {:>9} {:>9} {:>14} {:>10}",
+            "", "RMS dx", "RMS dy", "RMS dz", "max |e| volume", "reduction"
+        );
+        for (name, f) in [
+            ("uncompensated", &none),
+            ("prior art (position-independent)", &prior_fig),
+            ("position-dependent (seed A)", &posdep_fig),
+        ] {
+            println!(
+                "{:<34} {:>6.2} µm {:>6.2} µm {:>6.2} µm {:>11.2} µm {:>9.0} %",
+                name,
+                f.path_rmse_um[0],
+                f.path_rmse_um[1],
+                f.path_rmse_um[2],
+                f.volume_max_um,
+                100.0 * reduction(f)
+            );
+        }
+        println!(
+            "models: {}/prior-art.model.toml, {}/position-dependent.model.toml",
+            args.out.display(),
+            args.out.display()
+        );
+        println!("report: {}", html.display());
+    }
+    Ok(())
+}
+
+/// (channel, feature) of each parameter, in parameter order.
+fn coefficient_names(model: &Model, machine: &Machine) -> Vec<(String, String)> {
+    let mut out = Vec::new();
+    for p in model.parts() {
+        for s in &p.summands {
+            let ch = machine.axes[s.axis].name.clone();
+            let dt = machine.differences[s.difference].name.clone();
+            out.push((ch.clone(), dt.clone()));
+            for t in &s.position_terms {
+                out.push((
+                    ch.clone(),
+                    format!("{dt} · {}({})", t.factor.name(), machine.axes[t.axis].name),
+                ));
+            }
+        }
+        for c in &p.constants_um {
+            out.push((machine.axes[c.0].name.clone(), "constant (µm)".into()));
+        }
+    }
+    out
+}

@@ -1,0 +1,217 @@
+//! Fitting seed A's position-dependent form — and its special cases, down to the
+//! position-independent prior art — to measured tool-tip errors.
+//!
+//! A [`Family`] fixes which coefficients exist ([`structure`] builds the model with all of them
+//! zero); [`fit_structure`] estimates them by least squares through the model's own regressors
+//! (`Model::regressors`: error = Σ θ·φ), so the fitted model is exactly the model file the
+//! control evaluates. The ridge weight is chosen by blocked time-series cross-validation inside
+//! the observations given (the training part), never on data the caller holds out.
+
+use truepos_model::{
+    Carriage, CycleInput, Machine, Model, ModelError, Part, PartForm, PositionFactor, PositionTerm,
+    Summand,
+};
+
+use crate::least_squares::{Accumulator, Solution, SolveError, SolveOptions};
+
+/// Which coefficients a position-dependent model has.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Family {
+    /// Prior art (seed A eqs. 1–2): ΔA_n = Σ_m ΔT_m·K_nm, no position.
+    PositionIndependent,
+    /// Seed A embodiment 5: ΔA_n = Σ_m ΔT_m·[K_nm0 + Σ_j K_nmj·g_j] over every axis j, with g_j
+    /// the axis' natural factor (r for a cantilevered slide, KFA for a slide on a bed).
+    AllAxes,
+    /// As [`Family::AllAxes`] with r_j² terms as well (seed A example 2: the arc is not linear).
+    AllAxesSquared,
+}
+
+impl Family {
+    /// The name used in reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::PositionIndependent => "position-independent (prior art, seed A eqs. 1–2)",
+            Self::AllAxes => "position-dependent, all axes (seed A embodiment 5)",
+            Self::AllAxesSquared => {
+                "position-dependent, all axes with squares (seed A emb. 5 + ex. 2)"
+            }
+        }
+    }
+}
+
+/// The model of a family with every coefficient zero: for each target axis n and each listed
+/// difference m one summand, plus a constant per target axis when `constant` is set.
+pub fn structure(
+    name: &str,
+    machine: &Machine,
+    family: Family,
+    differences: &[usize],
+    targets: &[usize],
+    constant: bool,
+) -> Result<Model, ModelError> {
+    let natural = |j: usize| match machine.axes[j].carriage {
+        Carriage::Cantilever => PositionFactor::Ratio,
+        Carriage::Bed => PositionFactor::BedFactor,
+    };
+    let mut summands = Vec::new();
+    for &n in targets {
+        for &m in differences {
+            let mut position_terms = Vec::new();
+            if family != Family::PositionIndependent {
+                for j in 0..machine.axes.len() {
+                    position_terms.push(PositionTerm {
+                        axis: j,
+                        factor: natural(j),
+                        k_um_per_k: 0.0,
+                    });
+                    if family == Family::AllAxesSquared {
+                        position_terms.push(PositionTerm {
+                            axis: j,
+                            factor: PositionFactor::RatioSquared,
+                            k_um_per_k: 0.0,
+                        });
+                    }
+                }
+            }
+            summands.push(Summand {
+                axis: n,
+                difference: m,
+                k0_um_per_k: 0.0,
+                position_terms,
+                bed_multiplier: None,
+            });
+        }
+    }
+    let part = Part {
+        name: "thermal".into(),
+        enabled: true,
+        form: PartForm::PositionDependent,
+        summands,
+        constants_um: if constant {
+            targets.iter().map(|&n| (n, 0.0)).collect()
+        } else {
+            Vec::new()
+        },
+    };
+    Model::new(name, machine, vec![part])
+}
+
+/// One measured error of one axis at one instant, with what the control knew then.
+#[derive(Debug, Clone, Copy)]
+pub struct Observation<'a> {
+    /// The inputs of that cycle.
+    pub input: CycleInput<'a>,
+    /// The axis whose error was measured.
+    pub axis: usize,
+    /// The measured error in µm (actual − nominal).
+    pub error_um: f64,
+}
+
+/// A fitted model and how it was chosen.
+#[derive(Debug, Clone)]
+pub struct Fitted {
+    /// The model with the estimated coefficients.
+    pub model: Model,
+    /// The solver's account (rank, condition, culprit columns).
+    pub solution: Solution,
+    /// The ridge weight chosen.
+    pub ridge: f64,
+    /// Cross-validated RMSE (µm) of each ridge weight tried, in order.
+    pub cv_rmse_um: Vec<(f64, f64)>,
+    /// Observations used.
+    pub observations: usize,
+    /// Observations skipped because an input was invalid.
+    pub skipped: usize,
+}
+
+/// Ridge weights tried by the cross-validation (relative to unit-norm columns).
+pub const RIDGE_GRID: [f64; 6] = [0.0, 1e-8, 1e-6, 1e-4, 1e-3, 1e-2];
+
+/// Contiguous blocks of the cross-validation: never random rows, because neighbouring samples
+/// of a thermal run are nearly identical and a random split leaks the answer.
+pub const CV_BLOCKS: usize = 5;
+
+/// Estimates the coefficients of `structure` from observations (in time order). The ridge
+/// weight is chosen from [`RIDGE_GRID`] by blocked cross-validation over [`CV_BLOCKS`]
+/// contiguous blocks of the observations, then the model is fitted on all of them.
+pub fn fit_structure<'a>(
+    structure: &Model,
+    machine: &Machine,
+    observations: impl IntoIterator<Item = Observation<'a>>,
+) -> Result<Fitted, SolveError> {
+    let n = structure.parameter_count();
+    let mut rows: Vec<(Vec<f64>, f64)> = Vec::new();
+    let mut skipped = 0;
+    for o in observations {
+        let mut phi = vec![0.0; n];
+        if !o.error_um.is_finite() || structure.regressors(&o.input, o.axis, &mut phi).is_err() {
+            skipped += 1;
+            continue;
+        }
+        rows.push((phi, o.error_um));
+    }
+    if rows.len() < 2 * CV_BLOCKS {
+        return Err(SolveError::Empty);
+    }
+    // One QR accumulator per contiguous block; a fold's training triangle is the merge of the
+    // other blocks, factored once and solved for every ridge weight.
+    let block = rows.len().div_ceil(CV_BLOCKS);
+    let mut blocks = Vec::with_capacity(CV_BLOCKS);
+    for chunk in rows.chunks(block) {
+        let mut acc = Accumulator::new(n, 1);
+        for (phi, y) in chunk {
+            acc.push_row(phi, &[*y], 1.0)?;
+        }
+        blocks.push(acc);
+    }
+    let options = |ridge: f64| SolveOptions {
+        ridge,
+        unpenalized: Vec::new(),
+        rcond: None,
+    };
+    let mut se = vec![0.0; RIDGE_GRID.len()];
+    let mut count = 0usize;
+    for (b, held) in rows.chunks(block).enumerate() {
+        let mut train = Accumulator::new(n, 1);
+        for (k, acc) in blocks.iter().enumerate() {
+            if k != b {
+                train.merge(acc.clone())?;
+            }
+        }
+        let triangle = train.finish();
+        for (r, &ridge) in RIDGE_GRID.iter().enumerate() {
+            let theta = &triangle.solve(&options(ridge))?.coefficients[0];
+            for (phi, y) in held {
+                let p: f64 = phi.iter().zip(theta).map(|(a, t)| a * t).sum();
+                se[r] += (y - p) * (y - p);
+            }
+        }
+        count += held.len();
+    }
+    let cv: Vec<(f64, f64)> = RIDGE_GRID
+        .iter()
+        .zip(&se)
+        .map(|(&ridge, &e)| (ridge, (e / count.max(1) as f64).sqrt()))
+        .collect();
+    let ridge = cv
+        .iter()
+        .filter(|c| c.1.is_finite())
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+        .map_or(0.0, |c| c.0);
+    let mut all = Accumulator::new(n, 1);
+    for acc in blocks {
+        all.merge(acc)?;
+    }
+    let solution = all.finish().solve(&options(ridge))?;
+    let model = structure
+        .with_parameters(machine, &solution.coefficients[0])
+        .map_err(|_| SolveError::NoConvergence)?;
+    Ok(Fitted {
+        model,
+        solution,
+        ridge,
+        cv_rmse_um: cv,
+        observations: rows.len(),
+        skipped,
+    })
+}
