@@ -336,6 +336,16 @@ macro_rules! pin_access {
             }
         }
 
+        impl Clone for $pin {
+            /// Another handle on the same pin (both read and write the same HAL value).
+            fn clone(&self) -> Self {
+                Self {
+                    slot: self.slot,
+                    _owner: Arc::clone(&self._owner),
+                }
+            }
+        }
+
         impl fmt::Debug for $pin {
             fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
                 f.debug_struct(stringify!($pin))

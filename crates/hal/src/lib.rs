@@ -4,13 +4,14 @@
 //! cycle it reads the nominal axis positions (`axis.L.pos-cmd`) and temperature pins, evaluates
 //! the compensation model and drives LinuxCNC's external offsets (`axis.L.eoffset-counts`,
 //! `-scale`, `-enable`), which LinuxCNC adds to the joint commands. The binary `truepos-hal`
-//! is what `loadusr -W` starts; [`pins`] lists the pins and `docs/linuxcnc.md` the HAL lines.
+//! is what `loadusr -W` starts: it runs the runtime's [`Service`](truepos_runtime::Service)
+//! (validation, model set, envelope, bumpless switching, log) with this crate's source and sink.
+//! [`pins`] lists the pins and `docs/linuxcnc.md` the HAL lines.
 //!
 //! - [`ffi`]: the C interface of `liblinuxcnchal` — the only `unsafe` code of truepos.
 //! - [`source::HalSource`] / [`sink::HalSink`]: the component as the runtime's
 //!   [`Source`](truepos_runtime::Source) and [`Sink`](truepos_runtime::Sink).
 //! - [`eoffset`]: offsets in µm ↔ LinuxCNC counts.
-//! - [`compensator`]: the cycle run by the binary (model, hold/ramp, safety envelope).
 //! - [`check`]: the analysis of the end-to-end test: what LinuxCNC applied against the model.
 //!
 //! Sign: the model predicts the error (actual − nominal); the offset sent is −error.
@@ -31,7 +32,6 @@
 #![warn(missing_docs)]
 
 pub mod check;
-pub mod compensator;
 pub mod eoffset;
 #[allow(unsafe_code)]
 pub mod ffi;
@@ -39,6 +39,5 @@ pub mod pins;
 pub mod sink;
 pub mod source;
 
-pub use compensator::{Compensator, CompensatorConfig, Event};
 pub use sink::HalSink;
 pub use source::HalSource;

@@ -2,21 +2,21 @@
 //! `truepos-hal`: the `truepos` userspace HAL component (`loadusr -W truepos-hal run …`) and
 //! the end-to-end check of what LinuxCNC applied (`truepos-hal check …`).
 
-use std::io::Write;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::mpsc::{sync_channel, Receiver, TrySendError};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use clap::{Parser, Subcommand};
 use truepos_hal::check::{check, load_samples, CheckConfig};
 use truepos_hal::ffi::Component;
-use truepos_hal::{pins, Compensator, CompensatorConfig, Event, HalSink, HalSource};
+use truepos_hal::{pins, HalSink, HalSource};
 use truepos_io::machine_file::MachineFile;
 use truepos_model::Model;
-use truepos_runtime::{Frame, Sink, Source};
+use truepos_runtime::log::{LogSetup, Logger};
+use truepos_runtime::model_set::{index_of, ModelEntry};
+use truepos_runtime::{Service, ServiceConfig, Sink, Source};
 
 #[derive(Parser)]
 #[command(
@@ -51,12 +51,16 @@ struct RunArgs {
     /// Cycle period in ms.
     #[arg(long, default_value_t = 1.0)]
     period_ms: f64,
-    /// After a sensor fault, ramp the held offsets to zero over this time (s).
-    #[arg(long, default_value_t = 10.0)]
+    /// With no valid model left after a sensor fault, ramp the held offsets to zero over this
+    /// time (s).
+    #[arg(long, default_value_t = 60.0)]
     hold_ramp_s: f64,
-    /// Append events as JSON lines to this file.
+    /// Blend time of model switches and of switching compensation on or off (s).
+    #[arg(long, default_value_t = 5.0)]
+    blend_s: f64,
+    /// SQLite log (WAL) of inputs, outputs and events, readable with `truepos log`.
     #[arg(long)]
-    events: Option<PathBuf>,
+    log: Option<PathBuf>,
     /// Write cycle-timing figures as JSON to this file on exit.
     #[arg(long)]
     stats: Option<PathBuf>,
@@ -83,6 +87,13 @@ struct CheckArgs {
     /// Servo period in ms.
     #[arg(long, default_value_t = 1.0)]
     period_ms: f64,
+    /// The component's SQLite log, for `--expect-event`.
+    #[arg(long)]
+    log: Option<PathBuf>,
+    /// An event the log must hold: `kind`, `kind:subject` or `kind:subject:text in the detail`
+    /// (e.g. `sensor-fault:x_slide_bottom`, `model-selected:path 1:vmc3-e2e-alternative`).
+    #[arg(long = "expect-event")]
+    expect_events: Vec<String>,
     /// Print the figures as JSON.
     #[arg(long)]
     json: bool,
@@ -100,118 +111,99 @@ fn load(
     Ok((machine, models))
 }
 
-fn event_json(e: &Event, machine: &MachineFile) -> serde_json::Value {
-    use serde_json::json;
-    match *e {
-        Event::Fault { time_s, error } => {
-            json!({"time_s": time_s, "kind": "fault", "reason": error.to_string(),
-                   "channel": fault_channel(&error, machine)})
-        }
-        Event::Recovered { time_s } => json!({"time_s": time_s, "kind": "recovered"}),
-        Event::ModelSwitch { time_s, from, to } => {
-            json!({"time_s": time_s, "kind": "model-switch", "from": from, "to": to})
-        }
-        Event::NoSuchModel { time_s, requested } => {
-            json!({"time_s": time_s, "kind": "no-such-model", "requested": requested})
-        }
-        Event::Clamped {
-            time_s,
-            axis,
-            wanted_um,
-            sent_um,
-        } => json!({"time_s": time_s, "kind": "clamped",
-                    "axis": machine.machine.axes.get(axis).map(|a| a.name.clone()),
-                    "wanted_um": wanted_um, "sent_um": sent_um}),
-        Event::Enabled { time_s, on } => json!({"time_s": time_s, "kind": "enabled", "on": on}),
-    }
-}
-
-fn fault_channel(error: &truepos_model::EvalError, machine: &MachineFile) -> Option<String> {
-    use truepos_model::EvalError as E;
-    let m = &machine.machine;
-    match *error {
-        E::NonFiniteTemperature { channel } | E::TemperatureOutOfRange { channel, .. } => {
-            m.temperatures.get(channel).map(|t| t.id.clone())
-        }
-        E::NonFinitePosition { axis }
-        | E::PositionOutsideTravel { axis, .. }
-        | E::NonFiniteResult { axis } => m.axes.get(axis).map(|a| a.name.clone()),
-        E::InputLength { input, .. } => Some(input.to_string()),
-    }
-}
-
-/// Writes events off the cycle: the cycle `try_send`s into a bounded channel (preallocated,
-/// never blocks); this thread formats and appends them.
-fn event_writer(rx: Receiver<Event>, machine: MachineFile, path: Option<PathBuf>) {
-    let mut file = path.and_then(|p| {
-        std::fs::OpenOptions::new()
-            .create(true)
-            .append(true)
-            .open(&p)
-            .map_err(|e| eprintln!("truepos-hal: cannot open events file {}: {e}", p.display()))
-            .ok()
-    });
-    for e in rx {
-        let line = event_json(&e, &machine).to_string();
-        eprintln!("truepos-hal: event {line}");
-        if let Some(f) = file.as_mut() {
-            let _ = writeln!(f, "{line}");
-            let _ = f.flush();
-        }
-    }
-}
-
 /// Histogram bucket edges of the cycle-to-cycle interval, ms.
 const EDGES_MS: [f64; 8] = [0.5, 0.9, 1.1, 1.5, 2.0, 3.0, 5.0, 10.0];
 
 fn run(args: RunArgs) -> Result<(), Box<dyn std::error::Error>> {
-    let (machine, models) = load(&args.machine, &args.models)?;
     if !(args.period_ms > 0.0 && args.period_ms <= 1000.0) {
         return Err(format!("--period-ms {} must lie in (0, 1000]", args.period_ms).into());
     }
+    let machine = truepos_io::machine_file::load(&args.machine)?;
+    let m = &machine.machine;
+    // Seed D: a model without an index in its file serves path 1's axes.
+    let default_index = index_of(
+        machine
+            .axis_runtime
+            .iter()
+            .filter(|a| a.path == 1)
+            .map(|a| a.code()),
+    );
+    let mut entries = Vec::new();
+    for path in &args.models {
+        let loaded = truepos_io::model_file::load_entry(path, m)?;
+        let index = loaded
+            .axis_index
+            .as_ref()
+            .map_or(default_index, |b| index_of(b.iter().copied()));
+        entries.push(ModelEntry {
+            name: loaded.model.name().to_string(),
+            model: loaded.model,
+            index,
+        });
+    }
+    let model_names: Vec<String> = entries.iter().map(|e| e.name.clone()).collect();
+
     let stop = Arc::new(AtomicBool::new(false));
     signal_hook::flag::register(signal_hook::consts::SIGTERM, Arc::clone(&stop))?;
     signal_hook::flag::register(signal_hook::consts::SIGINT, Arc::clone(&stop))?;
 
     let component = Component::new(&args.name)?;
-    let all = pins::create(&component, &machine.machine)?;
+    let all = pins::create(&component, m)?;
     let control = all.control;
-    let mut source = HalSource::new(&args.name, all.inputs);
-    let mut sink = HalSink::new(&args.name, all.outputs);
+    let (cycle_us_pin, cycles_pin) = (all.outputs.cycle_us.clone(), all.outputs.cycles.clone());
+    let (motion_enabled, all_homed) = (
+        all.outputs.motion_enabled.clone(),
+        all.outputs.all_homed.clone(),
+    );
+    let source = HalSource::new(&args.name, all.inputs);
+    let sink = HalSink::new(&args.name, all.outputs);
+    let (source_name, sink_name) = (source.name().to_string(), sink.name().to_string());
     control.enable.set(true);
     component.ready()?;
 
-    let m = &machine.machine;
-    let mut frame = Frame::new(m.temperatures.len(), m.axes.len(), m.operating.len());
-    let mut compensator = Compensator::new(
-        models,
-        CompensatorConfig {
-            limits: machine.axis_runtime.clone(),
-            hold_ramp_s: args.hold_ramp_s,
-            period_s: args.period_ms / 1000.0,
-        },
+    let axes = m.axes.len();
+    let config = ServiceConfig {
+        blend_s: args.blend_s,
+        hold_ramp_s: args.hold_ramp_s,
+        ..ServiceConfig::default()
+    };
+    let mut service = Service::new(
+        machine.clone(),
+        entries,
+        vec![Box::new(source)],
+        vec![Box::new(sink)],
+        config,
     );
-    let (tx, rx) = sync_channel::<Event>(1024);
-    let writer = {
-        let machine = machine.clone();
-        let path = args.events.clone();
-        std::thread::spawn(move || event_writer(rx, machine, path))
+    let logger = match &args.log {
+        Some(path) => Some(Logger::start(
+            LogSetup {
+                path,
+                machine: &machine,
+                models: model_names.clone(),
+                sources: vec![source_name],
+                sinks: vec![sink_name],
+                paths: service.path_states().len(),
+                commit_every: Duration::from_millis(500),
+            },
+            service.events(),
+            service.records(),
+        )?),
+        None => None,
     };
     eprintln!(
-        "truepos-hal: component {} ready, {} axes, {} temperatures, {} model(s), {} ms",
+        "truepos-hal: component {} ready, {axes} axes, {} temperatures, models {:?}, {} ms",
         args.name,
-        m.axes.len(),
         m.temperatures.len(),
-        args.models.len(),
+        model_names,
         args.period_ms
     );
-
     if args.rt_priority > 0 {
         match truepos_hal::ffi::set_realtime_priority(args.rt_priority) {
             Ok(()) => eprintln!("truepos-hal: SCHED_FIFO priority {}", args.rt_priority),
             Err(e) => eprintln!("truepos-hal: warning: no realtime priority: {e}"),
         }
     }
+
     let period = Duration::from_secs_f64(args.period_ms / 1000.0);
     let start = Instant::now();
     let mut next = start;
@@ -220,8 +212,7 @@ fn run(args: RunArgs) -> Result<(), Box<dyn std::error::Error>> {
     let mut histogram = [0u64; EDGES_MS.len() + 1];
     let mut max_interval_ms = 0.0f64;
     let mut max_work_us = 0.0f64;
-    let mut dropped_events = 0u64;
-    let mut was_ready = false;
+    let mut selected = -1;
     while !stop.load(Ordering::Relaxed) {
         let now = Instant::now();
         if cycles > 0 {
@@ -231,30 +222,24 @@ fn run(args: RunArgs) -> Result<(), Box<dyn std::error::Error>> {
             max_interval_ms = max_interval_ms.max(interval_ms);
         }
         last = now;
-        frame.time_s = (now - start).as_secs_f64();
-        let _ = source.read(&mut frame);
-        // LinuxCNC takes offsets only with motion enabled and every joint homed; when it starts
-        // to, walk from what it holds (0 after machine-on) rather than jump.
-        let ready = sink.control_ready();
-        if ready && !was_ready {
-            compensator.restart_from(&sink.requested_um());
+        // LinuxCNC takes offsets only with motion enabled and every joint homed (the sink holds
+        // its counts meanwhile); compensation is off until then and blends in afterwards.
+        let ready = motion_enabled.get() && all_homed.get();
+        service.set_enabled(control.enable.get() && ready);
+        let select = control.model_select.get();
+        if select != selected {
+            selected = select;
+            let preferred = usize::try_from(select)
+                .ok()
+                .filter(|&i| i < model_names.len());
+            service.prefer_model(0, preferred);
         }
-        was_ready = ready;
-        let output = compensator.step(
-            &frame,
-            control.enable.get() && ready,
-            control.model_select.get(),
-            |e| {
-                if let Err(TrySendError::Full(_)) = tx.try_send(e) {
-                    dropped_events += 1;
-                }
-            },
-        );
-        let _ = sink.write(&output);
+        service.cycle((now - start).as_secs_f64());
         cycles += 1;
         let work_us = now.elapsed().as_secs_f64() * 1e6;
         max_work_us = max_work_us.max(work_us);
-        sink.set_cycle_stats(work_us, cycles);
+        cycle_us_pin.set(work_us);
+        cycles_pin.set(cycles as u32 as i32);
 
         next += period;
         let after = Instant::now();
@@ -266,29 +251,22 @@ fn run(args: RunArgs) -> Result<(), Box<dyn std::error::Error>> {
         }
     }
 
-    // Bumpless stop: walk the offsets to zero at the envelope's rate before leaving HAL.
+    // Bumpless stop: blend the offsets to zero before leaving HAL.
+    service.set_enabled(false);
     let ramp_start = Instant::now();
-    let mut frame_disabled = frame.clone();
     loop {
         let now = Instant::now();
-        frame_disabled.time_s = (now - start).as_secs_f64();
-        let _ = source.read(&mut frame_disabled);
-        let output = compensator.step(
-            &frame_disabled,
-            false,
-            compensator.active_model() as i32,
-            |_| {},
-        );
-        let _ = sink.write(&output);
-        if output.offsets().iter().all(|o| o.abs() < 1e-9)
-            || ramp_start.elapsed() > Duration::from_secs(5)
+        let out = service.cycle((now - start).as_secs_f64());
+        if out.offsets().iter().all(|o| o.abs() < 1e-9)
+            || ramp_start.elapsed() > Duration::from_secs_f64(args.blend_s + 1.0)
         {
             break;
         }
         std::thread::sleep(period);
     }
-    drop(tx);
-    let _ = writer.join();
+    if let Some(logger) = logger {
+        logger.stop()?;
+    }
 
     let late = histogram[EDGES_MS.iter().position(|&e| e == 2.0).unwrap_or(0) + 1..]
         .iter()
@@ -303,7 +281,7 @@ fn run(args: RunArgs) -> Result<(), Box<dyn std::error::Error>> {
         "intervals_over_2ms": late,
         "max_interval_ms": max_interval_ms,
         "max_work_us": max_work_us,
-        "dropped_events": dropped_events,
+        "events_dropped": service.events().dropped(),
     });
     eprintln!("truepos-hal: stopped after {cycles} cycles: {stats}");
     if let Some(p) = &args.stats {
@@ -319,13 +297,43 @@ fn run_check(args: CheckArgs) -> Result<bool, Box<dyn std::error::Error>> {
         period_s: args.period_ms / 1000.0,
         ..CheckConfig::default()
     };
-    let report = check(
+    let mut report = check(
         &machine.machine,
         &models,
         &machine.axis_runtime,
         &samples,
         &config,
     );
+    if !args.expect_events.is_empty() {
+        let Some(log) = &args.log else {
+            return Err("--expect-event needs --log".into());
+        };
+        let events = truepos_runtime::log::read_events(log)?;
+        if !args.json {
+            for e in &events {
+                println!(
+                    "event {:10.3} s  {:18} {:22} {}",
+                    e.time_s, e.kind, e.subject, e.detail
+                );
+            }
+        }
+        for want in &args.expect_events {
+            let mut parts = want.splitn(3, ':');
+            let kind = parts.next().unwrap_or_default();
+            let subject = parts.next();
+            let detail = parts.next();
+            let found = events.iter().any(|e| {
+                e.kind == kind
+                    && subject.is_none_or(|s| e.subject == s)
+                    && detail.is_none_or(|d| e.detail.contains(d))
+            });
+            if !found {
+                report
+                    .failures
+                    .push(format!("the log {} holds no event {want}", log.display()));
+            }
+        }
+    }
     if args.json {
         println!("{}", serde_json::to_string_pretty(&report.to_json())?);
     } else {

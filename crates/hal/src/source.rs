@@ -14,8 +14,12 @@ pub struct HalSource {
 }
 
 impl HalSource {
-    /// A source over the input pins of component `component`.
+    /// A source over the input pins of component `component`. The temperature pins start at
+    /// NaN, so that a pin left unconnected is a sensor fault rather than a plausible 0 °C.
     pub fn new(component: &str, pins: InputPins) -> Self {
+        for pin in &pins.temperatures {
+            pin.set(f64::NAN);
+        }
         Self {
             pins,
             name: format!("hal {component}"),
