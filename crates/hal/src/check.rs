@@ -424,6 +424,125 @@ pub fn check(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use truepos_model::{
+        Axis, AxisKind, Carriage, Part, PartForm, PositionFactor, PositionTerm, Reference, Summand,
+        TemperatureChannel, TemperatureDifference,
+    };
+
+    /// Seed A, example 1: X and Y over 0…500 mm; the Y error is ΔT·(2 + 4·r_X) µm with
+    /// ΔT = x_bottom − x_top.
+    fn example() -> (Machine, Model) {
+        let axis = |name: &str| Axis {
+            name: name.into(),
+            kind: AxisKind::Linear,
+            travel_min: 0.0,
+            travel_max: 500.0,
+            carried_by: None,
+            carriage: Carriage::Cantilever,
+        };
+        let sensor = |id: &str| TemperatureChannel {
+            id: id.into(),
+            location: String::new(),
+            valid_min_c: 0.0,
+            valid_max_c: 80.0,
+        };
+        let machine = Machine {
+            name: "example-1".into(),
+            axes: vec![axis("X"), axis("Y")],
+            temperatures: vec![sensor("x_bottom"), sensor("x_top")],
+            differences: vec![TemperatureDifference {
+                name: "dT_x".into(),
+                plus: 0,
+                minus: Reference::Sensor(1),
+            }],
+            operating: vec![],
+        };
+        let part = Part {
+            name: "structure".into(),
+            enabled: true,
+            form: PartForm::PositionDependent,
+            summands: vec![Summand {
+                axis: 1,
+                difference: 0,
+                k0_um_per_k: 2.0,
+                bed_multiplier: None,
+                position_terms: vec![PositionTerm {
+                    axis: 0,
+                    factor: PositionFactor::Ratio,
+                    k_um_per_k: 4.0,
+                }],
+            }],
+            constants_um: vec![],
+        };
+        let model = Model::new("example", &machine, vec![part]).unwrap();
+        (machine, model)
+    }
+
+    fn limits(rate: f64) -> Vec<AxisRuntime> {
+        (1..=2)
+            .map(|n| AxisRuntime {
+                max_offset_um: 100.0,
+                max_rate_um_per_s: rate,
+                path: 1,
+                number: n,
+            })
+            .collect()
+    }
+
+    #[test]
+    fn lag_fraction_and_rate_by_hand() {
+        let (machine, model) = example();
+        // X at 250 mm (r = 0.5), ΔT = 25 − 20 = 5 K: Y error = 5·(2 + 4·0.5) = 20 µm, so the
+        // compensation is −20 µm = −0.020 mm. The span over X's travel is 5·4 = 20 µm.
+        let sample = |applied_y_mm: f64| Sample {
+            nominal: vec![250.0, 100.0],
+            applied_mm: vec![0.0, applied_y_mm],
+            joint: vec![250.0, 100.0 + applied_y_mm],
+            sent_um: vec![0.0, applied_y_mm * 1000.0],
+            status: 1,
+            select: 0,
+            temperatures_c: vec![25.0, 20.0],
+        };
+        let mut samples = vec![sample(-0.020); 9];
+        // The last cycle applies −20.1 µm: 0.1 µm off, 0.1 / 20 = 0.5 % of the span; it moved
+        // 0.1 µm in one 1 ms cycle.
+        samples.push(sample(-0.0201));
+        let config = CheckConfig {
+            period_s: 0.001,
+            settle_s: 0.002,
+            min_span_um: 2.0,
+            rate_window_s: 0.002,
+            max_lag_fraction: 0.01,
+        };
+        let r = check(
+            &machine,
+            &[model.clone()],
+            &limits(100.0),
+            &samples,
+            &config,
+        );
+        assert_eq!(r.samples, 10);
+        assert_eq!(r.compared, 8); // the first 2 cycles (settle_s = 2 ms) are left out
+        assert!((r.max_diff_um - 0.1).abs() < 1e-9, "{}", r.max_diff_um);
+        assert!((r.max_lag_fraction - 0.005).abs() < 1e-9);
+        assert!(r.joint_mismatch_mm < 1e-12);
+        // Over the 2 ms window: 0.1 µm / 0.002 s = 50 µm/s.
+        assert!((r.max_rate_um_per_s[1] - 50.0).abs() < 1e-6);
+        assert!(r.passed(), "{:?}", r.failures);
+        // With a 10 µm/s envelope the allowance is 10·(2 + 2)/2 + 2·0.01/0.002 = 30 µm/s < 50.
+        let r = check(&machine, &[model.clone()], &limits(10.0), &samples, &config);
+        assert_eq!(r.failures.len(), 1, "{:?}", r.failures);
+        assert!(r.failures[0].contains("axis Y: offset rate 50.00 µm/s"));
+        // A lag of 2 % of the span fails: −20.4 µm applied.
+        samples[9] = sample(-0.0204);
+        let config = CheckConfig {
+            rate_window_s: 0.05,
+            ..config
+        };
+        let r = check(&machine, &[model], &limits(100.0), &samples, &config);
+        assert!((r.max_lag_fraction - 0.02).abs() < 1e-9);
+        assert!(!r.passed());
+    }
 
     #[test]
     fn joins_by_tag_and_names_bad_lines() {
