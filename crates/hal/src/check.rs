@@ -516,7 +516,7 @@ mod tests {
         };
         let r = check(
             &machine,
-            &[model.clone()],
+            std::slice::from_ref(&model),
             &limits(100.0),
             &samples,
             &config,
@@ -530,7 +530,13 @@ mod tests {
         assert!((r.max_rate_um_per_s[1] - 50.0).abs() < 1e-6);
         assert!(r.passed(), "{:?}", r.failures);
         // With a 10 µm/s envelope the allowance is 10·(2 + 2)/2 + 2·0.01/0.002 = 30 µm/s < 50.
-        let r = check(&machine, &[model.clone()], &limits(10.0), &samples, &config);
+        let r = check(
+            &machine,
+            std::slice::from_ref(&model),
+            &limits(10.0),
+            &samples,
+            &config,
+        );
         assert_eq!(r.failures.len(), 1, "{:?}", r.failures);
         assert!(r.failures[0].contains("axis Y: offset rate 50.00 µm/s"));
         // A lag of 2 % of the span fails: −20.4 µm applied.
