@@ -111,6 +111,13 @@ fn load(
     Ok((machine, models))
 }
 
+/// CPU time the process has used so far in ns (Linux `/proc/self/schedstat`, first field), if
+/// the kernel reports it.
+fn cpu_time_ns() -> Option<f64> {
+    let text = std::fs::read_to_string("/proc/self/schedstat").ok()?;
+    text.split_whitespace().next()?.parse().ok()
+}
+
 /// Histogram bucket edges of the cycle-to-cycle interval, ms.
 const EDGES_MS: [f64; 8] = [0.5, 0.9, 1.1, 1.5, 2.0, 3.0, 5.0, 10.0];
 
@@ -205,6 +212,7 @@ fn run(args: RunArgs) -> Result<(), Box<dyn std::error::Error>> {
     }
 
     let period = Duration::from_secs_f64(args.period_ms / 1000.0);
+    let cpu_start = cpu_time_ns();
     let start = Instant::now();
     let mut next = start;
     let mut last = start;
@@ -251,6 +259,11 @@ fn run(args: RunArgs) -> Result<(), Box<dyn std::error::Error>> {
         }
     }
 
+    let wall_ns = start.elapsed().as_secs_f64() * 1e9;
+    let cpu_percent = match (cpu_start, cpu_time_ns()) {
+        (Some(a), Some(b)) if wall_ns > 0.0 => Some((b - a) / wall_ns * 100.0),
+        _ => None,
+    };
     // Bumpless stop: blend the offsets to zero before leaving HAL.
     service.set_enabled(false);
     let ramp_start = Instant::now();
@@ -281,6 +294,7 @@ fn run(args: RunArgs) -> Result<(), Box<dyn std::error::Error>> {
         "intervals_over_2ms": late,
         "max_interval_ms": max_interval_ms,
         "max_work_us": max_work_us,
+        "cpu_percent_of_one_core": cpu_percent,
         "events_dropped": service.events().dropped(),
     });
     eprintln!("truepos-hal: stopped after {cycles} cycles: {stats}");
