@@ -295,8 +295,16 @@ fn inv(c: &Common) -> Result<(), String> {
     let mut dirs = Directions(0);
     let mut out = vec![0.0; n * targets.len()];
     let mut results = Vec::with_capacity(targets.len());
+    // Throughput per chunk of 1000 points as well as in total: the median chunk is robust to
+    // other processes taking the core for a while (used by scripts/kdl_compare.py).
+    let mut chunk_rates: Vec<f64> = Vec::new();
+    let mut chunk_start = Instant::now();
     let start = Instant::now();
     for (i, target) in targets.iter().enumerate() {
+        if i > 0 && i % 1000 == 0 {
+            chunk_rates.push(1000.0 / chunk_start.elapsed().as_secs_f64().max(1e-12));
+            chunk_start = Instant::now();
+        }
         let slot = &mut out[i * n..(i + 1) * n];
         let r = chain.inverse(target, tool, &prev, dirs, geometry(c), slot);
         if let Ok(rep) = &r {
@@ -306,9 +314,16 @@ fn inv(c: &Common) -> Result<(), String> {
         results.push(r);
     }
     let seconds = start.elapsed().as_secs_f64();
+    chunk_rates.sort_by(f64::total_cmp);
+    let median_rate = if chunk_rates.is_empty() {
+        targets.len() as f64 / seconds.max(1e-12)
+    } else {
+        chunk_rates[chunk_rates.len() / 2]
+    };
     let names: Vec<&str> = chain.axes().iter().map(|a| a.name.as_str()).collect();
     let mut body = names.join(",") + ",status\n";
     let (mut ok, mut max_p, mut max_d, mut max_it) = (0usize, 0.0_f64, 0.0_f64, 0u32);
+    let mut sum_it = 0u64;
     let mut failures = Vec::new();
     for (i, r) in results.iter().enumerate() {
         match r {
@@ -317,6 +332,7 @@ fn inv(c: &Common) -> Result<(), String> {
                 max_p = max_p.max(rep.position_residual_mm);
                 max_d = max_d.max(rep.direction_residual_rad);
                 max_it = max_it.max(rep.iterations);
+                sum_it += u64::from(rep.iterations);
                 for v in &out[i * n..(i + 1) * n] {
                     let _ = write!(body, "{v},");
                 }
@@ -336,8 +352,10 @@ fn inv(c: &Common) -> Result<(), String> {
         "layout": chain.layout_name(),
         "max_position_residual_mm": max_p, "max_direction_residual_rad": max_d,
         "max_newton_iterations": max_it,
+        "mean_newton_iterations": sum_it as f64 / ok.max(1) as f64,
         "solve_seconds": seconds,
         "points_per_second": total as f64 / seconds.max(1e-12),
+        "median_chunk_points_per_second": median_rate,
         "failures": failures.iter().take(20).collect::<Vec<_>>(),
     });
     let mut text = format!(
