@@ -3,7 +3,7 @@
 use std::io::IsTerminal;
 use std::path::PathBuf;
 
-use truepos_sim::{Scenario, Twin, AXES, BUILTIN};
+use truepos_sim::{Scenario, Twin, TwinParams, AXES, BUILTIN};
 
 /// Rounds to 3 decimals for printing (µm, °C, mm).
 fn r3(v: f64) -> f64 {
@@ -17,6 +17,10 @@ pub struct Args {
     /// mixed-shift-b) or a scenario TOML file.
     #[arg(long, default_value = "mixed-shift")]
     scenario: String,
+    /// A twin description (TOML) overriding the reference machine's physical parameters, e.g.
+    /// examples/twin/twin-chilled.toml. Default: the built-in reference machine.
+    #[arg(long)]
+    twin: Option<PathBuf>,
     /// Output CSV (`-` for standard output). Default: `sim-<scenario>.csv`.
     #[arg(long, short)]
     out: Option<PathBuf>,
@@ -48,7 +52,16 @@ pub fn run(args: Args) -> Result<(), String> {
         print!("{text}");
         return Ok(());
     }
-    let twin = Twin::reference();
+    let twin = match &args.twin {
+        None => Twin::reference(),
+        Some(path) => {
+            let text = std::fs::read_to_string(path)
+                .map_err(|e| format!("--twin {}: {e}", path.display()))?;
+            let params =
+                TwinParams::parse(&text, &path.display().to_string()).map_err(|e| e.to_string())?;
+            Twin::from_params(&params)
+        }
+    };
     let mut scenario = match Scenario::builtin(&args.scenario) {
         Some(s) => s,
         None => {

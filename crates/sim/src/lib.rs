@@ -8,6 +8,7 @@
 //!   probing, sensor faults) and the built-in ISO 230-3 style tests and shifts.
 //! - [`machine`]: the reference 3-axis vertical machining centre — heat sources, the layout of
 //!   its thermal nodes, sensor spots, and its serial kinematic chain.
+//! - [`params`]: the physical parameters and the twin description file that overrides them.
 //! - [`network`]: the lumped thermal network and its exact exponential integrator.
 //! - [`beam`]: thermo-elastic deformation of a part: growth `α·L·ΔT` and the bending radius of
 //!   seed A (`R = H·L_bottom/(L_bottom − L_top)`).
@@ -42,10 +43,12 @@ pub mod beam;
 pub mod deviation;
 pub mod machine;
 pub mod network;
+pub mod params;
 pub mod run;
 pub mod scenario;
 pub mod sensor;
 
 pub use machine::{Deformed, Operating, SensorSpec, Twin, AXES};
+pub use params::TwinParams;
 pub use run::{ProbeReading, Row, SimError, SimRun, Summary};
 pub use scenario::{Scenario, ScenarioError, BUILTIN};

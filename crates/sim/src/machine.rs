@@ -28,6 +28,7 @@
 use crate::beam::{Beam, Material, Shape, Support};
 use crate::deviation::{sub, Deviation, Vec3};
 use crate::network::{Network, Stepper};
+use crate::params::TwinParams;
 
 /// Axis names in control order.
 pub const AXES: [&str; 3] = ["X", "Y", "Z"];
@@ -237,8 +238,14 @@ pub struct Operating {
 }
 
 impl Twin {
-    /// The built-in reference machine (`twin-vmc3`, described for the other tools in `examples/twin/machine.toml`): 84 nodes, 16 sensors.
+    /// The built-in reference machine (`twin-vmc3`, described for the other tools in
+    /// `examples/twin/machine.toml`): 84 nodes, 16 sensors.
     pub fn reference() -> Self {
+        Self::from_params(&TwinParams::default())
+    }
+
+    /// The reference topology with the given physical parameters (see [`TwinParams`]).
+    pub fn from_params(p: &TwinParams) -> Self {
         let beam = |name: &str,
                     e_len,
                     e_h,
@@ -267,7 +274,6 @@ impl Twin {
         };
         let (x, y, z) = ([1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]);
         let front = [0.0, -1.0, 0.0];
-        let ci = Material::CAST_IRON;
         let mut bed = beam(
             "bed",
             y,
@@ -275,8 +281,8 @@ impl Twin {
             x,
             [1200.0, 300.0, 800.0],
             4,
-            ci,
-            [0.35, 0.12],
+            p.bed.material,
+            [p.bed.fill, p.bed.web],
             Support::TwoPoint {
                 a_mm: 150.0,
                 b_mm: 1050.0,
@@ -290,8 +296,8 @@ impl Twin {
             x,
             [1600.0, 400.0, 500.0],
             6,
-            ci,
-            [0.3, 0.1],
+            p.column.material,
+            [p.column.fill, p.column.web],
             Support::Clamped { at_mm: 0.0 },
             0.0,
         );
@@ -302,8 +308,8 @@ impl Twin {
             y,
             [1000.0, 150.0, 450.0],
             3,
-            ci,
-            [0.4, 0.12],
+            p.saddle.material,
+            [p.saddle.fill, p.saddle.web],
             Support::TwoPoint {
                 a_mm: 250.0,
                 b_mm: 750.0,
@@ -317,8 +323,8 @@ impl Twin {
             y,
             [1000.0, 120.0, 450.0],
             4,
-            ci,
-            [0.45, 0.12],
+            p.table.material,
+            [p.table.fill, p.table.web],
             Support::TwoPoint {
                 a_mm: 400.0,
                 b_mm: 600.0,
@@ -332,8 +338,8 @@ impl Twin {
             x,
             [600.0, 350.0, 300.0],
             3,
-            ci,
-            [0.4, 0.15],
+            p.head.material,
+            [p.head.fill, p.head.web],
             Support::Clamped { at_mm: 300.0 },
             300.0,
         );
@@ -344,7 +350,7 @@ impl Twin {
         table.support_offset_mm = -table.height_mm / 2.0;
         head.support_offset_mm = -head.height_mm / 2.0;
         // Convection and radiation lumped: 9 W/(m²·K); exposed shares [−h, +h, −w, +w, ends].
-        let h_conv = 9.0;
+        let h_conv = p.convection_w_m2k;
         let mut net = Network::default();
         bed.add_to(&mut net, h_conv, [0.1, 0.5, 1.0, 1.0, 1.0]);
         column.add_to(&mut net, h_conv, [1.0, 0.6, 1.0, 1.0, 0.5]);
@@ -363,41 +369,49 @@ impl Twin {
             &mut net,
             &face(&column, 0..1, None),
             &face(&bed, 3..4, Some(true)),
-            40.0,
+            p.joints.column_bed,
         );
         joint(
             &mut net,
             &face(&saddle, 0..3, Some(false)),
             &face(&bed, 0..4, Some(true)),
-            12.0,
+            p.joints.saddle_bed,
         );
         joint(
             &mut net,
             &face(&table, 0..4, Some(false)),
             &face(&saddle, 0..3, Some(true)),
-            10.0,
+            p.joints.table_saddle,
         );
         joint(
             &mut net,
             &face(&head, 0..3, Some(false)),
             &face(&column, 0..6, Some(true)),
-            8.0,
+            p.joints.head_column,
         );
         joint(
             &mut net,
             &[spindle.front],
             &face(&head, 0..1, Some(true)),
-            10.0,
+            p.joints.spindle_front_head,
         );
         joint(
             &mut net,
             &[spindle.rear],
             &face(&head, 1..2, Some(true)),
-            6.0,
+            p.joints.spindle_rear_head,
         );
         // The motor's terminal box and cable side sit on the head's +x side.
-        net.link(spindle.motor, head.node(2, true, true), 3.5);
-        net.link(spindle.motor, head.node(2, true, false), 1.5);
+        net.link(
+            spindle.motor,
+            head.node(2, true, true),
+            0.7 * p.joints.spindle_motor_head,
+        );
+        net.link(
+            spindle.motor,
+            head.node(2, true, false),
+            0.3 * p.joints.spindle_motor_head,
+        );
         net.link(spindle.shaft, spindle.front, 4.0);
         net.link(spindle.shaft, spindle.rear, 3.0);
         net.link(spindle.shaft, spindle.motor, 2.0);
@@ -503,8 +517,14 @@ impl Twin {
             ),
             s("coolant", "coolant return line", Spot::Coolant, 30.0),
         ];
+        let mut sensors = sensors;
+        for sensor in &mut sensors {
+            if let Some(tau) = p.sensor_tau_s.get(&sensor.id) {
+                sensor.tau_s = *tau;
+            }
+        }
         Twin {
-            name: "twin-vmc3".into(),
+            name: p.name.clone(),
             network: net,
             bed,
             column,
@@ -513,35 +533,12 @@ impl Twin {
             head,
             spindle,
             travel_mm: [[0.0, 800.0], [0.0, 500.0], [0.0, 500.0]],
-            drives: [
-                DriveHeat {
-                    p0_w: 6.0,
-                    c1_w_per_m_min: 5.0,
-                    c2_w_per_m_min2: 0.3,
-                },
-                DriveHeat {
-                    p0_w: 8.0,
-                    c1_w_per_m_min: 6.0,
-                    c2_w_per_m_min2: 0.4,
-                },
-                DriveHeat {
-                    p0_w: 35.0,
-                    c1_w_per_m_min: 5.0,
-                    c2_w_per_m_min2: 0.3,
-                },
-            ],
-            spindle_heat: SpindleHeat {
-                front_a: 5.0,
-                front_b: 0.9,
-                rear_share: 0.5,
-                motor_a: 6.0,
-                motor_b: 0.8,
-                rotor_share: 0.2,
-            },
-            coolant_w_per_k: 20.0,
-            coolant_rise_k: 3.0,
-            coolant_tau_s: 3600.0,
-            t_ref_c: 20.0,
+            drives: p.drives,
+            spindle_heat: p.spindle,
+            coolant_w_per_k: p.coolant.w_per_k,
+            coolant_rise_k: p.coolant.rise_k,
+            coolant_tau_s: p.coolant.tau_s,
+            t_ref_c: p.reference_temperature_c,
             spindle_growth_length_mm: 150.0,
             tool_below_head_mm: 220.0,
             workpiece_height_mm: 100.0,

@@ -115,8 +115,40 @@ impl Matrix {
     /// `y = self · x` (overwrites `y`).
     pub fn mul_vec_into(&self, x: &[f64], y: &mut [f64]) {
         y.iter_mut().for_each(|v| *v = 0.0);
-        for (j, &xj) in x.iter().enumerate() {
-            axpy(y, xj, self.column(j));
+        self.add_columns(y, x.iter().copied().enumerate());
+    }
+
+    /// `y += Σ s_j · column(j)` over the given `(j, s_j)`, four columns per pass over `y` (a
+    /// quarter of the loads and stores of one pass per column).
+    pub fn add_columns(&self, y: &mut [f64], mut cols: impl Iterator<Item = (usize, f64)>) {
+        loop {
+            let mut block = [(0usize, 0.0f64); 4];
+            let mut k = 0;
+            while k < 4 {
+                match cols.next() {
+                    Some(c) => {
+                        block[k] = c;
+                        k += 1;
+                    }
+                    None => break,
+                }
+            }
+            if k < 4 {
+                for &(j, s) in &block[..k] {
+                    axpy(y, s, self.column(j));
+                }
+                return;
+            }
+            let [(j0, s0), (j1, s1), (j2, s2), (j3, s3)] = block;
+            let (c0, c1, c2, c3) = (
+                self.column(j0),
+                self.column(j1),
+                self.column(j2),
+                self.column(j3),
+            );
+            for (i, yi) in y.iter_mut().enumerate() {
+                *yi += s0 * c0[i] + s1 * c1[i] + s2 * c2[i] + s3 * c3[i];
+            }
         }
     }
 }
@@ -215,6 +247,7 @@ impl Network {
             power_input: gp,
             ambient_input: ga,
             scratch: vec![0.0; n],
+            power: vec![0.0; n],
         }
     }
 }
@@ -257,6 +290,7 @@ pub struct Stepper {
     power_input: Matrix,
     ambient_input: Vec<f64>,
     scratch: Vec<f64>,
+    power: Vec<f64>,
 }
 
 impl Stepper {
@@ -269,11 +303,18 @@ impl Stepper {
     pub fn step(&mut self, temps: &mut [f64], powers: &[(usize, f64)], ambient_c: f64) {
         self.phi.mul_vec_into(temps, &mut self.scratch);
         axpy(&mut self.scratch, ambient_c, &self.ambient_input);
+        // Sum the powers per node first, then add one column per heated node.
         for &(node, p) in powers {
-            if p != 0.0 {
-                axpy(&mut self.scratch, p, self.power_input.column(node));
-            }
+            self.power[node] += p;
         }
+        let power = &mut self.power;
+        self.power_input.add_columns(
+            &mut self.scratch,
+            powers.iter().filter_map(|&(node, _)| {
+                let p = std::mem::take(&mut power[node]);
+                (p != 0.0).then_some((node, p))
+            }),
+        );
         temps.copy_from_slice(&self.scratch);
     }
 }

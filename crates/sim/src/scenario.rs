@@ -425,25 +425,24 @@ impl Scenario {
         file: &str,
         travel_mm: Option<[[f64; 2]; 3]>,
     ) -> Result<Scenario, ScenarioError> {
-        let raw: File = toml::from_str(src).map_err(|e| {
-            let (line, column) = e.span().map_or((0, 0), |s| line_col(src, s.start));
-            ScenarioError {
-                file: file.into(),
-                line,
-                column,
-                key: e.span().map(|s| key_at(src, s)).unwrap_or_default(),
-                expected: e.message().trim().to_string(),
-            }
-        })?;
-        let ck = Checker {
-            src,
-            file,
-            doc: toml_edit::ImDocument::parse(src).ok(),
-        };
+        let raw: File = toml::from_str(src).map_err(|e| toml_error(src, file, &e))?;
+        let ck = Checker::new(src, file);
         ck.build(
             raw,
             travel_mm.unwrap_or([[f64::NEG_INFINITY, f64::INFINITY]; 3]),
         )
+    }
+}
+
+/// A TOML syntax or type error as a [`ScenarioError`].
+pub(crate) fn toml_error(src: &str, file: &str, e: &toml::de::Error) -> ScenarioError {
+    let (line, column) = e.span().map_or((0, 0), |s| line_col(src, s.start));
+    ScenarioError {
+        file: file.into(),
+        line,
+        column,
+        key: e.span().map(|s| key_at(src, s)).unwrap_or_default(),
+        expected: e.message().trim().to_string(),
     }
 }
 
@@ -470,18 +469,27 @@ fn key_at(src: &str, span: Range<usize>) -> String {
 }
 
 /// One step of a key path.
-enum Seg<'a> {
+pub(crate) enum Seg<'a> {
     Key(&'a str),
     Index(usize),
 }
 
-struct Checker<'a> {
+pub(crate) struct Checker<'a> {
     src: &'a str,
     file: &'a str,
     doc: Option<toml_edit::ImDocument<&'a str>>,
 }
 
-impl Checker<'_> {
+impl<'a> Checker<'a> {
+    /// A checker for the TOML text `src` of `file`.
+    pub(crate) fn new(src: &'a str, file: &'a str) -> Self {
+        Self {
+            src,
+            file,
+            doc: toml_edit::ImDocument::parse(src).ok(),
+        }
+    }
+
     fn span(&self, path: &[Seg]) -> Option<Range<usize>> {
         let doc = self.doc.as_ref()?;
         self.span_in_table(doc.as_table(), path, None)
@@ -526,7 +534,7 @@ impl Checker<'_> {
         span
     }
 
-    fn err(&self, path: &[Seg], expected: impl Into<String>) -> ScenarioError {
+    pub(crate) fn err(&self, path: &[Seg], expected: impl Into<String>) -> ScenarioError {
         let (line, column) = self
             .span(path)
             .map_or((0, 0), |s| line_col(self.src, s.start));
@@ -567,7 +575,7 @@ impl Checker<'_> {
         }
     }
 
-    fn within(
+    pub(crate) fn within(
         &self,
         path: &[Seg],
         v: f64,

@@ -281,8 +281,45 @@ fn a_twin_run_reads_as_cycles_of_the_example_machine() {
     let mut buf = Vec::new();
     run.write_csv(&mut buf, false).unwrap();
     let all: Vec<usize> = (0..file.machine.temperatures.len()).collect();
-    let cycles = truepos_io::cycles::read(Path::new("twin.csv"), buf.as_slice(), &file.machine, &all).unwrap();
+    let cycles =
+        truepos_io::cycles::read(Path::new("twin.csv"), buf.as_slice(), &file.machine, &all)
+            .unwrap();
     assert_eq!(cycles.positions.len(), run.rows.len());
     assert_eq!(cycles.positions[5], run.rows[5].position_mm.to_vec());
-    assert!(cycles.operating.iter().all(|o| o.iter().all(|v| v.is_finite())));
+    assert!(cycles
+        .operating
+        .iter()
+        .all(|o| o.iter().all(|v| v.is_finite())));
+}
+
+/// `examples/twin/twin.toml` spells out the built-in values; the chilled variant differs where
+/// it says and warms the spindle far less.
+#[test]
+fn twin_descriptions() {
+    use truepos_sim::TwinParams;
+    let read = |name: &str| {
+        let path = workspace().join("examples/twin").join(name);
+        let text = std::fs::read_to_string(&path).unwrap();
+        TwinParams::parse(&text, &path.display().to_string()).unwrap()
+    };
+    let reference = read("twin.toml");
+    // twin.toml also lists every sensor lag (the built-in values).
+    let defaults = TwinParams {
+        sensor_tau_s: reference.sensor_tau_s.clone(),
+        ..TwinParams::default()
+    };
+    assert_eq!(reference, defaults);
+    let built_in = Twin::reference();
+    for s in &built_in.sensors {
+        assert_eq!(reference.sensor_tau_s[&s.id], s.tau_s, "{}", s.id);
+    }
+    let chilled = Twin::from_params(&read("twin-chilled.toml"));
+    assert_eq!(chilled.name, "twin-vmc3-chilled");
+    let sc = short("spindle-warmup", 120.0);
+    let hot = built_in.run(&sc, 1).unwrap().summary().peak_error[2].0;
+    let cool = chilled.run(&sc, 1).unwrap().summary().peak_error[2].0;
+    assert!(
+        cool.abs() < 0.5 * hot.abs(),
+        "chilled {cool} µm vs {hot} µm"
+    );
 }
