@@ -7,7 +7,7 @@ use std::time::Instant;
 use truepos_fit::dataset::{Dataset, InputKind, Run};
 use truepos_fit::features::{candidates, Family};
 use truepos_fit::model_file::{DynamicModelFile, InputEntry};
-use truepos_fit::train::Settings;
+use truepos_fit::train::{Rule, Settings};
 use truepos_fit::validate::{validate, Split};
 use truepos_io::run::{glob_match, read, Table};
 
@@ -43,6 +43,10 @@ pub struct Args {
     /// Fix the ridge parameter(s), comma-separated. Default: chosen automatically.
     #[arg(long)]
     ridge: Option<String>,
+    /// How inner-CV scores choose: 1se (the most regularised candidate within one standard error
+    /// of the best) or min (the lowest CV error).
+    #[arg(long, default_value = "1se")]
+    rule: String,
     /// Use at most this many temperature sensors (correlation ranking + greedy forward selection).
     #[arg(long)]
     max_sensors: Option<usize>,
@@ -139,6 +143,11 @@ fn settings(args: &Args) -> Result<Settings, String> {
         max_sensors: args.max_sensors,
         ..Settings::default()
     };
+    s.rule = match args.rule.as_str() {
+        "1se" => Rule::OneStandardError,
+        "min" => Rule::MinimumCv,
+        other => return Err(format!("--rule `{other}`: expected 1se or min")),
+    };
     if let Some(f) = &args.family {
         s.families = patterns(f)
             .into_iter()
@@ -172,11 +181,14 @@ struct Progress {
 impl Progress {
     fn update(&mut self, done: usize, total: usize) {
         let secs = self.start.elapsed().as_secs_f64();
-        if secs < 1.0 || !std::io::stderr().is_terminal() && done < total {
+        if secs < 1.0 || !std::io::stderr().is_terminal() {
             return;
         }
         let width = 30;
-        let filled = (done * width).checked_div(total).unwrap_or(width).min(width);
+        let filled = (done * width)
+            .checked_div(total)
+            .unwrap_or(width)
+            .min(width);
         eprint!(
             "\r[{}{}] fold {done}/{total}  {secs:.1} s",
             "#".repeat(filled),

@@ -26,6 +26,8 @@ pub struct Settings {
     pub ridges: Vec<f64>,
     /// Blocks of the inner cross-validation.
     pub folds: usize,
+    /// How the CV scores pick the settings.
+    pub rule: Rule,
     /// Run with at most this many temperature sensors (chosen by correlation ranking and greedy
     /// forward selection); `None` = all.
     pub max_sensors: Option<usize>,
@@ -38,9 +40,20 @@ impl Default for Settings {
             families: Family::ALL.to_vec(),
             ridges: vec![0.0, 1e-6, 1e-5, 1e-4, 1e-3, 3e-3, 1e-2, 3e-2, 0.1, 0.3, 1.0],
             folds: 8,
+            rule: Rule::OneStandardError,
             max_sensors: None,
         }
     }
+}
+
+/// How the inner cross-validation scores choose among candidates.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Rule {
+    /// The candidate with the lowest CV RMSE.
+    MinimumCv,
+    /// The most regularised candidate of the best family within one standard error of the best.
+    OneStandardError,
 }
 
 /// What was chosen for one target.
@@ -141,15 +154,18 @@ impl<'a> Problem<'a> {
         acc
     }
 
-    /// CV RMSE per ridge per target for a column set.
-    fn cv(&self, cols: &[usize], ridges: &[f64]) -> Vec<Vec<f64>> {
+    /// Per ridge, per target: (CV RMSE over all held-out rows, standard error of the per-fold
+    /// RMSEs).
+    fn cv(&self, cols: &[usize], ridges: &[f64]) -> Vec<Vec<(f64, f64)>> {
         let nt = self.y.ncols();
+        let folds = self.blocks.len();
         let parts: Vec<Accumulator> = self
             .blocks
             .iter()
             .map(|r| self.accumulate(cols, r.clone()))
             .collect();
-        let mut sse = vec![vec![0.0; nt]; ridges.len()];
+        // sse[ridge][target][fold]
+        let mut sse = vec![vec![vec![0.0; folds]; nt]; ridges.len()];
         for (f, block) in self.blocks.iter().enumerate() {
             let mut acc = Accumulator::new(cols.len() + 1, nt);
             for (g, p) in parts.iter().enumerate() {
@@ -165,7 +181,7 @@ impl<'a> Problem<'a> {
                     rcond: None,
                 };
                 let Ok(sol) = tri.solve(&opts) else {
-                    sse[ri].iter_mut().for_each(|s| *s = f64::INFINITY);
+                    sse[ri].iter_mut().for_each(|s| s[f] = f64::INFINITY);
                     continue;
                 };
                 for i in block.clone() {
@@ -176,14 +192,30 @@ impl<'a> Problem<'a> {
                             p += cj * self.x[(i, col)];
                         }
                         let e = self.y[(i, k)] - p;
-                        sse[ri][k] += e * e;
+                        sse[ri][k][f] += e * e;
                     }
                 }
             }
         }
         let n = self.x.nrows().max(1) as f64;
         sse.into_iter()
-            .map(|v| v.into_iter().map(|s| (s / n).sqrt()).collect())
+            .map(|per_target| {
+                per_target
+                    .into_iter()
+                    .map(|per_fold| {
+                        let total: f64 = per_fold.iter().sum();
+                        let rmse: Vec<f64> = per_fold
+                            .iter()
+                            .zip(&self.blocks)
+                            .map(|(s, b)| (s / b.len().max(1) as f64).sqrt())
+                            .collect();
+                        let m = rmse.iter().sum::<f64>() / folds as f64;
+                        let var = rmse.iter().map(|r| (r - m).powi(2)).sum::<f64>()
+                            / (folds as f64 - 1.0).max(1.0);
+                        ((total / n).sqrt(), (var / folds as f64).sqrt())
+                    })
+                    .collect()
+            })
             .collect()
     }
 
@@ -198,14 +230,20 @@ impl<'a> Problem<'a> {
     }
 }
 
-/// Best (family, ridge) per target for a sensor set: (score per target, family, ridge).
+/// Best (family, ridge) per target for a sensor set: (CV RMSE, family, ridge).
+///
+/// With [`Rule::OneStandardError`] the choice is the largest ridge of the best family whose CV
+/// RMSE lies within one standard error of the best (Hastie, Tibshirani & Friedman, *The Elements
+/// of Statistical Learning*, 2nd ed., §7.10): among models the CV cannot tell apart, the most
+/// regularised one, which extrapolates into unseen operating regimes more gently.
 fn best_per_target(
     p: &Problem<'_>,
     settings: &Settings,
     sensors: &[usize],
 ) -> Vec<(f64, Family, f64)> {
     let nt = p.y.ncols();
-    let mut best = vec![(f64::INFINITY, Family::Static, 0.0); nt];
+    // (rmse, se, family, ridge) of every candidate, per target.
+    let mut all: Vec<Vec<(f64, f64, Family, f64)>> = vec![Vec::new(); nt];
     for &family in &settings.families {
         let cols = p.columns(family, sensors);
         if cols.is_empty() {
@@ -214,13 +252,29 @@ fn best_per_target(
         let scores = p.cv(&cols, &settings.ridges);
         for (ri, row) in scores.iter().enumerate() {
             for k in 0..nt {
-                if row[k] < best[k].0 {
-                    best[k] = (row[k], family, settings.ridges[ri]);
-                }
+                all[k].push((row[k].0, row[k].1, family, settings.ridges[ri]));
             }
         }
     }
-    best
+    all.iter()
+        .map(|cands| {
+            let best = cands
+                .iter()
+                .copied()
+                .min_by(|a, b| a.0.total_cmp(&b.0))
+                .unwrap_or((f64::INFINITY, 0.0, Family::Static, 0.0));
+            let pick = match settings.rule {
+                Rule::MinimumCv => best,
+                Rule::OneStandardError => cands
+                    .iter()
+                    .copied()
+                    .filter(|c| c.2 == best.2 && c.0 <= best.0 + best.1)
+                    .max_by(|a, b| a.3.total_cmp(&b.3))
+                    .unwrap_or(best),
+            };
+            (pick.0, pick.2, pick.3)
+        })
+        .collect()
 }
 
 /// Chooses by inner blocked CV on `rows` (training rows only) and fits on all of them.
@@ -410,4 +464,116 @@ fn greedy_sensors(p: &Problem<'_>, settings: &Settings, max: usize) -> Vec<usize
     }
     chosen.sort_unstable();
     chosen
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::dataset::Run;
+    use crate::features::candidates;
+    use crate::validate::predict;
+
+    /// Two runs of a machine whose growth lags the spindle and one of two sensors.
+    fn twin_like() -> Dataset {
+        let mut runs = Vec::new();
+        for (r, level) in [(0, 3000.0), (1, 4500.0)] {
+            let (mut t, mut s, mut a, mut b, mut y) = (vec![], vec![], vec![], vec![], vec![]);
+            let (mut lag, mut warm) = (0.0, 21.0);
+            for i in 0..1500 {
+                let rpm = if (i / 200) % 2 == 1 { level } else { 0.0 };
+                lag += (1.0 - (-20.0f64 / 1200.0).exp()) * (rpm - lag);
+                warm += (1.0 - (-20.0f64 / 900.0).exp()) * (21.0 + rpm / 400.0 - warm);
+                t.push(20.0 * i as f64 + 5.0 * r as f64);
+                s.push(rpm);
+                a.push(warm);
+                b.push(20.0 + 0.3 * (i as f64 * 0.01).sin());
+                y.push(0.003 * lag + 0.8 * (warm - 21.0) + 4.0);
+            }
+            runs.push(Run {
+                name: format!("run{r}"),
+                time_s: t,
+                inputs: vec![a, b, s],
+                targets: vec![y],
+            });
+        }
+        Dataset {
+            input_names: vec!["t1_c".into(), "t2_c".into(), "spindle_rpm".into()],
+            input_kinds: vec![
+                InputKind::Temperature,
+                InputKind::Temperature,
+                InputKind::Operating,
+            ],
+            target_names: vec!["dz_um".into()],
+            runs,
+        }
+    }
+
+    #[test]
+    fn offline_features_equal_the_online_model() {
+        let ds = twin_like();
+        ds.check().unwrap();
+        let settings = Settings::default();
+        let cand = candidates(&ds, &settings.taus).unwrap();
+        let rows: Rows = (0..ds.runs.len())
+            .flat_map(|r| (0..ds.runs[r].len()).map(move |i| (r, i)))
+            .collect();
+        let trained = train(&ds, &cand, &rows, &settings).unwrap();
+        // Online: the real-time model stepped through every run.
+        let online = predict(&ds, &trained).unwrap();
+        // Offline: intercept + Σ coefficient · candidate feature column of the same name.
+        let model = &trained.model;
+        let n = model.bank().features().len();
+        let names: Vec<String> = model
+            .bank()
+            .features()
+            .iter()
+            .map(|f| f.name(&ds.input_names[trained.inputs[f.input]]))
+            .collect();
+        let mut nonzero = 0;
+        for (r, run) in ds.runs.iter().enumerate() {
+            for i in 0..run.len() {
+                let mut p = model.intercepts()[0];
+                for (j, name) in names.iter().enumerate() {
+                    let c = model.coefficients()[j];
+                    if c != 0.0 {
+                        nonzero += 1;
+                    }
+                    let col = cand.names.iter().position(|x| x == name).unwrap();
+                    p += c * cand.runs[r][(i, col)];
+                }
+                let q = online[r][0][i];
+                assert!(
+                    (p - q).abs() <= 1e-9 * p.abs().max(1.0),
+                    "run {r} row {i}: {p} vs {q}"
+                );
+            }
+        }
+        assert!(nonzero > 0 && n > 0);
+        // And the model is good: the data are exactly representable by lags of the inputs.
+        let rel = ds.runs[1].relative_target(0);
+        let rms = (rel
+            .iter()
+            .zip(&online[1][0])
+            .map(|(a, b)| (a - b).powi(2))
+            .sum::<f64>()
+            / rel.len() as f64)
+            .sqrt();
+        assert!(rms < 0.5, "{rms}");
+    }
+
+    #[test]
+    fn sensor_selection_keeps_the_informative_sensor() {
+        let ds = twin_like();
+        let settings = Settings {
+            max_sensors: Some(1),
+            families: vec![Family::Static, Family::Operating],
+            ..Settings::default()
+        };
+        let cand = candidates(&ds, &settings.taus).unwrap();
+        let rows: Rows = (0..ds.runs[0].len()).map(|i| (0, i)).collect();
+        let trained = train(&ds, &cand, &rows, &settings).unwrap();
+        // t1 carries the thermal growth; t2 is an unrelated wobble.
+        assert_eq!(trained.sensors, vec![0]);
+        assert!(trained.inputs.contains(&0) && !trained.inputs.contains(&1));
+    }
 }
