@@ -175,7 +175,6 @@ fn settings(args: &Args) -> Result<Settings, String> {
 /// A progress bar on stderr for fits that take longer than a second.
 struct Progress {
     start: Instant,
-    shown: bool,
 }
 
 impl Progress {
@@ -194,7 +193,6 @@ impl Progress {
             "#".repeat(filled),
             "-".repeat(width - filled)
         );
-        self.shown = true;
         if done == total {
             eprintln!();
         }
@@ -209,12 +207,10 @@ pub fn run(args: Args) -> Result<(), String> {
     let cand = candidates(&ds, &settings.taus).map_err(|e| e.to_string())?;
     let mut progress = Progress {
         start: Instant::now(),
-        shown: false,
     };
     let (validation, trained, pred) = validate(&ds, &cand, split, &settings, &mut |d, t| {
         progress.update(d, t)
     })?;
-    let _ = progress.shown;
     let report = serde_json::json!({
         "runs": ds.runs.iter().map(|r| serde_json::json!({"name": r.name, "samples": r.len()})).collect::<Vec<_>>(),
         "inputs": ds.input_names,
