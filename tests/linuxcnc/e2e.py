@@ -85,6 +85,14 @@ threading.Thread(target=feeder, daemon=True).start()
 s = linuxcnc.stat()
 c = linuxcnc.command()
 
+# Without a PREEMPT_RT kernel LinuxCNC's uspace servo thread runs with normal scheduling
+# ("POSIX non-realtime") and catches up in bursts after the host holds it up; give the
+# simulator's threads SCHED_FIFO like a real control has (truepos-hal takes priority 50).
+rtapi = subprocess.run(["pgrep", "-x", "rtapi_app"], capture_output=True, text=True).stdout.split()
+for pid in rtapi:
+    if subprocess.run(["chrt", "-a", "-f", "-p", "60", pid]).returncode == 0:
+        log(f"rtapi_app {pid}: SCHED_FIFO 60")
+
 
 def wait(what, cond, timeout=30.0):
     end = time.time() + timeout
