@@ -600,9 +600,31 @@ mod tests {
             rate_window_s: 0.05,
             ..config
         };
-        let r = check(&machine, &[model], &limits(100.0), &samples, &config);
+        let r = check(
+            &machine,
+            std::slice::from_ref(&model),
+            &limits(100.0),
+            &samples,
+            &config,
+        );
         assert!((r.max_lag_fraction - 0.02).abs() < 1e-9);
         assert!(!r.passed());
+
+        // An update gap: X moves 1 mm per cycle for 40 cycles, truepos's sent offset changes up
+        // to cycle 10 only. Cycles 11…40 repeat it (a gap of 30); a gap counts once it exceeds
+        // 2 cycles, so cycles 13…40 = 28 of the 40 moving cycles (70 %) are in it.
+        let moving: Vec<Sample> = (0..41)
+            .map(|k| {
+                let mut s = sample(-0.020);
+                s.nominal[0] = 100.0 + k as f64;
+                s.sent_um[1] = -20.0 - 0.01 * (k.min(10) as f64);
+                s
+            })
+            .collect();
+        let r = check(&machine, &[model], &limits(100.0), &moving, &config);
+        assert_eq!(r.longest_update_gap_cycles, 30);
+        assert!((r.gap_fraction - 0.7).abs() < 1e-12, "{}", r.gap_fraction);
+        assert!(r.failures.iter().any(|f| f.contains("update gaps")));
     }
 
     #[test]
