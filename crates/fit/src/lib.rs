@@ -54,5 +54,6 @@ pub mod features;
 pub mod least_squares;
 pub mod model_file;
 pub mod position_model;
+pub mod reidentify;
 pub mod train;
 pub mod validate;
