@@ -1,6 +1,8 @@
 //! `truepos`: the one binary. Each subcommand lives in its own module; this file only parses the
 //! command line and dispatches.
 
+#![forbid(unsafe_code)]
+
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
