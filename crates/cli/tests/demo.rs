@@ -5,7 +5,9 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 fn repo(path: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..").join(path)
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../..")
+        .join(path)
 }
 
 #[test]
@@ -18,11 +20,17 @@ fn demo_fits_on_one_day_and_improves_the_other() {
         .current_dir(std::env::temp_dir())
         .output()
         .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     let none = v["uncompensated"]["volume_max_um"].as_f64().unwrap();
     let prior = v["prior_art"]["volume_reduction"].as_f64().unwrap();
-    let posdep = v["position_dependent"]["volume_reduction"].as_f64().unwrap();
+    let posdep = v["position_dependent"]["volume_reduction"]
+        .as_f64()
+        .unwrap();
     // The twin's warm-up moves the tool tens of µm (the realism bar of the twin).
     assert!(none > 20.0, "{v}");
     // Both models help on a day they never saw; the position-dependent one more.
