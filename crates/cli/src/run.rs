@@ -7,10 +7,10 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use truepos_io::{cycles, machine_file, model_file};
+use truepos_io::{cycles, machine_file};
 use truepos_runtime::log::{self, LogSetup, Logger};
 use truepos_runtime::modbus::{ModbusConfig, ModbusSource};
-use truepos_runtime::model_set::{index_of, ModelEntry};
+use truepos_runtime::model_set::load_entries;
 use truepos_runtime::replay::{state_name, CsvSink, ReplaySource};
 use truepos_runtime::shdr::{ShdrConfig, ShdrSource};
 use truepos_runtime::{PathState, Service, ServiceConfig, Sink, Source};
@@ -181,26 +181,7 @@ pub fn run(args: RunArgs) -> Result<(), String> {
     }
     let machine = machine_file::load(&args.machine).map_err(|e| e.to_string())?;
     let m = &machine.machine;
-    let default_index = index_of(
-        machine
-            .axis_runtime
-            .iter()
-            .filter(|a| a.path == 1)
-            .map(|a| a.code()),
-    );
-    let mut entries = Vec::new();
-    for path in &args.models {
-        let loaded = model_file::load_entry(path, m).map_err(|e| e.to_string())?;
-        let index = match &loaded.axis_index {
-            Some(b) => index_of(b.iter().copied()),
-            None => default_index,
-        };
-        entries.push(ModelEntry {
-            name: loaded.model.name().to_string(),
-            model: loaded.model,
-            index,
-        });
-    }
+    let entries = load_entries(&args.models, &machine).map_err(|e| e.to_string())?;
     // The service clock's zero, shared with network sources that stamp values themselves.
     let epoch = Instant::now();
     let mut sources: Vec<Box<dyn Source>> = Vec::new();

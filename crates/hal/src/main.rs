@@ -15,7 +15,7 @@ use truepos_hal::{pins, HalSink, HalSource};
 use truepos_io::machine_file::MachineFile;
 use truepos_model::Model;
 use truepos_runtime::log::{LogSetup, Logger};
-use truepos_runtime::model_set::{index_of, ModelEntry};
+use truepos_runtime::model_set::load_entries;
 use truepos_runtime::{Service, ServiceConfig, Sink, Source};
 
 #[derive(Parser)]
@@ -128,26 +128,7 @@ fn run(args: RunArgs) -> Result<(), Box<dyn std::error::Error>> {
     let machine = truepos_io::machine_file::load(&args.machine)?;
     let m = &machine.machine;
     // Seed D: a model without an index in its file serves path 1's axes.
-    let default_index = index_of(
-        machine
-            .axis_runtime
-            .iter()
-            .filter(|a| a.path == 1)
-            .map(|a| a.code()),
-    );
-    let mut entries = Vec::new();
-    for path in &args.models {
-        let loaded = truepos_io::model_file::load_entry(path, m)?;
-        let index = loaded
-            .axis_index
-            .as_ref()
-            .map_or(default_index, |b| index_of(b.iter().copied()));
-        entries.push(ModelEntry {
-            name: loaded.model.name().to_string(),
-            model: loaded.model,
-            index,
-        });
-    }
+    let entries = load_entries(&args.models, &machine)?;
     let model_names: Vec<String> = entries.iter().map(|e| e.name.clone()).collect();
 
     let stop = Arc::new(AtomicBool::new(false));
