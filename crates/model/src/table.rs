@@ -128,12 +128,32 @@ pub struct CompTable {
     reverse: Option<Vec<f64>>,
     wrap: Wrap,
     interpolation: Interpolation,
-    // Hermite slopes at each support point (monotone cubic only), per column.
-    slopes_forward: Vec<f64>,
-    slopes_reverse: Vec<f64>,
+    // Per segment: its start and 1 / its width. Segments 0..n−1 join neighbouring support
+    // points; segment n − 1 is the rotary joint or, for a linear axis, the held end value
+    // (width 0, so its slope vanishes). Precomputed so a lookup does no division.
+    segments: Vec<[f64; 2]>,
+    // Per segment and column: the interpolant as a cubic in t ∈ [0, 1] (power basis, constant
+    // term first), so a lookup is three multiply-adds whichever interpolation was chosen.
+    coef_forward: Vec<[f64; 4]>,
+    coef_reverse: Vec<[f64; 4]>,
     // 1 / step if the support points are equidistant (to 1e-12 of the span): the segment is
-    // then found by one division instead of a binary search.
+    // then found by one multiplication instead of a binary search.
     inverse_step: Option<f64>,
+}
+
+/// Where a position falls among a table's support points: found once by
+/// [`CompTable::locate`] and shared by every table with the same support points
+/// ([`CompTable::same_support`]), so several error tables of one axis cost one search.
+/// Crate-private: a location is only meaningful in a table with the same support points,
+/// which the kinematics chain checks once when it is built.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub(crate) struct Location {
+    position: f64,
+    segment: usize,
+    // Position within the segment, 0 at its start and 1 at its end.
+    t: f64,
+    // dt / dposition (0 where a linear axis' table holds its end value).
+    dt: f64,
 }
 
 impl CompTable {
@@ -210,19 +230,75 @@ impl CompTable {
             reverse,
             wrap,
             interpolation,
-            slopes_forward: Vec::new(),
-            slopes_reverse: Vec::new(),
+            segments: Vec::new(),
+            coef_forward: Vec::new(),
+            coef_reverse: Vec::new(),
             inverse_step: None,
         };
         let span = table.positions[n - 1] - table.positions[0];
         table.inverse_step = table.step(1e-12 * span).map(|h| 1.0 / h);
-        if interpolation == Interpolation::MonotoneCubic {
-            table.slopes_forward = table.slopes(&table.forward);
-            if let Some(r) = &table.reverse {
-                table.slopes_reverse = table.slopes(r);
-            }
+        table.segments = table.segment_bounds();
+        table.coef_forward = table.coefficients(&table.forward);
+        if let Some(r) = &table.reverse {
+            table.coef_reverse = table.coefficients(r);
         }
         Ok(table)
+    }
+
+    /// Start and 1 / width of each of the n segments (see the `segments` field).
+    fn segment_bounds(&self) -> Vec<[f64; 2]> {
+        let p = &self.positions;
+        let n = p.len();
+        let mut out: Vec<[f64; 2]> = p.windows(2).map(|w| [w[0], 1.0 / (w[1] - w[0])]).collect();
+        let joint = self.joint_width();
+        let last_inv = if self.wrap == Wrap::Rotary && joint > 0.0 {
+            1.0 / joint
+        } else {
+            0.0
+        };
+        out.push([p[n - 1], last_inv]);
+        out
+    }
+
+    /// The interpolant of one value column as a cubic in t per segment. Hermite form
+    /// y0·h00 + m0·h10 + y1·h01 + m1·h11 (m = slope × width) expanded into powers of t:
+    /// c0 = y0, c1 = m0, c2 = 3(y1 − y0) − 2m0 − m1, c3 = 2(y0 − y1) + m0 + m1.
+    fn coefficients(&self, values: &[f64]) -> Vec<[f64; 4]> {
+        let n = self.positions.len();
+        let slopes = match self.interpolation {
+            Interpolation::MonotoneCubic => self.slopes(values),
+            Interpolation::Linear => Vec::new(),
+        };
+        let joint = self.wrap == Wrap::Rotary && self.joint_width() > 0.0;
+        (0..n)
+            .map(|i| {
+                let (y0, y1, j, h) = if i + 1 < n {
+                    (
+                        values[i],
+                        values[i + 1],
+                        i + 1,
+                        self.positions[i + 1] - self.positions[i],
+                    )
+                } else if joint {
+                    (values[n - 1], values[0], 0, self.joint_width())
+                } else {
+                    // A held end value (or the empty joint of a full circle): constant.
+                    return [values[n - 1], 0.0, 0.0, 0.0];
+                };
+                match self.interpolation {
+                    Interpolation::Linear => [y0, y1 - y0, 0.0, 0.0],
+                    Interpolation::MonotoneCubic => {
+                        let (m0, m1) = (slopes[i] * h, slopes[j] * h);
+                        [
+                            y0,
+                            m0,
+                            3.0 * (y1 - y0) - 2.0 * m0 - m1,
+                            2.0 * (y0 - y1) + m0 + m1,
+                        ]
+                    }
+                }
+            })
+            .collect()
     }
 
     /// Fritsch–Butland slopes: zero where the secants change sign, otherwise a weighted harmonic
@@ -333,106 +409,132 @@ impl CompTable {
         self.lookup::<true>(position, direction)
     }
 
+    /// Where `position` falls among the support points (after wrapping a rotary table into its
+    /// period or holding a linear one at its ends). A non-finite position reads the first value.
     #[inline]
-    fn lookup<const SLOPE: bool>(&self, position: f64, direction: Direction) -> (f64, f64) {
-        let (values, slopes) = match (direction, &self.reverse) {
-            (Direction::Reverse, Some(r)) => (r.as_slice(), self.slopes_reverse.as_slice()),
-            _ => (self.forward.as_slice(), self.slopes_forward.as_slice()),
-        };
+    pub(crate) fn locate(&self, position: f64) -> Location {
         let p = &self.positions;
         let n = p.len();
+        let held = |segment: usize| Location {
+            position,
+            segment,
+            t: 0.0,
+            dt: 0.0,
+        };
         if !position.is_finite() {
-            return (values[0], 0.0);
+            return held(0);
         }
         let x = match self.wrap {
             Wrap::Hold => {
                 if position <= p[0] {
-                    return (values[0], 0.0);
+                    return held(0);
                 }
                 if position >= p[n - 1] {
-                    return (values[n - 1], 0.0);
+                    return held(n - 1);
                 }
                 position
             }
             Wrap::Rotary => {
                 let top = p[0] + ROTARY_PERIOD_DEG;
-                if position >= p[0] && position < top {
+                // One turn either way is the common case (axes within ±360°): an addition is
+                // far cheaper than fmod.
+                let x = if position >= p[0] && position < top {
                     position
+                } else if position < p[0] && position >= p[0] - ROTARY_PERIOD_DEG {
+                    position + ROTARY_PERIOD_DEG
+                } else if position >= top && position < top + ROTARY_PERIOD_DEG {
+                    position - ROTARY_PERIOD_DEG
                 } else {
                     let mut r = libm::fmod(position - p[0], ROTARY_PERIOD_DEG);
                     if r < 0.0 {
                         r += ROTARY_PERIOD_DEG;
                     }
-                    // Adding 360 to a tiny negative remainder may round up to the period.
-                    let x = p[0] + r;
-                    if x >= top {
-                        p[0]
-                    } else {
-                        x
-                    }
-                }
-            }
-        };
-        // Index i of the support point at or after x: the segment is [i − 1, i]; i = n is the
-        // rotary joint segment.
-        let i = match self.inverse_step {
-            Some(inv) => {
-                let k = ((x - p[0]) * inv) as usize + 1;
-                // Rounding may put x one segment off: step back or forward once.
-                let mut k = k.min(n);
-                if k < n && p[k] <= x {
-                    k += 1;
-                }
-                if k > 1 && p[k - 1] > x {
-                    k -= 1;
-                }
-                k
-            }
-            None => p.partition_point(|&q| q <= x),
-        };
-        let (x0, x1, y0, y1, i0, i1) = if i >= n {
-            // Rotary joint: between the last point and the first + 360°.
-            (
-                p[n - 1],
-                p[0] + ROTARY_PERIOD_DEG,
-                values[n - 1],
-                values[0],
-                n - 1,
-                0,
-            )
-        } else {
-            let i = i.max(1);
-            (p[i - 1], p[i], values[i - 1], values[i], i - 1, i)
-        };
-        let h = x1 - x0;
-        let t = (x - x0) / h;
-        match self.interpolation {
-            Interpolation::Linear => {
-                let slope = if SLOPE { (y1 - y0) / h } else { 0.0 };
-                (y0 + t * (y1 - y0), slope)
-            }
-            Interpolation::MonotoneCubic => {
-                let (m0, m1) = (slopes[i0] * h, slopes[i1] * h);
-                // Cubic Hermite basis on t ∈ [0, 1].
-                let t2 = t * t;
-                let t3 = t2 * t;
-                let h00 = 2.0 * t3 - 3.0 * t2 + 1.0;
-                let h10 = t3 - 2.0 * t2 + t;
-                let h01 = -2.0 * t3 + 3.0 * t2;
-                let h11 = t3 - t2;
-                let value = h00 * y0 + h10 * m0 + h01 * y1 + h11 * m1;
-                let slope = if SLOPE {
-                    let d00 = 6.0 * t2 - 6.0 * t;
-                    let d10 = 3.0 * t2 - 4.0 * t + 1.0;
-                    let d01 = -6.0 * t2 + 6.0 * t;
-                    let d11 = 3.0 * t2 - 2.0 * t;
-                    (d00 * y0 + d10 * m0 + d01 * y1 + d11 * m1) / h
-                } else {
-                    0.0
+                    p[0] + r
                 };
-                (value, slope)
+                // Rounding may put x on the period's end: that is its start.
+                if x >= top || x < p[0] {
+                    p[0]
+                } else {
+                    x
+                }
             }
+        };
+        // Segment i covers [p[i], p[i + 1]); x ≥ p[n − 1] is the rotary joint (segment n − 1).
+        let segment = if x >= p[n - 1] {
+            n - 1
+        } else {
+            match self.inverse_step {
+                // x ≥ p[0] here, so the cast is of a non-negative number; rounding may put x
+                // one segment off, which only evaluates the neighbouring cubic a hair outside
+                // [0, 1], where it joins this one continuously.
+                Some(inv) => (((x - p[0]) * inv) as usize).min(n - 2),
+                None => p.partition_point(|&q| q <= x).clamp(1, n - 1) - 1,
+            }
+        };
+        let [x0, inv_h] = self.segments.get(segment).copied().unwrap_or([x, 0.0]);
+        Location {
+            position,
+            segment,
+            t: (x - x0) * inv_h,
+            dt: inv_h,
         }
+    }
+
+    /// True if `other` has the same support points and wrapping, so a [`Location`] found in
+    /// one table is valid in the other.
+    pub fn same_support(&self, other: &CompTable) -> bool {
+        self.wrap == other.wrap && self.positions == other.positions
+    }
+
+    /// The value at a location found by [`CompTable::locate`] on a table with the same support
+    /// points.
+    #[inline]
+    pub(crate) fn value_at(&self, at: Location, direction: Direction) -> f64 {
+        self.at::<false>(at, direction).0
+    }
+
+    /// The value and slope (value unit per mm or degree) at a location found by
+    /// [`CompTable::locate`] on a table with the same support points.
+    #[inline]
+    pub(crate) fn value_and_slope_at(&self, at: Location, direction: Direction) -> (f64, f64) {
+        self.at::<true>(at, direction)
+    }
+
+    #[inline]
+    fn at<const SLOPE: bool>(&self, at: Location, direction: Direction) -> (f64, f64) {
+        self.polynomial::<SLOPE>(at, direction)
+            // A location from a table with other support points: look up afresh.
+            .or_else(|| self.polynomial::<SLOPE>(self.locate(at.position), direction))
+            .unwrap_or((0.0, 0.0))
+    }
+
+    #[inline]
+    fn lookup<const SLOPE: bool>(&self, position: f64, direction: Direction) -> (f64, f64) {
+        // `locate` returns a segment below n and every column has n coefficient rows.
+        self.polynomial::<SLOPE>(self.locate(position), direction)
+            .unwrap_or((0.0, 0.0))
+    }
+
+    /// Horner evaluation of the segment's cubic; `None` if the segment does not exist here.
+    #[inline(always)]
+    fn polynomial<const SLOPE: bool>(
+        &self,
+        at: Location,
+        direction: Direction,
+    ) -> Option<(f64, f64)> {
+        let coef = match direction {
+            Direction::Reverse if !self.coef_reverse.is_empty() => &self.coef_reverse,
+            _ => &self.coef_forward,
+        };
+        let &[c0, c1, c2, c3] = coef.get(at.segment)?;
+        let t = at.t;
+        let value = ((c3 * t + c2) * t + c1) * t + c0;
+        let slope = if SLOPE {
+            ((3.0 * c3 * t + 2.0 * c2) * t + c1) * at.dt
+        } else {
+            0.0
+        };
+        Some((value, slope))
     }
 
     /// True if the support points are equidistant within `tolerance` (Siemens tables need it).
@@ -636,6 +738,37 @@ mod tests {
         // Support points themselves, where rounding of (x − p0)/h matters.
         for (x, y) in p.iter().zip(a.forward()) {
             assert!((a.value(*x, Direction::Forward) - y).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn shared_location_and_far_turns_agree_with_direct_lookup() {
+        // Two tables on the same support points share one location. Rotary positions several turns
+        // away (the fmod path) and one turn away (the addition path) wrap alike.
+        let p: Vec<f64> = (0..36).map(|i| 10.0 * i as f64).collect();
+        let sine = |a: f64| {
+            p.iter()
+                .map(|x| a * libm::sin(x * 0.03))
+                .collect::<Vec<_>>()
+        };
+        let mk = |pos: Vec<f64>, v| {
+            CompTable::new(pos, v, Wrap::Rotary, Interpolation::MonotoneCubic).unwrap()
+        };
+        let a = mk(p.clone(), sine(2.0));
+        let b = mk(p.clone(), sine(-5.0));
+        let c = mk(p[..20].to_vec(), sine(1.0)[..20].to_vec());
+        assert!(a.same_support(&b) && !a.same_support(&c));
+        for k in 0..2000 {
+            let x = -1500.0 + 1.5 * k as f64;
+            let at = a.locate(x);
+            for t in [&a, &b, &c] {
+                let at = if t.same_support(&a) { at } else { t.locate(x) };
+                let (v, s) = t.value_and_slope_at(at, Direction::Forward);
+                let (v2, s2) = t.value_and_slope(x, Direction::Forward);
+                assert_eq!((v, s), (v2, s2), "x={x}");
+                let y = t.value(x - 360.0 * libm::round(x / 360.0), Direction::Forward);
+                assert!((v - y).abs() < 1e-9, "x={x} {v} {y}");
+            }
         }
     }
 

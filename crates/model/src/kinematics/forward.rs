@@ -4,6 +4,7 @@
 
 use super::{Chain, Directions, Geometry, KinError, Pose, Step, DEG};
 use crate::machine::{AxisKind, MAX_AXES};
+use crate::table::Location;
 
 /// Derivatives of the TCP (`dp`) and the tool direction (`dd`) with respect to each axis, per
 /// mm for linear axes and per radian for rotary ones.
@@ -21,12 +22,21 @@ impl Tangents {
 }
 
 /// x ← R_k(θ)·x with c = cos θ, s = sin θ (active rotation about coordinate axis k).
+///
+/// One arm per axis with constant indices: a computed index would force the pose out of
+/// registers into memory on every row (a store-to-load round trip per row of the chain).
 #[inline(always)]
 fn rotate(x: &mut [f64; 3], k: usize, c: f64, s: f64) {
     let (i, j) = ((k + 1) % 3, (k + 2) % 3);
     let (a, b) = (x[i], x[j]);
     x[i] = c * a - s * b;
     x[j] = s * a + c * b;
+}
+
+/// x ← x + v·e_k, with constant indices for the same reason as [`rotate`].
+#[inline(always)]
+fn translate(x: &mut [f64; 3], k: usize, v: f64) {
+    x[k] += v;
 }
 
 /// t += g · (e_k × x).
@@ -103,12 +113,16 @@ impl Chain {
         let actual = geometry == Geometry::Actual;
         // Bit j set: the tangents of axis j are no longer zero.
         let mut active: u32 = 0;
+        // Where the axis position of the last error row fell in its table: rows reading tables
+        // with the same support points of the same axis follow each other (the 6 errors of a
+        // slide), so one search serves them all. Every first row of a group relocates.
+        let mut at = Location::default();
         for step in &self.steps {
             match *step {
-                Step::Translate { k, v } => p[k] += v,
-                Step::Tool { k, sign, offset } => p[k] += sign * tool_mm + offset,
+                Step::Translate { k, v } => translate(&mut p, k, v),
+                Step::Tool { k, sign, offset } => translate(&mut p, k, sign * tool_mm + offset),
                 Step::AxisTranslate { k, axis, sign } => {
-                    p[k] += sign * q[axis];
+                    translate(&mut p, k, sign * q[axis]);
                     if JAC {
                         if let Some(t) = tangents.as_deref_mut() {
                             t.dp[axis][k] += sign;
@@ -122,10 +136,17 @@ impl Chain {
                     table,
                     axis,
                     scale,
+                    relocate,
                 } => {
                     if actual {
-                        let (v, slope) = self.table_value::<JAC>(table, q[axis], dirs.of(axis));
-                        p[k] += offset + scale * v;
+                        let (v, slope) = self.table_value::<JAC>(
+                            table,
+                            relocate,
+                            &mut at,
+                            q[axis],
+                            dirs.of(axis),
+                        );
+                        translate(&mut p, k, offset + scale * v);
                         if JAC {
                             if let Some(t) = tangents.as_deref_mut() {
                                 t.dp[axis][k] += scale * slope * self.per_unit(axis);
@@ -133,7 +154,7 @@ impl Chain {
                             }
                         }
                     } else {
-                        p[k] += offset;
+                        translate(&mut p, k, offset);
                     }
                 }
                 Step::Rotate { k, c, s } => {
@@ -178,9 +199,16 @@ impl Chain {
                     table,
                     axis,
                     scale,
+                    relocate,
                 } => {
                     let (angle, slope) = if actual {
-                        let (v, slope) = self.table_value::<JAC>(table, q[axis], dirs.of(axis));
+                        let (v, slope) = self.table_value::<JAC>(
+                            table,
+                            relocate,
+                            &mut at,
+                            q[axis],
+                            dirs.of(axis),
+                        );
                         (offset + scale * v, scale * slope)
                     } else {
                         (offset, 0.0)
@@ -215,19 +243,25 @@ impl Chain {
         }
     }
 
-    /// Table value and (if `SLOPE`) its slope.
+    /// Table value and (if `SLOPE`) its slope at `x`, located afresh if `relocate`, else at
+    /// `at` (found by the previous error row on the same support points).
     #[inline(always)]
     fn table_value<const SLOPE: bool>(
         &self,
         table: usize,
+        relocate: bool,
+        at: &mut Location,
         x: f64,
         dir: crate::table::Direction,
     ) -> (f64, f64) {
         let t = &self.tables[table].table;
+        if relocate {
+            *at = t.locate(x);
+        }
         if SLOPE {
-            t.value_and_slope(x, dir)
+            t.value_and_slope_at(*at, dir)
         } else {
-            (t.value(x, dir), 0.0)
+            (t.value_at(*at, dir), 0.0)
         }
     }
 

@@ -707,6 +707,7 @@ impl Chain {
                     table,
                     axis,
                     scale,
+                    ..
                 } => {
                     let v = self.tables[table].table.value(q[axis], dirs.of(axis));
                     let (s, c) = super::sincos(offset + scale * v);

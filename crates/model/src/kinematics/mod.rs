@@ -414,6 +414,9 @@ pub(crate) enum Step {
         table: usize,
         axis: usize,
         scale: f64,
+        // False if the error row before this one reads a table of the same axis with the same
+        // support points: the axis position's segment found there serves this row too.
+        relocate: bool,
     },
     ErrRotate {
         k: usize,
@@ -421,6 +424,9 @@ pub(crate) enum Step {
         table: usize,
         axis: usize,
         scale: f64,
+        // False if the error row before this one reads a table of the same axis with the same
+        // support points: the axis position's segment found there serves this row too.
+        relocate: bool,
     },
     AxisTranslate {
         k: usize,
@@ -487,6 +493,8 @@ impl Chain {
         }
         let mut uses = alloc::vec![0usize; axes.len()];
         let mut steps = Vec::with_capacity(rows.len());
+        // The table of the previous error row (see `Step::ErrRotate::relocate`).
+        let mut last_table: Option<&ErrorTable> = None;
         for (i, row) in rows.iter().enumerate() {
             let bad = |what: &str| ChainError::BadValue {
                 what: alloc::format!("row {i}: {what}"),
@@ -534,6 +542,10 @@ impl Chain {
                         return Err(bad("value"));
                     }
                     let (k, scale) = (dof.coordinate(), t.unit.scale());
+                    let relocate = last_table.is_none_or(|o: &ErrorTable| {
+                        o.axis != t.axis || !o.table.same_support(&t.table)
+                    });
+                    last_table = Some(t);
                     if dof.is_rotation() {
                         Step::ErrRotate {
                             k,
@@ -541,6 +553,7 @@ impl Chain {
                             table,
                             axis: t.axis,
                             scale,
+                            relocate,
                         }
                     } else {
                         Step::ErrTranslate {
@@ -549,6 +562,7 @@ impl Chain {
                             table,
                             axis: t.axis,
                             scale,
+                            relocate,
                         }
                     }
                 }
