@@ -388,3 +388,100 @@ pub fn set_realtime_priority(priority: i32) -> Result<(), String> {
     }
     Ok(())
 }
+
+// ---------------------------------------------------------------------------------------------
+// Timing: the few libc calls a periodic userspace cycle needs beyond `std` (the safe pacing
+// and measurement built on them is in `crate::pacer` and `crate::host`).
+// ---------------------------------------------------------------------------------------------
+
+/// Reads a clock in ns.
+fn clock_ns(clock: libc::clockid_t) -> u64 {
+    let mut ts = libc::timespec {
+        tv_sec: 0,
+        tv_nsec: 0,
+    };
+    // SAFETY: `ts` is a valid, writable timespec on the stack; clock_gettime only writes it.
+    // The clocks used here (monotonic, process and thread CPU time) exist on every Linux, so
+    // the call cannot fail; a zeroed `ts` would be the answer if it did.
+    unsafe { libc::clock_gettime(clock, &mut ts) };
+    (ts.tv_sec as u64).saturating_mul(1_000_000_000) + ts.tv_nsec as u64
+}
+
+/// `CLOCK_MONOTONIC` in ns: the clock of [`sleep_until_ns`] (and of `std::time::Instant` on
+/// Linux).
+pub fn monotonic_ns() -> u64 {
+    clock_ns(libc::CLOCK_MONOTONIC)
+}
+
+/// CPU time used by the whole process (every thread) in ns (`CLOCK_PROCESS_CPUTIME_ID`).
+pub fn process_cpu_ns() -> u64 {
+    clock_ns(libc::CLOCK_PROCESS_CPUTIME_ID)
+}
+
+/// CPU time used by the calling thread in ns (`CLOCK_THREAD_CPUTIME_ID`).
+pub fn thread_cpu_ns() -> u64 {
+    clock_ns(libc::CLOCK_THREAD_CPUTIME_ID)
+}
+
+/// Sleeps until `CLOCK_MONOTONIC` reads `deadline_ns`: `clock_nanosleep` with `TIMER_ABSTIME`,
+/// so that the time between computing the deadline and going to sleep (or a preemption in
+/// between) does not shift the wake-up, as a relative sleep would. Returns at once if the
+/// deadline has passed; resumes the sleep after a signal.
+pub fn sleep_until_ns(deadline_ns: u64) {
+    let ts = libc::timespec {
+        tv_sec: (deadline_ns / 1_000_000_000) as libc::time_t,
+        tv_nsec: (deadline_ns % 1_000_000_000) as libc::c_long,
+    };
+    loop {
+        // SAFETY: `ts` is a valid timespec; with TIMER_ABSTIME the remaining-time pointer is
+        // unused and may be null.
+        let rc = unsafe {
+            libc::clock_nanosleep(
+                libc::CLOCK_MONOTONIC,
+                libc::TIMER_ABSTIME,
+                &ts,
+                std::ptr::null_mut(),
+            )
+        };
+        // clock_nanosleep returns the error number itself (not -1 and errno).
+        if rc != libc::EINTR {
+            return;
+        }
+    }
+}
+
+/// Binds the calling thread to one CPU (`sched_setaffinity`), so that the cycle keeps its
+/// caches and is not migrated between CPUs.
+pub fn pin_to_cpu(cpu: usize) -> Result<(), String> {
+    if cpu >= libc::CPU_SETSIZE as usize {
+        return Err(format!("CPU {cpu} is beyond CPU_SETSIZE"));
+    }
+    // SAFETY: cpu_set_t is a plain bit array for which all-zero is the empty set.
+    let mut set: libc::cpu_set_t = unsafe { std::mem::zeroed() };
+    // SAFETY: `cpu` < CPU_SETSIZE was checked above, so CPU_SET stays inside `set`.
+    unsafe { libc::CPU_SET(cpu, &mut set) };
+    // SAFETY: `set` is an initialised cpu_set_t of the size passed; pid 0 is the calling thread.
+    let rc = unsafe { libc::sched_setaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &set) };
+    if rc != 0 {
+        return Err(format!(
+            "sched_setaffinity(CPU {cpu}): {}",
+            std::io::Error::last_os_error()
+        ));
+    }
+    Ok(())
+}
+
+/// Sets the calling thread's timer slack (`PR_SET_TIMERSLACK`): the kernel may otherwise
+/// delay a normal thread's timer wake-ups by up to 50 µs to batch them (realtime threads
+/// have none).
+pub fn set_timer_slack_ns(ns: u64) -> Result<(), String> {
+    // SAFETY: PR_SET_TIMERSLACK takes one integer argument and changes only the thread's slack.
+    let rc = unsafe { libc::prctl(libc::PR_SET_TIMERSLACK, ns as libc::c_ulong, 0, 0, 0) };
+    if rc != 0 {
+        return Err(format!(
+            "prctl(PR_SET_TIMERSLACK): {}",
+            std::io::Error::last_os_error()
+        ));
+    }
+    Ok(())
+}

@@ -13,6 +13,8 @@
 //!   [`Source`](truepos_runtime::Source) and [`Sink`](truepos_runtime::Sink).
 //! - [`eoffset`]: offsets in µm ↔ LinuxCNC counts.
 //! - [`check`]: the analysis of the end-to-end test: what LinuxCNC applied against the model.
+//! - [`pacer`]: the periodic cycle (absolute deadlines, `SCHED_FIFO`, locked memory, one CPU);
+//!   [`host`]: the hypervisor's steal time beside it; [`timing`]: the benchmark of both.
 //!
 //! Sign: the model predicts the error (actual − nominal); the offset sent is −error.
 //!
@@ -35,9 +37,12 @@ pub mod check;
 pub mod eoffset;
 #[allow(unsafe_code)]
 pub mod ffi;
+pub mod host;
+pub mod pacer;
 pub mod pins;
 pub mod sink;
 pub mod source;
+pub mod timing;
 
 pub use sink::HalSink;
 pub use source::HalSource;

@@ -1,16 +1,19 @@
 #![forbid(unsafe_code)]
 //! `truepos-hal`: the `truepos` userspace HAL component (`loadusr -W truepos-hal run …`) and
-//! the end-to-end check of what LinuxCNC applied (`truepos-hal check …`).
+//! the end-to-end check of what LinuxCNC applied (`truepos-hal check …`), and the timing
+//! benchmark of its cycle (`truepos-hal timing …`, no LinuxCNC needed).
 
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use clap::{Parser, Subcommand};
 use truepos_hal::check::{check, load_samples, CheckConfig};
-use truepos_hal::ffi::Component;
+use truepos_hal::ffi::{self, Component};
+use truepos_hal::pacer::{realtime_setup, Pacer};
+use truepos_hal::timing::{self, TimingConfig};
 use truepos_hal::{pins, HalSink, HalSource};
 use truepos_io::machine_file::MachineFile;
 use truepos_model::Model;
@@ -35,6 +38,43 @@ enum Command {
     Run(RunArgs),
     /// Compare what LinuxCNC applied (halsampler files) with the models and the envelope.
     Check(CheckArgs),
+    /// The cycle's timing without LinuxCNC: the service at a fixed period on the component's
+    /// pacing, replaying a run, with the host's steal time sampled beside it; prints JSON.
+    Timing(TimingArgs),
+}
+
+#[derive(clap::Args)]
+struct TimingArgs {
+    /// Machine description (TOML).
+    #[arg(long, default_value = "examples/vmc3/machine.toml")]
+    machine: PathBuf,
+    /// Model file; repeat for a set.
+    #[arg(long = "model", default_value = "examples/vmc3/model.toml")]
+    models: Vec<PathBuf>,
+    /// Recorded run replayed in real time as the source.
+    #[arg(long, default_value = "examples/vmc3/run.csv")]
+    run: PathBuf,
+    /// SQLite log of the service (as in production); none if not given.
+    #[arg(long)]
+    log: Option<PathBuf>,
+    /// Length of the run in s.
+    #[arg(long, default_value_t = 600.0)]
+    duration_s: f64,
+    /// Cycle period in ms.
+    #[arg(long, default_value_t = 1.0)]
+    period_ms: f64,
+    /// SCHED_FIFO priority of the cycle (0: normal scheduling).
+    #[arg(long, default_value_t = 50)]
+    rt_priority: i32,
+    /// CPU to bind the cycle to (default: the last one).
+    #[arg(long)]
+    cpu: Option<usize>,
+    /// Interval of the steal-time sampling in ms.
+    #[arg(long, default_value_t = 5.0)]
+    sample_ms: f64,
+    /// A cycle finishing more than this after its deadline is late (ms).
+    #[arg(long, default_value_t = 2.0)]
+    late_ms: f64,
 }
 
 #[derive(clap::Args)]
@@ -68,6 +108,10 @@ struct RunArgs {
     /// CAP_SYS_NICE). 0 keeps normal scheduling.
     #[arg(long, default_value_t = 0)]
     rt_priority: i32,
+    /// Bind the cycle thread to this CPU (leave unset beside LinuxCNC's own realtime thread
+    /// unless that is bound elsewhere).
+    #[arg(long)]
+    cpu: Option<usize>,
 }
 
 #[derive(clap::Args)]
@@ -109,13 +153,6 @@ fn load(
         .map(|p| truepos_io::model_file::load(p, &machine.machine))
         .collect::<Result<Vec<_>, _>>()?;
     Ok((machine, models))
-}
-
-/// CPU time the process has used so far in ns (Linux `/proc/self/schedstat`, first field), if
-/// the kernel reports it.
-fn cpu_time_ns() -> Option<f64> {
-    let text = std::fs::read_to_string("/proc/self/schedstat").ok()?;
-    text.split_whitespace().next()?.parse().ok()
 }
 
 /// Histogram bucket edges of the cycle-to-cycle interval, ms.
@@ -185,27 +222,30 @@ fn run(args: RunArgs) -> Result<(), Box<dyn std::error::Error>> {
         model_names,
         args.period_ms
     );
-    if args.rt_priority > 0 {
-        match truepos_hal::ffi::set_realtime_priority(args.rt_priority) {
-            Ok(()) => eprintln!("truepos-hal: SCHED_FIFO priority {}", args.rt_priority),
-            Err(e) => eprintln!("truepos-hal: warning: no realtime priority: {e}"),
-        }
+    // After the logger has started, so that its thread inherits neither priority nor CPU.
+    let setup = realtime_setup(args.rt_priority, args.cpu);
+    if let Some(p) = setup.fifo_priority {
+        eprintln!("truepos-hal: SCHED_FIFO priority {p}, memory locked");
+    }
+    for e in &setup.errors {
+        eprintln!("truepos-hal: warning: {e}");
     }
 
-    let period = Duration::from_secs_f64(args.period_ms / 1000.0);
-    let cpu_start = cpu_time_ns();
-    let start = Instant::now();
-    let mut next = start;
+    let period_ns = (args.period_ms * 1e6).round() as u64;
+    let cpu_start = ffi::process_cpu_ns();
+    let start = ffi::monotonic_ns();
+    let mut pacer = Pacer::new(start, period_ns);
     let mut last = start;
+    let mut skipped: u64 = 0;
     let mut cycles: u64 = 0;
     let mut histogram = [0u64; EDGES_MS.len() + 1];
     let mut max_interval_ms = 0.0f64;
     let mut max_work_us = 0.0f64;
     let mut selected = -1;
     while !stop.load(Ordering::Relaxed) {
-        let now = Instant::now();
+        let now = pacer.wait();
         if cycles > 0 {
-            let interval_ms = (now - last).as_secs_f64() * 1000.0;
+            let interval_ms = (now - last) as f64 / 1e6;
             let bucket = EDGES_MS.iter().position(|&e| interval_ms < e);
             histogram[bucket.unwrap_or(EDGES_MS.len())] += 1;
             max_interval_ms = max_interval_ms.max(interval_ms);
@@ -223,34 +263,33 @@ fn run(args: RunArgs) -> Result<(), Box<dyn std::error::Error>> {
                 .filter(|&i| i < model_names.len());
             service.prefer_model(0, preferred);
         }
-        service.cycle((now - start).as_secs_f64());
+        // The time of reading, not the deadline: LinuxCNC's positions are those of now.
+        service.cycle((now - start) as f64 * 1e-9);
         cycles += 1;
-        let work_us = now.elapsed().as_secs_f64() * 1e6;
+        let after = ffi::monotonic_ns();
+        let work_us = (after - now) as f64 / 1e3;
         max_work_us = max_work_us.max(work_us);
         cycle_us_pin.set(work_us);
         cycles_pin.set(cycles as u32 as i32);
 
-        next += period;
-        let after = Instant::now();
-        if next > after {
-            std::thread::sleep(next - after);
-        } else if after - next > period * 10 {
-            // Far behind (the process was stopped): start afresh rather than race.
-            next = after;
+        pacer.advance();
+        if after > pacer.deadline_ns() {
+            // Behind (the host held the process up): act on the next deadline with current
+            // values rather than race through the missed ones.
+            skipped += pacer.skip_to(after);
         }
     }
 
-    let wall_ns = start.elapsed().as_secs_f64() * 1e9;
-    let cpu_percent = match (cpu_start, cpu_time_ns()) {
-        (Some(a), Some(b)) if wall_ns > 0.0 => Some((b - a) / wall_ns * 100.0),
-        _ => None,
-    };
+    let wall_ns = (ffi::monotonic_ns() - start) as f64;
+    // Every thread of the process, the SQLite logger included.
+    let cpu_percent = (ffi::process_cpu_ns() - cpu_start) as f64 / wall_ns.max(1.0) * 100.0;
+    let period = Duration::from_nanos(period_ns);
     // Bumpless stop: blend the offsets to zero before leaving HAL.
     service.set_enabled(false);
-    let ramp_start = Instant::now();
+    let ramp_start = std::time::Instant::now();
     loop {
-        let now = Instant::now();
-        let out = service.cycle((now - start).as_secs_f64());
+        let now = ffi::monotonic_ns();
+        let out = service.cycle((now - start) as f64 * 1e-9);
         if out.offsets().iter().all(|o| o.abs() < 1e-9)
             || ramp_start.elapsed() > Duration::from_secs_f64(args.blend_s + 1.0)
         {
@@ -273,6 +312,7 @@ fn run(args: RunArgs) -> Result<(), Box<dyn std::error::Error>> {
             "counts": histogram,
         },
         "intervals_over_2ms": late,
+        "deadlines_skipped": skipped,
         "max_interval_ms": max_interval_ms,
         "max_work_us": max_work_us,
         "cpu_percent_of_one_core": cpu_percent,
@@ -370,11 +410,62 @@ fn run_check(args: CheckArgs) -> Result<bool, Box<dyn std::error::Error>> {
     Ok(report.passed())
 }
 
+fn run_timing(args: TimingArgs) -> Result<bool, Box<dyn std::error::Error>> {
+    let stop = Arc::new(AtomicBool::new(false));
+    signal_hook::flag::register(signal_hook::consts::SIGTERM, Arc::clone(&stop))?;
+    signal_hook::flag::register(signal_hook::consts::SIGINT, Arc::clone(&stop))?;
+    // The last CPU: the kernel and most other work start on the first.
+    let cpu = args.cpu.or_else(|| {
+        std::thread::available_parallelism()
+            .ok()
+            .map(|n| n.get() - 1)
+    });
+    let config = TimingConfig {
+        machine: args.machine,
+        models: args.models,
+        run: args.run,
+        log: args.log,
+        duration_s: args.duration_s,
+        period_ms: args.period_ms,
+        rt_priority: args.rt_priority,
+        cpu,
+        sample_ms: args.sample_ms,
+        late_ms: args.late_ms,
+    };
+    eprintln!(
+        "truepos-hal timing: {} s at {} ms, SCHED_FIFO {}, CPU {:?}",
+        config.duration_s, config.period_ms, config.rt_priority, config.cpu
+    );
+    let s = timing::run(&config, &stop)?;
+    println!("{}", serde_json::to_string_pretty(&s)?);
+    let late = &s["late_cycles"];
+    eprintln!(
+        "truepos-hal timing: {} cycles; work p50 {} µs, p99 {} µs; CPU {:.2} % of one core; steal {:.2} % of the cycle's CPU",
+        s["cycles"],
+        s["cycle_work_us"]["p50"],
+        s["cycle_work_us"]["p99"],
+        s["cpu_percent_of_one_core"].as_f64().unwrap_or(f64::NAN),
+        s["host"]["steal_percent_watched_cpu"].as_f64().unwrap_or(f64::NAN),
+    );
+    eprintln!(
+        "truepos-hal timing: late by > {} ms: {} cycles in {} stalls; {} coincide with steal, {} not explained by steal (worst {} ms); a window sees steal by chance {:.1} %",
+        late["bar_ms"],
+        late["total"],
+        late["episodes"],
+        late["coinciding_with_steal"],
+        late["not_explained_by_steal"],
+        late["worst_not_explained_ms"],
+        late["chance_a_window_sees_steal"].as_f64().unwrap_or(0.0) * 100.0,
+    );
+    Ok(true)
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Run(args) => run(args).map(|()| true),
         Command::Check(args) => run_check(args),
+        Command::Timing(args) => run_timing(args),
     };
     match result {
         Ok(true) => ExitCode::SUCCESS,
