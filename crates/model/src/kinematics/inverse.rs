@@ -22,7 +22,7 @@
 
 use super::forward::Tangents;
 use super::{Chain, Directions, Geometry, KinAxis, KinError, Layout, Pose, Step, DEG};
-use crate::machine::{AxisKind, MAX_AXES};
+use crate::machine::MAX_AXES;
 
 /// The inverse transform stops when the TCP is this close to the target (0.5 nm, half the
 /// 1 nm the issue asks for).
@@ -171,7 +171,10 @@ pub(crate) fn analyse(axes: &[KinAxis], steps: &[Step]) -> Layout {
     }
     debug_assert_eq!(nl + nr, axes.len());
     match (nl, nr) {
-        (3, 0) => Layout::ThreeAxis { linear },
+        (3, 0) => Layout::ThreeAxis {
+            linear,
+            affine: None,
+        },
         (3, 2) => {
             gs[2] = m;
             let v = mul_mv(&gs[0], &[0.0, 0.0, 1.0]);
@@ -195,6 +198,49 @@ pub(crate) fn analyse(axes: &[KinAxis], steps: &[Step]) -> Layout {
     }
 }
 
+/// The nominal chain of a 3-axis machine: p = A·q + b₀ + L·b_L (its fixed rotations do not
+/// depend on the axes), with A⁻¹ kept so the closed form is one matrix product.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct Affine {
+    inv: M3,
+    b0: V3,
+    per_tool_mm: V3,
+    direction: V3,
+}
+
+/// The affine map of a 3-axis chain's nominal geometry, from its exact derivatives at q = 0;
+/// `None` if A is singular (the inverse then reports [`KinError::Singular`]).
+pub(crate) fn affine(chain: &Chain, linear: &[usize; 3]) -> Option<Affine> {
+    let n = chain.axes.len();
+    let zero = [0.0; MAX_AXES];
+    let mut t = Tangents::ZERO;
+    let p0 = chain.eval::<true>(
+        &zero[..n],
+        0.0,
+        Directions(0),
+        Geometry::Nominal,
+        Some(&mut t),
+    );
+    let p1 = chain.eval::<false>(&zero[..n], 1.0, Directions(0), Geometry::Nominal, None);
+    let (c0, c1, c2) = (t.dp[linear[0]], t.dp[linear[1]], t.dp[linear[2]]);
+    let det = dot(&c0, &cross(&c1, &c2));
+    if !(libm::fabs(det) > 1e-12 * norm(&c0) * norm(&c1) * norm(&c2)) {
+        return None;
+    }
+    // Rows of A⁻¹ are the cross products of A's columns over its determinant.
+    let inv = [
+        scale(&cross(&c1, &c2), 1.0 / det),
+        scale(&cross(&c2, &c0), 1.0 / det),
+        scale(&cross(&c0, &c1), 1.0 / det),
+    ];
+    Some(Affine {
+        inv,
+        b0: p0.position,
+        per_tool_mm: sub(&p1.position, &p0.position),
+        direction: p0.direction,
+    })
+}
+
 /// What one inverse transform did.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct InverseReport {
@@ -212,6 +258,12 @@ pub struct InverseReport {
 /// The value of `q` + 360·m nearest `prev` inside travel, or `None`.
 fn nearest_turn(q: f64, prev: f64, axis: &KinAxis) -> Option<f64> {
     let m0 = libm::round((prev - q) / 360.0);
+    let c0 = q + 360.0 * m0;
+    // Less than half a turn away and within travel: every other turn is further (the common
+    // case, decided without the search below).
+    if libm::fabs(c0 - prev) < 180.0 && within_travel(axis, c0) {
+        return Some(c0);
+    }
     let mut best: Option<f64> = None;
     for dm in [-1.0, 0.0, 1.0, -2.0, 2.0] {
         let c = q + 360.0 * (m0 + dm);
@@ -367,16 +419,27 @@ impl Chain {
         if with_errors || !closed {
             let max_iter = if closed { 100 } else { 200 };
             let mut result = if closed && with_errors && !near_pole {
-                // Fast path: a few Newton steps from the nominal solution.
-                self.newton(
-                    &target,
-                    tool_mm,
-                    dirs,
-                    geometry,
-                    use_direction,
-                    FAST_NEWTON_ITERATIONS,
-                    &mut q,
-                )
+                // Fast path: chord steps from the nominal solution, then (rarely) full Newton.
+                let chord = match &self.layout {
+                    Layout::ThreeAxis {
+                        linear,
+                        affine: Some(af),
+                    } => self.chord_affine(af, linear, &target, tool_mm, dirs, &mut q),
+                    _ => self.chord(&target, tool_mm, dirs, use_direction, &mut q),
+                };
+                match chord {
+                    Ok(r) => Ok(r),
+                    Err(KinError::NotConverged { .. }) => self.newton(
+                        &target,
+                        tool_mm,
+                        dirs,
+                        geometry,
+                        use_direction,
+                        FAST_NEWTON_ITERATIONS,
+                        &mut q,
+                    ),
+                    Err(e) => Err(e),
+                }
             } else {
                 self.newton(
                     &target,
@@ -450,12 +513,7 @@ impl Chain {
         // A rotary axis may have wandered by whole turns during the iterations (rotary tables
         // repeat every 360°): take the turn nearest the previous set-point within travel.
         for j in 0..n {
-            let periodic = self
-                .tables
-                .iter()
-                .filter(|t| t.axis == j)
-                .all(|t| t.table.wrap() == crate::table::Wrap::Rotary);
-            if self.axes[j].kind == AxisKind::Rotary && periodic {
+            if self.periodic >> j & 1 == 1 {
                 if let Some(v) = nearest_turn(q[j], prev[j], &self.axes[j]) {
                     q[j] = v;
                 }
@@ -543,7 +601,31 @@ impl Chain {
         q: &mut [f64; MAX_AXES],
     ) -> Result<(), KinError> {
         match layout {
-            Layout::ThreeAxis { linear } => {
+            Layout::ThreeAxis {
+                linear,
+                affine: Some(af),
+            } => {
+                if norm(&sub(&af.direction, &target.direction)) > THREE_AXIS_DIRECTION_SLACK {
+                    return Err(KinError::UnreachableDirection);
+                }
+                let rhs = sub(
+                    &sub(&target.position, &af.b0),
+                    &scale(&af.per_tool_mm, tool_mm),
+                );
+                let lin = mul_mv(&af.inv, &rhs);
+                *q = *prev;
+                for (c, &j) in linear.iter().enumerate() {
+                    q[j] = lin[c];
+                    if !within_travel(&self.axes[j], q[j]) {
+                        return Err(KinError::OutsideTravel {
+                            axis: j,
+                            value: q[j],
+                        });
+                    }
+                }
+                Ok(())
+            }
+            Layout::ThreeAxis { linear, .. } => {
                 let mut t = Tangents::ZERO;
                 *q = *prev;
                 let pose = self.eval::<true>(
@@ -737,6 +819,129 @@ impl Chain {
         }
     }
 
+    /// Chord iterations of a 3-axis machine with the nominal chain's constant A⁻¹ as the
+    /// inverse Jacobian: the tables change the real Jacobian by about their relative slopes
+    /// (1e-4), so each step shrinks the TCP residual by that factor and costs one forward
+    /// transform without derivatives. The tool direction cannot be commanded and is only
+    /// reported. Ends with [`KinError::NotConverged`] (`q` at the best point) if a step does
+    /// not reduce the residual.
+    #[allow(clippy::too_many_arguments)]
+    fn chord_affine(
+        &self,
+        af: &Affine,
+        linear: &[usize; 3],
+        target: &Pose,
+        tool_mm: f64,
+        dirs: Directions,
+        q: &mut [f64; MAX_AXES],
+    ) -> Result<(u32, f64, f64), KinError> {
+        const CHORD_STEPS: u32 = 6;
+        let n = self.axes.len();
+        let mut best = (*q, f64::INFINITY, f64::INFINITY);
+        for iterations in 0..=CHORD_STEPS {
+            let pose = self.eval::<false>(&q[..n], tool_mm, dirs, Geometry::Actual, None);
+            let rp = sub(&pose.position, &target.position);
+            let (np, nd) = (norm(&rp), norm(&sub(&pose.direction, &target.direction)));
+            if !(np.is_finite() && nd.is_finite()) {
+                return Err(KinError::NonFinite);
+            }
+            if np <= POSITION_TOLERANCE_MM {
+                return Ok((iterations, np, nd));
+            }
+            if np >= best.1 {
+                break;
+            }
+            best = (*q, np, nd);
+            if iterations == CHORD_STEPS {
+                break;
+            }
+            let step = mul_mv(&af.inv, &rp);
+            for (c, &j) in linear.iter().enumerate() {
+                q[j] -= step[c];
+            }
+        }
+        *q = best.0;
+        Err(KinError::NotConverged {
+            position_mm: best.1,
+            direction_rad: best.2,
+        })
+    }
+
+    /// Chord iterations through the erroneous chain: the exact Jacobian at the start (the
+    /// nominal solution), factorised once and reused. The errors are µm and µrad small, so
+    /// the Jacobian barely changes over the correction: the first step is a full Newton step
+    /// and each further one shrinks the residual by about the tables' relative slopes (1e-4),
+    /// at the price of a forward transform without derivatives. `q` holds the last accepted
+    /// set-points; a step that does not reduce the residual ends with
+    /// [`KinError::NotConverged`] and the caller continues with [`Chain::newton`].
+    fn chord(
+        &self,
+        target: &Pose,
+        tool_mm: f64,
+        dirs: Directions,
+        use_direction: bool,
+        q: &mut [f64; MAX_AXES],
+    ) -> Result<(u32, f64, f64), KinError> {
+        const CHORD_STEPS: u32 = 4;
+        let n = self.axes.len();
+        let w = if use_direction {
+            DIRECTION_WEIGHT_MM
+        } else {
+            0.0
+        };
+        let residual = |pose: &Pose| -> ([f64; 6], f64, f64) {
+            let rp = sub(&pose.position, &target.position);
+            let rd = sub(&pose.direction, &target.direction);
+            (
+                [rp[0], rp[1], rp[2], w * rd[0], w * rd[1], w * rd[2]],
+                norm(&rp),
+                norm(&rd),
+            )
+        };
+        let converged = |np: f64, nd: f64| {
+            np <= POSITION_TOLERANCE_MM && (!use_direction || nd <= DIRECTION_TOLERANCE_RAD)
+        };
+        let mut t = Tangents::ZERO;
+        let pose = self.eval::<true>(&q[..n], tool_mm, dirs, Geometry::Actual, Some(&mut t));
+        let (mut r, mut np, mut nd) = residual(&pose);
+        if !(np.is_finite() && nd.is_finite()) {
+            return Err(KinError::NonFinite);
+        }
+        if converged(np, nd) {
+            return Ok((0, np, nd));
+        }
+        let (jac, colscale) = weighted_jacobian(&t, n, w);
+        let not_converged = |np, nd| KinError::NotConverged {
+            position_mm: np,
+            direction_rad: nd,
+        };
+        let Some(factor) = Normal::factor(&jac, &colscale, n, 1e-14) else {
+            return Err(not_converged(np, nd));
+        };
+        let cost = |r: &[f64; 6]| r.iter().map(|v| v * v).sum::<f64>();
+        for iterations in 1..=CHORD_STEPS {
+            let Some(step) = factor.solve(&jac, &r) else {
+                break;
+            };
+            let mut trial = *q;
+            for j in 0..n {
+                trial[j] += step[j] * self.per_unit(j);
+            }
+            let p2 = self.eval::<false>(&trial[..n], tool_mm, dirs, Geometry::Actual, None);
+            let (r2, np2, nd2) = residual(&p2);
+            let (c2, c1) = (cost(&r2), cost(&r));
+            if c2.is_nan() || c2 >= c1 {
+                break;
+            }
+            *q = trial;
+            (r, np, nd) = (r2, np2, nd2);
+            if converged(np, nd) {
+                return Ok((iterations, np, nd));
+            }
+        }
+        Err(not_converged(np, nd))
+    }
+
     /// Gauss–Newton with Levenberg–Marquardt damping through the chain (exact Jacobian).
     /// Returns (iterations, TCP residual mm, direction residual rad).
     #[allow(clippy::too_many_arguments)]
@@ -793,16 +998,7 @@ impl Chain {
             } else {
                 0.0
             };
-            let mut jac = [[0.0; 6]; MAX_AXES];
-            let mut colscale = [1.0; MAX_AXES];
-            for j in 0..n {
-                for i in 0..3 {
-                    jac[j][i] = t.dp[j][i];
-                    jac[j][i + 3] = w * t.dd[j][i];
-                }
-                let l = libm::sqrt(jac[j].iter().map(|v| v * v).sum::<f64>());
-                colscale[j] = if l > 0.0 { 1.0 / l } else { 1.0 };
-            }
+            let (jac, colscale) = weighted_jacobian(&t, n, w);
             let mut accepted = false;
             for _ in 0..12 {
                 // Away from the pole the scaled normal equations (Cholesky) are accurate enough
@@ -846,6 +1042,106 @@ impl Chain {
     }
 }
 
+/// The Jacobian with the direction rows weighted by `w` (6 × n, one array per axis) and the
+/// factors that scale each column to unit length.
+fn weighted_jacobian(t: &Tangents, n: usize, w: f64) -> ([[f64; 6]; MAX_AXES], [f64; MAX_AXES]) {
+    let mut jac = [[0.0; 6]; MAX_AXES];
+    let mut colscale = [1.0; MAX_AXES];
+    for j in 0..n {
+        for i in 0..3 {
+            jac[j][i] = t.dp[j][i];
+            jac[j][i + 3] = w * t.dd[j][i];
+        }
+        let l = libm::sqrt(jac[j].iter().map(|v| v * v).sum::<f64>());
+        colscale[j] = if l > 0.0 { 1.0 / l } else { 1.0 };
+    }
+    (jac, colscale)
+}
+
+/// The Cholesky factor of the scaled normal equations SᵀJᵀJS + μI = L·Lᵀ, kept to solve for
+/// several right-hand sides with one Jacobian (chord iterations).
+struct Normal {
+    l: [[f64; MAX_AXES]; MAX_AXES],
+    colscale: [f64; MAX_AXES],
+    n: usize,
+}
+
+impl Normal {
+    /// Factorises; `None` if the matrix is not positive definite.
+    fn factor(
+        jac: &[[f64; 6]; MAX_AXES],
+        colscale: &[f64; MAX_AXES],
+        n: usize,
+        mu: f64,
+    ) -> Option<Self> {
+        let mut a = [[0.0; MAX_AXES]; MAX_AXES];
+        for i in 0..n {
+            for j in 0..=i {
+                let mut s = 0.0;
+                for k in 0..6 {
+                    s += jac[i][k] * jac[j][k];
+                }
+                a[i][j] = s * colscale[i] * colscale[j];
+            }
+            a[i][i] += mu;
+        }
+        for j in 0..n {
+            let mut d = a[j][j];
+            for k in 0..j {
+                d -= a[j][k] * a[j][k];
+            }
+            if d <= 0.0 || d.is_nan() {
+                return None;
+            }
+            let d = libm::sqrt(d);
+            a[j][j] = d;
+            for i in j + 1..n {
+                let mut s = a[i][j];
+                for k in 0..j {
+                    s -= a[i][k] * a[j][k];
+                }
+                a[i][j] = s / d;
+            }
+        }
+        Some(Self {
+            l: a,
+            colscale: *colscale,
+            n,
+        })
+    }
+
+    /// The step Δ = −S·(L·Lᵀ)⁻¹·SᵀJᵀr; `None` if not finite.
+    fn solve(&self, jac: &[[f64; 6]; MAX_AXES], r: &[f64; 6]) -> Option<[f64; MAX_AXES]> {
+        let (a, n) = (&self.l, self.n);
+        let mut b = [0.0; MAX_AXES];
+        for i in 0..n {
+            let mut s = 0.0;
+            for k in 0..6 {
+                s += jac[i][k] * r[k];
+            }
+            b[i] = -s * self.colscale[i];
+        }
+        for i in 0..n {
+            let mut s = b[i];
+            for k in 0..i {
+                s -= a[i][k] * b[k];
+            }
+            b[i] = s / a[i][i];
+        }
+        for i in (0..n).rev() {
+            let mut s = b[i];
+            for k in i + 1..n {
+                s -= a[k][i] * b[k];
+            }
+            b[i] = s / a[i][i];
+        }
+        for j in 0..n {
+            b[j] *= self.colscale[j];
+        }
+        b[..n].iter().all(|v| v.is_finite()).then_some(b)
+    }
+}
+
 /// The same step as [`damped_step`] from the normal equations (SᵀJᵀJS + μI)·y = −SᵀJᵀr, Δ = S·y,
 /// by Cholesky factorisation; `None` if the matrix is not positive definite.
 fn normal_step(
@@ -855,60 +1151,7 @@ fn normal_step(
     n: usize,
     mu: f64,
 ) -> Option<[f64; MAX_AXES]> {
-    let mut a = [[0.0; MAX_AXES]; MAX_AXES];
-    let mut b = [0.0; MAX_AXES];
-    for i in 0..n {
-        for j in 0..=i {
-            let mut s = 0.0;
-            for k in 0..6 {
-                s += jac[i][k] * jac[j][k];
-            }
-            a[i][j] = s * colscale[i] * colscale[j];
-        }
-        a[i][i] += mu;
-        let mut s = 0.0;
-        for k in 0..6 {
-            s += jac[i][k] * r[k];
-        }
-        b[i] = -s * colscale[i];
-    }
-    // Cholesky a = L·Lᵀ in the lower triangle.
-    for j in 0..n {
-        let mut d = a[j][j];
-        for k in 0..j {
-            d -= a[j][k] * a[j][k];
-        }
-        if d <= 0.0 || d.is_nan() {
-            return None;
-        }
-        let d = libm::sqrt(d);
-        a[j][j] = d;
-        for i in j + 1..n {
-            let mut s = a[i][j];
-            for k in 0..j {
-                s -= a[i][k] * a[j][k];
-            }
-            a[i][j] = s / d;
-        }
-    }
-    for i in 0..n {
-        let mut s = b[i];
-        for k in 0..i {
-            s -= a[i][k] * b[k];
-        }
-        b[i] = s / a[i][i];
-    }
-    for i in (0..n).rev() {
-        let mut s = b[i];
-        for k in i + 1..n {
-            s -= a[k][i] * b[k];
-        }
-        b[i] = s / a[i][i];
-    }
-    for j in 0..n {
-        b[j] *= colscale[j];
-    }
-    b[..n].iter().all(|v| v.is_finite()).then_some(b)
+    Normal::factor(jac, colscale, n, mu)?.solve(jac, r)
 }
 
 /// The step Δ minimising |J·Δ + r|² + μ·|S⁻¹Δ|² (S: column scaling), by Householder QR of the
@@ -1008,6 +1251,7 @@ fn directions_from(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::machine::AxisKind;
 
     #[test]
     fn subproblem_two_recovers_known_angles() {

@@ -444,8 +444,12 @@ pub(crate) enum Step {
 #[derive(Debug, Clone, PartialEq)]
 #[allow(clippy::large_enum_variant)] // built once per chain
 pub(crate) enum Layout {
-    /// Three linear axes and no rotary axis.
-    ThreeAxis { linear: [usize; 3] },
+    /// Three linear axes and no rotary axis; `affine` is the nominal chain as an affine map
+    /// (found once the chain is built; `None` if the axes cannot move the TCP everywhere).
+    ThreeAxis {
+        linear: [usize; 3],
+        affine: Option<inverse::Affine>,
+    },
     /// Three linear and two rotary axes: Paden–Kahan subproblem 2 for the rotations, a 3×3
     /// linear system for the translations.
     FiveAxis(inverse::FiveAxis),
@@ -461,6 +465,9 @@ pub struct Chain {
     rows: Vec<Row>,
     steps: Vec<Step>,
     layout: Layout,
+    // Bit j: axis j is rotary and every table it reads repeats every 360°, so whole turns of
+    // it change nothing (found once here rather than per inverse transform).
+    periodic: u16,
 }
 
 impl Chain {
@@ -601,13 +608,29 @@ impl Chain {
             }
         }
         let layout = inverse::analyse(&axes, &steps);
-        Ok(Self {
+        let mut periodic = 0u16;
+        for (j, a) in axes.iter().enumerate() {
+            let wraps = tables
+                .iter()
+                .filter(|t| t.axis == j)
+                .all(|t| t.table.wrap() == crate::table::Wrap::Rotary);
+            if a.kind == AxisKind::Rotary && wraps {
+                periodic |= 1 << j;
+            }
+        }
+        let mut chain = Self {
             axes,
             tables,
             rows,
             steps,
             layout,
-        })
+            periodic,
+        };
+        if let Layout::ThreeAxis { linear, .. } = chain.layout {
+            let affine = inverse::affine(&chain, &linear);
+            chain.layout = Layout::ThreeAxis { linear, affine };
+        }
+        Ok(chain)
     }
 
     /// The axes in set-point order.
