@@ -40,8 +40,9 @@ use truepos_model::Machine;
 use crate::frame::Frame;
 use crate::io_traits::{LinkError, SharedChannels, Source};
 use crate::reconnect::{
-    check_unique_targets, resolve_address, seconds_since, sleep_unless_stopped, Backoff,
-    BackoffConfig, ConfigError, LinkSnapshot, LinkStatus, OutageReporter, Target,
+    check_source_config, check_unique_targets, resolve_address, seconds_since,
+    sleep_unless_stopped, Backoff, BackoffConfig, ConfigError, LinkSnapshot, LinkStatus,
+    OutageReporter, Target,
 };
 
 /// Which register table a value is read from.
@@ -687,28 +688,14 @@ impl ModbusConfig {
         &self,
         machine: &Machine,
     ) -> Result<(Vec<Target>, Vec<RegisterSpan>), ConfigError> {
-        resolve_address(&self.address, "modbus.address")?;
-        for (key, v) in [
-            ("modbus.poll_ms", self.poll_ms),
-            ("modbus.timeout_ms", self.timeout_ms),
-        ] {
-            if v == 0 {
-                return Err(ConfigError::new(
-                    key,
-                    "expected a time of at least 1 ms, found 0",
-                ));
-            }
-        }
-        self.backoff.check("modbus.backoff")?;
-        if self.channels.is_empty() {
-            return Err(ConfigError::new(
-                "modbus.channel",
-                "expected at least one [[channel]] mapping a register to a machine channel",
-            ));
-        }
-        let keys: Vec<String> = (0..self.channels.len())
-            .map(|i| format!("modbus.channel[{}]", i + 1))
-            .collect();
+        let keys = check_source_config(
+            "modbus",
+            &self.address,
+            &[("poll_ms", self.poll_ms), ("timeout_ms", self.timeout_ms)],
+            &self.backoff,
+            self.channels.len(),
+            "a register",
+        )?;
         let mut targets = Vec::with_capacity(self.channels.len());
         let mut spans = Vec::with_capacity(self.channels.len());
         for (c, key) in self.channels.iter().zip(&keys) {

@@ -419,6 +419,38 @@ pub fn check_unique_targets(targets: &[Target], keys: &[String]) -> Result<(), C
     Ok(())
 }
 
+/// The checks every network source's configuration shares, for its TOML `section`
+/// (`modbus`, `shdr`): the address resolves, every time in `times_ms` (key, value) is at least
+/// 1 ms, the backoff is sound and there is at least one of `channels` channels, each mapping
+/// `what` to a machine channel. Returns the keys of the channels (`section.channel[1]`, …) for
+/// their own errors.
+pub fn check_source_config(
+    section: &str,
+    address: &str,
+    times_ms: &[(&str, u64)],
+    backoff: &BackoffConfig,
+    channels: usize,
+    what: &str,
+) -> Result<Vec<String>, ConfigError> {
+    resolve_address(address, &format!("{section}.address"))?;
+    if let Some((key, _)) = times_ms.iter().find(|(_, v)| *v == 0) {
+        return Err(ConfigError::new(
+            format!("{section}.{key}"),
+            "expected a time of at least 1 ms, found 0",
+        ));
+    }
+    backoff.check(&format!("{section}.backoff"))?;
+    if channels == 0 {
+        return Err(ConfigError::new(
+            format!("{section}.channel"),
+            format!("expected at least one [[channel]] mapping {what} to a machine channel"),
+        ));
+    }
+    Ok((1..=channels)
+        .map(|i| format!("{section}.channel[{i}]"))
+        .collect())
+}
+
 /// Resolves `host:port` to a socket address; `key` names the setting in errors.
 pub fn resolve_address(address: &str, key: &str) -> Result<SocketAddr, ConfigError> {
     address

@@ -40,8 +40,9 @@ use truepos_model::Machine;
 use crate::frame::{Frame, NEVER};
 use crate::io_traits::{LinkError, SharedChannels, Source};
 use crate::reconnect::{
-    check_unique_targets, resolve_address, seconds_since, sleep_unless_stopped, Backoff,
-    BackoffConfig, ConfigError, LinkSnapshot, LinkStatus, OutageReporter, Target,
+    check_source_config, check_unique_targets, resolve_address, seconds_since,
+    sleep_unless_stopped, Backoff, BackoffConfig, ConfigError, LinkSnapshot, LinkStatus,
+    OutageReporter, Target,
 };
 
 /// One line from an adapter.
@@ -339,29 +340,18 @@ impl ShdrConfig {
 
     /// Checks the bounds and resolves the channels against the machine.
     pub fn resolve(&self, machine: &Machine) -> Result<Vec<Target>, ConfigError> {
-        resolve_address(&self.address, "shdr.address")?;
-        for (key, v) in [
-            ("shdr.connect_timeout_ms", self.connect_timeout_ms),
-            ("shdr.ping_ms", self.ping_ms),
-            ("shdr.first_pong_timeout_ms", self.first_pong_timeout_ms),
-        ] {
-            if v == 0 {
-                return Err(ConfigError::new(
-                    key,
-                    "expected a time of at least 1 ms, found 0",
-                ));
-            }
-        }
-        self.backoff.check("shdr.backoff")?;
-        if self.channels.is_empty() {
-            return Err(ConfigError::new(
-                "shdr.channel",
-                "expected at least one [[channel]] mapping a data item to a machine channel",
-            ));
-        }
-        let keys: Vec<String> = (0..self.channels.len())
-            .map(|i| format!("shdr.channel[{}]", i + 1))
-            .collect();
+        let keys = check_source_config(
+            "shdr",
+            &self.address,
+            &[
+                ("connect_timeout_ms", self.connect_timeout_ms),
+                ("ping_ms", self.ping_ms),
+                ("first_pong_timeout_ms", self.first_pong_timeout_ms),
+            ],
+            &self.backoff,
+            self.channels.len(),
+            "a data item",
+        )?;
         let mut targets = Vec::with_capacity(self.channels.len());
         for (c, key) in self.channels.iter().zip(&keys) {
             if c.data_item.trim().is_empty() || c.data_item.contains('|') {
