@@ -139,6 +139,9 @@ pub struct CompTable {
     // 1 / step if the support points are equidistant (to 1e-12 of the span): the segment is
     // then found by one multiplication instead of a binary search.
     inverse_step: Option<f64>,
+    // First and last support positions, kept beside the vector to spare a lookup two loads.
+    first: f64,
+    last: f64,
 }
 
 /// Where a position falls among a table's support points: found once by
@@ -154,6 +157,18 @@ pub(crate) struct Location {
     t: f64,
     // dt / dposition (0 where a linear axis' table holds its end value).
     dt: f64,
+}
+
+impl Location {
+    /// At the start of `segment` with zero slope (a held end value).
+    fn held(position: f64, segment: usize) -> Self {
+        Self {
+            position,
+            segment,
+            t: 0.0,
+            dt: 0.0,
+        }
+    }
 }
 
 impl CompTable {
@@ -234,7 +249,11 @@ impl CompTable {
             coef_forward: Vec::new(),
             coef_reverse: Vec::new(),
             inverse_step: None,
+            first: 0.0,
+            last: 0.0,
         };
+        table.first = table.positions[0];
+        table.last = table.positions[n - 1];
         let span = table.positions[n - 1] - table.positions[0];
         table.inverse_step = table.step(1e-12 * span).map(|h| 1.0 / h);
         table.segments = table.segment_bounds();
@@ -411,64 +430,78 @@ impl CompTable {
 
     /// Where `position` falls among the support points (after wrapping a rotary table into its
     /// period or holding a linear one at its ends). A non-finite position reads the first value.
-    #[inline]
+    #[inline(always)]
     pub(crate) fn locate(&self, position: f64) -> Location {
-        let p = &self.positions;
-        let n = p.len();
-        let held = |segment: usize| Location {
-            position,
-            segment,
-            t: 0.0,
-            dt: 0.0,
-        };
-        if !position.is_finite() {
-            return held(0);
-        }
+        let (first, last) = (self.first, self.last);
         let x = match self.wrap {
             Wrap::Hold => {
-                if position <= p[0] {
-                    return held(0);
+                // NaN reads the first value too.
+                if position <= first || position.is_nan() {
+                    return Location::held(position, 0);
                 }
-                if position >= p[n - 1] {
-                    return held(n - 1);
+                if position >= last {
+                    return Location::held(position, self.segments.len() - 1);
                 }
                 position
             }
             Wrap::Rotary => {
-                let top = p[0] + ROTARY_PERIOD_DEG;
-                // One turn either way is the common case (axes within ±360°): an addition is
-                // far cheaper than fmod.
-                let x = if position >= p[0] && position < top {
+                let top = first + ROTARY_PERIOD_DEG;
+                if position >= first && position < top {
                     position
-                } else if position < p[0] && position >= p[0] - ROTARY_PERIOD_DEG {
-                    position + ROTARY_PERIOD_DEG
-                } else if position >= top && position < top + ROTARY_PERIOD_DEG {
-                    position - ROTARY_PERIOD_DEG
-                } else {
-                    let mut r = libm::fmod(position - p[0], ROTARY_PERIOD_DEG);
-                    if r < 0.0 {
-                        r += ROTARY_PERIOD_DEG;
+                } else if position < first && position >= first - ROTARY_PERIOD_DEG {
+                    // One turn below (axes within ±360° are the common case): an addition is
+                    // far cheaper than fmod. Rounding may land on the period's end, which is
+                    // its start.
+                    let x = position + ROTARY_PERIOD_DEG;
+                    if x >= top {
+                        first
+                    } else {
+                        x
                     }
-                    p[0] + r
-                };
-                // Rounding may put x on the period's end: that is its start.
-                if x >= top || x < p[0] {
-                    p[0]
                 } else {
-                    x
+                    return self.locate_far(position);
                 }
             }
         };
+        self.locate_within(x, position)
+    }
+
+    /// [`CompTable::locate`] for a rotary position more than one turn below or at least one
+    /// turn above the table, or not finite (first value).
+    #[inline(never)]
+    fn locate_far(&self, position: f64) -> Location {
+        if !position.is_finite() {
+            return Location::held(position, 0);
+        }
+        let first = self.first;
+        let mut r = libm::fmod(position - first, ROTARY_PERIOD_DEG);
+        if r < 0.0 {
+            r += ROTARY_PERIOD_DEG;
+        }
+        let x = first + r;
+        // Rounding may put x on the period's end: that is its start.
+        let x = if x >= first + ROTARY_PERIOD_DEG || x < first {
+            first
+        } else {
+            x
+        };
+        self.locate_within(x, position)
+    }
+
+    /// The segment of x ∈ [first, first + period) (rotary) or (first, last) (linear).
+    #[inline(always)]
+    fn locate_within(&self, x: f64, position: f64) -> Location {
+        let n = self.segments.len();
         // Segment i covers [p[i], p[i + 1]); x ≥ p[n − 1] is the rotary joint (segment n − 1).
-        let segment = if x >= p[n - 1] {
+        let segment = if x >= self.last {
             n - 1
         } else {
             match self.inverse_step {
-                // x ≥ p[0] here, so the cast is of a non-negative number; rounding may put x
+                // x ≥ first here, so the cast is of a non-negative number; rounding may put x
                 // one segment off, which only evaluates the neighbouring cubic a hair outside
                 // [0, 1], where it joins this one continuously.
-                Some(inv) => (((x - p[0]) * inv) as usize).min(n - 2),
-                None => p.partition_point(|&q| q <= x).clamp(1, n - 1) - 1,
+                Some(inv) => (((x - self.first) * inv) as usize).min(n - 2),
+                None => self.positions.partition_point(|&q| q <= x).clamp(1, n - 1) - 1,
             }
         };
         let [x0, inv_h] = self.segments.get(segment).copied().unwrap_or([x, 0.0]);
@@ -500,12 +533,20 @@ impl CompTable {
         self.at::<true>(at, direction)
     }
 
-    #[inline]
+    #[inline(always)]
     fn at<const SLOPE: bool>(&self, at: Location, direction: Direction) -> (f64, f64) {
-        self.polynomial::<SLOPE>(at, direction)
-            // A location from a table with other support points: look up afresh.
-            .or_else(|| self.polynomial::<SLOPE>(self.locate(at.position), direction))
-            .unwrap_or((0.0, 0.0))
+        match self.polynomial::<SLOPE>(at, direction) {
+            Some(v) => v,
+            None => self.relookup::<SLOPE>(at.position, direction),
+        }
+    }
+
+    /// A location from a table with other support points (never made by the crate): look up
+    /// afresh rather than panic.
+    #[cold]
+    #[inline(never)]
+    fn relookup<const SLOPE: bool>(&self, position: f64, direction: Direction) -> (f64, f64) {
+        self.lookup::<SLOPE>(position, direction)
     }
 
     #[inline]
@@ -522,9 +563,11 @@ impl CompTable {
         at: Location,
         direction: Direction,
     ) -> Option<(f64, f64)> {
-        let coef = match direction {
-            Direction::Reverse if !self.coef_reverse.is_empty() => &self.coef_reverse,
-            _ => &self.coef_forward,
+        // Most tables have one column: test that before the direction.
+        let coef = if !self.coef_reverse.is_empty() && direction == Direction::Reverse {
+            &self.coef_reverse
+        } else {
+            &self.coef_forward
         };
         let &[c0, c1, c2, c3] = coef.get(at.segment)?;
         let t = at.t;

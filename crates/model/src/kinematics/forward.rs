@@ -21,13 +21,24 @@ impl Tangents {
     };
 }
 
+/// The coordinates (k + 1, k + 2) mod 3 that a rotation about axis k mixes; a select rather
+/// than two remainders (this runs for every rotation row of every transform).
+#[inline(always)]
+fn plane(k: usize) -> (usize, usize) {
+    match k {
+        0 => (1, 2),
+        1 => (2, 0),
+        _ => (0, 1),
+    }
+}
+
 /// x ← R_k(θ)·x with c = cos θ, s = sin θ (active rotation about coordinate axis k).
 ///
 /// One arm per axis with constant indices: a computed index would force the pose out of
 /// registers into memory on every row (a store-to-load round trip per row of the chain).
 #[inline(always)]
 fn rotate(x: &mut [f64; 3], k: usize, c: f64, s: f64) {
-    let (i, j) = ((k + 1) % 3, (k + 2) % 3);
+    let (i, j) = plane(k);
     let (a, b) = (x[i], x[j]);
     x[i] = c * a - s * b;
     x[j] = s * a + c * b;
@@ -42,7 +53,7 @@ fn translate(x: &mut [f64; 3], k: usize, v: f64) {
 /// t += g · (e_k × x).
 #[inline(always)]
 fn add_cross(t: &mut [f64; 3], k: usize, x: &[f64; 3], g: f64) {
-    let (i, j) = ((k + 1) % 3, (k + 2) % 3);
+    let (i, j) = plane(k);
     t[i] -= g * x[j];
     t[j] += g * x[i];
 }

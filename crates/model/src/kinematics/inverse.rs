@@ -224,7 +224,8 @@ pub(crate) fn affine(chain: &Chain, linear: &[usize; 3]) -> Option<Affine> {
     let p1 = chain.eval::<false>(&zero[..n], 1.0, Directions(0), Geometry::Nominal, None);
     let (c0, c1, c2) = (t.dp[linear[0]], t.dp[linear[1]], t.dp[linear[2]]);
     let det = dot(&c0, &cross(&c1, &c2));
-    if !(libm::fabs(det) > 1e-12 * norm(&c0) * norm(&c1) * norm(&c2)) {
+    let bound = 1e-12 * norm(&c0) * norm(&c1) * norm(&c2);
+    if det.is_nan() || libm::fabs(det) <= bound {
         return None;
     }
     // Rows of A⁻¹ are the cross products of A's columns over its determinant.
