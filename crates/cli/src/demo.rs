@@ -67,7 +67,7 @@ fn day(twin: &Twin, machine: &Machine, name: &str, seed: u64) -> Result<Day, Str
         .iter()
         .map(|t| run.sensor_ids.iter().position(|s| *s == t.id))
         .collect();
-    let temps = run
+    let mut temps: Vec<Vec<f64>> = run
         .rows
         .iter()
         .map(|r| {
@@ -77,12 +77,29 @@ fn day(twin: &Twin, machine: &Machine, name: &str, seed: u64) -> Result<Day, Str
                 .collect()
         })
         .collect();
+
     let positions = run.rows.iter().map(|r| r.position_mm.to_vec()).collect();
-    let operating = run
+    // What the control knows of its operating state, by the machine's channel ids.
+    let operating: Vec<Vec<f64>> = run
         .rows
         .iter()
-        .map(|_| vec![f64::NAN; machine.operating.len()])
+        .map(|r| {
+            machine
+                .operating
+                .iter()
+                .map(|o| match o.id.as_str() {
+                    "spindle_rpm" => r.spindle_rpm,
+                    "X_speed_mm_min" => r.speed_mm_min[0],
+                    "Y_speed_mm_min" => r.speed_mm_min[1],
+                    "Z_speed_mm_min" => r.speed_mm_min[2],
+                    "coolant_on" => f64::from(u8::from(r.coolant_on)),
+                    _ => f64::NAN,
+                })
+                .collect()
+        })
         .collect();
+    let time: Vec<f64> = run.rows.iter().map(|r| r.time_s).collect();
+    truepos_io::cycles::fill_lags(machine, &time, &mut temps, &operating);
     Ok(Day {
         run,
         temps,
@@ -173,8 +190,45 @@ fn path_rmse(d: &Day, model: Option<&Model>) -> [f64; 3] {
     se.map(|s| (s / n.max(1) as f64).sqrt())
 }
 
-fn fit(machine: &Machine, train: &Day, family: Family) -> Result<Fitted, String> {
-    let differences: Vec<usize> = (0..machine.differences.len()).collect();
+/// Candidate input sets of a machine: differences of measured channels only; with the lags of
+/// temperature sensors; with the lags of operating state as well.
+fn input_sets(machine: &Machine) -> Vec<(&'static str, Vec<usize>)> {
+    use truepos_model::{LagSource, Reference};
+    // 0 measured, 1 lag of a sensor, 2 lag of operating state; a difference is the most
+    // derived of its channels.
+    let level = |c: usize| match machine.temperatures[c].lag.map(|l| l.source) {
+        None => 0,
+        Some(LagSource::Temperature(_)) => 1,
+        Some(LagSource::Operating { .. }) => 2,
+    };
+    let of = |d: &truepos_model::TemperatureDifference| match d.minus {
+        Reference::Sensor(m) => level(d.plus).max(level(m)),
+        Reference::Fixed(_) => level(d.plus),
+    };
+    let upto = |max: u8| -> Vec<usize> {
+        (0..machine.differences.len())
+            .filter(|&i| of(&machine.differences[i]) <= max)
+            .collect()
+    };
+    let mut sets = vec![("measured sensors", upto(0))];
+    for (max, label) in [
+        (1, "+ lagged sensors"),
+        (2, "+ lagged sensors + spindle load"),
+    ] {
+        let s = upto(max);
+        if s.len() > sets.last().map_or(0, |l| l.1.len()) {
+            sets.push((label, s));
+        }
+    }
+    sets
+}
+
+fn fit(
+    machine: &Machine,
+    train: &Day,
+    family: Family,
+    differences: &[usize],
+) -> Result<Fitted, String> {
     let s = structure(
         &format!(
             "twin-{}",
@@ -185,7 +239,7 @@ fn fit(machine: &Machine, train: &Day, family: Family) -> Result<Fitted, String>
         ),
         machine,
         family,
-        &differences,
+        differences,
         &[0, 1, 2],
         true,
     )
@@ -271,27 +325,36 @@ pub fn run(args: Args) -> Result<(), String> {
     say(&format!("twin: simulating the test day `{}` …", args.test));
     let test = day(&twin, &machine, &args.test, 2)?;
     say("fit: prior-art and position-dependent models on the training day only …");
-    let prior = fit(&machine, &train, Family::PositionIndependent)?;
-    // The position-dependent family is chosen by the cross-validated error inside the training
-    // day: linear position terms (embodiment 5) or with squares too (example 2).
-    let candidates = [Family::AllAxes, Family::AllAxesSquared];
-    let mut fitted = Vec::new();
-    for f in candidates {
-        let m = fit(&machine, &train, f)?;
-        let cv = m
-            .cv_rmse_um
-            .iter()
-            .map(|c| c.1)
-            .fold(f64::INFINITY, f64::min);
-        say(&format!(
-            "  {}: cross-validated RMSE {cv:.2} µm (ridge {:e})",
-            f.name(),
-            m.ridge
-        ));
-        fitted.push((cv, f, m));
-    }
-    fitted.sort_by(|a, b| a.0.total_cmp(&b.0));
-    let (_, family, posdep) = fitted.swap_remove(0);
+    // Which inputs and which family: chosen by the cross-validated error inside the training
+    // day only. Inputs: the measured sensors' differences; with the lagged channels (the
+    // structure behind a sensor); with the spindle-load channels too (what the control knows
+    // before a sensor does). Families: linear position terms (embodiment 5) or with squares
+    // too (example 2); the prior art is chosen among the input sets the same way.
+    let sets = input_sets(&machine);
+    let best = |families: &[Family]| -> Result<(Family, &'static str, Fitted), String> {
+        let mut fitted = Vec::new();
+        for &f in families {
+            for (label, differences) in &sets {
+                let m = fit(&machine, &train, f, differences)?;
+                let cv = m
+                    .cv_rmse_um
+                    .iter()
+                    .map(|c| c.1)
+                    .fold(f64::INFINITY, f64::min);
+                say(&format!(
+                    "  {}, inputs {label}: cross-validated RMSE {cv:.2} µm (ridge {:e})",
+                    f.name(),
+                    m.ridge
+                ));
+                fitted.push((cv, f, *label, m));
+            }
+        }
+        fitted.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let (_, f, label, m) = fitted.swap_remove(0);
+        Ok((f, label, m))
+    };
+    let (_, prior_inputs, prior) = best(&[Family::PositionIndependent])?;
+    let (family, posdep_inputs, posdep) = best(&[Family::AllAxes, Family::AllAxesSquared])?;
 
     std::fs::create_dir_all(&args.out)
         .map_err(|e| format!("{}: cannot create: {e}", args.out.display()))?;
@@ -378,8 +441,8 @@ pub fn run(args: Args) -> Result<(), String> {
         let v = serde_json::json!({
             "train": args.train, "test": args.test,
             "uncompensated": none,
-            "prior_art": { "figures": prior_fig, "volume_reduction": reduction(&prior_fig), "ridge": prior.ridge },
-            "position_dependent": { "family": family.name(), "figures": posdep_fig, "volume_reduction": reduction(&posdep_fig), "ridge": posdep.ridge },
+            "prior_art": { "inputs": prior_inputs, "figures": prior_fig, "volume_reduction": reduction(&prior_fig), "ridge": prior.ridge },
+            "position_dependent": { "family": family.name(), "inputs": posdep_inputs, "figures": posdep_fig, "volume_reduction": reduction(&posdep_fig), "ridge": posdep.ridge },
             "report": html.display().to_string(),
         });
         println!("{v}");
@@ -407,6 +470,10 @@ pub fn run(args: Args) -> Result<(), String> {
                 100.0 * reduction(f)
             );
         }
+        println!(
+            "chosen by cross-validation on the training day: prior art with {prior_inputs}; {} with {posdep_inputs}",
+            family.name()
+        );
         println!(
             "models: {}/prior-art.model.toml, {}/position-dependent.model.toml",
             args.out.display(),

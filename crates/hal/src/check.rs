@@ -507,6 +507,7 @@ mod tests {
             location: String::new(),
             valid_min_c: 0.0,
             valid_max_c: 80.0,
+            lag: None,
         };
         let machine = Machine {
             name: "example-1".into(),

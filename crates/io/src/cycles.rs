@@ -3,7 +3,7 @@
 
 use std::path::Path;
 
-use truepos_model::{AxisKind, Machine};
+use truepos_model::{AxisKind, LagFilters, LagSource, Machine};
 
 use crate::error::InputError;
 
@@ -29,6 +29,26 @@ pub fn position_column(machine: &Machine, axis: usize) -> String {
     match a.kind {
         AxisKind::Linear => format!("{}_mm", a.name),
         AxisKind::Rotary => format!("{}_deg", a.name),
+    }
+}
+
+/// Computes the lagged channels of every row from their sources, stepping the real-time
+/// [`LagFilters`] with the rows' time steps, exactly as the control does every cycle.
+pub fn fill_lags(
+    machine: &Machine,
+    time_s: &[f64],
+    temperatures_c: &mut [Vec<f64>],
+    operating: &[Vec<f64>],
+) {
+    let mut lags = LagFilters::new(machine);
+    if lags.is_empty() {
+        return;
+    }
+    let mut previous = None;
+    for ((t, row), op) in time_s.iter().zip(temperatures_c.iter_mut()).zip(operating) {
+        let dt = previous.map_or(0.0, |p| t - p);
+        previous = Some(*t);
+        lags.apply(dt, row, op);
     }
 }
 
@@ -99,6 +119,21 @@ pub fn read(
     }
     let mut temperature_cols = Vec::new();
     for (i, t) in machine.temperatures.iter().enumerate() {
+        // A lagged channel is computed from its source below, never read from the file.
+        if let Some(lag) = t.lag {
+            let source = match lag.source {
+                LagSource::Temperature(s) => &machine.temperatures[s].id,
+                LagSource::Operating { channel, .. } => &machine.operating[channel].id,
+            };
+            if required_sensors.contains(&i) && find(source).is_none() {
+                return Err(missing(
+                    source.clone(),
+                    "the source of a lagged channel the model reads",
+                ));
+            }
+            temperature_cols.push(None);
+            continue;
+        }
         let col = find(&t.id);
         if col.is_none() && required_sensors.contains(&i) {
             return Err(missing(t.id.clone(), "temperature the model reads"));
@@ -171,5 +206,11 @@ pub fn read(
     if out.time_s.is_empty() {
         return Err(InputError::file(path, "no data rows after the header"));
     }
+    fill_lags(
+        machine,
+        &out.time_s,
+        &mut out.temperatures_c,
+        &out.operating,
+    );
     Ok(out)
 }

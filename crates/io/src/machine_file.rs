@@ -87,6 +87,14 @@ struct RawTemperature {
     max_age_s: Option<Spanned<f64>>,
     /// A reading that does not change at all for this long (s) is stuck; 0 switches it off.
     stuck_after_s: Option<Spanned<f64>>,
+    /// A lagged channel: the control computes it as the first-order lag of this sensor.
+    lag_of: Option<Spanned<String>>,
+    /// Time constant of the lag in s.
+    lag_s: Option<Spanned<f64>>,
+    /// For a lag of an operating channel: K per unit of u^power.
+    gain_k_per_unit: Option<Spanned<f64>>,
+    /// For a lag of an operating channel: 1 (default) or 2.
+    power: Option<Spanned<i64>>,
 }
 
 #[derive(Debug, Deserialize, Serialize)]
@@ -391,8 +399,122 @@ pub fn parse(path: &Path, text: &str) -> Result<MachineFile, InputError> {
         });
     }
 
+    let measured_ids: Vec<&str> = raw
+        .temperature
+        .iter()
+        .filter(|t| t.lag_of.is_none())
+        .map(|t| t.id.get_ref().as_str())
+        .collect();
     let mut temperatures = Vec::new();
     for (i, t) in raw.temperature.iter().enumerate() {
+        let lag = match (&t.lag_of, &t.lag_s) {
+            (None, None) => None,
+            (Some(of), Some(tau)) => {
+                let temperature = raw
+                    .temperature
+                    .iter()
+                    .position(|s| s.id.get_ref() == of.get_ref() && s.lag_of.is_none());
+                let operating = raw
+                    .operating
+                    .iter()
+                    .position(|o| o.id.get_ref() == of.get_ref());
+                let source = match (temperature, operating) {
+                    (Some(s), _) => {
+                        let extra = t
+                            .gain_k_per_unit
+                            .as_ref()
+                            .map(|g| (g.span(), "gain_k_per_unit"))
+                            .or(t.power.as_ref().map(|p| (p.span(), "power")));
+                        if let Some((span, key)) = extra {
+                            return Err(err(
+                                span,
+                                format!("temperature[{i}].{key}"),
+                                format!(
+                                    "`{key}` applies to the lag of an operating channel; `{}` is a temperature sensor",
+                                    of.get_ref()
+                                ),
+                            ));
+                        }
+                        truepos_model::LagSource::Temperature(s)
+                    }
+                    (None, Some(channel)) => {
+                        let gain = t.gain_k_per_unit.as_ref().ok_or_else(|| {
+                            err(
+                                of.span(),
+                                format!("temperature[{i}].gain_k_per_unit"),
+                                format!(
+                                    "the lag of operating channel `{}` needs `gain_k_per_unit`, the temperature rise in K per unit",
+                                    of.get_ref()
+                                ),
+                            )
+                        })?;
+                        let g = *gain.get_ref();
+                        if !(g.is_finite() && g != 0.0) {
+                            return Err(err(
+                                gain.span(),
+                                format!("temperature[{i}].gain_k_per_unit"),
+                                format!("expected a finite, non-zero number, got {g}"),
+                            ));
+                        }
+                        let power = match &t.power {
+                            None => 1,
+                            Some(p) if matches!(*p.get_ref(), 1 | 2) => *p.get_ref() as u8,
+                            Some(p) => {
+                                return Err(err(
+                                    p.span(),
+                                    format!("temperature[{i}].power"),
+                                    format!("expected 1 or 2, got {}", p.get_ref()),
+                                ))
+                            }
+                        };
+                        truepos_model::LagSource::Operating {
+                            channel,
+                            gain_k_per_unit: g,
+                            power,
+                        }
+                    }
+                    (None, None) => {
+                        let operating_ids: Vec<&str> = raw
+                            .operating
+                            .iter()
+                            .map(|o| o.id.get_ref().as_str())
+                            .collect();
+                        return Err(err(
+                            of.span(),
+                            format!("temperature[{i}].lag_of"),
+                            format!(
+                                "`{}` is neither a measured temperature sensor nor an operating channel; expected one of: {}",
+                                of.get_ref(),
+                                measured_ids.iter().chain(&operating_ids).copied().collect::<Vec<_>>().join(", ")
+                            ),
+                        ));
+                    }
+                };
+                let tau_s = *tau.get_ref();
+                if !(tau_s.is_finite() && tau_s > 0.0) {
+                    return Err(err(
+                        tau.span(),
+                        format!("temperature[{i}].lag_s"),
+                        format!("expected a positive time constant in s, got {tau_s}"),
+                    ));
+                }
+                Some(truepos_model::Lag { source, tau_s })
+            }
+            (Some(of), None) => {
+                return Err(err(
+                    of.span(),
+                    format!("temperature[{i}].lag_s"),
+                    "`lag_of` needs `lag_s`, the time constant of the lag in s".to_string(),
+                ))
+            }
+            (None, Some(tau)) => {
+                return Err(err(
+                    tau.span(),
+                    format!("temperature[{i}].lag_of"),
+                    "`lag_s` needs `lag_of`, the measured sensor it lags".to_string(),
+                ))
+            }
+        };
         let [lo, hi] = *t.valid_range.get_ref();
         if !(lo.is_finite() && hi.is_finite() && hi > lo) {
             return Err(err(
@@ -406,6 +528,7 @@ pub fn parse(path: &Path, text: &str) -> Result<MachineFile, InputError> {
             location: t.location.clone(),
             valid_min_c: lo,
             valid_max_c: hi,
+            lag,
         });
     }
 

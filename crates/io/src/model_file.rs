@@ -118,6 +118,33 @@ pub struct InputDifference {
     /// …or fixed reference in °C.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub minus_fixed: Option<Spanned<f64>>,
+    /// When `plus` is a lagged channel: what it lags (see [`lag_text`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub plus_lag: Option<Spanned<String>>,
+    /// When `minus` is a lagged channel: what it lags.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub minus_lag: Option<Spanned<String>>,
+}
+
+/// The definition of a lagged channel as model files record it (`spindle_front, 1800 s` or
+/// `spindle_rpm^2 × 1e-7 K, 300 s`), so that a model is refused by a machine whose lag differs.
+pub fn lag_text(machine: &Machine, channel: usize) -> Option<String> {
+    let lag = machine.temperatures.get(channel)?.lag?;
+    Some(match lag.source {
+        truepos_model::LagSource::Temperature(s) => {
+            format!("{}, {} s", machine.temperatures[s].id, lag.tau_s)
+        }
+        truepos_model::LagSource::Operating {
+            channel,
+            gain_k_per_unit,
+            power,
+        } => format!(
+            "{}{} × {gain_k_per_unit} K, {} s",
+            machine.operating[channel].id,
+            if power == 2 { "^2" } else { "" },
+            lag.tau_s
+        ),
+    })
 }
 
 /// The form of a part in the file.
@@ -410,6 +437,29 @@ impl ModelFile {
                     ))
                 }
             };
+            let lag_of = |l: &Option<Spanned<String>>| l.as_ref().map(|s| s.get_ref().clone());
+            let machine_lags = (
+                lag_text(machine, def.plus),
+                match def.minus {
+                    Reference::Sensor(s) => lag_text(machine, s),
+                    Reference::Fixed(_) => None,
+                },
+            );
+            if (lag_of(&d.plus_lag), lag_of(&d.minus_lag)) != machine_lags {
+                let show = |l: &Option<String>| l.clone().unwrap_or_else(|| "measured".into());
+                return Err(err(
+                    &d.name,
+                    format!("{key}.plus_lag"),
+                    format!(
+                        "the model was made for `{}` with channels ({}; {}), but the machine defines them as ({}; {})",
+                        d.name.get_ref(),
+                        show(&lag_of(&d.plus_lag)),
+                        show(&lag_of(&d.minus_lag)),
+                        show(&machine_lags.0),
+                        show(&machine_lags.1),
+                    ),
+                ));
+            }
             if d.plus.get_ref() != machine_plus || model_minus != machine_minus {
                 return Err(err(
                     &d.name,
@@ -732,6 +782,11 @@ impl ModelFile {
                             plus: spanned(machine.temperatures[def.plus].id.clone()),
                             minus,
                             minus_fixed,
+                            plus_lag: lag_text(machine, def.plus).map(spanned),
+                            minus_lag: match def.minus {
+                                Reference::Sensor(s) => lag_text(machine, s).map(spanned),
+                                Reference::Fixed(_) => None,
+                            },
                         }
                     })
                     .collect(),

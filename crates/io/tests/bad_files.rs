@@ -182,7 +182,7 @@ fn m09_unknown_key() {
     );
     assert_eq!(
         machine_error(&text),
-        "m.toml:22:1: `temperature[1].unit`: unknown field `unit`, expected one of `id`, `location`, `valid_range`, `max_rate_k_per_min`, `max_age_s`, `stuck_after_s`"
+        "m.toml:22:1: `temperature[1].unit`: unknown field `unit`, expected one of `id`, `location`, `valid_range`, `max_rate_k_per_min`, `max_age_s`, `stuck_after_s`, `lag_of`, `lag_s`, `gain_k_per_unit`, `power`"
     );
 }
 
@@ -262,6 +262,100 @@ fn m16_two_axes_with_one_seed_d_code() {
     assert_eq!(
         machine_error(&text),
         "m.toml:14:10: `axis[1].number`: axis `Y` has path 1 number 1, like axis `X`; each axis needs its own"
+    );
+}
+
+/// A lagged channel after `x_top` (lines 23–27 of the edited file).
+fn with_lag(of: &str, tau: &str) -> String {
+    edit(
+        MACHINE,
+        "id = \"x_top\"\nvalid_range = [0.0, 80.0]\n",
+        &format!(
+            "id = \"x_top\"\nvalid_range = [0.0, 80.0]\n\n[[temperature]]\nid = \"x_lag\"\nvalid_range = [0.0, 80.0]\n{of}{tau}"
+        ),
+    )
+}
+
+#[test]
+fn lagged_channels_are_read() {
+    let m = machine_file::parse(
+        Path::new("m.toml"),
+        &with_lag("lag_of = \"x_top\"\n", "lag_s = 3600.0\n"),
+    )
+    .unwrap();
+    let lag = m.machine.temperatures[2].lag.unwrap();
+    assert_eq!(
+        (lag.source, lag.tau_s),
+        (truepos_model::LagSource::Temperature(1), 3600.0)
+    );
+    assert!(m.machine.temperatures[1].lag.is_none());
+}
+
+#[test]
+fn lags_of_operating_state_are_read() {
+    let text = with_lag(
+        "lag_of = \"spindle_rpm\"\n",
+        "lag_s = 300.0\ngain_k_per_unit = 1e-7\npower = 2\n\n[[operating]]\nid = \"spindle_rpm\"\nkind = \"spindle-speed\"\n",
+    );
+    let m = machine_file::parse(Path::new("m.toml"), &text).unwrap();
+    assert_eq!(
+        m.machine.temperatures[2].lag,
+        Some(truepos_model::Lag {
+            source: truepos_model::LagSource::Operating {
+                channel: 0,
+                gain_k_per_unit: 1e-7,
+                power: 2
+            },
+            tau_s: 300.0
+        })
+    );
+    // Without a gain the channel would have no unit: refused at `lag_of` (line 26, column 10).
+    let text = with_lag(
+        "lag_of = \"spindle_rpm\"\n",
+        "lag_s = 300.0\n\n[[operating]]\nid = \"spindle_rpm\"\nkind = \"spindle-speed\"\n",
+    );
+    assert_eq!(
+        machine_error(&text),
+        "m.toml:26:10: `temperature[2].gain_k_per_unit`: the lag of operating channel `spindle_rpm` needs `gain_k_per_unit`, the temperature rise in K per unit"
+    );
+}
+
+#[test]
+fn m17_lag_of_an_unknown_sensor() {
+    // Line 26 `lag_of = "x_topp"`: the string starts in column 10.
+    let text = with_lag("lag_of = \"x_topp\"\n", "lag_s = 3600.0\n");
+    assert_eq!(
+        machine_error(&text),
+        "m.toml:26:10: `temperature[2].lag_of`: `x_topp` is neither a measured temperature sensor nor an operating channel; expected one of: x_bottom, x_top"
+    );
+}
+
+#[test]
+fn m18_lag_of_a_lagged_channel() {
+    // A lag of a lag is refused: the source must be measured (line 26, column 10).
+    let text = with_lag("lag_of = \"x_lag\"\n", "lag_s = 3600.0\n");
+    assert_eq!(
+        machine_error(&text),
+        "m.toml:26:10: `temperature[2].lag_of`: `x_lag` is neither a measured temperature sensor nor an operating channel; expected one of: x_bottom, x_top"
+    );
+}
+
+#[test]
+fn m19_lag_time_constant_not_positive() {
+    // Line 27 `lag_s = 0.0`: the number starts in column 9.
+    let text = with_lag("lag_of = \"x_top\"\n", "lag_s = 0.0\n");
+    assert_eq!(
+        machine_error(&text),
+        "m.toml:27:9: `temperature[2].lag_s`: expected a positive time constant in s, got 0"
+    );
+}
+
+#[test]
+fn m20_lag_without_time_constant() {
+    let text = with_lag("lag_of = \"x_top\"\n", "");
+    assert_eq!(
+        machine_error(&text),
+        "m.toml:26:10: `temperature[2].lag_s`: `lag_of` needs `lag_s`, the time constant of the lag in s"
     );
 }
 

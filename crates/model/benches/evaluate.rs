@@ -26,6 +26,7 @@ fn reference_machine() -> Machine {
             location: String::new(),
             valid_min_c: 0.0,
             valid_max_c: 80.0,
+            lag: None,
         })
         .collect();
     // t15 is ambient: 15 sensors against it, and ambient against 20 °C.

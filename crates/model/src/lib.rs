@@ -26,7 +26,7 @@
 //!     carried_by: None, carriage: Carriage::Cantilever,
 //! };
 //! let sensor = |id: &str| TemperatureChannel {
-//!     id: id.into(), location: String::new(), valid_min_c: 0.0, valid_max_c: 80.0,
+//!     id: id.into(), location: String::new(), valid_min_c: 0.0, valid_max_c: 80.0, lag: None,
 //! };
 //! let machine = Machine {
 //!     name: "example-1".into(),
@@ -65,6 +65,7 @@ extern crate std;
 pub mod dynamic;
 pub mod evaluate;
 pub mod kinematics;
+pub mod lag;
 pub mod machine;
 pub mod model;
 pub mod parameters;
@@ -74,6 +75,7 @@ pub mod timing;
 
 pub use dynamic::{DynamicError, DynamicModel, Feature, FeatureBank, FeatureKind, FeatureSpec};
 pub use evaluate::{Correction, CycleInput, EvalError, TRAVEL_TOLERANCE};
+pub use lag::{Lag, LagFilters, LagSource};
 pub use machine::{
     Axis, AxisKind, Carriage, Machine, MachineError, OperatingChannel, OperatingKind, Reference,
     TemperatureChannel, TemperatureDifference, MAX_AXES,

@@ -75,6 +75,9 @@ pub struct TemperatureChannel {
     pub valid_min_c: f64,
     /// Highest plausible reading in °C.
     pub valid_max_c: f64,
+    /// `Some` for a channel the control computes as the lag of another sensor (see
+    /// [`crate::lag`]) instead of reading it from hardware.
+    pub lag: Option<crate::lag::Lag>,
 }
 
 /// What a temperature difference is taken against.
@@ -185,6 +188,14 @@ pub enum MachineError {
         /// An axis on the loop.
         axis: String,
     },
+    /// A lagged channel whose source is missing, itself lagged, or whose τ is not a positive,
+    /// finite number of seconds.
+    BadLag {
+        /// The lagged channel.
+        sensor: String,
+        /// What is wrong.
+        reason: &'static str,
+    },
 }
 
 impl fmt::Display for MachineError {
@@ -216,6 +227,7 @@ impl fmt::Display for MachineError {
                 f,
                 "axis `{axis}` rests on itself through carried_by; the axes must form a chain from the base"
             ),
+            Self::BadLag { sensor, reason } => write!(f, "lagged channel `{sensor}`: {reason}"),
         }
     }
 }
@@ -302,6 +314,45 @@ impl Machine {
                 return Err(MachineError::BadValidRange {
                     sensor: t.id.clone(),
                 });
+            }
+            if let Some(lag) = t.lag {
+                let source = match lag.source {
+                    crate::lag::LagSource::Temperature(i) => match self.temperatures.get(i) {
+                        None => Err("its source refers to nothing"),
+                        Some(s) if s.lag.is_some() => {
+                            Err("its source is itself lagged; expected a measured sensor")
+                        }
+                        _ => Ok(()),
+                    },
+                    crate::lag::LagSource::Operating {
+                        channel,
+                        gain_k_per_unit,
+                        power,
+                    } => {
+                        if channel >= self.operating.len() {
+                            Err("its operating channel refers to nothing")
+                        } else if !(gain_k_per_unit.is_finite() && gain_k_per_unit != 0.0) {
+                            Err("the gain must be a finite, non-zero number of K per unit")
+                        } else if !matches!(power, 1 | 2) {
+                            Err("the power must be 1 or 2")
+                        } else {
+                            Ok(())
+                        }
+                    }
+                };
+                let reason = match source {
+                    Err(reason) => Some(reason),
+                    Ok(()) if !(lag.tau_s.is_finite() && lag.tau_s > 0.0) => {
+                        Some("the time constant must be a positive, finite number of seconds")
+                    }
+                    Ok(()) => None,
+                };
+                if let Some(reason) = reason {
+                    return Err(MachineError::BadLag {
+                        sensor: t.id.clone(),
+                        reason,
+                    });
+                }
             }
         }
         for d in &self.differences {

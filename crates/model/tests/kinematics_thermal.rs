@@ -32,6 +32,7 @@ fn thermal_compensation_superimposes_on_kinematic_set_points() {
             location: String::new(),
             valid_min_c: 0.0,
             valid_max_c: 80.0,
+            lag: None,
         }],
         differences: vec![TemperatureDifference {
             name: "dT".into(),

@@ -306,6 +306,7 @@ fn seed_c_regression_equations() {
         location: String::new(),
         valid_min_c: 0.0,
         valid_max_c: 80.0,
+        lag: None,
     };
     let diff = |name: &str, plus| TemperatureDifference {
         name: name.into(),

@@ -8,7 +8,7 @@ use std::sync::Arc;
 
 use crossbeam_queue::ArrayQueue;
 use truepos_io::machine_file::MachineFile;
-use truepos_model::{CycleInput, MAX_AXES};
+use truepos_model::{CycleInput, LagFilters, MAX_AXES};
 
 use crate::envelope::Envelope;
 use crate::events::{Event, EventKind, EventQueue};
@@ -87,6 +87,10 @@ pub struct Service {
     config: ServiceConfig,
     set: ModelSet,
     validator: SensorValidator,
+    /// Lagged temperature channels, computed after validation.
+    lags: LagFilters,
+    /// Service time of the last lag update (NaN before the first).
+    lags_time_s: f64,
     envelope: Envelope,
     sources: Vec<Box<dyn Source>>,
     sinks: Vec<Box<dyn Sink>>,
@@ -152,6 +156,8 @@ impl Service {
         let set = ModelSet::new(models, n_paths);
         Self {
             validator: SensorValidator::new(m, &machine.sensor_checks),
+            lags: LagFilters::new(m),
+            lags_time_s: f64::NAN,
             envelope: Envelope::new(&machine.axis_runtime),
             output: Output::zero(m.axes.len()),
             source_ok: vec![true; sources.len()],
@@ -265,6 +271,7 @@ impl Service {
         self.frame.time_s = now_s;
         self.read_sources(now_s);
         self.validator.check(&self.frame, &self.events);
+        self.update_lags(now_s);
         self.check_positions(now_s);
         self.select_models(now_s);
         for p in 0..self.states.len() {
@@ -286,6 +293,26 @@ impl Service {
         self.write_sinks(now_s);
         self.log_cycle(now_s);
         &self.output
+    }
+
+    /// Computes the lagged temperature channels from the sources the validation found good.
+    fn update_lags(&mut self, now_s: f64) {
+        if self.lags.is_empty() {
+            return;
+        }
+        let dt = if self.lags_time_s.is_finite() {
+            now_s - self.lags_time_s
+        } else {
+            0.0
+        };
+        self.lags_time_s = now_s;
+        let validator = &self.validator;
+        self.lags.apply_checked(
+            dt,
+            &mut self.frame.temperatures_c,
+            &self.frame.operating,
+            |c| validator.health().get(c).is_some_and(|h| h.is_none()),
+        );
     }
 
     fn read_sources(&mut self, now_s: f64) {

@@ -3,7 +3,7 @@
 //! updates. The verdict per channel is kept, and transitions raise events.
 
 use truepos_io::machine_file::SensorChecks;
-use truepos_model::Machine;
+use truepos_model::{LagSource, Machine};
 
 use crate::events::{Event, EventKind, EventQueue};
 use crate::frame::{Frame, NEVER};
@@ -67,6 +67,8 @@ pub struct SensorValidator {
     last_value: Vec<f64>,
     unchanged_since: Vec<f64>,
     health: Vec<Option<Fault>>,
+    /// Per channel: what a lagged channel follows; it shares a sensor source's verdict.
+    lag_source: Vec<Option<LagSource>>,
 }
 
 impl SensorValidator {
@@ -86,6 +88,11 @@ impl SensorValidator {
             last_value: vec![f64::NAN; n],
             unchanged_since: vec![NEVER; n],
             health: vec![Some(Fault::NeverUpdated); n],
+            lag_source: machine
+                .temperatures
+                .iter()
+                .map(|t| t.lag.map(|l| l.source))
+                .collect(),
         }
     }
 
@@ -106,6 +113,9 @@ impl SensorValidator {
     pub fn check(&mut self, frame: &Frame, events: &EventQueue) {
         let now = frame.time_s;
         for c in 0..self.health.len() {
+            if self.lag_source[c].is_some() {
+                continue;
+            }
             let value = frame.temperatures_c[c];
             let stamp = frame.temperature_stamp_s[c];
             let fresh = stamp != self.last_stamp[c];
@@ -141,6 +151,23 @@ impl SensorValidator {
                 if !(from_start && verdict.is_none()) {
                     events.push(Event { time_s: now, kind });
                 }
+            }
+        }
+        // A lagged channel is computed from its source: it is exactly as good as the source
+        // (no event of its own; the source's event names the sensor).
+        for c in 0..self.health.len() {
+            match self.lag_source[c] {
+                Some(LagSource::Temperature(s)) => {
+                    self.health[c] = self
+                        .health
+                        .get(s)
+                        .copied()
+                        .unwrap_or(Some(Fault::NeverUpdated));
+                }
+                // A lag of operating state is a computation, not a sensor: an unknown value
+                // shows as NaN and stops the model at evaluation.
+                Some(LagSource::Operating { .. }) => self.health[c] = None,
+                None => {}
             }
         }
     }
@@ -209,6 +236,7 @@ mod tests {
                 location: String::new(),
                 valid_min_c: 0.0,
                 valid_max_c: 60.0,
+                lag: None,
             }],
             differences: vec![],
             operating: vec![],

@@ -437,3 +437,106 @@ fn the_log_keeps_cycles_and_named_events() {
     assert!((29..=31).contains(&rows.len()), "{}", rows.len());
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// A model that reads a lagged channel (the twin's `spindle_front` through a 30 min lag): the
+/// service computes the lag itself, after validation, and a fault of the lag's sensor stops the
+/// model like a fault of a sensor it reads directly.
+#[test]
+fn lagged_channels_are_computed_by_the_service_from_good_sensors_only() {
+    let machine = machine_file::load(&repo("examples/twin/machine.toml")).unwrap();
+    let m = &machine.machine;
+    let front = m.temperature_index("spindle_front").unwrap();
+    let lag = m.temperature_index("spindle_front_lag30min").unwrap();
+    let model_text = r#"format = "truepos-model"
+version = 1
+name = "lagged-spindle"
+machine = "twin-vmc3"
+axis_index = [101, 102, 103]
+
+[[inputs.axes]]
+name = "Z"
+travel = [0.0, 500.0]
+
+[[inputs.differences]]
+name = "dT_spindle_front_lag30min"
+plus = "spindle_front_lag30min"
+minus = "ambient"
+plus_lag = "spindle_front, 1800 s"
+
+[[part]]
+name = "spindle"
+form = "position-dependent"
+
+[[part.term]]
+axis = "Z"
+difference = "dT_spindle_front_lag30min"
+k0_um_per_k = 1000.0
+"#;
+    let model = model_file::parse(Path::new("lagged.toml"), model_text, m).unwrap();
+    // The same model refuses a machine whose lag differs.
+    let other = machine_file::parse(
+        Path::new("m.toml"),
+        &std::fs::read_to_string(repo("examples/twin/machine.toml"))
+            .unwrap()
+            .replacen("lag_s = 1800.0", "lag_s = 1700.0", 1),
+    )
+    .unwrap();
+    let refused = model_file::parse(Path::new("lagged.toml"), model_text, &other.machine)
+        .expect_err("another lag is another input")
+        .to_string();
+    assert!(refused.contains("spindle_front, 1700 s"), "{refused}");
+
+    // Every measured sensor at 20 °C; the lagged channels are NaN in what the source delivers:
+    // the service must compute them, never read them.
+    let mut temps = vec![20.0; m.temperatures.len()];
+    for (c, t) in m.temperatures.iter().enumerate() {
+        if t.lag.is_some() {
+            temps[c] = f64::NAN;
+        }
+    }
+    let (source, values) = scripted(temps, vec![400.0, 250.0, 250.0]);
+    let mut service = Service::new(
+        machine,
+        vec![ModelEntry {
+            name: "lagged".into(),
+            model,
+            index: [101, 102, 103],
+        }],
+        vec![source],
+        vec![],
+        ServiceConfig::default(),
+    );
+    for t in 0..=10 {
+        let out = *service.cycle(t as f64);
+        assert_eq!(out.offset_um[2], 0.0, "t = {t}");
+    }
+    // spindle_front steps 20 → 20.03 °C at t = 11 s (within the 2 K/min rate check; a larger
+    // step would be held as a spike until plausible). The filter holds each input over the step
+    // that ends with it, so at t = 1811 s the new value has acted for 1801 s: the lag reads
+    // 20 + 0.03·(1 − e^(−1801/1800)) = 20.018969746 °C: error 1000 µm/K · 0.018969746 K =
+    // +18.969746 µm, compensation −18.969746 µm.
+    values.lock().unwrap().0[front] = 20.03;
+    let mut out = *service.cycle(11.0);
+    for t in 12..=1811 {
+        out = *service.cycle(t as f64);
+    }
+    assert_eq!(out.state, CompensationState::Active);
+    assert!(
+        (out.offset_um[2] + 18.969_746).abs() < 1e-5,
+        "{}",
+        out.offset_um[2]
+    );
+    drain(&service);
+    // The sensor fails: the lag is as bad as its sensor, the only model is left, the output
+    // holds; one event names the sensor, none the computed channel.
+    values.lock().unwrap().0[front] = f64::NAN;
+    let out = *service.cycle(1812.0);
+    assert_eq!(out.state, CompensationState::Holding);
+    let events = drain(&service);
+    assert!(events
+        .iter()
+        .any(|e| matches!(e, EventKind::SensorFault { channel, .. } if *channel == front)));
+    assert!(!events
+        .iter()
+        .any(|e| matches!(e, EventKind::SensorFault { channel, .. } if *channel == lag)));
+}

@@ -17,6 +17,7 @@ pub fn serial_machine(lengths: &[f64]) -> Machine {
                 location: String::new(),
                 valid_min_c: -300.0,
                 valid_max_c: 300.0,
+                lag: None,
             });
         }
         differences.push(TemperatureDifference {
