@@ -17,6 +17,10 @@
 //!   and `$AN_CEC[t,N]=value` with `$AN_CEC_INPUT_AXIS/_OUTPUT_AXIS/_STEP/_MIN/_MAX/_DIRECTION/
 //!   _MULT_BY_TABLE/_IS_MODULO[t]`; `;` starts a comment; `%_N_…`, `CHANDATA(…)`, `M17`, `M30`
 //!   and `M02` lines are accepted. Values are in mm; support points are equidistant.
+//!   One Siemens table holds one value column: `$AA_ENC_COMP` has no direction of travel, so
+//!   a directional (forward/reverse) table is refused there, and goes out as two CEC tables
+//!   with `_DIRECTION` 1 and −1 ([`SiemensTable::directional_pair`], read back with
+//!   [`SiemensTable::pair_to_table`]).
 
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
@@ -404,7 +408,13 @@ impl SiemensTable {
             .step(1e-9 * (1.0 + span.abs()))
             .ok_or("Siemens tables need equidistant support points; resample the table first")?;
         if table.reverse().is_some() {
-            return Err("Siemens tables hold one direction; write forward and reverse as two CEC tables with DIRECTION 1 and -1".into());
+            // One Siemens table holds one value column: $AA_ENC_COMP has no direction at all,
+            // and a CEC table applies to one direction only through its `_DIRECTION`.
+            return Err(match kind {
+                SiemensKind::Encoder { .. } => "a directional (forward/reverse) table cannot be written as $AA_ENC_COMP, which has no direction of travel; write it as two $AN_CEC tables (SiemensTable::directional_pair) or as a LinuxCNC COMP_FILE",
+                SiemensKind::Cec { .. } => "a directional (forward/reverse) table needs two $AN_CEC tables, one with _DIRECTION 1 and one with -1 (SiemensTable::directional_pair)",
+            }
+            .into());
         }
         let is_cec = matches!(kind, SiemensKind::Cec { .. });
         Ok(Self {
@@ -419,6 +429,89 @@ impl SiemensTable {
             direction: is_cec.then_some(0),
             mult_by_table: is_cec.then_some(0),
         })
+    }
+}
+
+impl SiemensTable {
+    /// A directional (forward/reverse) table as the two sag/cross tables Siemens needs for it:
+    /// number `first` with `_DIRECTION` 1 (read while the input axis moves towards larger
+    /// positions) holding the forward values, and `first + 1` with `_DIRECTION` −1 holding the
+    /// reverse ones; both read `input_axis` and correct `output_axis`. A non-directional table
+    /// is refused (write it with [`Self::from_table`]).
+    pub fn directional_pair(
+        table: &CompTable,
+        first: u32,
+        input_axis: &str,
+        output_axis: &str,
+    ) -> Result<[Self; 2], String> {
+        let Some(reverse) = table.reverse() else {
+            return Err("the table has one direction; write it as one table".into());
+        };
+        let second = first
+            .checked_add(1)
+            .ok_or("no table number after the first one")?;
+        let column = |values: &[f64]| {
+            CompTable::new(
+                table.positions().to_vec(),
+                values.to_vec(),
+                table.wrap(),
+                table.interpolation(),
+            )
+            .map_err(|e| e.to_string())
+        };
+        let mut forward =
+            Self::from_table(&column(table.forward())?, SiemensKind::Cec { table: first })?;
+        let mut backward = Self::from_table(&column(reverse)?, SiemensKind::Cec { table: second })?;
+        for (t, d) in [(&mut forward, 1), (&mut backward, -1)] {
+            t.direction = Some(d);
+            t.input_axis = Some(input_axis.into());
+            t.output_axis = Some(output_axis.into());
+        }
+        Ok([forward, backward])
+    }
+
+    /// The directional [`CompTable`] (µm) from two CEC tables over the same support points,
+    /// one with `_DIRECTION` 1 and one with −1 (in either order), as
+    /// [`Self::directional_pair`] writes them.
+    pub fn pair_to_table(
+        a: &Self,
+        b: &Self,
+        interpolation: Interpolation,
+    ) -> Result<CompTable, String> {
+        let (forward, reverse) = match (a.direction, b.direction) {
+            (Some(1), Some(-1)) => (a, b),
+            (Some(-1), Some(1)) => (b, a),
+            (x, y) => {
+                return Err(format!(
+                    "expected one table with _DIRECTION 1 and one with -1, got {} and {}",
+                    x.map_or("none".into(), |d| d.to_string()),
+                    y.map_or("none".into(), |d| d.to_string())
+                ))
+            }
+        };
+        if (
+            forward.min,
+            forward.step,
+            forward.values.len(),
+            forward.is_modulo,
+        ) != (
+            reverse.min,
+            reverse.step,
+            reverse.values.len(),
+            reverse.is_modulo,
+        ) {
+            return Err("the two direction tables have different support points".into());
+        }
+        let f = forward.to_table(interpolation)?;
+        let r = reverse.to_table(interpolation)?;
+        CompTable::directional(
+            f.positions().to_vec(),
+            f.forward().to_vec(),
+            r.forward().to_vec(),
+            f.wrap(),
+            interpolation,
+        )
+        .map_err(|e| e.to_string())
     }
 }
 
@@ -767,4 +860,62 @@ pub fn parse_siemens(
         ));
     }
     Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn backlash() -> CompTable {
+        // 4 µm of backlash around a 3 µm pitch error: forward reads +2, reverse −2 on top.
+        let p: Vec<f64> = (0..5).map(|i| 100.0 * i as f64).collect();
+        let f = vec![2.0, 3.5, 5.0, 3.5, 2.0];
+        let r = f.iter().map(|v| v - 4.0).collect();
+        CompTable::directional(p, f, r, Wrap::Hold, Interpolation::Linear).unwrap()
+    }
+
+    #[test]
+    fn directional_tables_go_to_siemens_as_two_cec_tables() {
+        let t = backlash();
+        // One table cannot hold both directions, whichever Siemens kind.
+        let enc = SiemensKind::Encoder {
+            encoder: 0,
+            axis: "AX1".into(),
+        };
+        let e = SiemensTable::from_table(&t, enc).unwrap_err();
+        assert!(e.contains("no direction of travel"), "{e}");
+        let e = SiemensTable::from_table(&t, SiemensKind::Cec { table: 3 }).unwrap_err();
+        assert!(e.contains("_DIRECTION 1"), "{e}");
+        let pair = SiemensTable::directional_pair(&t, 3, "AX1", "AX1").unwrap();
+        assert_eq!(pair[0].direction, Some(1));
+        assert_eq!(pair[1].direction, Some(-1));
+        assert_eq!(pair[1].kind, SiemensKind::Cec { table: 4 });
+        // Siemens values are mm: 2 µm → 0.002, reverse −2 µm → −0.002.
+        assert_eq!(pair[0].values[0], 0.002);
+        assert_eq!(pair[1].values[0], -0.002);
+        let text = write_siemens(&pair);
+        assert!(text.contains("$AN_CEC_DIRECTION[3]=1\n"));
+        assert!(text.contains("$AN_CEC_DIRECTION[4]=-1\n"));
+        let back = parse_siemens(Path::new("t.ini"), &text, None).unwrap();
+        assert_eq!(back, pair);
+        // Read back into one directional table, in either order: the same values.
+        let t2 = SiemensTable::pair_to_table(&back[1], &back[0], Interpolation::Linear).unwrap();
+        assert_eq!(t2.positions(), t.positions());
+        for (a, b) in t2.forward().iter().zip(t.forward()) {
+            assert!((a - b).abs() < 1e-9);
+        }
+        for (a, b) in t2.reverse().unwrap().iter().zip(t.reverse().unwrap()) {
+            assert!((a - b).abs() < 1e-9);
+        }
+        // Two tables of the same direction, or a one-direction table, are refused.
+        assert!(SiemensTable::pair_to_table(&back[0], &back[0], Interpolation::Linear).is_err());
+        let one = CompTable::new(
+            t.positions().to_vec(),
+            t.forward().to_vec(),
+            Wrap::Hold,
+            Interpolation::Linear,
+        )
+        .unwrap();
+        assert!(SiemensTable::directional_pair(&one, 3, "AX1", "AX1").is_err());
+    }
 }
