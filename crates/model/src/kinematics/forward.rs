@@ -108,6 +108,22 @@ impl Chain {
         tool_mm: f64,
         dirs: Directions,
         geometry: Geometry,
+        tangents: Option<&mut Tangents>,
+    ) -> Pose {
+        // One copy of the walk per geometry: the nominal one then carries no table code.
+        match geometry {
+            Geometry::Nominal => self.walk::<JAC, false>(q, tool_mm, dirs, tangents),
+            Geometry::Actual => self.walk::<JAC, true>(q, tool_mm, dirs, tangents),
+        }
+    }
+
+    /// [`Chain::eval`] for one geometry (`ACTUAL`: through the error tables).
+    #[inline(always)]
+    fn walk<const JAC: bool, const ACTUAL: bool>(
+        &self,
+        q: &[f64],
+        tool_mm: f64,
+        dirs: Directions,
         mut tangents: Option<&mut Tangents>,
     ) -> Pose {
         let n = self.axes.len();
@@ -121,7 +137,7 @@ impl Chain {
                 }
             }
         }
-        let actual = geometry == Geometry::Actual;
+        let actual = ACTUAL;
         // Bit j set: the tangents of axis j are no longer zero.
         let mut active: u32 = 0;
         // Where the axis position of the last error row fell in its table: rows reading tables
