@@ -6,9 +6,9 @@ use std::time::Instant;
 
 use truepos_fit::dataset::{Dataset, InputKind, Run};
 use truepos_fit::features::{candidates, Family};
-use truepos_fit::model_file::{DynamicModelFile, InputEntry};
 use truepos_fit::train::{Rule, Settings};
 use truepos_fit::validate::{validate, Split};
+use truepos_io::dynamic_model_file::{DynamicModelFile, InputEntry};
 use truepos_io::run::{glob_match, read, Table};
 
 /// Arguments of `truepos fit`.

@@ -3,16 +3,7 @@
 
 use std::fmt;
 
-/// Whether an input is a temperature (°C, taken relative to the run's first sample) or an
-/// operating-state channel (spindle speed, axis speed; filtered as is).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum InputKind {
-    /// A temperature in °C.
-    Temperature,
-    /// An operating-state quantity in its own unit.
-    Operating,
-}
+pub use truepos_io::dynamic_model_file::InputKind;
 
 /// One recorded run.
 #[derive(Debug, Clone, PartialEq)]

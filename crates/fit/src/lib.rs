@@ -13,7 +13,8 @@
 //!   the training rows only; export to a [`truepos_model::DynamicModel`].
 //! - [`validate`]: chronological split, leave one run out, blocked k-fold; RMSE, max |e|,
 //!   peak-to-peak and reduction versus uncompensated, per target channel.
-//! - [`model_file`]: the dynamic model file (`format = "truepos-dynamic-model"`, JSON).
+//! - the dynamic model file (`format = "truepos-dynamic-model"`, JSON) lives in
+//!   `truepos_io::dynamic_model_file`, so that the runtime reads it without the solvers.
 //!
 //! ## Example
 //! A structure whose growth lags the spindle speed by a first-order lag of 1800 s: the
@@ -52,7 +53,6 @@
 pub mod dataset;
 pub mod features;
 pub mod least_squares;
-pub mod model_file;
 pub mod position_model;
 pub mod reidentify;
 pub mod train;

@@ -10,12 +10,32 @@
 //!   "outputs": [{"name": "ch1_um", "intercept_um": 0.1, "coefficients": [ … one per feature … ]}],
 //!   "provenance": {…}, "validation": {…} }
 //! ```
-//! Outputs are errors (actual − nominal) in µm; the compensation is their negative.
+//! Outputs are errors (actual − nominal) in µm; the compensation is their negative. For the
+//! runtime each output names the machine axis it compensates (`"axis": "Z"`; by default an
+//! output called `Z`, `Z_um` or `dz_um` serves axis Z), and the file may carry seed D's
+//! axis-combination index (`"axis_index": [101, 102, 103]`).
+//!
+//! `truepos fit` writes this file; `truepos run` and the LinuxCNC component load it beside the
+//! static model files ([`crate::model_file`]) through [`load`], bound to the machine: every
+//! input must be one of its channels, every mapped output one of its axes.
+
+use std::path::Path;
 
 use serde::{Deserialize, Serialize};
-use truepos_model::{DynamicModel, FeatureBank, FeatureSpec};
+use truepos_model::{DynamicModel, FeatureBank, FeatureSpec, Machine};
 
-use crate::dataset::InputKind;
+use crate::error::InputError;
+
+/// What a model input is: a temperature (°C, filtered as the rise since the first cycle) or an
+/// operating-state channel (spindle speed, axis speed; filtered as is).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum InputKind {
+    /// A temperature in °C.
+    Temperature,
+    /// An operating-state quantity in its own unit.
+    Operating,
+}
 
 /// The `format` value.
 pub const FORMAT: &str = "truepos-dynamic-model";
@@ -40,6 +60,9 @@ pub struct OutputEntry {
     pub intercept_um: f64,
     /// One per entry of `features`, in µm per feature unit.
     pub coefficients: Vec<f64>,
+    /// The machine axis whose error this output is (see the module documentation).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub axis: Option<String>,
 }
 
 /// The whole file.
@@ -67,6 +90,9 @@ pub struct DynamicModelFile {
     pub features: Vec<String>,
     /// Outputs.
     pub outputs: Vec<OutputEntry>,
+    /// Seed D's axis-combination index of the axes it serves; `None` = path 1's axes.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub axis_index: Option<Vec<u32>>,
     /// Where it came from (runs, split, choices).
     pub provenance: serde_json::Value,
     /// Validation figures.
@@ -108,8 +134,10 @@ impl DynamicModelFile {
                     name: name.clone(),
                     intercept_um: model.intercepts()[k],
                     coefficients: model.coefficients()[k * n..(k + 1) * n].to_vec(),
+                    axis: None,
                 })
                 .collect(),
+            axis_index: None,
             provenance,
             validation,
         }
@@ -174,6 +202,141 @@ impl DynamicModelFile {
     pub fn to_json(&self) -> String {
         serde_json::to_string_pretty(self).unwrap_or_else(|e| format!("{{\"error\": \"{e}\"}}"))
     }
+}
+
+/// Where a model input comes from on the machine.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum MachineInput {
+    /// A temperature channel (index into `Machine::temperatures`).
+    Temperature(usize),
+    /// An operating channel (index into `Machine::operating`).
+    Operating(usize),
+}
+
+/// A dynamic model bound to a machine, ready for the runtime.
+#[derive(Debug, Clone)]
+pub struct BoundDynamicModel {
+    /// Name for events and status (the file's stem).
+    pub name: String,
+    /// The real-time model.
+    pub model: DynamicModel,
+    /// The machine channel of every model input, in the model's order.
+    pub inputs: Vec<MachineInput>,
+    /// Per output: the machine axis it compensates, `None` for an output no axis takes.
+    pub axes: Vec<Option<usize>>,
+    /// Names of the outputs no axis takes (reported, never applied).
+    pub unused_outputs: Vec<String>,
+    /// Seed D's index from the file, if any.
+    pub axis_index: Option<Vec<u32>>,
+}
+
+impl DynamicModelFile {
+    /// The axis an output serves: its `axis`, else an axis named like the output (`Z`, `Z_um`,
+    /// `dz_um`, case-insensitive).
+    fn output_axis(&self, k: usize, machine: &Machine) -> Result<Option<usize>, String> {
+        let o = &self.outputs[k];
+        if let Some(name) = &o.axis {
+            return machine.axis_index(name).map(Some).ok_or_else(|| {
+                let axes: Vec<&str> = machine.axes.iter().map(|a| a.name.as_str()).collect();
+                format!(
+                    "`outputs[{k}].axis`: machine `{}` has no axis `{name}`; expected one of: {}",
+                    machine.name,
+                    axes.join(", ")
+                )
+            });
+        }
+        let lower = o.name.to_ascii_lowercase();
+        let stem = lower.strip_suffix("_um").unwrap_or(&lower);
+        Ok(machine.axes.iter().position(|a| {
+            let a = a.name.to_ascii_lowercase();
+            stem == a || stem.strip_prefix('d') == Some(a.as_str())
+        }))
+    }
+
+    /// Binds the model to a machine: same machine name, every input a channel of the right kind,
+    /// every output mapped to a distinct axis or reported unused, at least one output applied.
+    pub fn bind(&self, path: &Path, machine: &Machine) -> Result<BoundDynamicModel, InputError> {
+        let fail = |m: String| InputError::file(path, m);
+        let model = self.to_model().map_err(fail)?;
+        if self.machine != machine.name {
+            return Err(fail(format!(
+                "`machine`: the model was made for machine `{}`, not `{}`",
+                self.machine, machine.name
+            )));
+        }
+        let mut inputs = Vec::with_capacity(self.inputs.len());
+        for (i, input) in self.inputs.iter().enumerate() {
+            let found = match input.kind {
+                InputKind::Temperature => machine
+                    .temperature_index(&input.name)
+                    .map(MachineInput::Temperature),
+                InputKind::Operating => machine
+                    .operating_index(&input.name)
+                    .map(MachineInput::Operating),
+            };
+            inputs.push(found.ok_or_else(|| {
+                let kind = match input.kind {
+                    InputKind::Temperature => "temperature channel",
+                    InputKind::Operating => "operating channel",
+                };
+                fail(format!(
+                    "`inputs[{i}]`: the model reads {kind} `{}`, which machine `{}` does not define",
+                    input.name, machine.name
+                ))
+            })?);
+        }
+        let mut axes = Vec::with_capacity(self.outputs.len());
+        let mut unused_outputs = Vec::new();
+        for k in 0..self.outputs.len() {
+            let axis = self.output_axis(k, machine).map_err(fail)?;
+            if let Some(a) = axis {
+                if let Some(j) = axes.iter().position(|b| *b == Some(a)) {
+                    return Err(fail(format!(
+                        "`outputs[{k}]`: `{}` and `{}` both compensate axis {}; give each output its own `axis`",
+                        self.outputs[j].name, self.outputs[k].name, machine.axes[a].name
+                    )));
+                }
+            } else {
+                unused_outputs.push(self.outputs[k].name.clone());
+            }
+            axes.push(axis);
+        }
+        if axes.iter().all(Option::is_none) {
+            return Err(fail(format!(
+                "`outputs`: no output names an axis of machine `{}`; give one an `axis` (or fit with `--axis {}=<axis>`)",
+                machine.name,
+                self.outputs.first().map_or("<target>", |o| o.name.as_str())
+            )));
+        }
+        Ok(BoundDynamicModel {
+            name: path
+                .file_stem()
+                .map_or_else(|| "dynamic".into(), |s| s.to_string_lossy().into_owned()),
+            model,
+            inputs,
+            axes,
+            unused_outputs,
+            axis_index: self.axis_index.clone(),
+        })
+    }
+}
+
+/// Whether a model file's text is a dynamic model file (JSON with this crate's `format`).
+pub fn is_dynamic(text: &str) -> bool {
+    #[derive(Deserialize)]
+    struct Head {
+        format: String,
+    }
+    serde_json::from_str::<Head>(text).is_ok_and(|h| h.format == FORMAT)
+}
+
+/// Reads a dynamic model file and binds it to the machine.
+pub fn load(path: &Path, machine: &Machine) -> Result<BoundDynamicModel, InputError> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| InputError::file(path, format!("cannot read: {e}")))?;
+    DynamicModelFile::from_json(&text)
+        .map_err(|e| InputError::file(path, e))?
+        .bind(path, machine)
 }
 
 #[cfg(test)]

@@ -1,6 +1,7 @@
 //! # truepos-io — the file formats of truepos
 //!
-//! Machine descriptions ([`machine_file`]), model files ([`model_file`]) and recorded cycles
+//! Machine descriptions ([`machine_file`]), model files ([`model_file`], and the fitted dynamic
+//! models of [`dynamic_model_file`]) and recorded cycles
 //! ([`cycles`]). Every parser returns an [`InputError`] that names the file, the line and
 //! column, the key and what was expected; none panics on bad input.
 //!
@@ -25,6 +26,7 @@
 
 pub mod comp_table;
 pub mod cycles;
+pub mod dynamic_model_file;
 pub mod error;
 pub mod kinematics_file;
 pub mod machine_file;

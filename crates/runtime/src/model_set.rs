@@ -2,10 +2,178 @@
 //! B = (b1, b2, b3), b_i = 100·path + axis number; the service builds the target index D of each
 //! path from the control's axis configuration and sets the matching model for that path.
 
-use truepos_model::Model;
+use truepos_io::dynamic_model_file::{self, BoundDynamicModel, MachineInput};
+use truepos_model::{CycleInput, Model, MAX_AXES};
 
 /// Slots of an axis-combination index (seed D uses three).
 pub const INDEX_SLOTS: usize = 3;
+
+/// A model the service runs: seed A/C's form (evaluated afresh every cycle) or a fitted dynamic
+/// model (its filters advance every cycle, whether or not it is the one in effect, so that a
+/// switch to it finds its filters current).
+// Built once at load time and kept in one Vec: the variants' sizes cost nothing on the cycle,
+// a Box would cost an indirection on it.
+#[allow(clippy::large_enum_variant)]
+#[derive(Debug, Clone)]
+pub enum RuntimeModel {
+    /// A model of seed A's general form / seed C's regression (`truepos-model` file).
+    Static(Model),
+    /// A fitted dynamic model (`truepos-dynamic-model` file).
+    Dynamic(DynamicEntry),
+}
+
+impl From<Model> for RuntimeModel {
+    fn from(m: Model) -> Self {
+        Self::Static(m)
+    }
+}
+
+/// A dynamic model with its input buffer and its last output.
+#[derive(Debug, Clone)]
+pub struct DynamicEntry {
+    bound: BoundDynamicModel,
+    sensors: Vec<usize>,
+    input: Vec<f64>,
+    /// Predicted error per machine axis after the last good step (µm).
+    error_um: [f64; MAX_AXES],
+    /// Whether the last step succeeded (every input good and finite).
+    valid: bool,
+    /// Service time of the last good step, NaN before the first.
+    last_s: f64,
+}
+
+impl DynamicEntry {
+    /// Wraps a bound model.
+    pub fn new(bound: BoundDynamicModel) -> Self {
+        let mut sensors: Vec<usize> = bound
+            .inputs
+            .iter()
+            .filter_map(|i| match i {
+                MachineInput::Temperature(c) => Some(*c),
+                MachineInput::Operating(_) => None,
+            })
+            .collect();
+        sensors.sort_unstable();
+        sensors.dedup();
+        Self {
+            input: vec![0.0; bound.inputs.len()],
+            sensors,
+            error_um: [0.0; MAX_AXES],
+            valid: false,
+            last_s: f64::NAN,
+            bound,
+        }
+    }
+
+    /// The bound model.
+    pub fn bound(&self) -> &BoundDynamicModel {
+        &self.bound
+    }
+
+    /// Advances the filters to service time `now_s` with this cycle's values. A cycle with a
+    /// bad or non-finite input leaves the filters untouched and the model invalid until the
+    /// next good cycle (whose step then spans the gap). Allocates nothing.
+    pub fn step(
+        &mut self,
+        now_s: f64,
+        temperatures_c: &[f64],
+        operating: &[f64],
+        good: impl Fn(usize) -> bool,
+    ) {
+        let mut ok = true;
+        for (slot, input) in self.input.iter_mut().zip(&self.bound.inputs) {
+            *slot = match *input {
+                MachineInput::Temperature(c) if good(c) => {
+                    temperatures_c.get(c).copied().unwrap_or(f64::NAN)
+                }
+                MachineInput::Temperature(_) => f64::NAN,
+                MachineInput::Operating(c) => operating.get(c).copied().unwrap_or(f64::NAN),
+            };
+            ok &= slot.is_finite();
+        }
+        if !ok {
+            self.valid = false;
+            return;
+        }
+        let dt = if self.last_s.is_finite() {
+            now_s - self.last_s
+        } else {
+            0.0
+        };
+        if self.last_s.is_finite() && dt <= 0.0 {
+            // Two cycles at one instant: nothing to advance.
+            return;
+        }
+        match self.bound.model.step(dt, &self.input) {
+            Ok(out) => {
+                self.error_um = [0.0; MAX_AXES];
+                for (e, axis) in out.iter().zip(&self.bound.axes) {
+                    if let Some(a) = axis.filter(|&a| a < MAX_AXES) {
+                        self.error_um[a] = *e;
+                    }
+                }
+                self.valid = true;
+                self.last_s = now_s;
+            }
+            Err(_) => self.valid = false,
+        }
+    }
+}
+
+impl RuntimeModel {
+    /// The temperature channels it reads (lagged channels count as what they are).
+    pub fn used_sensors(&self) -> &[usize] {
+        match self {
+            Self::Static(m) => m.used_sensors(),
+            Self::Dynamic(d) => &d.sensors,
+        }
+    }
+
+    /// The static model, if it is one.
+    pub fn as_static(&self) -> Option<&Model> {
+        match self {
+            Self::Static(m) => Some(m),
+            Self::Dynamic(_) => None,
+        }
+    }
+
+    /// Advances a dynamic model's filters (nothing for a static model).
+    pub fn step(
+        &mut self,
+        now_s: f64,
+        temperatures_c: &[f64],
+        operating: &[f64],
+        good: impl Fn(usize) -> bool,
+    ) {
+        if let Self::Dynamic(d) = self {
+            d.step(now_s, temperatures_c, operating, good);
+        }
+    }
+
+    /// Writes the compensation (−error, µm) of every machine axis into `out` and returns
+    /// whether this cycle gives a valid output (`false`: an input is bad or out of range).
+    /// Allocates nothing.
+    pub fn compensation(&self, input: &CycleInput<'_>, out: &mut [f64; MAX_AXES]) -> bool {
+        match self {
+            Self::Static(m) => match m.evaluate(input) {
+                Ok(c) => {
+                    for (a, f) in out.iter_mut().enumerate().take(c.axis_count()) {
+                        *f = c.compensation_um(a);
+                    }
+                    true
+                }
+                Err(_) => false,
+            },
+            Self::Dynamic(d) if d.valid => {
+                for (f, e) in out.iter_mut().zip(&d.error_um) {
+                    *f = -e;
+                }
+                true
+            }
+            Self::Dynamic(_) => false,
+        }
+    }
+}
 
 /// A model with the axis combination it serves.
 #[derive(Debug, Clone)]
@@ -13,7 +181,7 @@ pub struct ModelEntry {
     /// Name for events and status.
     pub name: String,
     /// The model.
-    pub model: Model,
+    pub model: RuntimeModel,
     /// Its index B, 0 in unused slots.
     pub index: [u32; INDEX_SLOTS],
 }
@@ -28,7 +196,8 @@ pub fn index_of(codes: impl IntoIterator<Item = u32>) -> [u32; INDEX_SLOTS] {
     index
 }
 
-/// Loads the model files of a set, in order of preference, bound to the machine. A model whose
+/// Loads the model files of a set, in order of preference, bound to the machine: static model
+/// files (TOML/JSON) and fitted dynamic model files (JSON, recognised by their `format`). A model whose
 /// file carries no axis-combination index serves path 1's axes (seed D's index of the axes
 /// whose `path` is 1, by their codes).
 pub fn load_entries(
@@ -45,6 +214,18 @@ pub fn load_entries(
     paths
         .iter()
         .map(|path| {
+            let text = std::fs::read_to_string(path).unwrap_or_default();
+            if dynamic_model_file::is_dynamic(&text) {
+                let bound = dynamic_model_file::load(path, &machine.machine)?;
+                return Ok(ModelEntry {
+                    name: bound.name.clone(),
+                    index: bound
+                        .axis_index
+                        .as_ref()
+                        .map_or(default_index, |b| index_of(b.iter().copied())),
+                    model: RuntimeModel::Dynamic(DynamicEntry::new(bound)),
+                });
+            }
             let loaded = truepos_io::model_file::load_entry(path, &machine.machine)?;
             Ok(ModelEntry {
                 name: loaded.model.name().to_string(),
@@ -52,7 +233,7 @@ pub fn load_entries(
                     .axis_index
                     .as_ref()
                     .map_or(default_index, |b| index_of(b.iter().copied())),
-                model: loaded.model,
+                model: RuntimeModel::Static(loaded.model),
             })
         })
         .collect()
@@ -87,6 +268,19 @@ impl ModelSet {
     /// Mutable access to a model (to switch its parts on or off).
     pub fn entry_mut(&mut self, i: usize) -> Option<&mut ModelEntry> {
         self.entries.get_mut(i)
+    }
+
+    /// Advances every dynamic model's filters (see [`RuntimeModel::step`]). Allocates nothing.
+    pub fn step_all(
+        &mut self,
+        now_s: f64,
+        temperatures_c: &[f64],
+        operating: &[f64],
+        good: impl Fn(usize) -> bool + Copy,
+    ) {
+        for e in &mut self.entries {
+            e.model.step(now_s, temperatures_c, operating, good);
+        }
     }
 
     /// Number of paths.
@@ -162,7 +356,7 @@ mod tests {
     fn seed_d_example_with_axis_switching() {
         let entry = |name: &str, index| ModelEntry {
             name: name.into(),
-            model: model(),
+            model: model().into(),
             index,
         };
         let mut set = ModelSet::new(
@@ -196,7 +390,7 @@ mod tests {
         let mut set = ModelSet::new(
             vec![ModelEntry {
                 name: "only".into(),
-                model: model(),
+                model: model().into(),
                 index: [101, 102, 0],
             }],
             1,
@@ -212,7 +406,7 @@ mod tests {
             (0..4)
                 .map(|i| ModelEntry {
                     name: format!("m{i}"),
-                    model: model(),
+                    model: model().into(),
                     index: [101, 102, 0],
                 })
                 .collect(),

@@ -272,6 +272,7 @@ impl Service {
         self.read_sources(now_s);
         self.validator.check(&self.frame, &self.events);
         self.update_lags(now_s);
+        self.step_dynamic_models(now_s);
         self.check_positions(now_s);
         self.select_models(now_s);
         for p in 0..self.states.len() {
@@ -313,6 +314,16 @@ impl Service {
             &self.frame.operating,
             |c| validator.health().get(c).is_some_and(|h| h.is_none()),
         );
+    }
+
+    /// Advances the filters of every dynamic model, selected or not, from good inputs only.
+    fn step_dynamic_models(&mut self, now_s: f64) {
+        let validator = &self.validator;
+        let frame = &self.frame;
+        self.set
+            .step_all(now_s, &frame.temperatures_c, &frame.operating, |c| {
+                validator.health().get(c).is_some_and(|h| h.is_none())
+            });
     }
 
     fn read_sources(&mut self, now_s: f64) {
@@ -445,13 +456,8 @@ impl Service {
                 positions: &self.frame.positions,
                 operating: &self.frame.operating,
             };
-            match self.set.entries()[m].model.evaluate(&input) {
-                Ok(c) => {
-                    for (a, f) in fresh.iter_mut().enumerate().take(c.axis_count()) {
-                        *f = c.compensation_um(a);
-                    }
-                }
-                Err(_) => wanted = PathState::Holding,
+            if !self.set.entries()[m].model.compensation(&input, &mut fresh) {
+                wanted = PathState::Holding;
             }
         }
         let previous = self.states[p];

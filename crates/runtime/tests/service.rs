@@ -8,7 +8,7 @@ use truepos_io::{cycles, machine_file, model_file};
 use truepos_model::CycleInput;
 use truepos_runtime::events::EventKind;
 use truepos_runtime::log::{self, LogSetup, Logger};
-use truepos_runtime::model_set::ModelEntry;
+use truepos_runtime::model_set::{self, ModelEntry};
 use truepos_runtime::replay::ReplaySource;
 use truepos_runtime::*;
 
@@ -26,7 +26,9 @@ fn vmc_model(name: &str) -> ModelEntry {
     let m = vmc();
     ModelEntry {
         name: name.into(),
-        model: model_file::load(&repo("examples/vmc3/model.toml"), &m.machine).unwrap(),
+        model: model_file::load(&repo("examples/vmc3/model.toml"), &m.machine)
+            .unwrap()
+            .into(),
         index: [101, 102, 103],
     }
 }
@@ -75,7 +77,7 @@ fn drain(service: &Service) -> Vec<EventKind> {
 fn replay_gives_the_model_output() {
     let machine = vmc();
     let run = cycles::load(&repo("examples/vmc3/run.csv"), &machine.machine, &[]).unwrap();
-    let reference = vmc_model("reference").model;
+    let reference = model_file::load(&repo("examples/vmc3/model.toml"), &machine.machine).unwrap();
     let source = ReplaySource::new("replay", run.clone(), 1.0);
     let mut service = Service::new(
         machine,
@@ -186,8 +188,10 @@ fn a_bad_sensor_substitutes_a_model_without_it() {
     let mut primary = vmc_model("with-spindle-sensors");
     // The fallback: the same structure part, without the spindle part (no spindle sensors).
     let mut fallback = vmc_model("structure-only");
-    let parts: Vec<_> = fallback.model.parts()[..1].to_vec();
-    fallback.model = truepos_model::Model::new("structure-only", &machine.machine, parts).unwrap();
+    let parts: Vec<_> = fallback.model.as_static().unwrap().parts()[..1].to_vec();
+    fallback.model = truepos_model::Model::new("structure-only", &machine.machine, parts)
+        .unwrap()
+        .into();
     primary.name = "with-spindle-sensors".into();
     let n_t = machine.machine.temperatures.len();
     let mut temps = vec![20.0; n_t];
@@ -499,7 +503,7 @@ k0_um_per_k = 1000.0
         machine,
         vec![ModelEntry {
             name: "lagged".into(),
-            model,
+            model: model.into(),
             index: [101, 102, 103],
         }],
         vec![source],
@@ -539,4 +543,82 @@ k0_um_per_k = 1000.0
     assert!(!events
         .iter()
         .any(|e| matches!(e, EventKind::SensorFault { channel, .. } if *channel == lag)));
+}
+
+/// A fitted dynamic model file (`truepos fit`'s JSON) runs in the service like any model: its
+/// filters advance every cycle, its output named `dz_um` compensates axis Z, a fault of its
+/// sensor holds the output.
+#[test]
+fn a_dynamic_model_file_runs_in_the_service() {
+    let machine = vmc();
+    let front = machine
+        .machine
+        .temperature_index("spindle_front_bearing")
+        .unwrap();
+    // Features rise(T) and lp100(T); dz = 0.5 + 1·rise + 2·lp100 (µm).
+    let json = r#"{
+      "format": "truepos-dynamic-model", "version": 1, "machine": "vmc-3axis",
+      "inputs": [{"name": "spindle_front_bearing", "kind": "temperature"}],
+      "temperature_rise": true, "temperature_taus_s": [100.0], "rate_taus_s": [],
+      "operating_taus_s": [], "operating_square": false,
+      "features": ["rise(spindle_front_bearing)", "lp100(spindle_front_bearing)"],
+      "outputs": [{"name": "dz_um", "intercept_um": 0.5, "coefficients": [1.0, 2.0]}],
+      "provenance": {}, "validation": {}
+    }"#;
+    let dir = std::env::temp_dir().join(format!("truepos-dyn-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("spindle.dynamic.json");
+    std::fs::write(&path, json).unwrap();
+    let entries = model_set::load_entries(std::slice::from_ref(&path), &machine).unwrap();
+    assert_eq!(entries[0].name, "spindle.dynamic");
+    assert_eq!(entries[0].model.used_sensors(), &[front]);
+    // Bound to the machine: another machine name is refused with the file named.
+    let other = std::fs::read_to_string(&path)
+        .unwrap()
+        .replace("vmc-3axis", "lathe");
+    std::fs::write(dir.join("other.json"), other).unwrap();
+    let refused = model_set::load_entries(&[dir.join("other.json")], &machine)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        refused.contains("other.json") && refused.contains("made for machine `lathe`"),
+        "{refused}"
+    );
+
+    let temps = vec![20.0; machine.machine.temperatures.len()];
+    let (source, values) = scripted(temps, vec![400.0, 250.0, 250.0]);
+    let mut service = Service::new(
+        machine,
+        entries,
+        vec![source],
+        vec![],
+        ServiceConfig::default(),
+    );
+    let mut out = *service.cycle(0.0);
+    for t in 1..=10 {
+        out = *service.cycle(t as f64);
+    }
+    // First cycle: rise 0, lp 0 → error 0.5 µm, compensation −0.5 µm (start-up blend over).
+    assert_eq!(out.state, CompensationState::Active);
+    assert!(
+        (out.offset_um[2] + 0.5).abs() < 1e-9,
+        "{}",
+        out.offset_um[2]
+    );
+    assert_eq!(out.offset_um[0], 0.0);
+    // +0.03 K at t = 11 s; at t = 111 s it has acted for 101 s:
+    // 0.5 + 0.03 + 2·0.03·(1 − e^(−101/100)) = 0.568146861 µm.
+    values.lock().unwrap().0[front] = 20.03;
+    for t in 11..=111 {
+        out = *service.cycle(t as f64);
+    }
+    assert!(
+        (out.offset_um[2] + 0.568_146_861).abs() < 1e-8,
+        "{}",
+        out.offset_um[2]
+    );
+    values.lock().unwrap().0[front] = f64::NAN;
+    let out = *service.cycle(112.0);
+    assert_eq!(out.state, CompensationState::Holding);
+    std::fs::remove_dir_all(&dir).ok();
 }
