@@ -59,6 +59,10 @@ pub struct Args {
     /// Write the model fitted on the (last) training part here (JSON).
     #[arg(long)]
     model: Option<PathBuf>,
+    /// The machine axis a target compensates, `<target>=<axis>` (repeat; e.g. `ch5_um=Z`). A
+    /// target named `Z`, `Z_um` or `dz_um` needs none; others without one are not applied.
+    #[arg(long = "axis")]
+    axes: Vec<String>,
     /// Write measured and predicted values of every run here (CSV), for reports.
     #[arg(long)]
     predictions: Option<PathBuf>,
@@ -240,6 +244,24 @@ pub fn run(args: Args) -> Result<(), String> {
             }),
             serde_json::to_value(&validation).unwrap_or_default(),
         );
+        let mut file = file;
+        for spec in &args.axes {
+            let (target, axis) = spec.split_once('=').ok_or_else(|| {
+                format!("--axis `{spec}`: expected <target>=<axis>, e.g. ch5_um=Z")
+            })?;
+            let output = file
+                .outputs
+                .iter_mut()
+                .find(|o| o.name == target.trim())
+                .ok_or_else(|| {
+                    format!(
+                        "--axis `{spec}`: no target `{}`; the targets are {}",
+                        target.trim(),
+                        ds.target_names.join(", ")
+                    )
+                })?;
+            output.axis = Some(axis.trim().to_string());
+        }
         std::fs::write(path, file.to_json() + "\n")
             .map_err(|e| format!("{}: cannot write: {e}", path.display()))?;
     }

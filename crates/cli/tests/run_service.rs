@@ -123,3 +123,114 @@ fn sigkill_loses_at_most_the_last_second_and_never_corrupts_the_log() {
     }
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// The learning loop closed through the service: the twin records a day, `truepos fit` writes a
+/// dynamic model file, `truepos run` loads it for the twin's machine and replays the day; the
+/// offsets applied are the negated predictions of the fit. The service holds each sample until
+/// the next one arrives while the fit lets each sample act over the interval before it, so the
+/// two differ by one sample's worth of filter input (≈ 0.1 µm here), not more.
+#[test]
+fn a_fitted_dynamic_model_runs_in_the_service() {
+    let dir = scratch("dynamic");
+    let day = dir.join("day.csv");
+    let st = truepos()
+        .args(["sim", "--scenario", "spindle-warmup", "--seed", "1", "-o"])
+        .arg(&day)
+        .arg("--json")
+        .output()
+        .unwrap();
+    assert!(
+        st.status.success(),
+        "{}",
+        String::from_utf8_lossy(&st.stderr)
+    );
+    let model = dir.join("spindle.json");
+    let predictions = dir.join("pred.csv");
+    let st = truepos()
+        .args(["fit", "--run"])
+        .arg(&day)
+        .args(["--target", "dx_um,dy_um,dz_um"])
+        .args([
+            "--inputs",
+            "spindle_front,spindle_rear,spindle_motor,ambient,spindle_rpm",
+        ])
+        .args([
+            "--machine",
+            "twin-vmc3",
+            "--family",
+            "dynamic",
+            "--ridge",
+            "1e-3",
+        ])
+        .arg("--model")
+        .arg(&model)
+        .arg("--predictions")
+        .arg(&predictions)
+        .output()
+        .unwrap();
+    assert!(
+        st.status.success(),
+        "{}",
+        String::from_utf8_lossy(&st.stderr)
+    );
+    let offsets = dir.join("offsets.csv");
+    let out = truepos()
+        .args(["run", "--fast", "--period-ms", "1000", "--json"])
+        .args(["--machine", "examples/twin/machine.toml", "--models"])
+        .arg(&model)
+        .arg("--source")
+        .arg(format!("replay:{}", day.display()))
+        .arg("--sink")
+        .arg(format!("csv:{}", offsets.display()))
+        .args(["--sink-every-s", "10"])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["state"], "active", "{v}");
+
+    let read = |p: &Path| -> (Vec<String>, Vec<Vec<String>>) {
+        let text = std::fs::read_to_string(p).unwrap();
+        let mut lines = text.lines();
+        let header = lines
+            .next()
+            .unwrap()
+            .split(',')
+            .map(str::to_string)
+            .collect();
+        let rows = lines
+            .map(|l| l.split(',').map(str::to_string).collect())
+            .collect();
+        (header, rows)
+    };
+    let (ph, prows) = read(&predictions);
+    let (oh, orows) = read(&offsets);
+    let col = |h: &[String], name: &str| h.iter().position(|c| c == name).unwrap();
+    let mut predicted = std::collections::HashMap::new();
+    for r in &prows {
+        let t: f64 = r[col(&ph, "time_s")].parse().unwrap();
+        predicted.insert(t as i64, r.clone());
+    }
+    let mut compared = 0;
+    for r in &orows {
+        let t: f64 = r[col(&oh, "time_s")].parse().unwrap();
+        // After the start-up blend (5 s); the day is sampled every 10 s.
+        let Some(p) = predicted.get(&(t as i64)).filter(|_| t > 60.0) else {
+            continue;
+        };
+        for (axis, target) in [("X", "dx_um"), ("Y", "dy_um"), ("Z", "dz_um")] {
+            let offset: f64 = r[col(&oh, &format!("{axis}_offset_um"))].parse().unwrap();
+            let pred: f64 = p[col(&ph, &format!("{target}_predicted"))].parse().unwrap();
+            assert!(
+                (offset + pred).abs() < 0.25,
+                "t = {t} s, {axis}: offset {offset} µm, predicted error {pred} µm"
+            );
+        }
+        compared += 1;
+    }
+    assert!(compared > 2000, "{compared}");
+}
