@@ -50,6 +50,10 @@ pub struct Args {
     /// Use at most this many temperature sensors (correlation ranking + greedy forward selection).
     #[arg(long)]
     max_sensors: Option<usize>,
+    /// Seed C's reference sensor (an input temperature column, e.g. the ambient or a reference
+    /// spot on the machine): adds the seed-c family, Y = Σ k_i·(t_i − t_r) + c, to the candidates.
+    #[arg(long)]
+    reference: Option<String>,
     /// Blocks of the inner cross-validation on the training part.
     #[arg(long, default_value_t = 8)]
     folds: usize,
@@ -141,10 +145,28 @@ fn load(args: &Args) -> Result<Dataset, String> {
     Ok(ds)
 }
 
-fn settings(args: &Args) -> Result<Settings, String> {
+fn settings(args: &Args, ds: &Dataset) -> Result<Settings, String> {
+    let reference = match &args.reference {
+        None => None,
+        Some(name) => Some(
+            (0..ds.input_names.len())
+                .find(|&i| ds.input_names[i] == *name && ds.input_kinds[i] == InputKind::Temperature)
+                .ok_or_else(|| {
+                    format!(
+                        "--reference `{name}`: not a temperature input; the temperature inputs are {}",
+                        (0..ds.input_names.len())
+                            .filter(|&i| ds.input_kinds[i] == InputKind::Temperature)
+                            .map(|i| ds.input_names[i].as_str())
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    )
+                })?,
+        ),
+    };
     let mut s = Settings {
         folds: args.folds,
         max_sensors: args.max_sensors,
+        reference,
         ..Settings::default()
     };
     s.rule = match args.rule.as_str() {
@@ -158,7 +180,7 @@ fn settings(args: &Args) -> Result<Settings, String> {
             .map(|name| {
                 Family::parse(name).ok_or_else(|| {
                     format!(
-                        "--family `{name}`: expected static, operating, dynamic or dynamic-rates"
+                        "--family `{name}`: expected seed-c, static, operating, dynamic or dynamic-rates"
                     )
                 })
             })
@@ -207,7 +229,7 @@ impl Progress {
 pub fn run(args: Args) -> Result<(), String> {
     let ds = load(&args)?;
     let split = Split::parse(&args.split)?;
-    let settings = settings(&args)?;
+    let settings = settings(&args, &ds)?;
     let cand = candidates(&ds, &settings.taus).map_err(|e| e.to_string())?;
     let mut progress = Progress {
         start: Instant::now(),

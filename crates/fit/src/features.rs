@@ -129,11 +129,15 @@ pub enum Family {
     Dynamic,
     /// Adds filtered rates of change of temperature.
     DynamicRates,
+    /// Seed C's regression: Y = Σ k_i·(t_i − t_r) + c, every selected sensor against one
+    /// reference sensor (`Settings::reference`); a candidate only when a reference is given.
+    SeedC,
 }
 
 impl Family {
     /// Every family, simplest first.
-    pub const ALL: [Family; 4] = [
+    pub const ALL: [Family; 5] = [
+        Family::SeedC,
         Family::Static,
         Family::Operating,
         Family::Dynamic,
@@ -147,6 +151,7 @@ impl Family {
             Self::Operating => "operating",
             Self::Dynamic => "dynamic",
             Self::DynamicRates => "dynamic-rates",
+            Self::SeedC => "seed-c",
         }
     }
 
@@ -160,7 +165,7 @@ impl Family {
         match kind {
             FeatureKind::Rise => true,
             FeatureKind::Operating { .. } | FeatureKind::OperatingSquared { .. } => {
-                self != Self::Static
+                !matches!(self, Self::Static | Self::SeedC)
             }
             FeatureKind::LowPass { .. } => matches!(self, Self::Dynamic | Self::DynamicRates),
             FeatureKind::Rate { .. } => self == Self::DynamicRates,

@@ -31,6 +31,10 @@ pub struct Settings {
     /// Run with at most this many temperature sensors (chosen by correlation ranking and greedy
     /// forward selection); `None` = all.
     pub max_sensors: Option<usize>,
+    /// Seed C's reference sensor (dataset input index): with it, [`Family::SeedC`] is a
+    /// candidate and the reference is always among the sensors.
+    #[serde(default)]
+    pub reference: Option<usize>,
 }
 
 impl Default for Settings {
@@ -42,6 +46,7 @@ impl Default for Settings {
             folds: 8,
             rule: Rule::OneStandardError,
             max_sensors: None,
+            reference: None,
         }
     }
 }
@@ -86,6 +91,14 @@ pub struct Trained {
 
 /// Training rows: (run, row) pairs in time order.
 pub type Rows = Vec<(usize, usize)>;
+
+/// The regressors of one candidate: feature columns, each minus an optional reference column
+/// (seed C: t_i − t_r is rise_i − rise_r, the rises being taken from the same first sample).
+#[derive(Debug, Clone)]
+struct Design {
+    cols: Vec<usize>,
+    minus: Option<usize>,
+}
 
 struct Problem<'a> {
     cand: &'a Candidates,
@@ -134,16 +147,22 @@ impl<'a> Problem<'a> {
         }
     }
 
-    fn accumulate(&self, cols: &[usize], range: std::ops::Range<usize>) -> Accumulator {
-        let n = cols.len() + 1;
+    /// Value of design column j at row i.
+    #[inline]
+    fn value(&self, d: &Design, i: usize, j: usize) -> f64 {
+        self.x[(i, d.cols[j])] - d.minus.map_or(0.0, |m| self.x[(i, m)])
+    }
+
+    fn accumulate(&self, d: &Design, range: std::ops::Range<usize>) -> Accumulator {
+        let n = d.cols.len() + 1;
         let nt = self.y.ncols();
         let mut acc = Accumulator::new(n, nt);
         let mut a = vec![0.0; n];
         let mut b = vec![0.0; nt];
         a[0] = 1.0;
         for i in range {
-            for (slot, &c) in a[1..].iter_mut().zip(cols) {
-                *slot = self.x[(i, c)];
+            for (j, slot) in a[1..].iter_mut().enumerate() {
+                *slot = self.value(d, i, j);
             }
             for (k, slot) in b.iter_mut().enumerate() {
                 *slot = self.y[(i, k)];
@@ -156,18 +175,18 @@ impl<'a> Problem<'a> {
 
     /// Per ridge, per target: (CV RMSE over all held-out rows, standard error of the per-fold
     /// RMSEs).
-    fn cv(&self, cols: &[usize], ridges: &[f64]) -> Vec<Vec<(f64, f64)>> {
+    fn cv(&self, d: &Design, ridges: &[f64]) -> Vec<Vec<(f64, f64)>> {
         let nt = self.y.ncols();
         let folds = self.blocks.len();
         let parts: Vec<Accumulator> = self
             .blocks
             .iter()
-            .map(|r| self.accumulate(cols, r.clone()))
+            .map(|r| self.accumulate(d, r.clone()))
             .collect();
         // sse[ridge][target][fold]
         let mut sse = vec![vec![vec![0.0; folds]; nt]; ridges.len()];
         for (f, block) in self.blocks.iter().enumerate() {
-            let mut acc = Accumulator::new(cols.len() + 1, nt);
+            let mut acc = Accumulator::new(d.cols.len() + 1, nt);
             for (g, p) in parts.iter().enumerate() {
                 if g != f {
                     let _ = acc.merge(p.clone());
@@ -188,8 +207,8 @@ impl<'a> Problem<'a> {
                     for k in 0..nt {
                         let c = &sol.coefficients[k];
                         let mut p = c[0];
-                        for (cj, &col) in c[1..].iter().zip(cols) {
-                            p += cj * self.x[(i, col)];
+                        for (j, cj) in c[1..].iter().enumerate() {
+                            p += cj * self.value(d, i, j);
                         }
                         let e = self.y[(i, k)] - p;
                         sse[ri][k][f] += e * e;
@@ -219,14 +238,33 @@ impl<'a> Problem<'a> {
             .collect()
     }
 
-    fn columns(&self, family: Family, sensors: &[usize]) -> Vec<usize> {
-        (0..self.cand.features.len())
+    /// The design of a family on a sensor set; `None` when the family cannot be built (seed C
+    /// without a reference, or with nothing left to regress on).
+    fn design(
+        &self,
+        family: Family,
+        sensors: &[usize],
+        reference: Option<usize>,
+    ) -> Option<Design> {
+        let rise = |s: usize| {
+            (0..self.cand.features.len()).find(|&j| {
+                self.cand.features[j].input == s && self.cand.features[j].kind == FeatureKind::Rise
+            })
+        };
+        let minus = match family {
+            Family::SeedC => Some(rise(reference?)?),
+            _ => None,
+        };
+        let cols: Vec<usize> = (0..self.cand.features.len())
             .filter(|&j| {
                 let f = self.cand.features[j];
                 let is_temp = f.input < self.cand.spec.temperatures;
-                family.includes(f.kind) && (!is_temp || sensors.contains(&f.input))
+                family.includes(f.kind)
+                    && (!is_temp || sensors.contains(&f.input))
+                    && Some(j) != minus
             })
-            .collect()
+            .collect();
+        (!cols.is_empty()).then_some(Design { cols, minus })
     }
 }
 
@@ -244,12 +282,12 @@ fn best_per_target(
     let nt = p.y.ncols();
     // (rmse, se, family, ridge) of every candidate, per target.
     let mut all: Vec<Vec<(f64, f64, Family, f64)>> = vec![Vec::new(); nt];
+    let reference = reference_input(p, settings);
     for &family in &settings.families {
-        let cols = p.columns(family, sensors);
-        if cols.is_empty() {
+        let Some(design) = p.design(family, sensors, reference) else {
             continue;
-        }
-        let scores = p.cv(&cols, &settings.ridges);
+        };
+        let scores = p.cv(&design, &settings.ridges);
         for (ri, row) in scores.iter().enumerate() {
             for k in 0..nt {
                 all[k].push((row[k].0, row[k].1, family, settings.ridges[ri]));
@@ -294,10 +332,25 @@ pub fn train(
     let p = Problem::new(dataset, cand, rows, settings.folds);
     let nt = dataset.target_names.len();
     let all_sensors: Vec<usize> = (0..cand.spec.temperatures).collect();
-    let sensors = match settings.max_sensors {
+    let mut sensors = match settings.max_sensors {
         Some(max) if max < all_sensors.len() => greedy_sensors(&p, settings, max),
         _ => all_sensors,
     };
+    let reference = reference_input(&p, settings);
+    if let Some(r) = reference.filter(|r| !sensors.contains(r)) {
+        sensors.push(r);
+        sensors.sort_unstable();
+    }
+    if settings
+        .families
+        .iter()
+        .all(|&f| p.design(f, &sensors, reference).is_none())
+    {
+        return Err(
+            "no candidate family can be built: seed-c needs a reference sensor (--reference)"
+                .into(),
+        );
+    }
     let best = best_per_target(&p, settings, &sensors);
     // Final fit per target on all training rows.
     let nf = cand.features.len();
@@ -307,8 +360,10 @@ pub fn train(
     let mut choices = Vec::new();
     for k in 0..nt {
         let (score, family, ridge) = best[k];
-        let cols = p.columns(family, &sensors);
-        let acc = p.accumulate(&cols, 0..p.x.nrows());
+        let design = p
+            .design(family, &sensors, reference)
+            .ok_or("internal: the chosen family has no design")?;
+        let acc = p.accumulate(&design, 0..p.x.nrows());
         let sol = acc
             .finish()
             .solve(&SolveOptions {
@@ -318,7 +373,10 @@ pub fn train(
             })
             .map_err(|e| e.to_string())?;
         let names: Vec<String> = std::iter::once("intercept".to_string())
-            .chain(cols.iter().map(|&c| cand.names[c].clone()))
+            .chain(design.cols.iter().map(|&c| match design.minus {
+                Some(m) => format!("{} − {}", cand.names[c], cand.names[m]),
+                None => cand.names[c].clone(),
+            }))
             .collect();
         for d in &sol.rank_deficiencies {
             warnings.push(format!(
@@ -329,9 +387,14 @@ pub fn train(
         }
         let c = &sol.coefficients[k];
         let mut b0 = c[0];
-        for (cj, &col) in c[1..].iter().zip(&cols) {
-            coef[k][col] = *cj;
+        for (cj, &col) in c[1..].iter().zip(&design.cols) {
+            coef[k][col] += *cj;
             b0 -= cj * p.means[col];
+            // k·(x_i − x_r) = k·x_i − k·x_r: the reference's rise carries −Σk.
+            if let Some(m) = design.minus {
+                coef[k][m] -= *cj;
+                b0 += cj * p.means[m];
+            }
         }
         intercepts[k] = b0;
         choices.push(Choice {
@@ -380,6 +443,16 @@ pub fn train(
         choices,
         warnings,
     })
+}
+
+/// The bank index of the reference sensor, if one is set and is a temperature input.
+fn reference_input(p: &Problem<'_>, settings: &Settings) -> Option<usize> {
+    let r = settings.reference?;
+    p.cand
+        .bank_inputs
+        .iter()
+        .position(|&d| d == r)
+        .filter(|&b| b < p.cand.spec.temperatures)
 }
 
 /// Correlation ranking, then greedy forward selection by CV score (mean over targets of the
@@ -559,6 +632,71 @@ mod tests {
             / rel.len() as f64)
             .sqrt();
         assert!(rms < 0.5, "{rms}");
+    }
+
+    /// Seed C: Y = Σ k_i·(t_i − t_r) + c. Data made exactly so, with k = (2, 0.5) against a
+    /// drifting reference t3 and c = 1 µm (relative targets remove c, the model's intercept
+    /// puts the start value back): the fit recovers k, and the reference's rise carries
+    /// −(2 + 0.5) = −2.5.
+    #[test]
+    fn seed_c_regresses_against_the_reference_sensor() {
+        let n = 600;
+        let (mut t, mut a, mut b, mut r, mut y) = (vec![], vec![], vec![], vec![], vec![]);
+        for i in 0..n {
+            let x = i as f64;
+            let (ta, tb, tr) = (
+                22.0 + 3.0 * (x / 90.0).sin(),
+                21.0 + 0.01 * x,
+                20.0 + 1.5 * (x / 200.0).cos(),
+            );
+            t.push(60.0 * x);
+            a.push(ta);
+            b.push(tb);
+            r.push(tr);
+            y.push(2.0 * (ta - tr) + 0.5 * (tb - tr) + 1.0);
+        }
+        let ds = Dataset {
+            input_names: vec!["t1_c".into(), "t2_c".into(), "t3_c".into()],
+            input_kinds: vec![InputKind::Temperature; 3],
+            target_names: vec!["dz_um".into()],
+            runs: vec![Run {
+                name: "r".into(),
+                time_s: t,
+                inputs: vec![a, b, r],
+                targets: vec![y],
+            }],
+        };
+        let settings = Settings {
+            families: vec![Family::SeedC],
+            ridges: vec![0.0],
+            reference: Some(2),
+            ..Settings::default()
+        };
+        let cand = candidates(&ds, &settings.taus).unwrap();
+        let rows: Rows = (0..n).map(|i| (0, i)).collect();
+        let trained = train(&ds, &cand, &rows, &settings).unwrap();
+        assert_eq!(trained.choices[0].family, Family::SeedC);
+        let m = &trained.model;
+        let names: Vec<String> = m
+            .bank()
+            .features()
+            .iter()
+            .map(|f| f.name(&ds.input_names[trained.inputs[f.input]]))
+            .collect();
+        let coef = |name: &str| m.coefficients()[names.iter().position(|x| x == name).unwrap()];
+        assert!((coef("rise(t1_c)") - 2.0).abs() < 1e-9);
+        assert!((coef("rise(t2_c)") - 0.5).abs() < 1e-9);
+        assert!((coef("rise(t3_c)") + 2.5).abs() < 1e-9);
+        // Nothing but rises: seed C's form has no dynamics.
+        for (name, c) in names.iter().zip(m.coefficients()) {
+            assert!(name.starts_with("rise(") || *c == 0.0, "{name}: {c}");
+        }
+        // Without a reference the family is no candidate at all.
+        let none = Settings {
+            reference: None,
+            ..settings
+        };
+        assert!(train(&ds, &cand, &rows, &none).is_err());
     }
 
     #[test]
