@@ -32,7 +32,7 @@ enum Command {
     /// Evaluate a compensation model on a recorded run (CSV of cycles) and write per-axis offsets.
     Eval(eval::Args),
     /// Learn a dynamic compensation model from recorded runs (CSV/XLSX) and validate it honestly.
-    Fit(fit::Args),
+    Fit(Box<fit::Args>),
     /// Seed B's kinematics table: forward/inverse transforms with error tables, G-code rewrite.
     Kin(kin::Args),
     /// Seed A's timing argument: worst-case error of position-dependent terms updated every T ms.
@@ -69,7 +69,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Demo(args) => demo::run(args),
         Command::Eval(args) => eval::run(args),
-        Command::Fit(args) => fit::run(args),
+        Command::Fit(args) => fit::run(*args),
         Command::Kin(args) => kin::run(args),
         Command::Lag(args) => lag::run(args),
         Command::Report(args) => report::run(args),
