@@ -3,8 +3,9 @@
 use std::io::Write;
 use std::path::PathBuf;
 
+use truepos_io::dynamic_model_file::{self, BoundDynamicModel, MachineInput};
 use truepos_io::{cycles, machine_file, model_file};
-use truepos_model::CycleInput;
+use truepos_model::{CycleInput, Machine, Model, MAX_AXES};
 
 /// Arguments of `truepos eval`.
 #[derive(clap::Args)]
@@ -12,7 +13,8 @@ pub struct Args {
     /// Machine description (TOML).
     #[arg(long, default_value = "examples/vmc3/machine.toml")]
     machine: PathBuf,
-    /// Model file (TOML, or JSON by extension).
+    /// Model file: seed A/C form (TOML, or JSON by extension), or a fitted dynamic model (JSON
+    /// with `"format": "truepos-dynamic-model"`).
     #[arg(long, default_value = "examples/vmc3/model.toml")]
     model: PathBuf,
     /// Run CSV of cycles: time_s, <axis>_mm / <axis>_deg, temperatures, operating state.
@@ -34,13 +36,124 @@ struct AxisSummary {
     max_abs_um: f64,
 }
 
+/// What evaluates a row: a static model, or a dynamic one stepped through the rows in order.
+enum Evaluator {
+    Static(Model),
+    Dynamic {
+        bound: Box<BoundDynamicModel>,
+        input: Vec<f64>,
+        /// Time of the last good step.
+        last_s: Option<f64>,
+    },
+}
+
+impl Evaluator {
+    fn load(path: &std::path::Path, machine: &Machine) -> Result<Self, String> {
+        let text = std::fs::read_to_string(path).unwrap_or_default();
+        if dynamic_model_file::is_dynamic(&text) {
+            let bound = dynamic_model_file::load(path, machine).map_err(|e| e.to_string())?;
+            for name in &bound.unused_outputs {
+                eprintln!("note: output `{name}` of the model names no axis and is not applied");
+            }
+            return Ok(Self::Dynamic {
+                input: vec![0.0; bound.inputs.len()],
+                bound: Box::new(bound),
+                last_s: None,
+            });
+        }
+        Ok(Self::Static(
+            model_file::load(path, machine).map_err(|e| e.to_string())?,
+        ))
+    }
+
+    fn name(&self) -> &str {
+        match self {
+            Self::Static(m) => m.name(),
+            Self::Dynamic { bound, .. } => &bound.name,
+        }
+    }
+
+    fn used_sensors(&self) -> Vec<usize> {
+        match self {
+            Self::Static(m) => m.used_sensors().to_vec(),
+            Self::Dynamic { bound, .. } => bound
+                .inputs
+                .iter()
+                .filter_map(|i| match i {
+                    MachineInput::Temperature(c) => Some(*c),
+                    MachineInput::Operating(_) => None,
+                })
+                .collect(),
+        }
+    }
+
+    fn axis_count(&self, machine: &Machine) -> usize {
+        match self {
+            Self::Static(m) => m.axis_count(),
+            Self::Dynamic { .. } => machine.axes.len(),
+        }
+    }
+
+    /// The predicted error of every axis at row `i` (rows must come in order).
+    fn error_um(
+        &mut self,
+        cycles: &cycles::Cycles,
+        i: usize,
+        machine: &Machine,
+    ) -> Result<[f64; MAX_AXES], String> {
+        match self {
+            Self::Static(model) => {
+                let input = CycleInput {
+                    temperatures_c: &cycles.temperatures_c[i],
+                    positions: &cycles.positions[i],
+                    operating: &cycles.operating[i],
+                };
+                let c = model.evaluate(&input).map_err(|e| describe(&e, machine))?;
+                let mut out = [0.0; MAX_AXES];
+                out[..c.axis_count()].copy_from_slice(&c.error_um()[..c.axis_count()]);
+                Ok(out)
+            }
+            Self::Dynamic {
+                bound,
+                input,
+                last_s,
+            } => {
+                for (slot, m) in input.iter_mut().zip(&bound.inputs) {
+                    *slot = match *m {
+                        MachineInput::Temperature(c) => cycles.temperatures_c[i][c],
+                        MachineInput::Operating(c) => cycles.operating[i][c],
+                    };
+                }
+                if let Some(k) = input.iter().position(|v| !v.is_finite()) {
+                    let name = match bound.inputs[k] {
+                        MachineInput::Temperature(c) => &machine.temperatures[c].id,
+                        MachineInput::Operating(c) => &machine.operating[c].id,
+                    };
+                    return Err(format!("input `{name}` is not a number"));
+                }
+                let t = cycles.time_s[i];
+                let dt = last_s.map_or(0.0, |l| t - l);
+                let out = bound.model.step(dt, input).map_err(|e| e.to_string())?;
+                *last_s = Some(t);
+                let mut errors = [0.0; MAX_AXES];
+                for (e, axis) in out.iter().zip(&bound.axes) {
+                    if let Some(a) = axis.filter(|&a| a < MAX_AXES) {
+                        errors[a] = *e;
+                    }
+                }
+                Ok(errors)
+            }
+        }
+    }
+}
+
 pub fn run(args: Args) -> Result<(), String> {
     let machine = machine_file::load(&args.machine)
         .map_err(|e| e.to_string())?
         .machine;
-    let model = model_file::load(&args.model, &machine).map_err(|e| e.to_string())?;
+    let mut model = Evaluator::load(&args.model, &machine)?;
     let cycles =
-        cycles::load(&args.run, &machine, model.used_sensors()).map_err(|e| e.to_string())?;
+        cycles::load(&args.run, &machine, &model.used_sensors()).map_err(|e| e.to_string())?;
 
     let to_stdout = args.out.as_os_str() == "-";
     let mut writer: Option<csv::Writer<Box<dyn Write>>> = if to_stdout && args.json {
@@ -55,7 +168,7 @@ pub fn run(args: Args) -> Result<(), String> {
         ))))
     };
     let io_err = |e: csv::Error| format!("{}: cannot write: {e}", args.out.display());
-    let n_axes = model.axis_count();
+    let n_axes = model.axis_count(&machine);
     if let Some(w) = writer.as_mut() {
         let mut header = vec!["time_s".to_string()];
         for a in &machine.axes[..n_axes] {
@@ -78,29 +191,24 @@ pub fn run(args: Args) -> Result<(), String> {
     let mut failed = 0usize;
     let mut first_failure: Option<String> = None;
     for i in 0..cycles.time_s.len() {
-        let input = CycleInput {
-            temperatures_c: &cycles.temperatures_c[i],
-            positions: &cycles.positions[i],
-            operating: &cycles.operating[i],
-        };
         let mut record = vec![format!("{}", cycles.time_s[i])];
-        match model.evaluate(&input) {
-            Ok(c) => {
+        match model.error_um(&cycles, i, &machine) {
+            Ok(errors) => {
                 for (a, s) in summary.iter_mut().enumerate() {
-                    let e = c.error_um()[a];
+                    let e = errors[a];
                     s.min_um = s.min_um.min(e);
                     s.max_um = s.max_um.max(e);
                     s.max_abs_um = s.max_abs_um.max(e.abs());
                     record.push(format!("{e:.6}"));
-                    record.push(format!("{:.6}", c.compensation_um(a)));
+                    // 0 − e, not −e: no "-0.000000" for a zero compensation.
+                    record.push(format!("{:.6}", 0.0 - e));
                 }
                 record.push("ok".into());
             }
-            Err(e) => {
+            Err(reason) => {
                 // A failed cycle writes no number at all: a blank cell can never be taken for
                 // a compensation, a NaN might.
                 failed += 1;
-                let reason = describe(&e, &machine);
                 if first_failure.is_none() {
                     first_failure = Some(format!(
                         "{}:{}: {reason}",
@@ -179,7 +287,7 @@ fn is_broken_pipe(e: &csv::Error) -> bool {
 }
 
 /// An evaluation error with channel names instead of indices.
-fn describe(e: &truepos_model::EvalError, machine: &truepos_model::Machine) -> String {
+fn describe(e: &truepos_model::EvalError, machine: &Machine) -> String {
     use truepos_model::EvalError as E;
     let sensor = |c: usize| machine.temperatures.get(c).map_or("?", |t| t.id.as_str());
     let axis = |a: usize| machine.axes.get(a).map_or("?", |x| x.name.as_str());

@@ -233,4 +233,30 @@ fn a_fitted_dynamic_model_runs_in_the_service() {
         compared += 1;
     }
     assert!(compared > 2000, "{compared}");
+
+    // `truepos eval` steps the model through the rows as the fit did: the same numbers.
+    let evaluated = dir.join("eval.csv");
+    let st = truepos()
+        .args(["eval", "--machine", "examples/twin/machine.toml", "--model"])
+        .arg(&model)
+        .arg("--run")
+        .arg(&day)
+        .arg("-o")
+        .arg(&evaluated)
+        .output()
+        .unwrap();
+    assert!(
+        st.status.success(),
+        "{}",
+        String::from_utf8_lossy(&st.stderr)
+    );
+    let (eh, erows) = read(&evaluated);
+    assert_eq!(erows.len(), prows.len());
+    for (e, p) in erows.iter().zip(&prows) {
+        for (axis, target) in [("X", "dx_um"), ("Y", "dy_um"), ("Z", "dz_um")] {
+            let a: f64 = e[col(&eh, &format!("{axis}_error_um"))].parse().unwrap();
+            let b: f64 = p[col(&ph, &format!("{target}_predicted"))].parse().unwrap();
+            assert!((a - b).abs() < 1e-5, "{axis}: eval {a} vs fit {b}");
+        }
+    }
 }
