@@ -38,7 +38,7 @@ struct AxisSummary {
 
 /// What evaluates a row: a static model, or a dynamic one stepped through the rows in order.
 enum Evaluator {
-    Static(Model),
+    Static(Box<Model>),
     Dynamic {
         bound: Box<BoundDynamicModel>,
         input: Vec<f64>,
@@ -61,9 +61,9 @@ impl Evaluator {
                 last_s: None,
             });
         }
-        Ok(Self::Static(
+        Ok(Self::Static(Box::new(
             model_file::load(path, machine).map_err(|e| e.to_string())?,
-        ))
+        )))
     }
 
     fn name(&self) -> &str {
