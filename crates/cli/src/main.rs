@@ -9,6 +9,7 @@ use clap::{Parser, Subcommand};
 
 mod demo;
 mod eval;
+mod evaluator;
 mod fit;
 mod kin;
 mod lag;

@@ -4,8 +4,10 @@
 
 use std::path::{Path, PathBuf};
 
-use truepos_io::{cycles, machine_file, model_file};
-use truepos_model::{CycleInput, Model, PartForm};
+use truepos_io::{cycles, machine_file};
+use truepos_model::{Model, PartForm};
+
+use crate::evaluator::Evaluator;
 use truepos_report::{channel_metrics, write_report, Channel, Coefficient, ReportData};
 
 /// Arguments of `truepos report`.
@@ -14,7 +16,7 @@ pub struct Args {
     /// Machine description (TOML).
     #[arg(long)]
     machine: PathBuf,
-    /// Model file.
+    /// Model file: seed A/C form (TOML/JSON) or a fitted dynamic model (JSON).
     #[arg(long)]
     model: PathBuf,
     /// Run CSV with the inputs and the measured errors.
@@ -85,6 +87,41 @@ fn read_columns(path: &Path, names: &[String]) -> Result<Vec<Vec<f64>>, String> 
     Ok(out)
 }
 
+/// A dynamic model's coefficients: per applied output, the intercept and every non-zero feature.
+fn dynamic_coefficients(
+    bound: &truepos_io::dynamic_model_file::BoundDynamicModel,
+    machine: &truepos_model::Machine,
+) -> Vec<Coefficient> {
+    use truepos_io::dynamic_model_file::MachineInput;
+    let features = bound.model.bank().features();
+    let n = features.len();
+    let input_name = |k: usize| match bound.inputs[k] {
+        MachineInput::Temperature(c) => machine.temperatures[c].id.clone(),
+        MachineInput::Operating(c) => machine.operating[c].id.clone(),
+    };
+    let mut out = Vec::new();
+    for (k, axis) in bound.axes.iter().enumerate() {
+        let Some(a) = axis else { continue };
+        let channel = machine.axes[*a].name.clone();
+        out.push(Coefficient {
+            channel: channel.clone(),
+            feature: "intercept (µm)".into(),
+            value: bound.model.intercepts()[k],
+        });
+        for (j, f) in features.iter().enumerate() {
+            let value = bound.model.coefficients()[k * n + j];
+            if value != 0.0 {
+                out.push(Coefficient {
+                    channel: channel.clone(),
+                    feature: f.name(&input_name(f.input)),
+                    value,
+                });
+            }
+        }
+    }
+    out
+}
+
 /// The model's coefficients as (channel, feature, value) for the table.
 fn coefficients(model: &Model, machine: &truepos_model::Machine) -> Vec<Coefficient> {
     let mut out = Vec::new();
@@ -133,8 +170,9 @@ pub fn run(args: Args) -> Result<(), String> {
     let machine = machine_file::load(&args.machine)
         .map_err(|e| e.to_string())?
         .machine;
-    let model = model_file::load(&args.model, &machine).map_err(|e| e.to_string())?;
-    let run = cycles::load(&args.run, &machine, model.used_sensors()).map_err(|e| e.to_string())?;
+    let mut model = Evaluator::load(&args.model, &machine)?;
+    let run =
+        cycles::load(&args.run, &machine, &model.used_sensors()).map_err(|e| e.to_string())?;
     let mut pairs = Vec::new();
     for spec in &args.measured {
         let (axis, column) = spec
@@ -154,14 +192,10 @@ pub fn run(args: Args) -> Result<(), String> {
     let mut predicted = vec![Vec::with_capacity(run.time_s.len()); pairs.len()];
     let mut failed = 0usize;
     for i in 0..run.time_s.len() {
-        let r = model.evaluate(&CycleInput {
-            temperatures_c: &run.temperatures_c[i],
-            positions: &run.positions[i],
-            operating: &run.operating[i],
-        });
+        let r = model.error_um(&run, i, &machine);
         for (k, &(a, _)) in pairs.iter().enumerate() {
             predicted[k].push(match &r {
-                Ok(c) => c.error_um()[a],
+                Ok(e) => e[a],
                 Err(_) => f64::NAN,
             });
         }
@@ -230,7 +264,10 @@ pub fn run(args: Args) -> Result<(), String> {
         test_from,
         channels,
         temperatures,
-        coefficients: coefficients(&model, &machine),
+        coefficients: match &model {
+            Evaluator::Static(m) => coefficients(m, &machine),
+            Evaluator::Dynamic { bound, .. } => dynamic_coefficients(bound, &machine),
+        },
         protocol,
     };
     let html = write_report(&args.out, &data).map_err(|e| e.to_string())?;

@@ -259,4 +259,44 @@ fn a_fitted_dynamic_model_runs_in_the_service() {
             assert!((a - b).abs() < 1e-5, "{axis}: eval {a} vs fit {b}");
         }
     }
+
+    // `truepos report` on the held-out part (the last 40 % of the 8 h day, from 17,280 s) of
+    // the same model: figures and the coefficient table of a dynamic model.
+    let out = truepos()
+        .args([
+            "report",
+            "--machine",
+            "examples/twin/machine.toml",
+            "--model",
+        ])
+        .arg(&model)
+        .arg("--run")
+        .arg(&day)
+        .args([
+            "--measured",
+            "X=dx_um,Y=dy_um,Z=dz_um",
+            "--test-from-s",
+            "17280",
+            "--json",
+        ])
+        .arg("--out")
+        .arg(dir.join("report"))
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let z = &v["channels"][2]["metrics"];
+    assert!(
+        z["rmse_um"].as_f64().unwrap() < 0.5 * z["uncompensated_rmse_um"].as_f64().unwrap(),
+        "{v}"
+    );
+    let html = std::fs::read_to_string(dir.join("report/report.html")).unwrap();
+    assert!(
+        html.contains("lp900(spindle_front)"),
+        "the dynamic coefficients are listed"
+    );
 }
