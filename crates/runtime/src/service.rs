@@ -402,6 +402,7 @@ impl Service {
             }
         }
         self.set.select(&self.frame.paths, &self.codes);
+        let before = self.axis_path;
         self.axis_path = [None; MAX_AXES];
         for (p, axes) in self.frame.paths.iter().enumerate().take(self.states.len()) {
             for &a in axes {
@@ -411,6 +412,14 @@ impl Service {
             }
         }
         if !first {
+            // An axis that left every path (handed over or parked) blends to zero like any
+            // other change of origin, rather than running down at the envelope's rate.
+            for (a, was) in before.iter().enumerate().take(self.output.axes) {
+                if was.is_some() && self.axis_path[a].is_none() {
+                    self.envelope
+                        .begin_blend(a, 0.0, now_s, self.config.blend_s);
+                }
+            }
             self.events.push(Event {
                 time_s: now_s,
                 kind: EventKind::AxisSwitch,

@@ -255,6 +255,7 @@ fn axis_switch_reselects_and_reports_no_model() {
             Box::new(PathSwitcher {
                 at_s: 3.0,
                 back_s: 8.0,
+                out: 1,
             }),
         ],
         vec![],
@@ -284,10 +285,82 @@ fn axis_switch_reselects_and_reports_no_model() {
     }));
 }
 
-/// A control source that takes axis Y out of path 1 between two times.
+/// Seed D with a model for the new combination: Z leaves path 1, the X-Y model takes over, and
+/// Z, now in no path, blends to zero over the blend time (well inside the envelope's rate, no
+/// clamp); back in the path, the X-Y-Z model blends in again.
+#[test]
+fn an_axis_leaving_every_path_blends_to_zero() {
+    let machine = vmc();
+    let n_t = machine.machine.temperatures.len();
+    let mut temps = vec![20.0; n_t];
+    temps[1] = 25.0;
+    let (source, _values) = scripted(temps, vec![800.0, 250.0, 250.0]);
+    let xy = ModelEntry {
+        index: [101, 102, 0],
+        ..vmc_model("vmc3-xy")
+    };
+    let mut service = Service::new(
+        machine,
+        vec![vmc_model("vmc3"), xy],
+        vec![
+            source,
+            Box::new(PathSwitcher {
+                at_s: 10.0,
+                back_s: 20.0,
+                out: 2,
+            }),
+        ],
+        vec![],
+        ServiceConfig {
+            blend_s: 3.0,
+            ..ServiceConfig::default()
+        },
+    );
+    let mut t = 0.0;
+    while t < 9.99 {
+        t += 0.01;
+        service.cycle(t);
+    }
+    assert!((service.output().offset_um[2] + 30.0).abs() < 1e-9);
+    drain(&service);
+    let mut z = Vec::new();
+    while t < 19.99 {
+        t += 0.01;
+        service.cycle(t);
+        z.push(service.output().offset_um[2]);
+    }
+    assert_eq!(service.path_states()[0], PathState::Model(1));
+    // A linear blend of 30 µm over 3 s: 10 µm/s, a fifth of the envelope's 50 µm/s.
+    let fastest = z
+        .windows(2)
+        .map(|w| (w[1] - w[0]).abs())
+        .fold(0.0, f64::max)
+        / 0.01;
+    assert!((fastest - 10.0).abs() < 0.5, "{fastest} µm/s");
+    assert!((z[100] + 20.0).abs() < 0.5, "{}", z[100]); // a third of the way after 1 s
+    assert_eq!(*z.last().unwrap(), 0.0);
+    let events = drain(&service);
+    assert!(events.contains(&EventKind::AxisSwitch));
+    assert!(events.contains(&EventKind::ModelSelected { path: 1, model: 1 }));
+    assert!(
+        !events
+            .iter()
+            .any(|e| matches!(e, EventKind::Clamped { .. })),
+        "{events:?}"
+    );
+    while t < 30.0 {
+        t += 0.01;
+        service.cycle(t);
+    }
+    assert_eq!(service.path_states()[0], PathState::Model(0));
+    assert!((service.output().offset_um[2] + 30.0).abs() < 1e-9);
+}
+
+/// A control source that takes an axis (Y unless told) out of path 1 between two times.
 struct PathSwitcher {
     at_s: f64,
     back_s: f64,
+    out: usize,
 }
 
 impl Source for PathSwitcher {
@@ -298,7 +371,7 @@ impl Source for PathSwitcher {
         let p = &mut frame.paths[0];
         p.clear();
         if frame.time_s >= self.at_s && frame.time_s < self.back_s {
-            p.extend_from_slice(&[0, 2]);
+            p.extend((0..3).filter(|&a| a != self.out));
         } else {
             p.extend_from_slice(&[0, 1, 2]);
         }
@@ -364,6 +437,7 @@ fn a_cycle_allocates_nothing() {
             Box::new(PathSwitcher {
                 at_s: 1.0,
                 back_s: 2.0,
+                out: 1,
             }),
         ],
         vec![],
