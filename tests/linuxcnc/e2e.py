@@ -3,8 +3,10 @@
 
 Machine on, home, then run e2e.ngc (X, Y, Z across their travel at 10 m/min) while a twin
 component plays examples/vmc3/run.csv (time-compressed) into the truepos.temp.* pins. Mid-program
-it injects a sensor fault (x_slide_bottom reads 200 degC, outside its valid range, for 4 s) and a
-model switch (truepos.model-select 0 -> 1). Two halsampler processes record every servo cycle
+it injects a sensor fault (x_slide_bottom reads 200 degC, outside its valid range, for 4 s), a
+model switch (truepos.model-select 0 -> 1) and an axis switch (Z leaves path 1 for 8 s:
+truepos.axis.z.path 1 -> 0 -> 1, so seed D's rule selects model_c.toml, which serves X and Y alone,
+and back). Two halsampler processes record every servo cycle
 into OUT/motion.txt and OUT/temperatures.txt for `truepos-hal check`. Exits non-zero on any
 failure; LinuxCNC then shuts down (and sends SIGTERM to truepos-hal).
 """
@@ -138,6 +140,8 @@ try:
         (18.0, "fault on", lambda: fault.update(on=True)),
         (22.0, "fault off", lambda: fault.update(on=False)),
         (40.0, "switch to model 1", lambda: halcmd("sets", "tp-select", "1")),
+        (46.0, "Z leaves path 1", lambda: halcmd("sets", "tp-z-path", "0")),
+        (54.0, "Z back in path 1", lambda: halcmd("sets", "tp-z-path", "1")),
     ]
     wait("program start", lambda: s.interp_state != linuxcnc.INTERP_IDLE, 5.0)
     while True:

@@ -5,12 +5,17 @@
 //!
 //! - **motion** (`sampler.0`): `tag`, then per axis `axis.L.pos-cmd` (nominal, mm), per axis
 //!   `axis.L.eoffset` (applied external offset, mm), per joint `joint.N.pos-fb` (mm), per axis
-//!   `truepos.axis.L.offset-um` (sent, µm), then `truepos.status` and `truepos.model-select`.
+//!   `truepos.axis.L.offset-um` (sent, µm), then `truepos.status`, `truepos.model-select`,
+//!   `truepos.path.1.model` (the model in effect) and per axis `truepos.axis.L.path` (the
+//!   control's axis configuration).
 //! - **temperatures** (`sampler.1`): `tag`, then every `truepos.temp.<id>` pin in machine order.
 //!
-//! For every cycle the check evaluates the selected model on the temperatures and nominal
+//! For every cycle the check works out which model seed D's rule selects for path 1 from the
+//! recorded axis configuration and `model-select` (the models whose axis-combination index
+//! equals that of the axes in path 1, the selected one if it is among them, else the first),
+//! requires the component to have used that one, evaluates it on the temperatures and nominal
 //! positions of that very cycle and compares the compensation (−error) with the offset
-//! LinuxCNC applied. The difference is the lag of the position-dependent terms (the axis moved
+//! LinuxCNC applied; an axis in no path must carry no offset. The difference is the lag of the position-dependent terms (the axis moved
 //! between the component's read and the application) plus quantisation; seed A's figure of
 //! merit divides it by the span of the position-dependent terms over the travel (1.3 % at 4 ms
 //! and 100 m/min on 500 mm). Cycles within `settle_s` of a start, a fault, a recovery or a
@@ -22,6 +27,7 @@ use std::path::Path;
 
 use truepos_io::machine_file::AxisRuntime;
 use truepos_model::{CycleInput, Machine, Model};
+use truepos_runtime::model_set::{index_of, ModelEntry};
 
 /// One servo cycle as the samplers recorded it.
 #[derive(Debug, Clone, PartialEq)]
@@ -38,6 +44,10 @@ pub struct Sample {
     pub status: i32,
     /// `truepos.model-select`.
     pub select: i32,
+    /// `truepos.path.1.model`: the model the component used on path 1 (−1: none).
+    pub model: i32,
+    /// `truepos.axis.L.path` per axis: the path each axis belonged to (0: none).
+    pub axis_paths: Vec<i32>,
     /// Temperatures on the `truepos.temp.*` pins, °C.
     pub temperatures_c: Vec<f64>,
 }
@@ -109,7 +119,7 @@ pub fn parse_samples(
     axes: usize,
     temperature_count: usize,
 ) -> Result<Vec<Sample>, SampleError> {
-    let m = parse_lines(motion_file, motion, 4 * axes + 2)?;
+    let m = parse_lines(motion_file, motion, 5 * axes + 3)?;
     let t = parse_lines(temperature_file, temperatures, temperature_count)?;
     let mut out = Vec::with_capacity(m.len().min(t.len()));
     let mut j = 0;
@@ -125,6 +135,8 @@ pub fn parse_samples(
                 sent_um: v[3 * axes..4 * axes].to_vec(),
                 status: v[4 * axes] as i32,
                 select: v[4 * axes + 1] as i32,
+                model: v[4 * axes + 2] as i32,
+                axis_paths: v[4 * axes + 3..].iter().map(|&p| p as i32).collect(),
                 temperatures_c: t[j].1.clone(),
             });
         }
@@ -228,8 +240,15 @@ pub struct CheckReport {
     pub rate_limit_um_per_s: Vec<f64>,
     /// Cycles with status "holding" (a sensor fault).
     pub holding_samples: usize,
-    /// Model switches seen on `truepos.model-select`.
+    /// Changes of the model in effect on path 1 (`truepos.path.1.model`).
     pub model_switches: usize,
+    /// Changes of the axis configuration (`truepos.axis.L.path`).
+    pub axis_switches: usize,
+    /// Settled, active cycles in which the component used another model than seed D's rule
+    /// selects.
+    pub wrong_model_cycles: usize,
+    /// Largest |applied offset| on an axis in no path (settled cycles), µm.
+    pub max_parked_offset_um: f64,
     /// What failed (empty: the run passed).
     pub failures: Vec<String>,
 }
@@ -259,6 +278,9 @@ impl CheckReport {
             "rate_limit_um_per_s": self.rate_limit_um_per_s,
             "holding_samples": self.holding_samples,
             "model_switches": self.model_switches,
+            "axis_switches": self.axis_switches,
+            "wrong_model_cycles": self.wrong_model_cycles,
+            "max_parked_offset_um": self.max_parked_offset_um,
             "passed": self.passed(),
             "failures": self.failures,
         })
@@ -294,10 +316,32 @@ fn position_span_um(model: &Model, machine: &Machine, s: &Sample, operating: &[f
     span
 }
 
-/// Compares what LinuxCNC applied with the models (`models[select]`) and the envelope.
+/// The model seed D's rule selects for path 1: the models whose axis-combination index equals
+/// the index of the axes in path 1 (by axis number), `select` if it is one of them, else the
+/// first; `None` if none matches.
+pub fn expected_model(
+    models: &[ModelEntry],
+    limits: &[AxisRuntime],
+    axis_paths: &[i32],
+    select: i32,
+) -> Option<usize> {
+    let mut in_path: Vec<usize> = (0..limits.len())
+        .filter(|&a| axis_paths.get(a) == Some(&1))
+        .collect();
+    in_path.sort_by_key(|&a| limits[a].number);
+    let target = index_of(in_path.iter().map(|&a| limits[a].code()));
+    let matches = |i: &usize| models[*i].index == target;
+    usize::try_from(select)
+        .ok()
+        .filter(|i| *i < models.len() && matches(i))
+        .or_else(|| (0..models.len()).find(matches))
+}
+
+/// Compares what LinuxCNC applied with the models seed D's rule selects (see
+/// [`expected_model`]) and the envelope.
 pub fn check(
     machine: &Machine,
-    models: &[Model],
+    models: &[ModelEntry],
     limits: &[AxisRuntime],
     samples: &[Sample],
     config: &CheckConfig,
@@ -323,9 +367,12 @@ pub fn check(
         rate_limit_um_per_s: limits.iter().map(|l| l.max_rate_um_per_s).collect(),
         holding_samples: 0,
         model_switches: 0,
+        axis_switches: 0,
+        wrong_model_cycles: 0,
+        max_parked_offset_um: 0.0,
         failures: Vec::new(),
     };
-    let mut sum_sq = 0.0;
+    let (mut sum_sq, mut diffs) = (0.0, 0usize);
     let mut since_change = 0usize;
     let mut gap = 0usize;
     let mut after_gap = 0usize;
@@ -355,10 +402,13 @@ pub fn check(
                     gap_cycles += 1;
                 }
             }
-            if p.select != s.select {
-                report.model_switches += 1;
-            }
-            if p.select != s.select || p.status != s.status {
+            report.model_switches += usize::from(p.model != s.model);
+            report.axis_switches += usize::from(p.axis_paths != s.axis_paths);
+            if p.select != s.select
+                || p.status != s.status
+                || p.model != s.model
+                || p.axis_paths != s.axis_paths
+            {
                 since_change = 0;
             }
             for a in 0..axes {
@@ -381,11 +431,23 @@ pub fn check(
         for a in 0..axes {
             report.max_offset_um = report.max_offset_um.max(s.applied_mm[a].abs() * 1000.0);
         }
-        let Some(model) = usize::try_from(s.select).ok().and_then(|i| models.get(i)) else {
-            continue;
-        };
         if s.status != 1 || since_change <= settle {
             continue;
+        }
+        let expected = expected_model(models, limits, &s.axis_paths, s.select);
+        if expected.and_then(|i| i32::try_from(i).ok()) != Some(s.model) {
+            report.wrong_model_cycles += 1;
+        }
+        // A fitted dynamic model's output depends on its filters' history, which the check
+        // cannot replay from the samples: only models of seed A's form are compared.
+        let Some(model) = expected.and_then(|i| models[i].model.as_static()) else {
+            continue;
+        };
+        let in_path = |a: usize| s.axis_paths.get(a) == Some(&1);
+        for a in (0..axes).filter(|&a| !in_path(a)) {
+            report.max_parked_offset_um = report
+                .max_parked_offset_um
+                .max(s.applied_mm[a].abs() * 1000.0);
         }
         let Ok(correction) = model.evaluate(&CycleInput {
             temperatures_c: &s.temperatures_c,
@@ -397,9 +459,10 @@ pub fn check(
         let span = position_span_um(model, machine, s, &operating);
         report.compared += 1;
         let in_step = !(moving && (gap > 2 || after_gap > 0));
-        for (a, &span_a) in span.iter().enumerate() {
+        for (a, &span_a) in span.iter().enumerate().filter(|(a, _)| in_path(*a)) {
             let diff = s.applied_mm[a] * 1000.0 - correction.compensation_um(a);
             sum_sq += diff * diff;
+            diffs += 1;
             report.max_diff_um = report.max_diff_um.max(diff.abs());
             if span_a >= config.min_span_um {
                 let fraction = diff.abs() / span_a;
@@ -432,14 +495,28 @@ pub fn check(
     if moving_cycles > 0 {
         report.gap_fraction = gap_cycles as f64 / moving_cycles as f64;
     }
-    if report.compared > 0 {
-        report.rms_diff_um = (sum_sq / (report.compared * axes.max(1)) as f64).sqrt();
+    if diffs > 0 {
+        report.rms_diff_um = (sum_sq / diffs as f64).sqrt();
     }
 
     if report.compared == 0 {
         report
             .failures
             .push("no settled, active cycle to compare with the model".into());
+    }
+    if report.wrong_model_cycles > 0 {
+        report.failures.push(format!(
+            "in {} settled cycles the component used another model than seed D's rule selects \
+             for the axis configuration",
+            report.wrong_model_cycles
+        ));
+    }
+    // An axis in no path gets no compensation: at most two counts of quantisation remain.
+    if report.max_parked_offset_um > 2.0 * crate::eoffset::RESOLUTION_UM {
+        report.failures.push(format!(
+            "an axis in no path still carries {:.3} µm of offset",
+            report.max_parked_offset_um
+        ));
     }
     // 2 µm: the interpolator rounds corners of the summed command where the axes accelerate.
     if report.joint_mismatch_mm > 0.002 {
@@ -552,9 +629,19 @@ mod tests {
             .collect()
     }
 
+    /// The example model as the set's only entry, serving X and Y of path 1.
+    fn entry(model: &Model) -> ModelEntry {
+        ModelEntry {
+            name: "example".into(),
+            model: model.clone().into(),
+            index: [101, 102, 0],
+        }
+    }
+
     #[test]
     fn lag_fraction_and_rate_by_hand() {
         let (machine, model) = example();
+        let model = entry(&model);
         // X at 250 mm (r = 0.5), ΔT = 25 − 20 = 5 K: Y error = 5·(2 + 4·0.5) = 20 µm, so the
         // compensation is −20 µm = −0.020 mm. The span over X's travel is 5·4 = 20 µm.
         let sample = |applied_y_mm: f64| Sample {
@@ -564,6 +651,8 @@ mod tests {
             sent_um: vec![0.0, applied_y_mm * 1000.0],
             status: 1,
             select: 0,
+            model: 0,
+            axis_paths: vec![1, 1],
             temperatures_c: vec![25.0, 20.0],
         };
         let mut samples = vec![sample(-0.020); 9];
@@ -637,19 +726,77 @@ mod tests {
     }
 
     #[test]
+    fn axis_switching_follows_seed_d() {
+        let (machine, model) = example();
+        // Model 0 serves X and Y (101, 102), model 1 X alone (101).
+        let models = [
+            entry(&model),
+            ModelEntry {
+                index: [101, 0, 0],
+                ..entry(&model)
+            },
+        ];
+        let limits = limits(100.0);
+        assert_eq!(expected_model(&models, &limits, &[1, 1], 0), Some(0));
+        assert_eq!(expected_model(&models, &limits, &[1, 1], 1), Some(0));
+        assert_eq!(expected_model(&models, &limits, &[1, 0], 0), Some(1));
+        assert_eq!(expected_model(&models, &limits, &[0, 1], 0), None);
+        // Y leaves path 1: the component must use model 1 and give Y no offset (the model's Y
+        // term is not applied); X carries none in this model anyway.
+        let sample = |applied_y_mm: f64, model: i32| Sample {
+            nominal: vec![250.0, 100.0],
+            applied_mm: vec![0.0, applied_y_mm],
+            joint: vec![250.0, 100.0 + applied_y_mm],
+            sent_um: vec![0.0, applied_y_mm * 1000.0],
+            status: 1,
+            select: 0,
+            model,
+            axis_paths: vec![1, 0],
+            temperatures_c: vec![25.0, 20.0],
+        };
+        let config = CheckConfig {
+            settle_s: 0.0,
+            rate_window_s: 0.002,
+            ..CheckConfig::default()
+        };
+        let r = check(
+            &machine,
+            &models,
+            &limits,
+            &vec![sample(0.0, 1); 5],
+            &config,
+        );
+        assert!(r.passed(), "{:?}", r.failures);
+        assert_eq!(r.compared, 5);
+        // Still model 0, and Y still offset: both fail.
+        let r = check(
+            &machine,
+            &models,
+            &limits,
+            &vec![sample(-0.02, 0); 5],
+            &config,
+        );
+        assert_eq!(r.wrong_model_cycles, 5);
+        assert!((r.max_parked_offset_um - 20.0).abs() < 1e-9);
+        assert_eq!(r.failures.len(), 2, "{:?}", r.failures);
+    }
+
+    #[test]
     fn joins_by_tag_and_names_bad_lines() {
-        // One axis, one temperature: motion has tag + 4·1 + 2 = 7 fields.
-        let motion = "0 1.0 0.001 1.001 1.0 1 0\n1 2.0 0.002 2.002 2.0 1 0\n2 3 0 3 0 1 0\n";
+        // One axis, one temperature: motion has tag + 5·1 + 3 = 9 fields.
+        let motion =
+            "0 1.0 0.001 1.001 1.0 1 0 0 1\n1 2.0 0.002 2.002 2.0 1 0 0 1\n2 3 0 3 0 1 0 0 1\n";
         let temps = "1 20.5\n2 21.0\n";
         let s = parse_samples("m", motion, "t", temps, 1, 1).unwrap();
         assert_eq!(s.len(), 2); // tag 0 has no temperature line
         assert_eq!(s[0].nominal, vec![2.0]);
         assert_eq!(s[0].temperatures_c, vec![20.5]);
         assert_eq!(s[1].select, 0);
+        assert_eq!((s[1].model, s[1].axis_paths.clone()), (0, vec![1]));
         let bad = parse_samples("m.txt", "0 1 2\n", "t", temps, 1, 1).unwrap_err();
         assert_eq!(
             bad.to_string(),
-            "m.txt:1: expected a sample tag and 6 values, found 3 fields"
+            "m.txt:1: expected a sample tag and 8 values, found 3 fields"
         );
         let bad = parse_samples("m.txt", motion, "t.txt", "1 x\n", 1, 1).unwrap_err();
         assert_eq!(bad.to_string(), "t.txt:1: column 2: \"x\" is not a number");

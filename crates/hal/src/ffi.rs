@@ -453,18 +453,26 @@ pub fn sleep_until_ns(deadline_ns: u64) {
 /// Binds the calling thread to one CPU (`sched_setaffinity`), so that the cycle keeps its
 /// caches and is not migrated between CPUs.
 pub fn pin_to_cpu(cpu: usize) -> Result<(), String> {
-    if cpu >= libc::CPU_SETSIZE as usize {
-        return Err(format!("CPU {cpu} is beyond CPU_SETSIZE"));
-    }
+    bind_to_cpus(&[cpu])
+}
+
+/// Binds the calling thread to a set of CPUs (`sched_setaffinity`); threads it starts later
+/// inherit the set.
+pub fn bind_to_cpus(cpus: &[usize]) -> Result<(), String> {
     // SAFETY: cpu_set_t is a plain bit array for which all-zero is the empty set.
     let mut set: libc::cpu_set_t = unsafe { std::mem::zeroed() };
-    // SAFETY: `cpu` < CPU_SETSIZE was checked above, so CPU_SET stays inside `set`.
-    unsafe { libc::CPU_SET(cpu, &mut set) };
+    for &cpu in cpus {
+        if cpu >= libc::CPU_SETSIZE as usize {
+            return Err(format!("CPU {cpu} is beyond CPU_SETSIZE"));
+        }
+        // SAFETY: `cpu` < CPU_SETSIZE was checked above, so CPU_SET stays inside `set`.
+        unsafe { libc::CPU_SET(cpu, &mut set) };
+    }
     // SAFETY: `set` is an initialised cpu_set_t of the size passed; pid 0 is the calling thread.
     let rc = unsafe { libc::sched_setaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &set) };
     if rc != 0 {
         return Err(format!(
-            "sched_setaffinity(CPU {cpu}): {}",
+            "sched_setaffinity({cpus:?}): {}",
             std::io::Error::last_os_error()
         ));
     }

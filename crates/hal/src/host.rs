@@ -202,14 +202,10 @@ pub struct HostSampler {
 
 impl HostSampler {
     /// Starts sampling every `interval_ns`, watching `watched_cpu`'s steal (the CPU the cycle is
-    /// bound to; all CPUs if `None`). The thread runs at normal priority, bound to `own_cpu` if
-    /// given, so that it never delays the cycle it observes. Fails if `/proc/stat` cannot be
-    /// read.
-    pub fn start(
-        interval_ns: u64,
-        watched_cpu: Option<usize>,
-        own_cpu: Option<usize>,
-    ) -> Result<Self, String> {
+    /// bound to; all CPUs if `None`). The thread runs at normal priority on the CPUs of the
+    /// calling thread (start it before binding that to the cycle's CPU: see
+    /// [`crate::pacer::keep_off_cpu`]). Fails if `/proc/stat` cannot be read.
+    pub fn start(interval_ns: u64, watched_cpu: Option<usize>) -> Result<Self, String> {
         let mut stat = ProcFile::open("/proc/stat").ok_or("cannot open /proc/stat")?;
         let first = stat
             .read()
@@ -227,10 +223,6 @@ impl HostSampler {
         let handle = std::thread::Builder::new()
             .name("truepos-host".into())
             .spawn(move || {
-                if let Some(cpu) = own_cpu {
-                    // Best effort: unbound, the thread still runs below the realtime cycle.
-                    let _ = ffi::pin_to_cpu(cpu);
-                }
                 let cpu0 = ffi::thread_cpu_ns();
                 let mut samples = Vec::with_capacity(1 << 17);
                 let mut next = ffi::monotonic_ns();

@@ -12,14 +12,12 @@ use std::time::Duration;
 use clap::{Parser, Subcommand};
 use truepos_hal::check::{check, load_samples, CheckConfig};
 use truepos_hal::ffi::{self, Component};
-use truepos_hal::pacer::{realtime_setup, Pacer};
+use truepos_hal::pacer::{keep_off_cpu, realtime_setup, Pacer};
 use truepos_hal::timing::{self, TimingConfig};
 use truepos_hal::{pins, HalSink, HalSource};
-use truepos_io::machine_file::MachineFile;
-use truepos_model::Model;
 use truepos_runtime::log::{LogSetup, Logger};
 use truepos_runtime::model_set::load_entries;
-use truepos_runtime::{Service, ServiceConfig, Sink, Source};
+use truepos_runtime::{PathState, Service, ServiceConfig, Sink, Source};
 
 #[derive(Parser)]
 #[command(
@@ -143,18 +141,6 @@ struct CheckArgs {
     json: bool,
 }
 
-fn load(
-    machine: &std::path::Path,
-    models: &[PathBuf],
-) -> Result<(MachineFile, Vec<Model>), Box<dyn std::error::Error>> {
-    let machine = truepos_io::machine_file::load(machine)?;
-    let models = models
-        .iter()
-        .map(|p| truepos_io::model_file::load(p, &machine.machine))
-        .collect::<Result<Vec<_>, _>>()?;
-    Ok((machine, models))
-}
-
 /// Histogram bucket edges of the cycle-to-cycle interval, ms.
 const EDGES_MS: [f64; 8] = [0.5, 0.9, 1.1, 1.5, 2.0, 3.0, 5.0, 10.0];
 
@@ -173,14 +159,22 @@ fn run(args: RunArgs) -> Result<(), Box<dyn std::error::Error>> {
     signal_hook::flag::register(signal_hook::consts::SIGINT, Arc::clone(&stop))?;
 
     let component = Component::new(&args.name)?;
-    let all = pins::create(&component, m)?;
+    let paths = machine
+        .axis_runtime
+        .iter()
+        .map(|a| a.path as usize)
+        .max()
+        .unwrap_or(1)
+        .clamp(1, truepos_runtime::service::MAX_PATHS);
+    let all = pins::create(&component, m, paths)?;
     let control = all.control;
     let (cycle_us_pin, cycles_pin) = (all.outputs.cycle_us.clone(), all.outputs.cycles.clone());
     let (motion_enabled, all_homed) = (
         all.outputs.motion_enabled.clone(),
         all.outputs.all_homed.clone(),
     );
-    let source = HalSource::new(&args.name, all.inputs);
+    let path_models = all.outputs.path_models.clone();
+    let source = HalSource::new(&args.name, all.inputs, &machine.axis_runtime);
     let sink = HalSink::new(&args.name, all.outputs);
     let (source_name, sink_name) = (source.name().to_string(), sink.name().to_string());
     control.enable.set(true);
@@ -199,6 +193,12 @@ fn run(args: RunArgs) -> Result<(), Box<dyn std::error::Error>> {
         vec![Box::new(sink)],
         config,
     );
+    // The logger thread inherits the CPUs of this one: keep it off the cycle's CPU.
+    if let Some(cpu) = args.cpu {
+        if let Err(e) = keep_off_cpu(cpu) {
+            eprintln!("truepos-hal: warning: {e}");
+        }
+    }
     let logger = match &args.log {
         Some(path) => Some(Logger::start(
             LogSetup {
@@ -265,6 +265,12 @@ fn run(args: RunArgs) -> Result<(), Box<dyn std::error::Error>> {
         }
         // The time of reading, not the deadline: LinuxCNC's positions are those of now.
         service.cycle((now - start) as f64 * 1e-9);
+        for (pin, state) in path_models.iter().zip(service.path_states()) {
+            pin.set(match state {
+                PathState::Model(i) => i32::try_from(*i).unwrap_or(-1),
+                _ => -1,
+            });
+        }
         cycles += 1;
         let after = ffi::monotonic_ns();
         let work_us = (after - now) as f64 / 1e3;
@@ -326,7 +332,9 @@ fn run(args: RunArgs) -> Result<(), Box<dyn std::error::Error>> {
 }
 
 fn run_check(args: CheckArgs) -> Result<bool, Box<dyn std::error::Error>> {
-    let (machine, models) = load(&args.machine, &args.models)?;
+    let machine = truepos_io::machine_file::load(&args.machine)?;
+    // With their axis-combination indices: the check applies seed D's rule itself.
+    let models = load_entries(&args.models, &machine)?;
     let samples = load_samples(&args.motion, &args.temperatures, &machine.machine)?;
     let config = CheckConfig {
         period_s: args.period_ms / 1000.0,
@@ -396,9 +404,12 @@ fn run_check(args: CheckArgs) -> Result<bool, Box<dyn std::error::Error>> {
             report.rate_limit_um_per_s
         );
         println!(
-            "{} cycles holding after a sensor fault, {} model switch(es); update gaps: {:.3} % of moving cycles, longest {} servo cycles",
+            "{} cycles holding after a sensor fault, {} model switch(es), {} axis switch(es) ({} settled cycles on another model than seed D selects, {:.3} µm largest offset on an axis in no path); update gaps: {:.3} % of moving cycles, longest {} servo cycles",
             report.holding_samples,
             report.model_switches,
+            report.axis_switches,
+            report.wrong_model_cycles,
+            report.max_parked_offset_um,
             report.gap_fraction * 100.0,
             report.longest_update_gap_cycles
         );

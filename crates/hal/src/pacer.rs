@@ -104,6 +104,19 @@ pub fn realtime_setup(priority: i32, cpu: Option<usize>) -> RealtimeSetup {
     setup
 }
 
+/// Keeps the calling thread, and the threads it starts from now on (a logger, a sampler), off
+/// the cycle's CPU: on a kernel without full preemption a system call of another thread (the
+/// log's write and fsync) on that CPU holds a woken realtime thread up until it returns.
+/// Returns the CPUs left to them (empty, and nothing changed, with a single CPU).
+pub fn keep_off_cpu(cycle_cpu: usize) -> Result<Vec<usize>, String> {
+    let cpus = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let others: Vec<usize> = (0..cpus).filter(|&c| c != cycle_cpu).collect();
+    if !others.is_empty() {
+        ffi::bind_to_cpus(&others)?;
+    }
+    Ok(others)
+}
+
 /// A stall: late cycles whose windows (deadline to finish) overlap.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Episode {

@@ -6,6 +6,7 @@
 //! | `truepos.enable` | bit | in | compensate (false: ramp the offsets to zero) |
 //! | `truepos.model-select` | s32 | in | model to use, index of `--model` (0-based) |
 //! | `truepos.axis.<a>.pos` | float | in | nominal axis position, mm (net `axis.<a>.pos-cmd`) |
+//! | `truepos.axis.<a>.path` | s32 | in | path the axis belongs to now, 0 none (default: machine file) |
 //! | `truepos.temp.<id>` | float | in | temperature channel of the machine file, °C |
 //! | `truepos.operating.<id>` | float | in | operating channel (spindle speed, …) |
 //! | `truepos.axis.<a>.offset-um` | float | out | compensation sent, µm (−error) |
@@ -16,6 +17,7 @@
 //! | `truepos.motion-enabled` | bit | in | net from `motion.motion-enabled` |
 //! | `truepos.all-homed` | bit | in | net from `motion.is-all-homed` |
 //! | `truepos.status` | s32 | out | 0 disabled, 1 active, 2 holding, 3 no model |
+//! | `truepos.path.<n>.model` | s32 | out | model in effect on path n (index of `--model`), −1 none |
 //! | `truepos.clamped` | bit | out | the safety envelope limited an axis this cycle |
 //! | `truepos.cycle-us` | float | out | duration of the last cycle's work, µs |
 //! | `truepos.cycles` | s32 | out | cycles run (wraps) |
@@ -61,11 +63,18 @@ pub struct ControlPins {
     pub model_select: S32Pin,
 }
 
+/// The pin-name suffix of a path's model pin (path 1 → `path.1.model`).
+pub fn path_model_pin(path: usize) -> String {
+    format!("path.{path}.model")
+}
+
 /// The input pins of the cycle's data.
 #[derive(Debug)]
 pub struct InputPins {
     /// `truepos.axis.<a>.pos`, machine axis order.
     pub positions: Vec<FloatPin>,
+    /// `truepos.axis.<a>.path`, machine axis order: the control's axis configuration (seed D).
+    pub paths: Vec<S32Pin>,
     /// `truepos.temp.<id>`, machine temperature order.
     pub temperatures: Vec<FloatPin>,
     /// `truepos.operating.<id>`, machine operating order.
@@ -94,6 +103,8 @@ pub struct OutputPins {
     pub axes: Vec<AxisOutputPins>,
     /// `truepos.status`.
     pub status: S32Pin,
+    /// `truepos.path.<n>.model`, per path (path 1 first).
+    pub path_models: Vec<S32Pin>,
     /// `truepos.clamped`.
     pub clamped: BitPin,
     /// `truepos.cycle-us`.
@@ -117,13 +128,16 @@ pub struct Pins {
     pub outputs: OutputPins,
 }
 
-/// Creates every pin of `machine` on `component` (before [`Component::ready`]).
-pub fn create(component: &Component, machine: &Machine) -> Result<Pins, HalError> {
+/// Creates every pin of `machine` on `component` (before [`Component::ready`]); `paths` is the
+/// number of paths of the control (one `path.<n>.model` pin each).
+pub fn create(component: &Component, machine: &Machine, paths: usize) -> Result<Pins, HalError> {
     let mut positions = Vec::new();
+    let mut axis_paths = Vec::new();
     let mut axes = Vec::new();
     for axis in &machine.axes {
         let p = axis_prefix(&axis.name);
         positions.push(component.float_pin(&format!("{p}.pos"), Direction::In)?);
+        axis_paths.push(component.s32_pin(&format!("{p}.path"), Direction::In)?);
         axes.push(AxisOutputPins {
             offset_um: component.float_pin(&format!("{p}.offset-um"), Direction::Out)?,
             counts: component.s32_pin(&format!("{p}.eoffset-counts"), Direction::Out)?,
@@ -148,12 +162,16 @@ pub fn create(component: &Component, machine: &Machine) -> Result<Pins, HalError
     };
     let inputs = InputPins {
         positions,
+        paths: axis_paths,
         temperatures,
         operating,
     };
     let outputs = OutputPins {
         axes,
         status: component.s32_pin("status", Direction::Out)?,
+        path_models: (1..=paths)
+            .map(|n| component.s32_pin(&path_model_pin(n), Direction::Out))
+            .collect::<Result<Vec<_>, _>>()?,
         clamped: component.bit_pin("clamped", Direction::Out)?,
         cycle_us: component.float_pin("cycle-us", Direction::Out)?,
         cycles: component.s32_pin("cycles", Direction::Out)?,
@@ -178,5 +196,6 @@ mod tests {
         assert_eq!(operating_pin("spindle_rpm"), "operating.spindle_rpm");
         assert_eq!(status_code(CompensationState::Active), 1);
         assert_eq!(status_code(CompensationState::NoModel), 3);
+        assert_eq!(path_model_pin(1), "path.1.model");
     }
 }

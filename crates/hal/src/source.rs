@@ -1,6 +1,7 @@
-//! The `truepos` component as a [`Source`]: axis positions, temperatures and operating values
-//! from its input pins.
+//! The `truepos` component as a [`Source`]: axis positions, temperatures, operating values and
+//! the control's axis configuration from its input pins.
 
+use truepos_io::machine_file::AxisRuntime;
 use truepos_runtime::{Frame, LinkError, Source};
 
 use crate::pins::InputPins;
@@ -11,18 +12,28 @@ use crate::pins::InputPins;
 pub struct HalSource {
     pins: InputPins,
     name: String,
+    /// Machine axis indices by axis number: the order of a path's axes (seed D's index).
+    by_number: Vec<usize>,
 }
 
 impl HalSource {
-    /// A source over the input pins of component `component`. The temperature pins start at
-    /// NaN, so that a pin left unconnected is a sensor fault rather than a plausible 0 °C.
-    pub fn new(component: &str, pins: InputPins) -> Self {
+    /// A source over the input pins of component `component`, for the axes of the machine
+    /// file (`axes`, machine order). The temperature pins start at NaN, so that a pin left
+    /// unconnected is a sensor fault rather than a plausible 0 °C; the axis-path pins start at
+    /// each axis' `path` in the machine file, so that left unconnected they change nothing.
+    pub fn new(component: &str, pins: InputPins, axes: &[AxisRuntime]) -> Self {
         for pin in &pins.temperatures {
             pin.set(f64::NAN);
         }
+        for (pin, axis) in pins.paths.iter().zip(axes) {
+            pin.set(i32::try_from(axis.path).unwrap_or(0));
+        }
+        let mut by_number: Vec<usize> = (0..axes.len()).collect();
+        by_number.sort_by_key(|&a| axes[a].number);
         Self {
             pins,
             name: format!("hal {component}"),
+            by_number,
         }
     }
 }
@@ -41,6 +52,18 @@ impl Source for HalSource {
         }
         for (i, pin) in self.pins.operating.iter().enumerate() {
             frame.set_operating(i, pin.get());
+        }
+        // The axis configuration, rebuilt in the capacity the service reserved (no
+        // allocation); an axis whose pin names no path of the machine is in none (parked).
+        for axes in &mut frame.paths {
+            axes.clear();
+        }
+        for &a in &self.by_number {
+            let path = self.pins.paths.get(a).map_or(0, |p| p.get());
+            let slot = usize::try_from(path).ok().and_then(|p| p.checked_sub(1));
+            if let Some(axes) = slot.and_then(|p| frame.paths.get_mut(p)) {
+                axes.push(a);
+            }
         }
         Ok(())
     }

@@ -102,8 +102,14 @@ pub fn run(config: &TimingConfig, stop: &AtomicBool) -> Result<Value, String> {
         Vec::new(),
         ServiceConfig::default(),
     );
-    // The logger thread starts before the cycle thread takes its CPU and priority, so it
-    // inherits neither.
+    let cpus = std::thread::available_parallelism().map_or(1, |n| n.get());
+    // The logger and sampling threads start before the cycle thread takes its CPU and
+    // priority, so they inherit neither, and bound to the other CPUs.
+    if let Some(cpu) = config.cpu {
+        if let Err(e) = pacer::keep_off_cpu(cpu) {
+            eprintln!("truepos-hal timing: warning: {e}");
+        }
+    }
     let logger = match &config.log {
         Some(path) => Some(
             Logger::start(
@@ -123,13 +129,8 @@ pub fn run(config: &TimingConfig, stop: &AtomicBool) -> Result<Value, String> {
         ),
         None => None,
     };
-    let cpus = std::thread::available_parallelism().map_or(1, |n| n.get());
-    let sampler_cpu = config
-        .cpu
-        .filter(|_| cpus > 1)
-        .map(|c| if c == 0 { 1 } else { 0 });
     let sample_ns = (config.sample_ms * 1e6).round().max(1e5) as u64;
-    let sampler = HostSampler::start(sample_ns, config.cpu, sampler_cpu);
+    let sampler = HostSampler::start(sample_ns, config.cpu);
     if let Err(e) = &sampler {
         eprintln!("truepos-hal timing: warning: no host sampling: {e}");
     }
