@@ -15,17 +15,32 @@ fn machine() -> Machine {
     truepos_io::machine_file::load(&path).unwrap().machine
 }
 
-/// Temperatures of every row in the machine's channel order.
+/// Temperatures of every row in the machine's channel order; the machine's lagged channels are
+/// computed from their sensors as the control would.
 fn temperatures(run: &SimRun, machine: &Machine) -> Vec<Vec<f64>> {
-    let index: Vec<usize> = machine
+    let index: Vec<Option<usize>> = machine
         .temperatures
         .iter()
-        .map(|t| run.sensor_ids.iter().position(|s| *s == t.id).unwrap())
+        .map(|t| {
+            let i = run.sensor_ids.iter().position(|s| *s == t.id);
+            assert!(i.is_some() || t.lag.is_some(), "no sensor `{}`", t.id);
+            i
+        })
         .collect();
-    run.rows
+    let mut temps: Vec<Vec<f64>> = run
+        .rows
         .iter()
-        .map(|r| index.iter().map(|&i| r.temperatures_c[i]).collect())
-        .collect()
+        .map(|r| {
+            index
+                .iter()
+                .map(|i| i.map_or(f64::NAN, |i| r.temperatures_c[i]))
+                .collect()
+        })
+        .collect();
+    let time: Vec<f64> = run.rows.iter().map(|r| r.time_s).collect();
+    let operating = vec![vec![f64::NAN; machine.operating.len()]; run.rows.len()];
+    truepos_io::cycles::fill_lags(machine, &time, &mut temps, &operating);
+    temps
 }
 
 #[test]
