@@ -38,9 +38,21 @@ fn machine_description_matches_the_twin() {
         assert_eq!([a.travel_min, a.travel_max], t);
     }
     assert_eq!(m.axes[0].carried_by, Some(1), "X rests on Y");
-    let ids: Vec<&str> = m.temperatures.iter().map(|t| t.id.as_str()).collect();
+    // Every measured channel is a twin sensor, in order; lagged channels are computed from them.
+    let ids: Vec<&str> = m
+        .temperatures
+        .iter()
+        .filter(|t| t.lag.is_none())
+        .map(|t| t.id.as_str())
+        .collect();
     let twin_ids: Vec<&str> = twin.sensors.iter().map(|s| s.id.as_str()).collect();
     assert_eq!(ids, twin_ids);
+    for t in m.temperatures.iter().filter(|t| t.lag.is_some()) {
+        let Some(truepos_model::LagSource::Temperature(s)) = t.lag.map(|l| l.source) else {
+            panic!("{}: the twin's lagged channels follow its sensors", t.id);
+        };
+        assert!(twin_ids.contains(&m.temperatures[s].id.as_str()));
+    }
     // Operating channels are CSV columns of a run.
     let run = twin.run(&short("mixed-shift", 3.0), 1).unwrap();
     let header = run.header(false);
