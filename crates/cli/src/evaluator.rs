@@ -54,14 +54,7 @@ impl Evaluator {
     pub fn used_sensors(&self) -> Vec<usize> {
         match self {
             Self::Static(m) => m.used_sensors().to_vec(),
-            Self::Dynamic { bound, .. } => bound
-                .inputs
-                .iter()
-                .filter_map(|i| match i {
-                    MachineInput::Temperature(c) => Some(*c),
-                    MachineInput::Operating(_) => None,
-                })
-                .collect(),
+            Self::Dynamic { bound, .. } => bound.temperature_channels(),
         }
     }
 

@@ -230,6 +230,23 @@ pub struct BoundDynamicModel {
     pub axis_index: Option<Vec<u32>>,
 }
 
+impl BoundDynamicModel {
+    /// The temperature channels it reads, sorted, each once (its sensors, for validation).
+    pub fn temperature_channels(&self) -> Vec<usize> {
+        let mut c: Vec<usize> = self
+            .inputs
+            .iter()
+            .filter_map(|i| match i {
+                MachineInput::Temperature(c) => Some(*c),
+                MachineInput::Operating(_) => None,
+            })
+            .collect();
+        c.sort_unstable();
+        c.dedup();
+        c
+    }
+}
+
 impl DynamicModelFile {
     /// The axis an output serves: its `axis`, else an axis named like the output (`Z`, `Z_um`,
     /// `dz_um`, case-insensitive).

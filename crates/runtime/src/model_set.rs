@@ -45,16 +45,7 @@ pub struct DynamicEntry {
 impl DynamicEntry {
     /// Wraps a bound model.
     pub fn new(bound: BoundDynamicModel) -> Self {
-        let mut sensors: Vec<usize> = bound
-            .inputs
-            .iter()
-            .filter_map(|i| match i {
-                MachineInput::Temperature(c) => Some(*c),
-                MachineInput::Operating(_) => None,
-            })
-            .collect();
-        sensors.sort_unstable();
-        sensors.dedup();
+        let sensors = bound.temperature_channels();
         Self {
             input: vec![0.0; bound.inputs.len()],
             sensors,
