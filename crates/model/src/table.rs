@@ -160,6 +160,27 @@ pub(crate) struct Location {
 }
 
 impl Location {
+    /// The segment the position falls in.
+    #[inline(always)]
+    pub(crate) fn segment(self) -> usize {
+        self.segment
+    }
+
+    /// Value and (if `SLOPE`) slope per unit of position of the cubic `c` of this location's
+    /// segment (power basis in t, constant term first): three multiply-adds.
+    #[inline(always)]
+    pub(crate) fn cubic<const SLOPE: bool>(self, c: &[f64; 4]) -> (f64, f64) {
+        let &[c0, c1, c2, c3] = c;
+        let t = self.t;
+        let value = ((c3 * t + c2) * t + c1) * t + c0;
+        let slope = if SLOPE {
+            ((3.0 * c3 * t + 2.0 * c2) * t + c1) * self.dt
+        } else {
+            0.0
+        };
+        (value, slope)
+    }
+
     /// At the start of `segment` with zero slope (a held end value).
     fn held(position: f64, segment: usize) -> Self {
         Self {
@@ -519,36 +540,6 @@ impl CompTable {
         self.wrap == other.wrap && self.positions == other.positions
     }
 
-    /// The value at a location found by [`CompTable::locate`] on a table with the same support
-    /// points.
-    #[inline]
-    pub(crate) fn value_at(&self, at: Location, direction: Direction) -> f64 {
-        self.at::<false>(at, direction).0
-    }
-
-    /// The value and slope (value unit per mm or degree) at a location found by
-    /// [`CompTable::locate`] on a table with the same support points.
-    #[inline]
-    pub(crate) fn value_and_slope_at(&self, at: Location, direction: Direction) -> (f64, f64) {
-        self.at::<true>(at, direction)
-    }
-
-    #[inline(always)]
-    fn at<const SLOPE: bool>(&self, at: Location, direction: Direction) -> (f64, f64) {
-        match self.polynomial::<SLOPE>(at, direction) {
-            Some(v) => v,
-            None => self.relookup::<SLOPE>(at.position, direction),
-        }
-    }
-
-    /// A location from a table with other support points (never made by the crate): look up
-    /// afresh rather than panic.
-    #[cold]
-    #[inline(never)]
-    fn relookup<const SLOPE: bool>(&self, position: f64, direction: Direction) -> (f64, f64) {
-        self.lookup::<SLOPE>(position, direction)
-    }
-
     #[inline]
     fn lookup<const SLOPE: bool>(&self, position: f64, direction: Direction) -> (f64, f64) {
         // `locate` returns a segment below n and every column has n coefficient rows.
@@ -569,15 +560,18 @@ impl CompTable {
         } else {
             &self.coef_forward
         };
-        let &[c0, c1, c2, c3] = coef.get(at.segment)?;
-        let t = at.t;
-        let value = ((c3 * t + c2) * t + c1) * t + c0;
-        let slope = if SLOPE {
-            ((3.0 * c3 * t + 2.0 * c2) * t + c1) * at.dt
+        Some(at.cubic::<SLOPE>(coef.get(at.segment)?))
+    }
+
+    /// The cubic of every segment of one value column (the forward one for a table without a
+    /// reverse column), indexed by [`Location::segment`]: the kinematics chain copies them,
+    /// scaled to its units, into one flat array so a row's lookup needs no indirection.
+    pub(crate) fn cubics(&self, direction: Direction) -> &[[f64; 4]] {
+        if direction == Direction::Reverse && !self.coef_reverse.is_empty() {
+            &self.coef_reverse
         } else {
-            0.0
-        };
-        Some((value, slope))
+            &self.coef_forward
+        }
     }
 
     /// True if the support points are equidistant within `tolerance` (Siemens tables need it).
@@ -806,7 +800,7 @@ mod tests {
             let at = a.locate(x);
             for t in [&a, &b, &c] {
                 let at = if t.same_support(&a) { at } else { t.locate(x) };
-                let (v, s) = t.value_and_slope_at(at, Direction::Forward);
+                let (v, s) = at.cubic::<true>(&t.cubics(Direction::Forward)[at.segment()]);
                 let (v2, s2) = t.value_and_slope(x, Direction::Forward);
                 assert_eq!((v, s), (v2, s2), "x={x}");
                 let y = t.value(x - 360.0 * libm::round(x / 360.0), Direction::Forward);

@@ -2,7 +2,7 @@
 //! coordinates, nominal or through the error tables, optionally with the exact Jacobian
 //! (forward-mode differentiation through every row, including the slopes of the tables).
 
-use super::{Chain, Directions, Geometry, KinError, Pose, Step, DEG};
+use super::{Chain, Directions, ErrRef, Geometry, KinError, Pose, Step, DEG};
 use crate::machine::{AxisKind, MAX_AXES};
 use crate::table::Location;
 
@@ -21,41 +21,47 @@ impl Tangents {
     };
 }
 
-/// The coordinates (k + 1, k + 2) mod 3 that a rotation about axis k mixes; a select rather
-/// than two remainders (this runs for every rotation row of every transform).
-#[inline(always)]
-fn plane(k: usize) -> (usize, usize) {
-    match k {
-        0 => (1, 2),
-        1 => (2, 0),
-        _ => (0, 1),
-    }
-}
-
 /// x ← R_k(θ)·x with c = cos θ, s = sin θ (active rotation about coordinate axis k).
 ///
 /// One arm per axis with constant indices: a computed index would force the pose out of
 /// registers into memory on every row (a store-to-load round trip per row of the chain).
 #[inline(always)]
 fn rotate(x: &mut [f64; 3], k: usize, c: f64, s: f64) {
-    let (i, j) = plane(k);
-    let (a, b) = (x[i], x[j]);
-    x[i] = c * a - s * b;
-    x[j] = s * a + c * b;
+    let [x0, x1, x2] = *x;
+    *x = match k {
+        0 => [x0, c * x1 - s * x2, s * x1 + c * x2],
+        1 => [s * x2 + c * x0, x1, c * x2 - s * x0],
+        _ => [c * x0 - s * x1, s * x0 + c * x1, x2],
+    };
 }
 
 /// x ← x + v·e_k, with constant indices for the same reason as [`rotate`].
 #[inline(always)]
 fn translate(x: &mut [f64; 3], k: usize, v: f64) {
-    x[k] += v;
+    match k {
+        0 => x[0] += v,
+        1 => x[1] += v,
+        _ => x[2] += v,
+    }
 }
 
 /// t += g · (e_k × x).
 #[inline(always)]
 fn add_cross(t: &mut [f64; 3], k: usize, x: &[f64; 3], g: f64) {
-    let (i, j) = plane(k);
-    t[i] -= g * x[j];
-    t[j] += g * x[i];
+    match k {
+        0 => {
+            t[1] -= g * x[2];
+            t[2] += g * x[1];
+        }
+        1 => {
+            t[2] -= g * x[0];
+            t[0] += g * x[2];
+        }
+        _ => {
+            t[0] -= g * x[1];
+            t[1] += g * x[0];
+        }
+    }
 }
 
 impl Chain {
@@ -112,14 +118,28 @@ impl Chain {
     ) -> Pose {
         // One copy of the walk per geometry: the nominal one then carries no table code.
         match geometry {
-            Geometry::Nominal => self.walk::<JAC, false>(q, tool_mm, dirs, tangents),
-            Geometry::Actual => self.walk::<JAC, true>(q, tool_mm, dirs, tangents),
+            Geometry::Nominal => self.walk::<JAC, false, true>(q, tool_mm, dirs, tangents),
+            Geometry::Actual => self.walk::<JAC, true, true>(q, tool_mm, dirs, tangents),
         }
     }
 
-    /// [`Chain::eval`] for one geometry (`ACTUAL`: through the error tables).
+    /// The pose through the error tables and the derivatives of the TCP only (`tangents.dd`
+    /// stays zero): what the 3-axis inverse needs, which cannot turn the tool, for a good
+    /// part less work than [`Chain::eval`] (no direction tangent is turned row by row).
+    pub(crate) fn eval_position_jacobian(
+        &self,
+        q: &[f64],
+        tool_mm: f64,
+        dirs: Directions,
+        tangents: &mut Tangents,
+    ) -> Pose {
+        self.walk::<true, true, false>(q, tool_mm, dirs, Some(tangents))
+    }
+
+    /// [`Chain::eval`] for one geometry (`ACTUAL`: through the error tables); `DIR_JAC`: the
+    /// derivatives of the tool direction too.
     #[inline(always)]
-    fn walk<const JAC: bool, const ACTUAL: bool>(
+    fn walk<const JAC: bool, const ACTUAL: bool, const DIR_JAC: bool>(
         &self,
         q: &[f64],
         tool_mm: f64,
@@ -137,7 +157,6 @@ impl Chain {
                 }
             }
         }
-        let actual = ACTUAL;
         // Bit j set: the tangents of axis j are no longer zero.
         let mut active: u32 = 0;
         // Where the axis position of the last error row fell in its table: rows reading tables
@@ -157,31 +176,19 @@ impl Chain {
                         }
                     }
                 }
-                Step::ErrTranslate {
-                    k,
-                    offset,
-                    table,
-                    axis,
-                    scale,
-                    relocate,
-                } => {
-                    if actual {
-                        let (v, slope) = self.table_value::<JAC>(
-                            table,
-                            relocate,
-                            &mut at,
-                            q[axis],
-                            dirs.of(axis),
-                        );
-                        translate(&mut p, k, offset + scale * v);
+                Step::ErrTranslate { k, e } => {
+                    if ACTUAL {
+                        let (v, slope) = self.error_value::<JAC>(&e, &mut at, q, dirs);
+                        translate(&mut p, k, v);
                         if JAC {
                             if let Some(t) = tangents.as_deref_mut() {
-                                t.dp[axis][k] += scale * slope * self.per_unit(axis);
+                                let axis = usize::from(e.axis);
+                                t.dp[axis][k] += slope * e.per_unit;
                                 active |= 1 << axis;
                             }
                         }
                     } else {
-                        translate(&mut p, k, offset);
+                        translate(&mut p, k, e.offset);
                     }
                 }
                 Step::Rotate { k, c, s } => {
@@ -195,7 +202,9 @@ impl Chain {
                                 let j = bits.trailing_zeros() as usize;
                                 bits &= bits - 1;
                                 rotate(&mut t.dp[j], k, c, s);
-                                rotate(&mut t.dd[j], k, c, s);
+                                if DIR_JAC {
+                                    rotate(&mut t.dd[j], k, c, s);
+                                }
                             }
                         }
                     }
@@ -212,33 +221,23 @@ impl Chain {
                                 let j = bits.trailing_zeros() as usize;
                                 bits &= bits - 1;
                                 rotate(&mut t.dp[j], k, c, s);
-                                rotate(&mut t.dd[j], k, c, s);
+                                if DIR_JAC {
+                                    rotate(&mut t.dd[j], k, c, s);
+                                }
                             }
                             add_cross(&mut t.dp[axis], k, &p, sign);
-                            add_cross(&mut t.dd[axis], k, &d, sign);
+                            if DIR_JAC {
+                                add_cross(&mut t.dd[axis], k, &d, sign);
+                            }
                             active |= 1 << axis;
                         }
                     }
                 }
-                Step::ErrRotate {
-                    k,
-                    offset,
-                    table,
-                    axis,
-                    scale,
-                    relocate,
-                } => {
-                    let (angle, slope) = if actual {
-                        let (v, slope) = self.table_value::<JAC>(
-                            table,
-                            relocate,
-                            &mut at,
-                            q[axis],
-                            dirs.of(axis),
-                        );
-                        (offset + scale * v, scale * slope)
+                Step::ErrRotate { k, e } => {
+                    let (angle, slope) = if ACTUAL {
+                        self.error_value::<JAC>(&e, &mut at, q, dirs)
                     } else {
-                        (offset, 0.0)
+                        (e.offset, 0.0)
                     };
                     let (s, c) = super::sincos(angle);
                     rotate(&mut p, k, c, s);
@@ -251,12 +250,17 @@ impl Chain {
                                 let j = bits.trailing_zeros() as usize;
                                 bits &= bits - 1;
                                 rotate(&mut t.dp[j], k, c, s);
-                                rotate(&mut t.dd[j], k, c, s);
+                                if DIR_JAC {
+                                    rotate(&mut t.dd[j], k, c, s);
+                                }
                             }
-                            if actual {
-                                let g = slope * self.per_unit(axis);
+                            if ACTUAL {
+                                let axis = usize::from(e.axis);
+                                let g = slope * e.per_unit;
                                 add_cross(&mut t.dp[axis], k, &p, g);
-                                add_cross(&mut t.dd[axis], k, &d, g);
+                                if DIR_JAC {
+                                    add_cross(&mut t.dd[axis], k, &d, g);
+                                }
                                 active |= 1 << axis;
                             }
                         }
@@ -270,25 +274,31 @@ impl Chain {
         }
     }
 
-    /// Table value and (if `SLOPE`) its slope at `x`, located afresh if `relocate`, else at
-    /// `at` (found by the previous error row on the same support points).
+    /// The value of error row `e` (mm or rad, nominal part included) and, if `SLOPE`, its
+    /// slope per mm or degree of its axis, located afresh if `e.relocate`, else at `at` (found
+    /// by the previous error row on the same support points).
     #[inline(always)]
-    fn table_value<const SLOPE: bool>(
+    pub(crate) fn error_value<const SLOPE: bool>(
         &self,
-        table: usize,
-        relocate: bool,
+        e: &ErrRef,
         at: &mut Location,
-        x: f64,
-        dir: crate::table::Direction,
+        q: &[f64],
+        dirs: Directions,
     ) -> (f64, f64) {
-        let t = &self.tables[table].table;
-        if relocate {
-            *at = t.locate(x);
+        let axis = usize::from(e.axis);
+        if e.relocate {
+            *at = self.tables[usize::from(e.table)].table.locate(q[axis]);
         }
-        if SLOPE {
-            t.value_and_slope_at(*at, dir)
+        let base = if dirs.0 >> axis & 1 == 1 {
+            e.reverse
         } else {
-            (t.value_at(*at, dir), 0.0)
+            e.forward
+        };
+        // `locate` returns a segment below the table's segment count, the length of the row's
+        // block: the fallback (the nominal part) is never taken.
+        match self.cubics.get(base as usize + at.segment()) {
+            Some(c) => at.cubic::<SLOPE>(c),
+            None => (e.offset, 0.0),
         }
     }
 

@@ -146,8 +146,8 @@ pub(crate) fn analyse(axes: &[KinAxis], steps: &[Step]) -> Layout {
     for step in steps {
         match *step {
             Step::Rotate { k, c, s } => rotate_m(&mut m, k, c, s),
-            Step::ErrRotate { k, offset, .. } => {
-                let (s, c) = super::sincos(offset);
+            Step::ErrRotate { k, e } => {
+                let (s, c) = super::sincos(e.offset);
                 rotate_m(&mut m, k, c, s);
             }
             Step::AxisTranslate { axis, .. } => {
@@ -240,6 +240,21 @@ pub(crate) fn affine(chain: &Chain, linear: &[usize; 3]) -> Option<Affine> {
         per_tool_mm: sub(&p1.position, &p0.position),
         direction: p0.direction,
     })
+}
+
+/// The inverse of the 3×3 matrix with columns c0, c1, c2 (rows: cross products of the
+/// columns over the determinant), or `None` if it is singular.
+fn inverse3(c0: &V3, c1: &V3, c2: &V3) -> Option<M3> {
+    let det = dot(c0, &cross(c1, c2));
+    let bound = 1e-12 * norm(c0) * norm(c1) * norm(c2);
+    if det.is_nan() || libm::fabs(det) <= bound {
+        return None;
+    }
+    Some([
+        scale(&cross(c1, c2), 1.0 / det),
+        scale(&cross(c2, c0), 1.0 / det),
+        scale(&cross(c0, c1), 1.0 / det),
+    ])
 }
 
 /// What one inverse transform did.
@@ -781,19 +796,19 @@ impl Chain {
         let mut gs = [I3; 3];
         let mut k_rot = [0usize; 2];
         let mut nr = 0;
+        let n = self.axes.len();
+        let mut at = crate::table::Location::default();
         for step in &self.steps {
             match *step {
                 Step::Rotate { k, c, s } => rotate_m(&mut m, k, c, s),
-                Step::ErrRotate {
-                    k,
-                    offset,
-                    table,
-                    axis,
-                    scale,
-                    ..
-                } => {
-                    let v = self.tables[table].table.value(q[axis], dirs.of(axis));
-                    let (s, c) = super::sincos(offset + scale * v);
+                Step::ErrRotate { k, e } => {
+                    // Translation rows are skipped here, so every row locates its position.
+                    let e = super::ErrRef {
+                        relocate: true,
+                        ..e
+                    };
+                    let (angle, _) = self.error_value::<false>(&e, &mut at, &q[..n], dirs);
+                    let (s, c) = super::sincos(angle);
                     rotate_m(&mut m, k, c, s);
                 }
                 Step::AxisRotate { k, .. } => {
@@ -820,10 +835,13 @@ impl Chain {
         }
     }
 
-    /// Chord iterations of a 3-axis machine with the nominal chain's constant A⁻¹ as the
-    /// inverse Jacobian: the tables change the real Jacobian by about their relative slopes
-    /// (1e-4), so each step shrinks the TCP residual by that factor and costs one forward
-    /// transform without derivatives. The tool direction cannot be commanded and is only
+    /// Newton then chord iterations of a 3-axis machine. The first transform, at the nominal
+    /// solution, carries the exact TCP derivatives (through the tables' slopes and the error
+    /// rotations): the tables change the real Jacobian by about their relative slopes (1e-4),
+    /// so the nominal A⁻¹ would leave ~1e-4 of the residual (5 nm of 50 µm) and need a second
+    /// step and a third transform, while the exact one leaves only second-order terms and
+    /// one transform without derivatives confirms convergence. Later steps (rare) reuse that
+    /// inverse (A⁻¹ if it is singular). The tool direction cannot be commanded and is only
     /// reported. Ends with [`KinError::NotConverged`] (`q` at the best point) if a step does
     /// not reduce the residual.
     #[allow(clippy::too_many_arguments)]
@@ -839,8 +857,18 @@ impl Chain {
         const CHORD_STEPS: u32 = 6;
         let n = self.axes.len();
         let mut best = (*q, f64::INFINITY, f64::INFINITY);
+        let mut inv = af.inv;
         for iterations in 0..=CHORD_STEPS {
-            let pose = self.eval::<false>(&q[..n], tool_mm, dirs, Geometry::Actual, None);
+            let pose = if iterations == 0 {
+                let mut t = Tangents::ZERO;
+                let pose = self.eval_position_jacobian(&q[..n], tool_mm, dirs, &mut t);
+                if let Some(i) = inverse3(&t.dp[linear[0]], &t.dp[linear[1]], &t.dp[linear[2]]) {
+                    inv = i;
+                }
+                pose
+            } else {
+                self.eval::<false>(&q[..n], tool_mm, dirs, Geometry::Actual, None)
+            };
             let rp = sub(&pose.position, &target.position);
             let (np, nd) = (norm(&rp), norm(&sub(&pose.direction, &target.direction)));
             if !(np.is_finite() && nd.is_finite()) {
@@ -856,7 +884,7 @@ impl Chain {
             if iterations == CHORD_STEPS {
                 break;
             }
-            let step = mul_mv(&af.inv, &rp);
+            let step = mul_mv(&inv, &rp);
             for (c, &j) in linear.iter().enumerate() {
                 q[j] -= step[c];
             }
@@ -1045,7 +1073,18 @@ impl Chain {
 
 /// The Jacobian with the direction rows weighted by `w` (6 × n, one array per axis) and the
 /// factors that scale each column to unit length.
+/// The Jacobian with the direction rows weighted by `w`, and the scale of each column to unit
+/// length (`n` a constant for common counts, as in [`Normal::factor`]).
 fn weighted_jacobian(t: &Tangents, n: usize, w: f64) -> ([[f64; 6]; MAX_AXES], [f64; MAX_AXES]) {
+    match n {
+        5 => weighted_jacobian_n(t, 5, w),
+        3 => weighted_jacobian_n(t, 3, w),
+        _ => weighted_jacobian_n(t, n, w),
+    }
+}
+
+#[inline(always)]
+fn weighted_jacobian_n(t: &Tangents, n: usize, w: f64) -> ([[f64; 6]; MAX_AXES], [f64; MAX_AXES]) {
     let mut jac = [[0.0; 6]; MAX_AXES];
     let mut colscale = [1.0; MAX_AXES];
     for j in 0..n {
@@ -1068,8 +1107,24 @@ struct Normal {
 }
 
 impl Normal {
-    /// Factorises; `None` if the matrix is not positive definite.
+    /// Factorises; `None` if the matrix is not positive definite. The common axis counts get
+    /// their own copy with `n` a constant, so the small loops unroll and lose their bounds
+    /// checks (this runs once per inverse transform).
     fn factor(
+        jac: &[[f64; 6]; MAX_AXES],
+        colscale: &[f64; MAX_AXES],
+        n: usize,
+        mu: f64,
+    ) -> Option<Self> {
+        match n {
+            5 => Self::factor_n(jac, colscale, 5, mu),
+            3 => Self::factor_n(jac, colscale, 3, mu),
+            _ => Self::factor_n(jac, colscale, n, mu),
+        }
+    }
+
+    #[inline(always)]
+    fn factor_n(
         jac: &[[f64; 6]; MAX_AXES],
         colscale: &[f64; MAX_AXES],
         n: usize,
@@ -1112,8 +1167,24 @@ impl Normal {
     }
 
     /// The step Δ = −S·(L·Lᵀ)⁻¹·SᵀJᵀr; `None` if not finite.
+    /// The least-squares step from the factor (`n` a constant for common counts, as in
+    /// [`Normal::factor`]).
     fn solve(&self, jac: &[[f64; 6]; MAX_AXES], r: &[f64; 6]) -> Option<[f64; MAX_AXES]> {
-        let (a, n) = (&self.l, self.n);
+        match self.n {
+            5 => self.solve_n(jac, r, 5),
+            3 => self.solve_n(jac, r, 3),
+            n => self.solve_n(jac, r, n),
+        }
+    }
+
+    #[inline(always)]
+    fn solve_n(
+        &self,
+        jac: &[[f64; 6]; MAX_AXES],
+        r: &[f64; 6],
+        n: usize,
+    ) -> Option<[f64; MAX_AXES]> {
+        let a = &self.l;
         let mut b = [0.0; MAX_AXES];
         for i in 0..n {
             let mut s = 0.0;

@@ -391,53 +391,37 @@ pub enum Geometry {
     Actual,
 }
 
+/// What an error row reads: its cubics in the chain's flat array (scaled to mm or radians,
+/// with the row's nominal part in the constant term) and where to find the segment.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct ErrRef {
+    /// Nominal part (mm or rad): the value of the nominal chain.
+    pub offset: f64,
+    /// d(axis position in mm or degrees) / d(internal unknown in mm or rad), for the Jacobian.
+    pub per_unit: f64,
+    /// First cubic of the forward and of the reverse column in `Chain::cubics` (the same for
+    /// a table without a reverse column, so the direction costs a select, not a branch).
+    pub forward: u32,
+    pub reverse: u32,
+    /// The table whose support points locate the axis position.
+    pub table: u16,
+    /// The axis whose position reads the table.
+    pub axis: u8,
+    /// False if the error row before this one reads a table of the same axis with the same
+    /// support points: the axis position's segment found there serves this row too.
+    pub relocate: bool,
+}
+
 // One compiled row. Angles in radians, lengths in mm.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) enum Step {
-    Translate {
-        k: usize,
-        v: f64,
-    },
-    Tool {
-        k: usize,
-        sign: f64,
-        offset: f64,
-    },
-    Rotate {
-        k: usize,
-        c: f64,
-        s: f64,
-    },
-    ErrTranslate {
-        k: usize,
-        offset: f64,
-        table: usize,
-        axis: usize,
-        scale: f64,
-        // False if the error row before this one reads a table of the same axis with the same
-        // support points: the axis position's segment found there serves this row too.
-        relocate: bool,
-    },
-    ErrRotate {
-        k: usize,
-        offset: f64,
-        table: usize,
-        axis: usize,
-        scale: f64,
-        // False if the error row before this one reads a table of the same axis with the same
-        // support points: the axis position's segment found there serves this row too.
-        relocate: bool,
-    },
-    AxisTranslate {
-        k: usize,
-        axis: usize,
-        sign: f64,
-    },
-    AxisRotate {
-        k: usize,
-        axis: usize,
-        sign: f64,
-    },
+    Translate { k: usize, v: f64 },
+    Tool { k: usize, sign: f64, offset: f64 },
+    Rotate { k: usize, c: f64, s: f64 },
+    ErrTranslate { k: usize, e: ErrRef },
+    ErrRotate { k: usize, e: ErrRef },
+    AxisTranslate { k: usize, axis: usize, sign: f64 },
+    AxisRotate { k: usize, axis: usize, sign: f64 },
 }
 
 /// What the inverse transform knows about the chain's structure, found once at build time.
@@ -464,6 +448,10 @@ pub struct Chain {
     tables: Vec<ErrorTable>,
     rows: Vec<Row>,
     steps: Vec<Step>,
+    // The cubics of every error row's table, one block per row and column, scaled to mm or
+    // radians with the row's nominal part added to the constant term: a lookup is one index
+    // into this array (no table, unit or offset indirection per row).
+    cubics: Vec<[f64; 4]>,
     layout: Layout,
     // Bit j: axis j is rotary and every table it reads repeats every 360°, so whole turns of
     // it change nothing (found once here rather than per inverse transform).
@@ -500,6 +488,7 @@ impl Chain {
         }
         let mut uses = alloc::vec![0usize; axes.len()];
         let mut steps = Vec::with_capacity(rows.len());
+        let mut cubics: Vec<[f64; 4]> = Vec::new();
         // The table of the previous error row (see `Step::ErrRotate::relocate`).
         let mut last_table: Option<&ErrorTable> = None;
         for (i, row) in rows.iter().enumerate() {
@@ -553,24 +542,47 @@ impl Chain {
                         o.axis != t.axis || !o.table.same_support(&t.table)
                     });
                     last_table = Some(t);
-                    if dof.is_rotation() {
-                        Step::ErrRotate {
-                            k,
-                            offset: offset * DEG,
-                            table,
-                            axis: t.axis,
-                            scale,
-                            relocate,
-                        }
+                    let offset = if dof.is_rotation() {
+                        offset * DEG
                     } else {
-                        Step::ErrTranslate {
-                            k,
-                            offset,
-                            table,
-                            axis: t.axis,
-                            scale,
-                            relocate,
-                        }
+                        offset
+                    };
+                    // This row's value is offset + scale · table: fold both into the cubics.
+                    let mut block = |direction: Direction| -> Result<u32, ChainError> {
+                        let start = u32::try_from(cubics.len()).map_err(|_| bad("tables"))?;
+                        cubics.extend(t.table.cubics(direction).iter().map(|c| {
+                            [
+                                offset + scale * c[0],
+                                scale * c[1],
+                                scale * c[2],
+                                scale * c[3],
+                            ]
+                        }));
+                        Ok(start)
+                    };
+                    let forward = block(Direction::Forward)?;
+                    let reverse = if t.table.reverse().is_some() {
+                        block(Direction::Reverse)?
+                    } else {
+                        forward
+                    };
+                    let e = ErrRef {
+                        offset,
+                        per_unit: match axes[t.axis].kind {
+                            AxisKind::Linear => 1.0,
+                            AxisKind::Rotary => 1.0 / DEG,
+                        },
+                        forward,
+                        reverse,
+                        // MAX_AXES (9) axes and far fewer than 65536 tables in any file.
+                        table: u16::try_from(table).map_err(|_| bad("table index"))?,
+                        axis: u8::try_from(t.axis).map_err(|_| bad("axis index"))?,
+                        relocate,
+                    };
+                    if dof.is_rotation() {
+                        Step::ErrRotate { k, e }
+                    } else {
+                        Step::ErrTranslate { k, e }
                     }
                 }
                 Row::Axis { dof, axis, sign } => {
@@ -623,6 +635,7 @@ impl Chain {
             tables,
             rows,
             steps,
+            cubics,
             layout,
             periodic,
         };
@@ -673,7 +686,9 @@ impl Chain {
                 t.table = z;
             }
         }
-        c
+        // The flat cubics are copies of the tables: build them again (from a valid chain's
+        // parts this cannot fail; the clone would keep the old values, so prefer the rebuild).
+        Self::new(c.axes.clone(), c.tables.clone(), c.rows.clone()).unwrap_or(c)
     }
 
     /// Name of the closed form the inverse transform uses: `3-axis`, `5-axis` or
