@@ -36,6 +36,10 @@ fn demo_fits_on_one_day_and_improves_the_other() {
     // Both models help on a day they never saw; the position-dependent one more.
     assert!(prior > 0.5, "{v}");
     assert!(posdep > prior, "{v}");
+    // The bar: the position-dependent model cuts the largest error over the working
+    // volume on the held-out day by at least 90 % (91 % when this was written; a regression in
+    // fitting, lagged channels or the 20 °C inputs shows here first).
+    assert!(posdep >= 0.90, "{v}");
     // The models are files `truepos eval` reads with the twin's machine description.
     let model = dir.join("position-dependent.model.toml");
     let machine = truepos_io::machine_file::load(&repo("examples/twin/machine.toml"))
