@@ -131,6 +131,14 @@ pub(crate) struct FiveAxis {
     u2: V3,
     /// Rotations after the outer axis.
     g2: M3,
+    /// No table reads a linear axis and none has a reverse column: the real TCP is then
+    /// affine in the linear axes at any rotary set-points, so the closed form can solve them
+    /// on the real chain directly (see [`Chain::inverse`]).
+    real_linear: bool,
+    /// Every linear axis row lies on the workpiece side of both rotary rows: the derivatives
+    /// with respect to the rotary axes do not depend on the linear axes, so the derivatives
+    /// found while solving the linear axes hold at the solution too.
+    linear_outside: bool,
 }
 
 /// Finds the layout of a chain (see [`Layout`]).
@@ -143,9 +151,30 @@ pub(crate) fn analyse(axes: &[KinAxis], steps: &[Step]) -> Layout {
     let mut nr = 0;
     let mut m = I3;
     let mut gs = [I3; 3];
-    for step in steps {
+    let (mut real_linear, mut last_rotary, mut first_linear) = (true, 0, usize::MAX);
+    for (i, step) in steps.iter().enumerate() {
+        match *step {
+            Step::ErrTranslate { e, .. } | Step::ErrRotate { e, .. } => {
+                let axis = &axes[usize::from(e.axis)];
+                if axis.kind != crate::machine::AxisKind::Rotary || e.forward != e.reverse {
+                    real_linear = false;
+                }
+            }
+            _ => {}
+        }
+        match *step {
+            Step::AxisTranslate { .. } => first_linear = first_linear.min(i),
+            Step::AxisRotate { .. } => last_rotary = i,
+            _ => {}
+        }
         match *step {
             Step::Rotate { k, c, s } => rotate_m(&mut m, k, c, s),
+            Step::ConstErrRotate {
+                k,
+                nominal_c,
+                nominal_s,
+                ..
+            } => rotate_m(&mut m, k, nominal_c, nominal_s),
             Step::ErrRotate { k, e } => {
                 let (s, c) = super::sincos(e.offset);
                 rotate_m(&mut m, k, c, s);
@@ -192,6 +221,8 @@ pub(crate) fn analyse(axes: &[KinAxis], steps: &[Step]) -> Layout {
                 g1: gs[1],
                 u2,
                 g2: gs[2],
+                real_linear,
+                linear_outside: first_linear > last_rotary,
             })
         }
         _ => Layout::General,
@@ -392,6 +423,18 @@ impl Chain {
         prev[..n].copy_from_slice(previous);
         let with_errors = geometry == Geometry::Actual;
         let use_direction = self.rotary_count() >= 2;
+        // Away from the pole Newton converges from the nominal solution in two or three steps;
+        // near it (or if Newton fails) the error pre-correction comes first.
+        let near_pole = match &self.layout {
+            Layout::FiveAxis(fa) => {
+                let outer = mul_mv(&fa.g2, &fa.u2);
+                norm(&cross(&outer, &target.direction)) < 1e-2
+            }
+            _ => false,
+        };
+        // The start of the chord iterations when the closed form already knows the real pose
+        // and its derivatives there (see below).
+        let mut start: Option<(Pose, Tangents)> = None;
         let closed = match &self.layout {
             Layout::General => {
                 // Damped least squares from the previous set-point.
@@ -401,19 +444,35 @@ impl Chain {
                 }
                 false
             }
+            Layout::FiveAxis(fa)
+                if with_errors && !near_pole && fa.real_linear && fa.linear_outside =>
+            {
+                // The real TCP is affine in the linear axes: solve them on the real chain
+                // (the rotary axes from the nominal closed form). With the linear axes
+                // outside the rotary ones the derivatives do not depend on them, so the
+                // transform with derivatives this takes also starts the chord iterations:
+                // one such transform per target instead of two (nominal, then real). With
+                // the linear axes inside (a trunnion table), the rotary derivatives change
+                // with them and the nominal closed form below is cheaper.
+                let mut t = Tangents::ZERO;
+                let pose = self.five_axis(
+                    fa,
+                    &target,
+                    tool_mm,
+                    &prev,
+                    &mut q,
+                    Some(previous_dirs),
+                    &mut t,
+                )?;
+                if fa.linear_outside {
+                    start = Some((pose, t));
+                }
+                true
+            }
             layout => {
                 self.closed_form(layout, &target, tool_mm, &prev, &mut q)?;
                 true
             }
-        };
-        // Away from the pole Newton converges from the nominal solution in two or three steps;
-        // near it (or if Newton fails) the error pre-correction comes first.
-        let near_pole = match &self.layout {
-            Layout::FiveAxis(fa) => {
-                let outer = mul_mv(&fa.g2, &fa.u2);
-                norm(&cross(&outer, &target.direction)) < 1e-2
-            }
-            _ => false,
         };
         let refine = |q: &mut [f64; MAX_AXES]| {
             if let (Layout::FiveAxis(fa), true) = (&self.layout, with_errors) {
@@ -441,7 +500,14 @@ impl Chain {
                         linear,
                         affine: Some(af),
                     } => self.chord_affine(af, linear, &target, tool_mm, dirs, &mut q),
-                    _ => self.chord(&target, tool_mm, dirs, use_direction, &mut q),
+                    _ => self.chord(
+                        &target,
+                        tool_mm,
+                        dirs,
+                        use_direction,
+                        &mut q,
+                        start.as_ref(),
+                    ),
                 };
                 match chord {
                     Ok(r) => Ok(r),
@@ -574,8 +640,17 @@ impl Chain {
             // the pole both branches can be almost equally far from it, and switching between
             // them would stall the iteration.
             let current = *q;
+            let mut scratch = Tangents::ZERO;
             if self
-                .five_axis(&frozen, target, tool_mm, &current, &mut q2, Some(dirs))
+                .five_axis(
+                    &frozen,
+                    target,
+                    tool_mm,
+                    &current,
+                    &mut q2,
+                    Some(dirs),
+                    &mut scratch,
+                )
                 .is_err()
             {
                 break;
@@ -656,7 +731,11 @@ impl Chain {
                 }
                 self.solve_linear(linear, &pose, &t, target, q)
             }
-            Layout::FiveAxis(fa) => self.five_axis(fa, target, tool_mm, prev, q, None),
+            Layout::FiveAxis(fa) => {
+                let mut t = Tangents::ZERO;
+                self.five_axis(fa, target, tool_mm, prev, q, None, &mut t)
+                    .map(|_| ())
+            }
             Layout::General => Ok(()),
         }
     }
@@ -702,6 +781,10 @@ impl Chain {
     /// The 5-axis closed form. With `actual` (travel directions), `fa` holds the rotations of
     /// the erroneous chain frozen at some set-points and the linear axes are solved on the
     /// erroneous chain (one Newton step; exact if the tables do not depend on them).
+    ///
+    /// Returns the pose at the solution as the (affine) linear axes predict it, with the
+    /// derivatives found on the way in `t` (taken before the linear axes moved).
+    #[allow(clippy::too_many_arguments)]
     fn five_axis(
         &self,
         fa: &FiveAxis,
@@ -710,7 +793,8 @@ impl Chain {
         prev: &[f64; MAX_AXES],
         q: &mut [f64; MAX_AXES],
         actual: Option<Directions>,
-    ) -> Result<(), KinError> {
+        t: &mut Tangents,
+    ) -> Result<Pose, KinError> {
         let n = self.axes.len();
         // R(u2, φ2)·R(u1, φ1)·v' = w, with v' = G1·v and w = G2ᵀ·d.
         let vp = mul_mv(&fa.g1, &fa.v);
@@ -776,12 +860,18 @@ impl Chain {
             if !cost.is_finite() {
                 continue;
             }
-            let mut t = Tangents::ZERO;
-            let pose = self.eval::<true>(&cand[..n], tool_mm, dirs, geometry, Some(&mut t));
-            match self.solve_linear(&fa.linear, &pose, &t, target, &mut cand) {
+            let before = cand;
+            let mut pose = self.eval::<true>(&cand[..n], tool_mm, dirs, geometry, Some(t));
+            match self.solve_linear(&fa.linear, &pose, t, target, &mut cand) {
                 Ok(()) => {
+                    for &j in &fa.linear {
+                        let dq = cand[j] - before[j];
+                        for i in 0..3 {
+                            pose.position[i] += t.dp[j][i] * dq;
+                        }
+                    }
                     *q = cand;
-                    return Ok(());
+                    return Ok(pose);
                 }
                 Err(e) => failure = e,
             }
@@ -800,7 +890,9 @@ impl Chain {
         let mut at = crate::table::Location::default();
         for step in &self.steps {
             match *step {
-                Step::Rotate { k, c, s } => rotate_m(&mut m, k, c, s),
+                Step::Rotate { k, c, s } | Step::ConstErrRotate { k, c, s, .. } => {
+                    rotate_m(&mut m, k, c, s)
+                }
                 Step::ErrRotate { k, e } => {
                     // Translation rows are skipped here, so every row locates its position.
                     let e = super::ErrRef {
@@ -832,6 +924,8 @@ impl Chain {
             g1: gs[1],
             u2: unit(k_rot[1]),
             g2: gs[2],
+            real_linear: fa.real_linear,
+            linear_outside: fa.linear_outside,
         }
     }
 
@@ -903,6 +997,10 @@ impl Chain {
     /// at the price of a forward transform without derivatives. `q` holds the last accepted
     /// set-points; a step that does not reduce the residual ends with
     /// [`KinError::NotConverged`] and the caller continues with [`Chain::newton`].
+    ///
+    /// `start`: the pose at `q` as predicted by the closed form, with the exact derivatives
+    /// there, instead of a transform with derivatives here; a prediction that already meets
+    /// the tolerances is confirmed by a transform before it counts.
     fn chord(
         &self,
         target: &Pose,
@@ -910,6 +1008,7 @@ impl Chain {
         dirs: Directions,
         use_direction: bool,
         q: &mut [f64; MAX_AXES],
+        start: Option<&(Pose, Tangents)>,
     ) -> Result<(u32, f64, f64), KinError> {
         const CHORD_STEPS: u32 = 4;
         let n = self.axes.len();
@@ -930,16 +1029,30 @@ impl Chain {
         let converged = |np: f64, nd: f64| {
             np <= POSITION_TOLERANCE_MM && (!use_direction || nd <= DIRECTION_TOLERANCE_RAD)
         };
-        let mut t = Tangents::ZERO;
-        let pose = self.eval::<true>(&q[..n], tool_mm, dirs, Geometry::Actual, Some(&mut t));
+        let mut own = Tangents::ZERO;
+        let (pose, t) = match start {
+            Some((pose, t)) => (*pose, t),
+            None => {
+                let pose =
+                    self.eval::<true>(&q[..n], tool_mm, dirs, Geometry::Actual, Some(&mut own));
+                (pose, &own)
+            }
+        };
         let (mut r, mut np, mut nd) = residual(&pose);
         if !(np.is_finite() && nd.is_finite()) {
             return Err(KinError::NonFinite);
         }
         if converged(np, nd) {
-            return Ok((0, np, nd));
+            if start.is_none() {
+                return Ok((0, np, nd));
+            }
+            let measured = self.eval::<false>(&q[..n], tool_mm, dirs, Geometry::Actual, None);
+            (r, np, nd) = residual(&measured);
+            if converged(np, nd) {
+                return Ok((0, np, nd));
+            }
         }
-        let (jac, colscale) = weighted_jacobian(&t, n, w);
+        let (jac, colscale) = weighted_jacobian(t, n, w);
         let not_converged = |np, nd| KinError::NotConverged {
             position_mm: np,
             direction_rad: nd,

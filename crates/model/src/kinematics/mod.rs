@@ -415,13 +415,52 @@ pub(crate) struct ErrRef {
 // One compiled row. Angles in radians, lengths in mm.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) enum Step {
-    Translate { k: usize, v: f64 },
-    Tool { k: usize, sign: f64, offset: f64 },
-    Rotate { k: usize, c: f64, s: f64 },
-    ErrTranslate { k: usize, e: ErrRef },
-    ErrRotate { k: usize, e: ErrRef },
-    AxisTranslate { k: usize, axis: usize, sign: f64 },
-    AxisRotate { k: usize, axis: usize, sign: f64 },
+    Translate {
+        k: usize,
+        v: f64,
+    },
+    Tool {
+        k: usize,
+        sign: f64,
+        offset: f64,
+    },
+    Rotate {
+        k: usize,
+        c: f64,
+        s: f64,
+    },
+    ErrTranslate {
+        k: usize,
+        e: ErrRef,
+    },
+    ErrRotate {
+        k: usize,
+        e: ErrRef,
+    },
+    // Error rows whose table has one value everywhere (squareness errors): the real and the
+    // nominal value are fixed, so no lookup and, for rotations, no sine per transform.
+    ConstErrTranslate {
+        k: usize,
+        v: f64,
+        nominal: f64,
+    },
+    ConstErrRotate {
+        k: usize,
+        c: f64,
+        s: f64,
+        nominal_c: f64,
+        nominal_s: f64,
+    },
+    AxisTranslate {
+        k: usize,
+        axis: usize,
+        sign: f64,
+    },
+    AxisRotate {
+        k: usize,
+        axis: usize,
+        sign: f64,
+    },
 }
 
 /// What the inverse transform knows about the chain's structure, found once at build time.
@@ -538,15 +577,38 @@ impl Chain {
                         return Err(bad("value"));
                     }
                     let (k, scale) = (dof.coordinate(), t.unit.scale());
-                    let relocate = last_table.is_none_or(|o: &ErrorTable| {
-                        o.axis != t.axis || !o.table.same_support(&t.table)
-                    });
-                    last_table = Some(t);
                     let offset = if dof.is_rotation() {
                         offset * DEG
                     } else {
                         offset
                     };
+                    if let Some(v) = constant_value(&t.table) {
+                        // Leaves `last_table` alone: the next row may share the location
+                        // found before this one, which this row does not touch.
+                        let value = offset + scale * v;
+                        steps.push(if dof.is_rotation() {
+                            let (s, c) = sincos(value);
+                            let (nominal_s, nominal_c) = sincos(offset);
+                            Step::ConstErrRotate {
+                                k,
+                                c,
+                                s,
+                                nominal_c,
+                                nominal_s,
+                            }
+                        } else {
+                            Step::ConstErrTranslate {
+                                k,
+                                v: value,
+                                nominal: offset,
+                            }
+                        });
+                        continue;
+                    }
+                    let relocate = last_table.is_none_or(|o: &ErrorTable| {
+                        o.axis != t.axis || !o.table.same_support(&t.table)
+                    });
+                    last_table = Some(t);
                     // This row's value is offset + scale · table: fold both into the cubics.
                     let mut block = |direction: Direction| -> Result<u32, ChainError> {
                         let start = u32::try_from(cubics.len()).map_err(|_| bad("tables"))?;
@@ -707,6 +769,17 @@ impl Chain {
             .filter(|a| a.kind == AxisKind::Rotary)
             .count()
     }
+}
+
+/// The value of a table that has the same value at every position and in both directions of
+/// travel (every segment's cubic is that constant), else `None`.
+fn constant_value(table: &CompTable) -> Option<f64> {
+    let v = table.cubics(Direction::Forward).first()?[0];
+    let constant = [Direction::Forward, Direction::Reverse]
+        .iter()
+        .flat_map(|&d| table.cubics(d))
+        .all(|c| *c == [v, 0.0, 0.0, 0.0]);
+    constant.then_some(v)
 }
 
 /// Superimposes the per-axis compensation of a thermal model (seed A's "other parts": a
