@@ -21,6 +21,38 @@ impl Tangents {
     };
 }
 
+/// The angular velocity ω of everything on the tool side with respect to each axis (rad per
+/// internal unit): a vector v carried on that side changes by ω × v (the derivative of the
+/// tool direction is ω × d). Apart from [`Tangents`] so the other walks do not carry it.
+pub(crate) type AngularVelocity = [[f64; 3]; MAX_AXES];
+
+/// Turns the derivatives of the axes in `active` (bit j: axis j's are no longer zero) by the
+/// rotation of a row: only those need turning.
+#[inline(always)]
+fn turn<const DIR_JAC: bool, const OMEGA: bool>(
+    t: &mut Tangents,
+    mut w: Option<&mut AngularVelocity>,
+    active: u32,
+    k: usize,
+    c: f64,
+    s: f64,
+) {
+    let mut bits = active;
+    while bits != 0 {
+        let j = bits.trailing_zeros() as usize;
+        bits &= bits - 1;
+        rotate(&mut t.dp[j], k, c, s);
+        if DIR_JAC {
+            rotate(&mut t.dd[j], k, c, s);
+        }
+        if OMEGA {
+            if let Some(w) = w.as_deref_mut() {
+                rotate(&mut w[j], k, c, s);
+            }
+        }
+    }
+}
+
 /// x ← R_k(θ)·x with c = cos θ, s = sin θ (active rotation about coordinate axis k).
 ///
 /// The rotation plane comes from a select on k (no remainders). Measured with callgrind on
@@ -122,8 +154,12 @@ impl Chain {
     ) -> Pose {
         // One copy of the walk per geometry: the nominal one then carries no table code.
         match geometry {
-            Geometry::Nominal => self.walk::<JAC, false, true>(q, tool_mm, dirs, tangents),
-            Geometry::Actual => self.walk::<JAC, true, true>(q, tool_mm, dirs, tangents),
+            Geometry::Nominal => {
+                self.walk::<JAC, false, true, false>(q, tool_mm, dirs, tangents, None)
+            }
+            Geometry::Actual => {
+                self.walk::<JAC, true, true, false>(q, tool_mm, dirs, tangents, None)
+            }
         }
     }
 
@@ -137,20 +173,41 @@ impl Chain {
         dirs: Directions,
         tangents: &mut Tangents,
     ) -> Pose {
-        self.walk::<true, true, false>(q, tool_mm, dirs, Some(tangents))
+        self.walk::<true, true, false, false>(q, tool_mm, dirs, Some(tangents), None)
+    }
+
+    /// [`Chain::eval`] with derivatives through the error tables, and the angular velocity of
+    /// the tool side with respect to each axis in `omega`.
+    pub(crate) fn eval_with_angular_velocity(
+        &self,
+        q: &[f64],
+        tool_mm: f64,
+        dirs: Directions,
+        tangents: &mut Tangents,
+        omega: &mut AngularVelocity,
+    ) -> Pose {
+        self.walk::<true, true, true, true>(q, tool_mm, dirs, Some(tangents), Some(omega))
     }
 
     /// [`Chain::eval`] for one geometry (`ACTUAL`: through the error tables); `DIR_JAC`: the
     /// derivatives of the tool direction too.
     #[inline(always)]
-    fn walk<const JAC: bool, const ACTUAL: bool, const DIR_JAC: bool>(
+    fn walk<const JAC: bool, const ACTUAL: bool, const DIR_JAC: bool, const OMEGA: bool>(
         &self,
         q: &[f64],
         tool_mm: f64,
         dirs: Directions,
         mut tangents: Option<&mut Tangents>,
+        mut omega: Option<&mut AngularVelocity>,
     ) -> Pose {
         let n = self.axes.len();
+        if OMEGA {
+            if let Some(w) = omega.as_deref_mut() {
+                for wj in w.iter_mut().take(n) {
+                    *wj = [0.0; 3];
+                }
+            }
+        }
         let mut p = [0.0_f64; 3];
         let mut d = [0.0, 0.0, 1.0_f64];
         if JAC {
@@ -215,15 +272,7 @@ impl Chain {
                     if JAC {
                         if let Some(t) = tangents.as_deref_mut() {
                             // A constant table has no slope: only turn the tangents.
-                            let mut bits = active;
-                            while bits != 0 {
-                                let j = bits.trailing_zeros() as usize;
-                                bits &= bits - 1;
-                                rotate(&mut t.dp[j], k, c, s);
-                                if DIR_JAC {
-                                    rotate(&mut t.dd[j], k, c, s);
-                                }
-                            }
+                            turn::<DIR_JAC, OMEGA>(t, omega.as_deref_mut(), active, k, c, s);
                         }
                     }
                 }
@@ -232,16 +281,7 @@ impl Chain {
                     rotate(&mut d, k, c, s);
                     if JAC {
                         if let Some(t) = tangents.as_deref_mut() {
-                            // Only tangents already non-zero need turning.
-                            let mut bits = active;
-                            while bits != 0 {
-                                let j = bits.trailing_zeros() as usize;
-                                bits &= bits - 1;
-                                rotate(&mut t.dp[j], k, c, s);
-                                if DIR_JAC {
-                                    rotate(&mut t.dd[j], k, c, s);
-                                }
-                            }
+                            turn::<DIR_JAC, OMEGA>(t, omega.as_deref_mut(), active, k, c, s);
                         }
                     }
                 }
@@ -251,19 +291,15 @@ impl Chain {
                     rotate(&mut d, k, c, s);
                     if JAC {
                         if let Some(t) = tangents.as_deref_mut() {
-                            // Only tangents already non-zero need turning.
-                            let mut bits = active;
-                            while bits != 0 {
-                                let j = bits.trailing_zeros() as usize;
-                                bits &= bits - 1;
-                                rotate(&mut t.dp[j], k, c, s);
-                                if DIR_JAC {
-                                    rotate(&mut t.dd[j], k, c, s);
-                                }
-                            }
+                            turn::<DIR_JAC, OMEGA>(t, omega.as_deref_mut(), active, k, c, s);
                             add_cross(&mut t.dp[axis], k, &p, sign);
                             if DIR_JAC {
                                 add_cross(&mut t.dd[axis], k, &d, sign);
+                            }
+                            if OMEGA {
+                                if let Some(w) = omega.as_deref_mut() {
+                                    w[axis][k] += sign;
+                                }
                             }
                             active |= 1 << axis;
                         }
@@ -280,22 +316,18 @@ impl Chain {
                     rotate(&mut d, k, c, s);
                     if JAC {
                         if let Some(t) = tangents.as_deref_mut() {
-                            // Only tangents already non-zero need turning.
-                            let mut bits = active;
-                            while bits != 0 {
-                                let j = bits.trailing_zeros() as usize;
-                                bits &= bits - 1;
-                                rotate(&mut t.dp[j], k, c, s);
-                                if DIR_JAC {
-                                    rotate(&mut t.dd[j], k, c, s);
-                                }
-                            }
+                            turn::<DIR_JAC, OMEGA>(t, omega.as_deref_mut(), active, k, c, s);
                             if ACTUAL {
                                 let axis = usize::from(e.axis);
                                 let g = slope * e.per_unit;
                                 add_cross(&mut t.dp[axis], k, &p, g);
                                 if DIR_JAC {
                                     add_cross(&mut t.dd[axis], k, &d, g);
+                                }
+                                if OMEGA {
+                                    if let Some(w) = omega.as_deref_mut() {
+                                        w[axis][k] += g;
+                                    }
                                 }
                                 active |= 1 << axis;
                             }
@@ -446,6 +478,34 @@ mod tests {
             },
         ];
         Chain::new(axes, tables, rows).unwrap()
+    }
+
+    /// ω_j × d is the derivative of the tool direction, for every axis, and the derivatives
+    /// of the other walks are the same.
+    #[test]
+    fn angular_velocity_turns_the_tool_direction() {
+        let c = chain();
+        let q = [123.0, 37.0, -71.0];
+        let mut t = Tangents::ZERO;
+        let mut omega = [[0.0; 3]; MAX_AXES];
+        let pose = c.eval_with_angular_velocity(&q, 50.0, Directions(0), &mut t, &mut omega);
+        let mut t2 = Tangents::ZERO;
+        c.eval::<true>(&q, 50.0, Directions(0), Geometry::Actual, Some(&mut t2));
+        let d = pose.direction;
+        for (j, w) in omega.iter().enumerate().take(3) {
+            let cross = [
+                w[1] * d[2] - w[2] * d[1],
+                w[2] * d[0] - w[0] * d[2],
+                w[0] * d[1] - w[1] * d[0],
+            ];
+            for (x, y) in cross.iter().zip(&t.dd[j]) {
+                assert!((x - y).abs() < 1e-12, "axis {j}");
+            }
+            assert_eq!((t.dp[j], t.dd[j]), (t2.dp[j], t2.dd[j]));
+        }
+        // X turns the tool side only through its rotation error table (FXC about Z).
+        assert_eq!((omega[0][0], omega[0][1]), (0.0, 0.0));
+        assert!(omega[0][2] != 0.0);
     }
 
     #[test]

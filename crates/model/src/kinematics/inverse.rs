@@ -139,6 +139,10 @@ pub(crate) struct FiveAxis {
     /// with respect to the rotary axes do not depend on the linear axes, so the derivatives
     /// found while solving the linear axes hold at the solution too.
     linear_outside: bool,
+    /// Every linear axis row lies on the tool side of every row that depends on a rotary axis
+    /// (a trunnion table): moving the linear axes by a TCP displacement u changes the
+    /// derivative with respect to rotary axis j by ω_j × u (ω_j: its angular velocity).
+    linear_inside: bool,
 }
 
 /// Finds the layout of a chain (see [`Layout`]).
@@ -152,6 +156,8 @@ pub(crate) fn analyse(axes: &[KinAxis], steps: &[Step]) -> Layout {
     let mut m = I3;
     let mut gs = [I3; 3];
     let (mut real_linear, mut last_rotary, mut first_linear) = (true, 0, usize::MAX);
+    // Last linear axis row, first row that depends on a rotary axis.
+    let (mut last_linear, mut first_rotary_dependent) = (0, usize::MAX);
     for (i, step) in steps.iter().enumerate() {
         match *step {
             Step::ErrTranslate { e, .. } | Step::ErrRotate { e, .. } => {
@@ -163,8 +169,18 @@ pub(crate) fn analyse(axes: &[KinAxis], steps: &[Step]) -> Layout {
             _ => {}
         }
         match *step {
-            Step::AxisTranslate { .. } => first_linear = first_linear.min(i),
-            Step::AxisRotate { .. } => last_rotary = i,
+            Step::AxisTranslate { .. } => {
+                first_linear = first_linear.min(i);
+                last_linear = i;
+            }
+            Step::AxisRotate { .. } => {
+                last_rotary = i;
+                first_rotary_dependent = first_rotary_dependent.min(i);
+            }
+            Step::ErrTranslate { .. } | Step::ErrRotate { .. } => {
+                // With `real_linear` every table reads a rotary axis.
+                first_rotary_dependent = first_rotary_dependent.min(i);
+            }
             _ => {}
         }
         match *step {
@@ -223,6 +239,7 @@ pub(crate) fn analyse(axes: &[KinAxis], steps: &[Step]) -> Layout {
                 g2: gs[2],
                 real_linear,
                 linear_outside: first_linear > last_rotary,
+                linear_inside: last_linear < first_rotary_dependent,
             })
         }
         _ => Layout::General,
@@ -445,15 +462,18 @@ impl Chain {
                 false
             }
             Layout::FiveAxis(fa)
-                if with_errors && !near_pole && fa.real_linear && fa.linear_outside =>
+                if with_errors
+                    && !near_pole
+                    && fa.real_linear
+                    && (fa.linear_outside || fa.linear_inside) =>
             {
                 // The real TCP is affine in the linear axes: solve them on the real chain
-                // (the rotary axes from the nominal closed form). With the linear axes
-                // outside the rotary ones the derivatives do not depend on them, so the
-                // transform with derivatives this takes also starts the chord iterations:
-                // one such transform per target instead of two (nominal, then real). With
-                // the linear axes inside (a trunnion table), the rotary derivatives change
-                // with them and the nominal closed form below is cheaper.
+                // (the rotary axes from the nominal closed form). The transform with
+                // derivatives this takes also starts the chord iterations: one such
+                // transform per target instead of two (nominal, then real). With the linear
+                // axes outside the rotary ones the derivatives do not depend on them; inside
+                // (a trunnion table) the rotary ones are moved to the solution through the
+                // angular velocities. Other arrangements take the nominal closed form.
                 let mut t = Tangents::ZERO;
                 let pose = self.five_axis(
                     fa,
@@ -464,9 +484,7 @@ impl Chain {
                     Some(previous_dirs),
                     &mut t,
                 )?;
-                if fa.linear_outside {
-                    start = Some((pose, t));
-                }
+                start = Some((pose, t));
                 true
             }
             layout => {
@@ -856,18 +874,39 @@ impl Chain {
             Some(d) => (Geometry::Actual, d),
             None => (Geometry::Nominal, Directions(0)),
         };
+        // Derivatives valid at the solution for linear axes inside the rotary ones need the
+        // angular velocities (see `FiveAxis::linear_inside`).
+        let omega = actual.is_some() && fa.real_linear && fa.linear_inside;
         for (cost, mut cand) in cands {
             if !cost.is_finite() {
                 continue;
             }
             let before = cand;
-            let mut pose = self.eval::<true>(&cand[..n], tool_mm, dirs, geometry, Some(t));
+            let mut w = [[0.0; 3]; MAX_AXES];
+            let mut pose = if omega {
+                self.eval_with_angular_velocity(&cand[..n], tool_mm, dirs, t, &mut w)
+            } else {
+                self.eval::<true>(&cand[..n], tool_mm, dirs, geometry, Some(t))
+            };
             match self.solve_linear(&fa.linear, &pose, t, target, &mut cand) {
                 Ok(()) => {
+                    // The TCP is affine in the linear axes: it moved by u = Σ ∂p/∂q_j · Δq_j.
+                    let mut u = [0.0; 3];
                     for &j in &fa.linear {
                         let dq = cand[j] - before[j];
                         for i in 0..3 {
-                            pose.position[i] += t.dp[j][i] * dq;
+                            u[i] += t.dp[j][i] * dq;
+                        }
+                    }
+                    for i in 0..3 {
+                        pose.position[i] += u[i];
+                    }
+                    if omega {
+                        for j in fa.rotary {
+                            let turn = cross(&w[j], &u);
+                            for i in 0..3 {
+                                t.dp[j][i] += turn[i];
+                            }
                         }
                     }
                     *q = cand;
@@ -926,6 +965,7 @@ impl Chain {
             g2: gs[2],
             real_linear: fa.real_linear,
             linear_outside: fa.linear_outside,
+            linear_inside: fa.linear_inside,
         }
     }
 
@@ -1029,13 +1069,14 @@ impl Chain {
         let converged = |np: f64, nd: f64| {
             np <= POSITION_TOLERANCE_MM && (!use_direction || nd <= DIRECTION_TOLERANCE_RAD)
         };
-        let mut own = Tangents::ZERO;
+        // Zeroed only when needed: a start brings its own derivatives.
+        let mut own: Option<Tangents> = None;
         let (pose, t) = match start {
             Some((pose, t)) => (*pose, t),
             None => {
-                let pose =
-                    self.eval::<true>(&q[..n], tool_mm, dirs, Geometry::Actual, Some(&mut own));
-                (pose, &own)
+                let own = own.insert(Tangents::ZERO);
+                let pose = self.eval::<true>(&q[..n], tool_mm, dirs, Geometry::Actual, Some(own));
+                (pose, &*own)
             }
         };
         let (mut r, mut np, mut nd) = residual(&pose);
