@@ -100,7 +100,8 @@ fn rotate_m(m: &mut M3, k: usize, c: f64, s: f64) {
 fn angle_about(u: &V3, from: &V3, to: &V3) -> Option<f64> {
     let f = sub(from, &scale(u, dot(u, from)));
     let t = sub(to, &scale(u, dot(u, to)));
-    if norm(&f) < POLE || norm(&t) < POLE {
+    // Squared lengths against POLE²: the same test without two square roots.
+    if dot(&f, &f) < POLE * POLE || dot(&t, &t) < POLE * POLE {
         return None;
     }
     Some(libm::atan2(dot(u, &cross(&f, &t)), dot(&f, &t)))
