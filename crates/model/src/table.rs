@@ -534,8 +534,8 @@ impl CompTable {
         }
     }
 
-    /// True if `other` has the same support points and wrapping, so a [`Location`] found in
-    /// one table is valid in the other.
+    /// True if `other` has the same support points and wrapping, so a position located in one
+    /// table (the crate's `Location`) is valid in the other.
     pub fn same_support(&self, other: &CompTable) -> bool {
         self.wrap == other.wrap && self.positions == other.positions
     }
