@@ -7,7 +7,7 @@
 //! | `truepos.model-select` | s32 | in | model to use, index of `--model` (0-based) |
 //! | `truepos.axis.<a>.pos` | float | in | nominal axis position, mm (net `axis.<a>.pos-cmd`) |
 //! | `truepos.axis.<a>.path` | s32 | in | path the axis belongs to now, 0 none (default: machine file) |
-//! | `truepos.temp.<id>` | float | in | temperature channel of the machine file, °C |
+//! | `truepos.temp.<id>` | float | in | measured temperature channel of the machine file, °C (lagged channels have no pin) |
 //! | `truepos.operating.<id>` | float | in | operating channel (spindle speed, …) |
 //! | `truepos.axis.<a>.offset-um` | float | out | compensation sent, µm (−error) |
 //! | `truepos.axis.<a>.eoffset-counts` | s32 | out | net to `axis.<a>.eoffset-counts` |
@@ -75,8 +75,9 @@ pub struct InputPins {
     pub positions: Vec<FloatPin>,
     /// `truepos.axis.<a>.path`, machine axis order: the control's axis configuration (seed D).
     pub paths: Vec<S32Pin>,
-    /// `truepos.temp.<id>`, machine temperature order.
-    pub temperatures: Vec<FloatPin>,
+    /// `truepos.temp.<id>` with its machine temperature channel, for the measured channels
+    /// only: a lagged channel is computed by the service, never read from a pin.
+    pub temperatures: Vec<(usize, FloatPin)>,
     /// `truepos.operating.<id>`, machine operating order.
     pub operating: Vec<FloatPin>,
 }
@@ -149,7 +150,14 @@ pub fn create(component: &Component, machine: &Machine, paths: usize) -> Result<
     let temperatures = machine
         .temperatures
         .iter()
-        .map(|t| component.float_pin(&temperature_pin(&t.id), Direction::In))
+        .enumerate()
+        .filter(|(_, t)| t.lag.is_none())
+        .map(|(c, t)| {
+            Ok((
+                c,
+                component.float_pin(&temperature_pin(&t.id), Direction::In)?,
+            ))
+        })
         .collect::<Result<Vec<_>, _>>()?;
     let operating = machine
         .operating

@@ -22,7 +22,7 @@ impl HalSource {
     /// unconnected is a sensor fault rather than a plausible 0 °C; the axis-path pins start at
     /// each axis' `path` in the machine file, so that left unconnected they change nothing.
     pub fn new(component: &str, pins: InputPins, axes: &[AxisRuntime]) -> Self {
-        for pin in &pins.temperatures {
+        for (_, pin) in &pins.temperatures {
             pin.set(f64::NAN);
         }
         for (pin, axis) in pins.paths.iter().zip(axes) {
@@ -47,8 +47,8 @@ impl Source for HalSource {
         for (i, pin) in self.pins.positions.iter().enumerate() {
             frame.set_position(i, pin.get());
         }
-        for (i, pin) in self.pins.temperatures.iter().enumerate() {
-            frame.set_temperature(i, pin.get());
+        for (c, pin) in &self.pins.temperatures {
+            frame.set_temperature(*c, pin.get());
         }
         for (i, pin) in self.pins.operating.iter().enumerate() {
             frame.set_operating(i, pin.get());
