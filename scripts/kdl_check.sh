@@ -18,5 +18,13 @@ if ! /usr/bin/python3 -c "import PyKDL" 2>/dev/null; then
   fi
 fi
 cargo build --release -p truepos
-/usr/bin/python3 scripts/kdl_compare.py --points "${KDL_POINTS:-100000}" \
+# Both sides on one core (KDL_CPU, default 0), one after the other: left to the scheduler, the
+# truepos process was measured 30–40 % slower in some runs on this 2-vCPU VM (placement and
+# migration between vCPUs), KDL's Python loop much less so; pinning removes that noise from
+# the ratio without favouring either side. KDL_CPU=none leaves placement to the scheduler.
+PIN=()
+if [ "${KDL_CPU:-0}" != none ] && command -v taskset >/dev/null; then
+  PIN=(taskset -c "${KDL_CPU:-0}")
+fi
+"${PIN[@]}" /usr/bin/python3 scripts/kdl_compare.py --points "${KDL_POINTS:-100000}" \
   --min-ratio "${KDL_MIN_RATIO:-3}"
