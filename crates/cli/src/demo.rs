@@ -62,22 +62,6 @@ struct Day {
 fn day(twin: &Twin, machine: &Machine, name: &str, seed: u64) -> Result<Day, String> {
     let sc = scenario(name)?;
     let run = twin.run(&sc, seed).map_err(|e| e.to_string())?;
-    let index: Vec<Option<usize>> = machine
-        .temperatures
-        .iter()
-        .map(|t| run.sensor_ids.iter().position(|s| *s == t.id))
-        .collect();
-    let mut temps: Vec<Vec<f64>> = run
-        .rows
-        .iter()
-        .map(|r| {
-            index
-                .iter()
-                .map(|i| i.map_or(f64::NAN, |i| r.temperatures_c[i]))
-                .collect()
-        })
-        .collect();
-
     let positions = run.rows.iter().map(|r| r.position_mm.to_vec()).collect();
     // What the control knows of its operating state, by the machine's channel ids.
     let operating: Vec<Vec<f64>> = run
@@ -99,7 +83,13 @@ fn day(twin: &Twin, machine: &Machine, name: &str, seed: u64) -> Result<Day, Str
         })
         .collect();
     let time: Vec<f64> = run.rows.iter().map(|r| r.time_s).collect();
-    truepos_io::cycles::fill_lags(machine, &time, &mut temps, &operating);
+    let temps = truepos_io::cycles::machine_temperatures(
+        machine,
+        &run.sensor_ids,
+        &time,
+        run.rows.iter().map(|r| r.temperatures_c.as_slice()),
+        &operating,
+    );
     Ok(Day {
         run,
         temps,

@@ -18,29 +18,18 @@ fn machine() -> Machine {
 /// Temperatures of every row in the machine's channel order; the machine's lagged channels are
 /// computed from their sensors as the control would.
 fn temperatures(run: &SimRun, machine: &Machine) -> Vec<Vec<f64>> {
-    let index: Vec<Option<usize>> = machine
-        .temperatures
-        .iter()
-        .map(|t| {
-            let i = run.sensor_ids.iter().position(|s| *s == t.id);
-            assert!(i.is_some() || t.lag.is_some(), "no sensor `{}`", t.id);
-            i
-        })
-        .collect();
-    let mut temps: Vec<Vec<f64>> = run
-        .rows
-        .iter()
-        .map(|r| {
-            index
-                .iter()
-                .map(|i| i.map_or(f64::NAN, |i| r.temperatures_c[i]))
-                .collect()
-        })
-        .collect();
+    for t in machine.temperatures.iter().filter(|t| t.lag.is_none()) {
+        assert!(run.sensor_ids.contains(&t.id), "no sensor `{}`", t.id);
+    }
     let time: Vec<f64> = run.rows.iter().map(|r| r.time_s).collect();
     let operating = vec![vec![f64::NAN; machine.operating.len()]; run.rows.len()];
-    truepos_io::cycles::fill_lags(machine, &time, &mut temps, &operating);
-    temps
+    truepos_io::cycles::machine_temperatures(
+        machine,
+        &run.sensor_ids,
+        &time,
+        run.rows.iter().map(|r| r.temperatures_c.as_slice()),
+        &operating,
+    )
 }
 
 #[test]

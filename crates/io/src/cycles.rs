@@ -52,6 +52,39 @@ pub fn fill_lags(
     }
 }
 
+/// A recorded run's temperatures in the machine's channel order: `columns` names the values of
+/// each row (a twin run's sensor ids, say); a measured channel the run lacks reads NaN, and the
+/// lagged channels are computed by [`fill_lags`] with `operating` (one row per sample).
+pub fn machine_temperatures<'a>(
+    machine: &Machine,
+    columns: &[String],
+    time_s: &[f64],
+    rows: impl IntoIterator<Item = &'a [f64]>,
+    operating: &[Vec<f64>],
+) -> Vec<Vec<f64>> {
+    let index: Vec<Option<usize>> = machine
+        .temperatures
+        .iter()
+        .map(|t| {
+            columns
+                .iter()
+                .position(|c| *c == t.id)
+                .filter(|_| t.lag.is_none())
+        })
+        .collect();
+    let mut temps: Vec<Vec<f64>> = rows
+        .into_iter()
+        .map(|r| {
+            index
+                .iter()
+                .map(|i| i.and_then(|i| r.get(i).copied()).unwrap_or(f64::NAN))
+                .collect()
+        })
+        .collect();
+    fill_lags(machine, time_s, &mut temps, operating);
+    temps
+}
+
 /// Reads a run CSV. Every axis position column is required, and so is every temperature
 /// channel listed in `required_sensors` (the ones the model reads).
 pub fn load(
