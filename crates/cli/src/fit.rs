@@ -6,7 +6,7 @@ use std::time::Instant;
 
 use truepos_fit::dataset::{Dataset, InputKind, Run};
 use truepos_fit::features::{candidates, Family};
-use truepos_fit::train::{Rule, Settings};
+use truepos_fit::train::{InnerCv, Rule, Settings};
 use truepos_fit::validate::{validate, Split};
 use truepos_io::dynamic_model_file::{DynamicModelFile, InputEntry};
 use truepos_io::run::{glob_match, read, Table};
@@ -57,6 +57,10 @@ pub struct Args {
     /// Blocks of the inner cross-validation on the training part.
     #[arg(long, default_value_t = 8)]
     folds: usize,
+    /// Which blocks train the model scored on a held-out block: blocked (all others) or rolling
+    /// (only those before it, rolling origin; the first two blocks only train).
+    #[arg(long, default_value = "blocked")]
+    inner_cv: String,
     /// Machine name written into the model file.
     #[arg(long, default_value = "unnamed")]
     machine: String,
@@ -174,6 +178,12 @@ fn settings(args: &Args, ds: &Dataset) -> Result<Settings, String> {
         "min" => Rule::MinimumCv,
         other => return Err(format!("--rule `{other}`: expected 1se or min")),
     };
+    s.inner = InnerCv::parse(&args.inner_cv).ok_or_else(|| {
+        format!(
+            "--inner-cv `{}`: expected blocked or rolling",
+            args.inner_cv
+        )
+    })?;
     if let Some(f) = &args.family {
         s.families = patterns(f)
             .into_iter()

@@ -5,6 +5,9 @@
 //! each block is predicted by a model fitted on the other blocks. Contiguous blocks keep
 //! neighbouring, nearly identical samples on the same side, which a random split would not.
 //! Every block's QR factor is computed once; a fold's factor is the merge of the others'.
+//! [`InnerCv::Rolling`] is the forecaster's variant (rolling origin, forward chaining): each block
+//! from the third on is predicted by a model fitted on the blocks before it only, as the model
+//! will be used — it never learns from the future it is scored on.
 
 #![allow(clippy::needless_range_loop)] // index loops mirror the matrix formulas
 
@@ -26,6 +29,9 @@ pub struct Settings {
     pub ridges: Vec<f64>,
     /// Blocks of the inner cross-validation.
     pub folds: usize,
+    /// Which blocks train the model that predicts a held-out block.
+    #[serde(default)]
+    pub inner: InnerCv,
     /// How the CV scores pick the settings.
     pub rule: Rule,
     /// Run with at most this many temperature sensors (chosen by correlation ranking and greedy
@@ -44,10 +50,76 @@ impl Default for Settings {
             families: Family::ALL.to_vec(),
             ridges: vec![0.0, 1e-6, 1e-5, 1e-4, 1e-3, 3e-3, 1e-2, 3e-2, 0.1, 0.3, 1.0],
             folds: 8,
+            inner: InnerCv::Blocked,
             rule: Rule::OneStandardError,
             max_sensors: None,
             reference: None,
         }
+    }
+}
+
+/// Which blocks of the training rows fit the model that predicts a held-out block.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum InnerCv {
+    /// Every other block, before and after it (k-fold on contiguous blocks). The default: every
+    /// fold trains on nearly all rows, so the per-fold errors are comparable and the
+    /// one-standard-error rule is meaningful.
+    #[default]
+    Blocked,
+    /// Only the blocks before it (rolling origin); the first [`ROLLING_FIRST_HELD_OUT`] blocks
+    /// only train. Scores the model as it is used, forward in time; but the early folds train on
+    /// little data, their large errors widen the standard error, and the one-standard-error rule
+    /// then leans towards heavy ridge (docs/fitting.md has both on FL_THERMAL).
+    Rolling,
+}
+
+/// Index of the first block a rolling-origin CV predicts: two blocks at least train every fold,
+/// so that no score comes from a model fitted on a single stretch of operation.
+pub const ROLLING_FIRST_HELD_OUT: usize = 2;
+
+impl InnerCv {
+    /// Parses `blocked` or `rolling`.
+    pub fn parse(s: &str) -> Option<Self> {
+        match s {
+            "blocked" => Some(Self::Blocked),
+            "rolling" => Some(Self::Rolling),
+            _ => None,
+        }
+    }
+
+    /// Whether block `f` is held out, and whether block `g` trains the model that predicts it.
+    fn trains(self, g: usize, f: usize) -> bool {
+        match self {
+            Self::Blocked => g != f,
+            Self::Rolling => g < f,
+        }
+    }
+
+    fn holds_out(self, f: usize) -> bool {
+        match self {
+            Self::Blocked => true,
+            Self::Rolling => f >= ROLLING_FIRST_HELD_OUT,
+        }
+    }
+}
+
+impl Settings {
+    /// The selection protocol in words, for reports and `--json`.
+    pub fn describe_selection(&self) -> String {
+        let cv = match self.inner {
+            InnerCv::Blocked => format!("blocked {}-fold CV (contiguous blocks)", self.folds),
+            InnerCv::Rolling => format!(
+                "rolling-origin CV ({} contiguous blocks, each from block {} on predicted by a model fitted on the blocks before it)",
+                self.folds,
+                ROLLING_FIRST_HELD_OUT + 1
+            ),
+        };
+        let rule = match self.rule {
+            Rule::MinimumCv => "lowest CV error",
+            Rule::OneStandardError => "one-standard-error rule",
+        };
+        format!("{cv}, {rule}")
     }
 }
 
@@ -106,10 +178,17 @@ struct Problem<'a> {
     y: Mat<f64>,
     means: Vec<f64>,
     blocks: Vec<std::ops::Range<usize>>,
+    inner: InnerCv,
 }
 
 impl<'a> Problem<'a> {
-    fn new(dataset: &Dataset, cand: &'a Candidates, rows: &[(usize, usize)], folds: usize) -> Self {
+    fn new(
+        dataset: &Dataset,
+        cand: &'a Candidates,
+        rows: &[(usize, usize)],
+        folds: usize,
+        inner: InnerCv,
+    ) -> Self {
         let nf = cand.features.len();
         let nt = dataset.target_names.len();
         let mut x = Mat::<f64>::zeros(rows.len(), nf);
@@ -134,7 +213,11 @@ impl<'a> Problem<'a> {
                 x[(i, j)] -= *mean;
             }
         }
-        let folds = folds.clamp(2, rows.len().max(2));
+        let min_folds = match inner {
+            InnerCv::Blocked => 2,
+            InnerCv::Rolling => ROLLING_FIRST_HELD_OUT + 1,
+        };
+        let folds = folds.clamp(min_folds, rows.len().max(min_folds));
         let blocks = (0..folds)
             .map(|b| b * rows.len() / folds..(b + 1) * rows.len() / folds)
             .collect();
@@ -144,6 +227,7 @@ impl<'a> Problem<'a> {
             y,
             means,
             blocks,
+            inner,
         }
     }
 
@@ -174,7 +258,7 @@ impl<'a> Problem<'a> {
     }
 
     /// Per ridge, per target: (CV RMSE over all held-out rows, standard error of the per-fold
-    /// RMSEs).
+    /// RMSEs of the held-out blocks).
     fn cv(&self, d: &Design, ridges: &[f64]) -> Vec<Vec<(f64, f64)>> {
         let nt = self.y.ncols();
         let folds = self.blocks.len();
@@ -185,10 +269,12 @@ impl<'a> Problem<'a> {
             .collect();
         // sse[ridge][target][fold]
         let mut sse = vec![vec![vec![0.0; folds]; nt]; ridges.len()];
-        for (f, block) in self.blocks.iter().enumerate() {
+        let held: Vec<usize> = (0..folds).filter(|&f| self.inner.holds_out(f)).collect();
+        for &f in &held {
+            let block = &self.blocks[f];
             let mut acc = Accumulator::new(d.cols.len() + 1, nt);
             for (g, p) in parts.iter().enumerate() {
-                if g != f {
+                if self.inner.trains(g, f) {
                     let _ = acc.merge(p.clone());
                 }
             }
@@ -216,22 +302,26 @@ impl<'a> Problem<'a> {
                 }
             }
         }
-        let n = self.x.nrows().max(1) as f64;
+        let n = held
+            .iter()
+            .map(|&f| self.blocks[f].len())
+            .sum::<usize>()
+            .max(1) as f64;
+        let used = held.len() as f64;
         sse.into_iter()
             .map(|per_target| {
                 per_target
                     .into_iter()
                     .map(|per_fold| {
-                        let total: f64 = per_fold.iter().sum();
-                        let rmse: Vec<f64> = per_fold
+                        let total: f64 = held.iter().map(|&f| per_fold[f]).sum();
+                        let rmse: Vec<f64> = held
                             .iter()
-                            .zip(&self.blocks)
-                            .map(|(s, b)| (s / b.len().max(1) as f64).sqrt())
+                            .map(|&f| (per_fold[f] / self.blocks[f].len().max(1) as f64).sqrt())
                             .collect();
-                        let m = rmse.iter().sum::<f64>() / folds as f64;
+                        let m = rmse.iter().sum::<f64>() / used;
                         let var = rmse.iter().map(|r| (r - m).powi(2)).sum::<f64>()
-                            / (folds as f64 - 1.0).max(1.0);
-                        ((total / n).sqrt(), (var / folds as f64).sqrt())
+                            / (used - 1.0).max(1.0);
+                        ((total / n).sqrt(), (var / used).sqrt())
                     })
                     .collect()
             })
@@ -315,7 +405,8 @@ fn best_per_target(
         .collect()
 }
 
-/// Chooses by inner blocked CV on `rows` (training rows only) and fits on all of them.
+/// Chooses by inner CV on `rows` (training rows only; blocked or rolling origin, see
+/// [`InnerCv`]) and fits on all of them.
 pub fn train(
     dataset: &Dataset,
     cand: &Candidates,
@@ -329,7 +420,7 @@ pub fn train(
             settings.folds
         ));
     }
-    let p = Problem::new(dataset, cand, rows, settings.folds);
+    let p = Problem::new(dataset, cand, rows, settings.folds, settings.inner);
     let nt = dataset.target_names.len();
     let all_sensors: Vec<usize> = (0..cand.spec.temperatures).collect();
     let mut sensors = match settings.max_sensors {
@@ -555,7 +646,9 @@ mod tests {
             for i in 0..1500 {
                 let rpm = if (i / 200) % 2 == 1 { level } else { 0.0 };
                 lag += (1.0 - (-20.0f64 / 1200.0).exp()) * (rpm - lag);
-                warm += (1.0 - (-20.0f64 / 900.0).exp()) * (21.0 + rpm / 400.0 - warm);
+                // The room drifts by ±1.5 K over the day: only the sensor sees that.
+                let room = 21.0 + 1.5 * (i as f64 / 240.0).sin();
+                warm += (1.0 - (-20.0f64 / 900.0).exp()) * (room + rpm / 400.0 - warm);
                 t.push(20.0 * i as f64 + 5.0 * r as f64);
                 s.push(rpm);
                 a.push(warm);
@@ -710,8 +803,49 @@ mod tests {
         let cand = candidates(&ds, &settings.taus).unwrap();
         let rows: Rows = (0..ds.runs[0].len()).map(|i| (0, i)).collect();
         let trained = train(&ds, &cand, &rows, &settings).unwrap();
-        // t1 carries the thermal growth; t2 is an unrelated wobble.
+        // t1 carries the thermal growth, including the room's drift that no lag of the spindle
+        // speed can explain; t2 is an unrelated wobble.
         assert_eq!(trained.sensors, vec![0]);
         assert!(trained.inputs.contains(&0) && !trained.inputs.contains(&1));
+    }
+
+    /// Rolling origin never trains on the block it scores, nor on any later one. Data exactly
+    /// y = 2·rise(t1) except the last of 8 blocks of 100 rows, which carries +5 µm more.
+    /// Rolling: blocks 2…6 are predicted by fits on clean blocks, error 0; block 7 by a fit on
+    /// blocks 0…6 (clean, so y = 2·rise exactly), error 5 on each of its 100 rows; over the
+    /// 600 held-out rows RMSE = √(100·25 / 600) = 5/√6 = 2.0412 µm. Blocked: every fold but
+    /// the last trains on the offset rows, so its error is not 0 and the figure differs.
+    #[test]
+    fn rolling_origin_scores_each_block_by_the_past_only() {
+        let n = 800;
+        let (mut t, mut temp, mut y) = (vec![], vec![], vec![]);
+        for i in 0..n {
+            let rise = (i as f64 / 7.0).sin();
+            t.push(60.0 * i as f64);
+            temp.push(20.0 + rise);
+            y.push(2.0 * rise + if i >= 700 { 5.0 } else { 0.0 });
+        }
+        let ds = Dataset {
+            input_names: vec!["t1_c".into()],
+            input_kinds: vec![InputKind::Temperature],
+            target_names: vec!["dz_um".into()],
+            runs: vec![Run {
+                name: "r".into(),
+                time_s: t,
+                inputs: vec![temp],
+                targets: vec![y],
+            }],
+        };
+        let cand = candidates(&ds, &TimeConstants::default()).unwrap();
+        let rows: Rows = (0..n).map(|i| (0, i)).collect();
+        let score = |inner| {
+            let p = Problem::new(&ds, &cand, &rows, 8, inner);
+            let d = p.design(Family::Static, &[0], None).unwrap();
+            p.cv(&d, &[0.0])[0][0].0
+        };
+        let rolling = score(InnerCv::Rolling);
+        assert!((rolling - 5.0 / 6f64.sqrt()).abs() < 1e-9, "{rolling}");
+        let blocked = score(InnerCv::Blocked);
+        assert!((blocked - rolling).abs() > 0.1, "{blocked}");
     }
 }

@@ -262,7 +262,10 @@ pub fn validate(
     Ok((
         Validation {
             protocol: split,
-            protocol_text: split.to_string(),
+            protocol_text: format!(
+                "{split}; selection inside each training part: {}",
+                settings.describe_selection()
+            ),
             metrics,
             choices,
             sensors,
