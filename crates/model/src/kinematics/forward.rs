@@ -53,6 +53,39 @@ fn turn<const DIR_JAC: bool, const OMEGA: bool>(
     }
 }
 
+/// An error rotation (k, cos, sin) of the pose and the derivatives; `g`: the slope of its
+/// angle per internal unit of `axis` (used with `ACTUAL` only).
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn err_rotate<const JAC: bool, const ACTUAL: bool, const DIR_JAC: bool, const OMEGA: bool>(
+    x: &mut Pd,
+    tangents: Option<&mut Tangents>,
+    mut omega: Option<&mut AngularVelocity>,
+    active: &mut u32,
+    (k, c, s): (usize, f64, f64),
+    axis: usize,
+    g: f64,
+) {
+    x.rotate(k, c, s);
+    if JAC {
+        if let Some(t) = tangents {
+            turn::<DIR_JAC, OMEGA>(t, omega.as_deref_mut(), *active, k, c, s);
+            if ACTUAL {
+                add_cross(&mut t.dp[axis], k, &x.p(), g);
+                if DIR_JAC {
+                    add_cross(&mut t.dd[axis], k, &x.d(), g);
+                }
+                if OMEGA {
+                    if let Some(w) = omega {
+                        w[axis][k] += g;
+                    }
+                }
+                *active |= 1 << axis;
+            }
+        }
+    }
+}
+
 /// x ← R_k(θ)·x with c = cos θ, s = sin θ (active rotation about coordinate axis k).
 ///
 /// The rotation plane comes from a select on k (no remainders). Measured with callgrind on
@@ -70,14 +103,98 @@ fn rotate(x: &mut [f64; 3], k: usize, c: f64, s: f64) {
     x[j] = s * a + c * b;
 }
 
-/// x ← x + v·e_k, one arm per axis with a constant index (measured: fewer instructions than
-/// `x[k] += v`, whose computed index keeps the pose in memory).
-#[inline(always)]
-fn translate(x: &mut [f64; 3], k: usize, v: f64) {
-    match k {
-        0 => x[0] += v,
-        1 => x[1] += v,
-        _ => x[2] += v,
+/// The TCP p and the tool direction d of a walk, coordinate by coordinate ([p_i, d_i]): a
+/// rotation turns both with the same two-lane operations.
+#[derive(Clone, Copy)]
+struct Pd([[f64; 2]; 3]);
+
+impl Pd {
+    const START: Self = Self([[0.0, 0.0], [0.0, 0.0], [0.0, 1.0]]);
+
+    /// R_k(θ)·p and R_k(θ)·d, the operations of [`rotate`] on each.
+    #[inline(always)]
+    fn rotate(&mut self, k: usize, c: f64, s: f64) {
+        let (i, j) = match k {
+            0 => (1, 2),
+            1 => (2, 0),
+            _ => (0, 1),
+        };
+        let (a, b) = (self.0[i], self.0[j]);
+        self.0[i] = [c * a[0] - s * b[0], c * a[1] - s * b[1]];
+        self.0[j] = [s * a[0] + c * b[0], s * a[1] + c * b[1]];
+    }
+
+    /// p ← p + v·e_k, one arm per axis with a constant index (measured: fewer instructions
+    /// than `p[k] += v`, whose computed index keeps the pose in memory).
+    #[inline(always)]
+    fn translate(&mut self, k: usize, v: f64) {
+        match k {
+            0 => self.0[0][0] += v,
+            1 => self.0[1][0] += v,
+            _ => self.0[2][0] += v,
+        }
+    }
+
+    #[inline(always)]
+    fn p(&self) -> [f64; 3] {
+        [self.0[0][0], self.0[1][0], self.0[2][0]]
+    }
+
+    #[inline(always)]
+    fn d(&self) -> [f64; 3] {
+        [self.0[0][1], self.0[1][1], self.0[2][1]]
+    }
+}
+
+/// See [`Chain::eval_position_jacobian3`]: lane 0 the TCP, lane 1 the tool direction, lanes 2–4
+/// the TCP's derivatives with respect to the three axes, lane 5 padding.
+#[derive(Clone, Copy)]
+struct Lanes([[f64; 6]; 3]);
+
+impl Lanes {
+    /// Every lane turned by R_k(θ), with the operations of [`rotate`].
+    #[inline(always)]
+    fn rotate(&mut self, k: usize, c: f64, s: f64) {
+        let (i, j) = match k {
+            0 => (1, 2),
+            1 => (2, 0),
+            _ => (0, 1),
+        };
+        let (a, b) = (self.0[i], self.0[j]);
+        for l in 0..6 {
+            self.0[i][l] = c * a[l] - s * b[l];
+            self.0[j][l] = s * a[l] + c * b[l];
+        }
+    }
+
+    /// p ← p + v·e_k.
+    #[inline(always)]
+    fn translate(&mut self, k: usize, v: f64) {
+        match k {
+            0 => self.0[0][0] += v,
+            1 => self.0[1][0] += v,
+            _ => self.0[2][0] += v,
+        }
+    }
+
+    /// Lane `lane` += g · (e_k × p), as [`add_cross`].
+    #[inline(always)]
+    fn add_cross(&mut self, k: usize, lane: usize, g: f64) {
+        let p = [self.0[0][0], self.0[1][0], self.0[2][0]];
+        match k {
+            0 => {
+                self.0[1][lane] -= g * p[2];
+                self.0[2][lane] += g * p[1];
+            }
+            1 => {
+                self.0[2][lane] -= g * p[0];
+                self.0[0][lane] += g * p[2];
+            }
+            _ => {
+                self.0[0][lane] -= g * p[1];
+                self.0[1][lane] += g * p[0];
+            }
+        }
     }
 }
 
@@ -153,27 +270,103 @@ impl Chain {
         tangents: Option<&mut Tangents>,
     ) -> Pose {
         // One copy of the walk per geometry: the nominal one then carries no table code.
-        match geometry {
-            Geometry::Nominal => {
-                self.walk::<JAC, false, true, false>(q, tool_mm, dirs, tangents, None)
+        match (geometry, self.slides.is_empty()) {
+            (Geometry::Nominal, true) => {
+                self.walk::<JAC, false, true, false, false>(q, tool_mm, dirs, tangents, None)
             }
-            Geometry::Actual => {
-                self.walk::<JAC, true, true, false>(q, tool_mm, dirs, tangents, None)
+            (Geometry::Nominal, false) => {
+                self.walk::<JAC, false, true, false, true>(q, tool_mm, dirs, tangents, None)
+            }
+            (Geometry::Actual, true) => {
+                self.walk::<JAC, true, true, false, false>(q, tool_mm, dirs, tangents, None)
+            }
+            (Geometry::Actual, false) => {
+                self.walk::<JAC, true, true, false, true>(q, tool_mm, dirs, tangents, None)
             }
         }
     }
 
-    /// The pose through the error tables and the derivatives of the TCP only (`tangents.dd`
-    /// stays zero): what the 3-axis inverse needs, which cannot turn the tool, for a good
-    /// part less work than [`Chain::eval`] (no direction tangent is turned row by row).
-    pub(crate) fn eval_position_jacobian(
+    /// The pose through the error tables and the derivatives of the TCP with respect to the
+    /// three axes of a chain of three linear axes (what the 3-axis inverse needs; the tool
+    /// direction's derivatives are zero there), `dp[j]` for axis j; `None` for another chain.
+    ///
+    /// The walk keeps everything one rotation turns as lanes of the coordinate it changes,
+    /// `[p, d, ∂p/∂q₀, ∂p/∂q₁, ∂p/∂q₂, 0]`, so a rotation turns the pose and the three
+    /// derivatives with the same three two-lane operations per coordinate instead of a loop
+    /// over the derivatives (measured with callgrind on vmc-21: 420 instructions fewer per
+    /// inverse transform than the walk of [`Chain::eval`] with derivatives). The pose lanes
+    /// take exactly the operations of [`Chain::eval`].
+    pub(crate) fn eval_position_jacobian3(
         &self,
         q: &[f64],
         tool_mm: f64,
         dirs: Directions,
-        tangents: &mut Tangents,
-    ) -> Pose {
-        self.walk::<true, true, false, false>(q, tool_mm, dirs, Some(tangents), None)
+    ) -> Option<(Pose, [[f64; 3]; 3])> {
+        if q.len() != 3 || self.axes.len() != 3 {
+            return None;
+        }
+        // Lane of the derivative with respect to axis j: 2 + j (j < 3 here).
+        let mut x = Lanes([[0.0; 6]; 3]);
+        x.0[2][1] = 1.0;
+        let mut at = Location::default();
+        for step in &self.steps {
+            match *step {
+                Step::Translate { k, v } => x.translate(k, v),
+                Step::Tool { k, sign, offset } => x.translate(k, sign * tool_mm + offset),
+                Step::AxisTranslate { k, axis, sign } => {
+                    x.translate(k, sign * q[axis]);
+                    x.0[k][2 + axis] += sign;
+                }
+                Step::ErrTranslate { k, e } => {
+                    let (v, slope) = self.error_value::<true>(&e, &mut at, q, dirs);
+                    x.translate(k, v);
+                    x.0[k][2 + usize::from(e.axis)] += slope * e.per_unit;
+                }
+                Step::ConstErrTranslate { k, v, .. } => x.translate(k, v),
+                Step::ConstErrRotate { k, c, s, .. } | Step::Rotate { k, c, s } => {
+                    x.rotate(k, c, s)
+                }
+                Step::AxisRotate { .. } => return None,
+                Step::ErrRotate { k, e } => {
+                    let (angle, slope) = self.error_value::<true>(&e, &mut at, q, dirs);
+                    let (s, c) = super::sincos(angle);
+                    x.rotate(k, c, s);
+                    x.add_cross(k, 2 + usize::from(e.axis), slope * e.per_unit);
+                }
+                Step::Slide { index } => {
+                    let sl = self.slides.get(index)?;
+                    let axis = usize::from(sl.axis);
+                    at = self.tables[usize::from(sl.table)].table.locate(q[axis]);
+                    let base = if dirs.0 >> axis & 1 == 1 {
+                        sl.reverse
+                    } else {
+                        sl.forward
+                    };
+                    let block = self.slide_cubics.get(base as usize + at.segment())?;
+                    let (v, slope) = at.cubics::<true, 6>(block);
+                    let lane = 2 + axis;
+                    for k in 0..3 {
+                        if sl.present >> k & 1 == 1 {
+                            x.translate(k, v[k]);
+                            x.0[k][lane] += slope[k] * sl.per_unit;
+                        }
+                    }
+                    for k in 0..3 {
+                        if sl.present >> (3 + k) & 1 == 1 {
+                            let (s, c) = super::sincos(v[3 + k]);
+                            x.rotate(k, c, s);
+                            x.add_cross(k, lane, slope[3 + k] * sl.per_unit);
+                        }
+                    }
+                }
+            }
+        }
+        let lane = |l: usize| [x.0[0][l], x.0[1][l], x.0[2][l]];
+        let pose = Pose {
+            position: lane(0),
+            direction: lane(1),
+        };
+        Some((pose, [lane(2), lane(3), lane(4)]))
     }
 
     /// [`Chain::eval`] with derivatives through the error tables, and the angular velocity of
@@ -186,13 +379,31 @@ impl Chain {
         tangents: &mut Tangents,
         omega: &mut AngularVelocity,
     ) -> Pose {
-        self.walk::<true, true, true, true>(q, tool_mm, dirs, Some(tangents), Some(omega))
+        if self.slides.is_empty() {
+            self.walk::<true, true, true, true, false>(
+                q,
+                tool_mm,
+                dirs,
+                Some(tangents),
+                Some(omega),
+            )
+        } else {
+            self.walk::<true, true, true, true, true>(q, tool_mm, dirs, Some(tangents), Some(omega))
+        }
     }
 
     /// [`Chain::eval`] for one geometry (`ACTUAL`: through the error tables); `DIR_JAC`: the
-    /// derivatives of the tool direction too.
+    /// derivatives of the tool direction too; `SLIDES`: the chain has slide steps (a copy
+    /// without their code for the other chains: inlined, it costs the 5-axis walks 2–3 %
+    /// more instructions, measured).
     #[inline(always)]
-    fn walk<const JAC: bool, const ACTUAL: bool, const DIR_JAC: bool, const OMEGA: bool>(
+    fn walk<
+        const JAC: bool,
+        const ACTUAL: bool,
+        const DIR_JAC: bool,
+        const OMEGA: bool,
+        const SLIDES: bool,
+    >(
         &self,
         q: &[f64],
         tool_mm: f64,
@@ -208,8 +419,7 @@ impl Chain {
                 }
             }
         }
-        let mut p = [0.0_f64; 3];
-        let mut d = [0.0, 0.0, 1.0_f64];
+        let mut x = Pd::START;
         if JAC {
             if let Some(t) = tangents.as_deref_mut() {
                 for j in 0..n {
@@ -226,10 +436,10 @@ impl Chain {
         let mut at = Location::default();
         for step in &self.steps {
             match *step {
-                Step::Translate { k, v } => translate(&mut p, k, v),
-                Step::Tool { k, sign, offset } => translate(&mut p, k, sign * tool_mm + offset),
+                Step::Translate { k, v } => x.translate(k, v),
+                Step::Tool { k, sign, offset } => x.translate(k, sign * tool_mm + offset),
                 Step::AxisTranslate { k, axis, sign } => {
-                    translate(&mut p, k, sign * q[axis]);
+                    x.translate(k, sign * q[axis]);
                     if JAC {
                         if let Some(t) = tangents.as_deref_mut() {
                             t.dp[axis][k] += sign;
@@ -240,7 +450,7 @@ impl Chain {
                 Step::ErrTranslate { k, e } => {
                     if ACTUAL {
                         let (v, slope) = self.error_value::<JAC>(&e, &mut at, q, dirs);
-                        translate(&mut p, k, v);
+                        x.translate(k, v);
                         if JAC {
                             if let Some(t) = tangents.as_deref_mut() {
                                 let axis = usize::from(e.axis);
@@ -249,11 +459,11 @@ impl Chain {
                             }
                         }
                     } else {
-                        translate(&mut p, k, e.offset);
+                        x.translate(k, e.offset);
                     }
                 }
                 Step::ConstErrTranslate { k, v, nominal } => {
-                    translate(&mut p, k, if ACTUAL { v } else { nominal });
+                    x.translate(k, if ACTUAL { v } else { nominal });
                 }
                 Step::ConstErrRotate {
                     k,
@@ -267,8 +477,7 @@ impl Chain {
                     } else {
                         (nominal_c, nominal_s)
                     };
-                    rotate(&mut p, k, c, s);
-                    rotate(&mut d, k, c, s);
+                    x.rotate(k, c, s);
                     if JAC {
                         if let Some(t) = tangents.as_deref_mut() {
                             // A constant table has no slope: only turn the tangents.
@@ -277,8 +486,7 @@ impl Chain {
                     }
                 }
                 Step::Rotate { k, c, s } => {
-                    rotate(&mut p, k, c, s);
-                    rotate(&mut d, k, c, s);
+                    x.rotate(k, c, s);
                     if JAC {
                         if let Some(t) = tangents.as_deref_mut() {
                             turn::<DIR_JAC, OMEGA>(t, omega.as_deref_mut(), active, k, c, s);
@@ -287,14 +495,13 @@ impl Chain {
                 }
                 Step::AxisRotate { k, axis, sign } => {
                     let (s, c) = super::sincos(sign * q[axis] * DEG);
-                    rotate(&mut p, k, c, s);
-                    rotate(&mut d, k, c, s);
+                    x.rotate(k, c, s);
                     if JAC {
                         if let Some(t) = tangents.as_deref_mut() {
                             turn::<DIR_JAC, OMEGA>(t, omega.as_deref_mut(), active, k, c, s);
-                            add_cross(&mut t.dp[axis], k, &p, sign);
+                            add_cross(&mut t.dp[axis], k, &x.p(), sign);
                             if DIR_JAC {
-                                add_cross(&mut t.dd[axis], k, &d, sign);
+                                add_cross(&mut t.dd[axis], k, &x.d(), sign);
                             }
                             if OMEGA {
                                 if let Some(w) = omega.as_deref_mut() {
@@ -312,33 +519,111 @@ impl Chain {
                         (e.offset, 0.0)
                     };
                     let (s, c) = super::sincos(angle);
-                    rotate(&mut p, k, c, s);
-                    rotate(&mut d, k, c, s);
-                    if JAC {
-                        if let Some(t) = tangents.as_deref_mut() {
-                            turn::<DIR_JAC, OMEGA>(t, omega.as_deref_mut(), active, k, c, s);
-                            if ACTUAL {
-                                let axis = usize::from(e.axis);
-                                let g = slope * e.per_unit;
-                                add_cross(&mut t.dp[axis], k, &p, g);
-                                if DIR_JAC {
-                                    add_cross(&mut t.dd[axis], k, &d, g);
-                                }
-                                if OMEGA {
-                                    if let Some(w) = omega.as_deref_mut() {
-                                        w[axis][k] += g;
-                                    }
-                                }
-                                active |= 1 << axis;
-                            }
-                        }
+                    let axis = usize::from(e.axis);
+                    err_rotate::<JAC, ACTUAL, DIR_JAC, OMEGA>(
+                        &mut x,
+                        tangents.as_deref_mut(),
+                        omega.as_deref_mut(),
+                        &mut active,
+                        (k, c, s),
+                        axis,
+                        slope * e.per_unit,
+                    );
+                }
+                Step::Slide { .. } if !SLIDES => {}
+                Step::Slide { index } => {
+                    let Some(sl) = self.slides.get(index) else {
+                        continue;
+                    };
+                    let state = (&mut x, &mut active, &mut at);
+                    let (t, w) = (tangents.as_deref_mut(), omega.as_deref_mut());
+                    // Full slides (the six errors of ISO 230-1) without a test per slot.
+                    if sl.present == 0x3f {
+                        self.slide::<JAC, ACTUAL, DIR_JAC, OMEGA, true>(sl, q, dirs, state, t, w);
+                    } else {
+                        self.slide::<JAC, ACTUAL, DIR_JAC, OMEGA, false>(sl, q, dirs, state, t, w);
                     }
                 }
             }
         }
         Pose {
-            position: p,
-            direction: d,
+            position: x.p(),
+            direction: x.d(),
+        }
+    }
+
+    /// The rows of a slide (see [`super::Slide`]) applied to the pose and the derivatives, in
+    /// the order and with the operations of the separate rows. `FULL`: every slot is present.
+    #[allow(clippy::type_complexity)]
+    #[inline(always)]
+    fn slide<
+        const JAC: bool,
+        const ACTUAL: bool,
+        const DIR_JAC: bool,
+        const OMEGA: bool,
+        const FULL: bool,
+    >(
+        &self,
+        sl: &super::Slide,
+        q: &[f64],
+        dirs: Directions,
+        (x, active, at): (&mut Pd, &mut u32, &mut Location),
+        mut tangents: Option<&mut Tangents>,
+        mut omega: Option<&mut AngularVelocity>,
+    ) {
+        let present = |s: usize| FULL || sl.present >> s & 1 == 1;
+        let axis = usize::from(sl.axis);
+        // Values (mm, rad) and slopes per internal unit of the six slots.
+        let mut g = [0.0; 6];
+        let v = if !ACTUAL {
+            sl.nominal
+        } else {
+            *at = self.tables[usize::from(sl.table)].table.locate(q[axis]);
+            let base = if dirs.0 >> axis & 1 == 1 {
+                sl.reverse
+            } else {
+                sl.forward
+            };
+            // `locate` returns a segment below the table's segment count, the number of
+            // blocks of the slide: the fallback (nominal) is never taken.
+            match self.slide_cubics.get(base as usize + at.segment()) {
+                Some(block) => {
+                    // Empty slots have zero cubics: evaluating them costs less than a test.
+                    let (v, slope) = at.cubics::<JAC, 6>(block);
+                    if JAC {
+                        for s in 0..6 {
+                            g[s] = slope[s] * sl.per_unit;
+                        }
+                    }
+                    v
+                }
+                None => sl.nominal,
+            }
+        };
+        for k in 0..3 {
+            if present(k) {
+                x.translate(k, v[k]);
+                if JAC && ACTUAL {
+                    if let Some(t) = tangents.as_deref_mut() {
+                        t.dp[axis][k] += g[k];
+                        *active |= 1 << axis;
+                    }
+                }
+            }
+        }
+        for k in 0..3 {
+            if present(3 + k) {
+                let (s, c) = super::sincos(v[3 + k]);
+                err_rotate::<JAC, ACTUAL, DIR_JAC, OMEGA>(
+                    x,
+                    tangents.as_deref_mut(),
+                    omega.as_deref_mut(),
+                    active,
+                    (k, c, s),
+                    axis,
+                    g[3 + k],
+                );
+            }
         }
     }
 

@@ -994,10 +994,13 @@ impl Chain {
         let mut best = (*q, f64::INFINITY, f64::INFINITY);
         let mut inv = af.inv;
         for iterations in 0..=CHORD_STEPS {
-            let pose = if iterations == 0 {
-                let mut t = Tangents::ZERO;
-                let pose = self.eval_position_jacobian(&q[..n], tool_mm, dirs, &mut t);
-                if let Some(i) = inverse3(&t.dp[linear[0]], &t.dp[linear[1]], &t.dp[linear[2]]) {
+            let first = if iterations == 0 {
+                self.eval_position_jacobian3(&q[..n], tool_mm, dirs)
+            } else {
+                None
+            };
+            let pose = if let Some((pose, dp)) = first {
+                if let Some(i) = inverse3(&dp[linear[0]], &dp[linear[1]], &dp[linear[2]]) {
                     inv = i;
                 }
                 pose

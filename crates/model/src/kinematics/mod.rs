@@ -461,6 +461,37 @@ pub(crate) enum Step {
         axis: usize,
         sign: f64,
     },
+    // Consecutive error rows of one slide (see [`Slide`]), index into `Chain::slides`.
+    Slide {
+        index: usize,
+    },
+}
+
+/// Consecutive error rows that read tables of one linear axis on the same support points,
+/// in the order translations (X, Y, Z, at most one each) then rotations about X, Y, Z (at
+/// most one each, in this order): the six errors of a slide in ISO 230-1. One step evaluates
+/// them with one table search, one direction select and one bounds check, with the
+/// coordinate of every translation and rotation known in the code (no select, no dispatch
+/// per row). The operations and their order are those of the separate rows, so the results
+/// are the same to the last bit. Formed only in chains without rotary axes (whose 5-axis
+/// analysis reads the rotation rows one by one).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Slide {
+    /// First block of six cubics (slots X, Y, Z, A, B, C; zero where the slot is empty;
+    /// coefficients by power, see `Location::cubics`) of the forward and the reverse column in
+    /// `Chain::slide_cubics`, one block per segment.
+    pub forward: u32,
+    pub reverse: u32,
+    /// The table whose support points locate the axis position.
+    pub table: u16,
+    /// The axis whose position reads the tables.
+    pub axis: u8,
+    /// Bit s: slot s holds a row.
+    pub present: u8,
+    /// d(axis position in mm) / d(internal unknown in mm).
+    pub per_unit: f64,
+    /// Nominal parts of the slots (mm, rad; zero where empty).
+    pub nominal: [f64; 6],
 }
 
 /// What the inverse transform knows about the chain's structure, found once at build time.
@@ -491,6 +522,9 @@ pub struct Chain {
     // radians with the row's nominal part added to the constant term: a lookup is one index
     // into this array (no table, unit or offset indirection per row).
     cubics: Vec<[f64; 4]>,
+    // Slides of a chain without rotary axes (see [`Slide`]) and their cubics.
+    slides: Vec<Slide>,
+    slide_cubics: Vec<[[f64; 6]; 4]>,
     layout: Layout,
     // Bit j: axis j is rotary and every table it reads repeats every 360°, so whole turns of
     // it change nothing (found once here rather than per inverse transform).
@@ -682,6 +716,13 @@ impl Chain {
             }
         }
         let layout = inverse::analyse(&axes, &steps);
+        let (steps, slides, slide_cubics) = if axes.iter().all(|a| a.kind == AxisKind::Linear) {
+            slides(steps, &cubics, &tables).map_err(|_| ChainError::BadValue {
+                what: "tables".into(),
+            })?
+        } else {
+            (steps, Vec::new(), Vec::new())
+        };
         let mut periodic = 0u16;
         for (j, a) in axes.iter().enumerate() {
             let wraps = tables
@@ -698,6 +739,8 @@ impl Chain {
             rows,
             steps,
             cubics,
+            slides,
+            slide_cubics,
             layout,
             periodic,
         };
@@ -769,6 +812,93 @@ impl Chain {
             .filter(|a| a.kind == AxisKind::Rotary)
             .count()
     }
+}
+
+/// Slot of an error row in a [`Slide`] (0–2 translations, 3–5 rotations) and its [`ErrRef`].
+fn slot(step: &Step) -> Option<(usize, ErrRef)> {
+    match *step {
+        Step::ErrTranslate { k, e } => Some((k, e)),
+        Step::ErrRotate { k, e } => Some((3 + k, e)),
+        _ => None,
+    }
+}
+
+type Slides = (Vec<Step>, Vec<Slide>, Vec<[[f64; 6]; 4]>);
+
+/// Replaces every run of error rows that fits a [`Slide`] by one slide step (the first row
+/// of a run that does not fit starts the next run).
+fn slides(steps: Vec<Step>, cubics: &[[f64; 4]], tables: &[ErrorTable]) -> Result<Slides, ()> {
+    let mut out = Vec::with_capacity(steps.len());
+    let mut slides = Vec::new();
+    let mut slide_cubics: Vec<[[f64; 6]; 4]> = Vec::new();
+    let mut i = 0;
+    while i < steps.len() {
+        let Some((first_slot, first)) = slot(&steps[i]) else {
+            out.push(steps[i]);
+            i += 1;
+            continue;
+        };
+        // rows[s]: the ErrRef of slot s; a run takes slots in increasing order, so the
+        // translations come first and each rotation follows the previous one in X, Y, Z order
+        // (translations along different coordinates commute exactly; rotations do not).
+        let mut rows: [Option<ErrRef>; 6] = [None; 6];
+        rows[first_slot] = Some(first);
+        let (mut last, mut j) = (first_slot, i + 1);
+        while let Some((s, e)) = steps.get(j).and_then(slot) {
+            let next_translation = s < 3 && last < 3 && rows[s].is_none();
+            let next_rotation = s >= 3 && s > last;
+            if e.relocate || e.axis != first.axis || !(next_translation || next_rotation) {
+                break;
+            }
+            rows[s] = Some(e);
+            last = last.max(s);
+            j += 1;
+        }
+        let segments = tables[usize::from(first.table)]
+            .table
+            .cubics(Direction::Forward)
+            .len();
+        let mut block = |reverse: bool| -> Result<u32, ()> {
+            let start = u32::try_from(slide_cubics.len()).map_err(|_| ())?;
+            for seg in 0..segments {
+                let mut b = [[0.0; 6]; 4];
+                for (s, row) in rows.iter().enumerate() {
+                    if let Some(e) = row {
+                        let base = if reverse { e.reverse } else { e.forward };
+                        let c = cubics.get(base as usize + seg).ok_or(())?;
+                        for (power, &v) in c.iter().enumerate() {
+                            b[power][s] = v;
+                        }
+                    }
+                }
+                slide_cubics.push(b);
+            }
+            Ok(start)
+        };
+        let forward = block(false)?;
+        let reverse = block(true)?;
+        let mut slide = Slide {
+            forward,
+            reverse,
+            table: first.table,
+            axis: first.axis,
+            present: 0,
+            per_unit: first.per_unit,
+            nominal: [0.0; 6],
+        };
+        for (s, row) in rows.iter().enumerate() {
+            if let Some(e) = row {
+                slide.present |= 1 << s;
+                slide.nominal[s] = e.offset;
+            }
+        }
+        out.push(Step::Slide {
+            index: slides.len(),
+        });
+        slides.push(slide);
+        i = j;
+    }
+    Ok((out, slides, slide_cubics))
 }
 
 /// The value of a table that has the same value at every position and in both directions of
