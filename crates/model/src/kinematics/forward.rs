@@ -146,34 +146,55 @@ impl Pd {
     }
 }
 
-/// See [`Chain::eval_position_jacobian3`]: lane 0 the TCP, lane 1 the tool direction, lanes 2–4
-/// the TCP's derivatives with respect to the three axes, lane 5 padding.
+/// See [`Chain::eval_position_jacobian3`]: lane 0 the TCP, lanes 1–3 its derivatives with
+/// respect to the three axes.
 #[derive(Clone, Copy)]
-struct Lanes([[f64; 6]; 3]);
+struct Lanes([[f64; 4]; 3]);
 
 impl Lanes {
-    /// Every lane turned by R_k(θ), with the operations of [`rotate`].
+    /// Every lane turned by R_k(θ), with the operations of [`rotate`]. Every index is a
+    /// constant (one arm per axis), so the lanes can stay in registers.
     #[inline(always)]
     fn rotate(&mut self, k: usize, c: f64, s: f64) {
-        let (i, j) = match k {
-            0 => (1, 2),
-            1 => (2, 0),
-            _ => (0, 1),
-        };
-        let (a, b) = (self.0[i], self.0[j]);
-        for l in 0..6 {
-            self.0[i][l] = c * a[l] - s * b[l];
-            self.0[j][l] = s * a[l] + c * b[l];
+        match k {
+            0 => self.rotate_rows::<1, 2>(c, s),
+            1 => self.rotate_rows::<2, 0>(c, s),
+            _ => self.rotate_rows::<0, 1>(c, s),
+        }
+    }
+
+    #[inline(always)]
+    fn rotate_rows<const I: usize, const J: usize>(&mut self, c: f64, s: f64) {
+        let (a, b) = (self.0[I], self.0[J]);
+        for l in 0..4 {
+            self.0[I][l] = c * a[l] - s * b[l];
+            self.0[J][l] = s * a[l] + c * b[l];
         }
     }
 
     /// p ← p + v·e_k.
     #[inline(always)]
     fn translate(&mut self, k: usize, v: f64) {
+        self.add(k, 0, v);
+    }
+
+    /// Lane `lane` (0 to 3) of coordinate k += v, with constant indices.
+    #[inline(always)]
+    fn add(&mut self, k: usize, lane: usize, v: f64) {
         match k {
-            0 => self.0[0][0] += v,
-            1 => self.0[1][0] += v,
-            _ => self.0[2][0] += v,
+            0 => self.add_row::<0>(lane, v),
+            1 => self.add_row::<1>(lane, v),
+            _ => self.add_row::<2>(lane, v),
+        }
+    }
+
+    #[inline(always)]
+    fn add_row<const K: usize>(&mut self, lane: usize, v: f64) {
+        match lane {
+            0 => self.0[K][0] += v,
+            1 => self.0[K][1] += v,
+            2 => self.0[K][2] += v,
+            _ => self.0[K][3] += v,
         }
     }
 
@@ -183,16 +204,16 @@ impl Lanes {
         let p = [self.0[0][0], self.0[1][0], self.0[2][0]];
         match k {
             0 => {
-                self.0[1][lane] -= g * p[2];
-                self.0[2][lane] += g * p[1];
+                self.add(1, lane, -(g * p[2]));
+                self.add(2, lane, g * p[1]);
             }
             1 => {
-                self.0[2][lane] -= g * p[0];
-                self.0[0][lane] += g * p[2];
+                self.add(2, lane, -(g * p[0]));
+                self.add(0, lane, g * p[2]);
             }
             _ => {
-                self.0[0][lane] -= g * p[1];
-                self.0[1][lane] += g * p[0];
+                self.add(0, lane, -(g * p[1]));
+                self.add(1, lane, g * p[0]);
             }
         }
     }
@@ -286,28 +307,26 @@ impl Chain {
         }
     }
 
-    /// The pose through the error tables and the derivatives of the TCP with respect to the
-    /// three axes of a chain of three linear axes (what the 3-axis inverse needs; the tool
-    /// direction's derivatives are zero there), `dp[j]` for axis j; `None` for another chain.
+    /// The TCP through the error tables and its derivatives with respect to the three axes
+    /// of a chain of three linear axes (what the 3-axis inverse needs: it cannot turn the
+    /// tool, so the tool direction is left out), `dp[j]` for axis j; `None` for another chain.
     ///
     /// The walk keeps everything one rotation turns as lanes of the coordinate it changes,
-    /// `[p, d, ∂p/∂q₀, ∂p/∂q₁, ∂p/∂q₂, 0]`, so a rotation turns the pose and the three
-    /// derivatives with the same three two-lane operations per coordinate instead of a loop
-    /// over the derivatives (measured with callgrind on vmc-21: 420 instructions fewer per
-    /// inverse transform than the walk of [`Chain::eval`] with derivatives). The pose lanes
-    /// take exactly the operations of [`Chain::eval`].
+    /// `[p, ∂p/∂q₀, ∂p/∂q₁, ∂p/∂q₂]`, so a rotation turns the TCP and the three derivatives
+    /// with the same two two-lane operations per coordinate instead of a loop over the
+    /// derivatives, with constant indices so the lanes stay in registers. The TCP lane takes
+    /// exactly the operations of [`Chain::eval`].
     pub(crate) fn eval_position_jacobian3(
         &self,
         q: &[f64],
         tool_mm: f64,
         dirs: Directions,
-    ) -> Option<(Pose, [[f64; 3]; 3])> {
+    ) -> Option<([f64; 3], [[f64; 3]; 3])> {
         if q.len() != 3 || self.axes.len() != 3 {
             return None;
         }
-        // Lane of the derivative with respect to axis j: 2 + j (j < 3 here).
-        let mut x = Lanes([[0.0; 6]; 3]);
-        x.0[2][1] = 1.0;
+        // Lane of the derivative with respect to axis j: 1 + j (j < 3 here).
+        let mut x = Lanes([[0.0; 4]; 3]);
         let mut at = Location::default();
         for step in &self.steps {
             match *step {
@@ -315,12 +334,12 @@ impl Chain {
                 Step::Tool { k, sign, offset } => x.translate(k, sign * tool_mm + offset),
                 Step::AxisTranslate { k, axis, sign } => {
                     x.translate(k, sign * q[axis]);
-                    x.0[k][2 + axis] += sign;
+                    x.add(k, 1 + axis, sign);
                 }
                 Step::ErrTranslate { k, e } => {
                     let (v, slope) = self.error_value::<true>(&e, &mut at, q, dirs);
                     x.translate(k, v);
-                    x.0[k][2 + usize::from(e.axis)] += slope * e.per_unit;
+                    x.add(k, 1 + usize::from(e.axis), slope * e.per_unit);
                 }
                 Step::ConstErrTranslate { k, v, .. } => x.translate(k, v),
                 Step::ConstErrRotate { k, c, s, .. } | Step::Rotate { k, c, s } => {
@@ -331,7 +350,7 @@ impl Chain {
                     let (angle, slope) = self.error_value::<true>(&e, &mut at, q, dirs);
                     let (s, c) = super::sincos(angle);
                     x.rotate(k, c, s);
-                    x.add_cross(k, 2 + usize::from(e.axis), slope * e.per_unit);
+                    x.add_cross(k, 1 + usize::from(e.axis), slope * e.per_unit);
                 }
                 Step::Slide { index } => {
                     let sl = self.slides.get(index)?;
@@ -344,11 +363,11 @@ impl Chain {
                     };
                     let block = self.slide_cubics.get(base as usize + at.segment())?;
                     let (v, slope) = at.cubics::<true, 6>(block);
-                    let lane = 2 + axis;
+                    let lane = 1 + axis;
                     for k in 0..3 {
                         if sl.present >> k & 1 == 1 {
                             x.translate(k, v[k]);
-                            x.0[k][lane] += slope[k] * sl.per_unit;
+                            x.add(k, lane, slope[k] * sl.per_unit);
                         }
                     }
                     for k in 0..3 {
@@ -362,11 +381,7 @@ impl Chain {
             }
         }
         let lane = |l: usize| [x.0[0][l], x.0[1][l], x.0[2][l]];
-        let pose = Pose {
-            position: lane(0),
-            direction: lane(1),
-        };
-        Some((pose, [lane(2), lane(3), lane(4)]))
+        Some((lane(0), [lane(1), lane(2), lane(3)]))
     }
 
     /// [`Chain::eval`] with derivatives through the error tables, and the angular velocity of

@@ -991,7 +991,16 @@ impl Chain {
     ) -> Result<(u32, f64, f64), KinError> {
         const CHORD_STEPS: u32 = 6;
         let n = self.axes.len();
-        let mut best = (*q, f64::INFINITY, f64::INFINITY);
+        // The tool direction's residual (only reported: three linear axes cannot turn the
+        // tool); the first transform leaves the direction out, so it is found on demand.
+        let direction_residual = |q: &[f64; MAX_AXES], d: Option<V3>| -> f64 {
+            let d = d.unwrap_or_else(|| {
+                self.eval::<false>(&q[..n], tool_mm, dirs, Geometry::Actual, None)
+                    .direction
+            });
+            norm(&sub(&d, &target.direction))
+        };
+        let mut best: ([f64; MAX_AXES], f64, Option<V3>) = (*q, f64::INFINITY, None);
         let mut inv = af.inv;
         for iterations in 0..=CHORD_STEPS {
             let first = if iterations == 0 {
@@ -999,26 +1008,31 @@ impl Chain {
             } else {
                 None
             };
-            let pose = if let Some((pose, dp)) = first {
+            let (position, direction) = if let Some((position, dp)) = first {
                 if let Some(i) = inverse3(&dp[linear[0]], &dp[linear[1]], &dp[linear[2]]) {
                     inv = i;
                 }
-                pose
+                (position, None)
             } else {
-                self.eval::<false>(&q[..n], tool_mm, dirs, Geometry::Actual, None)
+                let pose = self.eval::<false>(&q[..n], tool_mm, dirs, Geometry::Actual, None);
+                (pose.position, Some(pose.direction))
             };
-            let rp = sub(&pose.position, &target.position);
-            let (np, nd) = (norm(&rp), norm(&sub(&pose.direction, &target.direction)));
-            if !(np.is_finite() && nd.is_finite()) {
+            let rp = sub(&position, &target.position);
+            let np = norm(&rp);
+            if !np.is_finite() || direction.is_some_and(|d| !d.iter().all(|v| v.is_finite())) {
                 return Err(KinError::NonFinite);
             }
             if np <= POSITION_TOLERANCE_MM {
+                let nd = direction_residual(q, direction);
+                if !nd.is_finite() {
+                    return Err(KinError::NonFinite);
+                }
                 return Ok((iterations, np, nd));
             }
             if np >= best.1 {
                 break;
             }
-            best = (*q, np, nd);
+            best = (*q, np, direction);
             if iterations == CHORD_STEPS {
                 break;
             }
@@ -1030,7 +1044,7 @@ impl Chain {
         *q = best.0;
         Err(KinError::NotConverged {
             position_mm: best.1,
-            direction_rad: best.2,
+            direction_rad: direction_residual(q, best.2),
         })
     }
 
