@@ -103,25 +103,24 @@ fn rotate(x: &mut [f64; 3], k: usize, c: f64, s: f64) {
     x[j] = s * a + c * b;
 }
 
-/// The TCP p and the tool direction d of a walk, coordinate by coordinate ([p_i, d_i]): a
-/// rotation turns both with the same two-lane operations.
+/// The TCP p and the tool direction d of a walk.
 #[derive(Clone, Copy)]
-struct Pd([[f64; 2]; 3]);
+struct Pd {
+    p: [f64; 3],
+    d: [f64; 3],
+}
 
 impl Pd {
-    const START: Self = Self([[0.0, 0.0], [0.0, 0.0], [0.0, 1.0]]);
+    const START: Self = Self {
+        p: [0.0; 3],
+        d: [0.0, 0.0, 1.0],
+    };
 
-    /// R_k(θ)·p and R_k(θ)·d, the operations of [`rotate`] on each.
+    /// R_k(θ)·p and R_k(θ)·d.
     #[inline(always)]
     fn rotate(&mut self, k: usize, c: f64, s: f64) {
-        let (i, j) = match k {
-            0 => (1, 2),
-            1 => (2, 0),
-            _ => (0, 1),
-        };
-        let (a, b) = (self.0[i], self.0[j]);
-        self.0[i] = [c * a[0] - s * b[0], c * a[1] - s * b[1]];
-        self.0[j] = [s * a[0] + c * b[0], s * a[1] + c * b[1]];
+        rotate(&mut self.p, k, c, s);
+        rotate(&mut self.d, k, c, s);
     }
 
     /// p ← p + v·e_k, one arm per axis with a constant index (measured: fewer instructions
@@ -129,20 +128,20 @@ impl Pd {
     #[inline(always)]
     fn translate(&mut self, k: usize, v: f64) {
         match k {
-            0 => self.0[0][0] += v,
-            1 => self.0[1][0] += v,
-            _ => self.0[2][0] += v,
+            0 => self.p[0] += v,
+            1 => self.p[1] += v,
+            _ => self.p[2] += v,
         }
     }
 
     #[inline(always)]
     fn p(&self) -> [f64; 3] {
-        [self.0[0][0], self.0[1][0], self.0[2][0]]
+        self.p
     }
 
     #[inline(always)]
     fn d(&self) -> [f64; 3] {
-        [self.0[0][1], self.0[1][1], self.0[2][1]]
+        self.d
     }
 }
 
