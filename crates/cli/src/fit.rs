@@ -36,8 +36,9 @@ pub struct Args {
     /// Validation: chrono:<train fraction>, runs (leave one run out) or kfold:<k>.
     #[arg(long, default_value = "chrono:0.6")]
     split: String,
-    /// Fix the model family (static, operating, dynamic, dynamic-rates; comma-separated to
-    /// choose among several). Default: chosen automatically.
+    /// Fix the model family (static, operating, dynamic, dynamic-rates, dynamic-running,
+    /// dynamic-rates-running, seed-c; comma-separated to choose among several). Default: chosen
+    /// automatically.
     #[arg(long)]
     family: Option<String>,
     /// Fix the ridge parameter(s), comma-separated. Default: chosen automatically.
@@ -190,7 +191,7 @@ fn settings(args: &Args, ds: &Dataset) -> Result<Settings, String> {
             .map(|name| {
                 Family::parse(name).ok_or_else(|| {
                     format!(
-                        "--family `{name}`: expected seed-c, static, operating, dynamic or dynamic-rates"
+                        "--family `{name}`: expected seed-c, static, operating, dynamic, dynamic-rates, dynamic-running or dynamic-rates-running"
                     )
                 })
             })

@@ -96,8 +96,8 @@ fn dynamic_coefficients(
     let features = bound.model.bank().features();
     let n = features.len();
     let input_name = |k: usize| match bound.inputs[k] {
-        MachineInput::Temperature(c) => machine.temperatures[c].id.clone(),
-        MachineInput::Operating(c) => machine.operating[c].id.clone(),
+        MachineInput::Temperature(c) => machine.temperatures[c].id.as_str(),
+        MachineInput::Operating(c) => machine.operating[c].id.as_str(),
     };
     let mut out = Vec::new();
     for (k, axis) in bound.axes.iter().enumerate() {
@@ -113,7 +113,7 @@ fn dynamic_coefficients(
             if value != 0.0 {
                 out.push(Coefficient {
                     channel: channel.clone(),
-                    feature: f.name(&input_name(f.input)),
+                    feature: f.name(input_name),
                     value,
                 });
             }

@@ -47,10 +47,13 @@ pub struct Candidates {
 }
 
 /// The bank spec and input order for a subset of a dataset's inputs.
+///
+/// `running`: whether the rises while each operating input is non-zero are features too.
 pub fn bank_for(
     dataset: &Dataset,
     inputs: &[usize],
     taus: &TimeConstants,
+    running: bool,
 ) -> (FeatureSpec, Vec<usize>) {
     let temps: Vec<usize> = inputs
         .iter()
@@ -70,6 +73,7 @@ pub fn bank_for(
         rate_taus_s: taus.rate_s.clone(),
         operating_taus_s: taus.operating_s.clone(),
         operating_square: true,
+        rise_while_running: running,
     };
     (spec, temps.into_iter().chain(ops).collect())
 }
@@ -80,12 +84,12 @@ pub fn candidates(
     taus: &TimeConstants,
 ) -> Result<Candidates, truepos_model::DynamicError> {
     let all: Vec<usize> = (0..dataset.input_names.len()).collect();
-    let (spec, bank_inputs) = bank_for(dataset, &all, taus);
+    let (spec, bank_inputs) = bank_for(dataset, &all, taus, true);
     let mut bank = FeatureBank::new(spec.clone())?;
     let features = bank.features().to_vec();
     let names = features
         .iter()
-        .map(|f| f.name(&dataset.input_names[bank_inputs[f.input]]))
+        .map(|f| f.name(|i| &dataset.input_names[bank_inputs[i]]))
         .collect();
     let mut runs = Vec::with_capacity(dataset.runs.len());
     let mut row = vec![0.0; bank_inputs.len()];
@@ -129,6 +133,11 @@ pub enum Family {
     Dynamic,
     /// Adds filtered rates of change of temperature.
     DynamicRates,
+    /// [`Family::Dynamic`] plus the rises while the spindle (each operating input) runs: the
+    /// error a temperature rise stands for differs between running and standing.
+    DynamicRunning,
+    /// [`Family::DynamicRates`] plus the rises while running.
+    DynamicRatesRunning,
     /// Seed C's regression: Y = Σ k_i·(t_i − t_r) + c, every selected sensor against one
     /// reference sensor (`Settings::reference`); a candidate only when a reference is given.
     SeedC,
@@ -136,12 +145,14 @@ pub enum Family {
 
 impl Family {
     /// Every family, simplest first.
-    pub const ALL: [Family; 5] = [
+    pub const ALL: [Family; 7] = [
         Family::SeedC,
         Family::Static,
         Family::Operating,
         Family::Dynamic,
         Family::DynamicRates,
+        Family::DynamicRunning,
+        Family::DynamicRatesRunning,
     ];
 
     /// The name used on the command line and in files.
@@ -151,6 +162,8 @@ impl Family {
             Self::Operating => "operating",
             Self::Dynamic => "dynamic",
             Self::DynamicRates => "dynamic-rates",
+            Self::DynamicRunning => "dynamic-running",
+            Self::DynamicRatesRunning => "dynamic-rates-running",
             Self::SeedC => "seed-c",
         }
     }
@@ -167,8 +180,15 @@ impl Family {
             FeatureKind::Operating { .. } | FeatureKind::OperatingSquared { .. } => {
                 !matches!(self, Self::Static | Self::SeedC)
             }
-            FeatureKind::LowPass { .. } => matches!(self, Self::Dynamic | Self::DynamicRates),
-            FeatureKind::Rate { .. } => self == Self::DynamicRates,
+            FeatureKind::LowPass { .. } => {
+                !matches!(self, Self::Static | Self::SeedC | Self::Operating)
+            }
+            FeatureKind::Rate { .. } => {
+                matches!(self, Self::DynamicRates | Self::DynamicRatesRunning)
+            }
+            FeatureKind::RiseWhileRunning { .. } => {
+                matches!(self, Self::DynamicRunning | Self::DynamicRatesRunning)
+            }
         }
     }
 }
@@ -202,7 +222,13 @@ mod tests {
         assert_eq!(c.bank_inputs, vec![1, 0]);
         assert_eq!(
             c.names,
-            vec!["rise(t1)", "lp10(t1)", "lp10(rpm)", "lp10(rpm^2)"]
+            vec![
+                "rise(t1)",
+                "lp10(t1)",
+                "lp10(rpm)",
+                "lp10(rpm^2)",
+                "rise(t1)·running(rpm)"
+            ]
         );
         let m = &c.runs[0];
         assert_eq!(m[(1, 0)], 1.0);
@@ -211,6 +237,8 @@ mod tests {
         assert!((m[(2, 1)] - 0.864_664_716_8).abs() < 1e-9);
         assert_eq!(m[(2, 2)], 1000.0);
         assert_eq!(m[(2, 3)], 1.0e6);
+        // The spindle runs throughout: the rise while running is the rise.
+        assert_eq!(m[(2, 4)], 1.0);
     }
 
     #[test]
@@ -220,5 +248,23 @@ mod tests {
         assert!(!Family::Static.includes(FeatureKind::Operating { tau_s: 1.0 }));
         assert!(!Family::Dynamic.includes(FeatureKind::Rate { tau_s: 1.0 }));
         assert_eq!(Family::parse("dynamic-rates"), Some(Family::DynamicRates));
+        let running = FeatureKind::RiseWhileRunning { running: 1 };
+        for f in Family::ALL {
+            let with = matches!(f, Family::DynamicRunning | Family::DynamicRatesRunning);
+            assert_eq!(f.includes(running), with, "{f:?}");
+            assert_eq!(Family::parse(f.name()), Some(f));
+        }
+        // The running families hold everything their base family holds.
+        for (base, run) in [
+            (Family::Dynamic, Family::DynamicRunning),
+            (Family::DynamicRates, Family::DynamicRatesRunning),
+        ] {
+            for kind in [lp, FeatureKind::Rate { tau_s: 1.0 }, FeatureKind::Rise] {
+                assert!(
+                    !base.includes(kind) || run.includes(kind),
+                    "{run:?} {kind:?}"
+                );
+            }
+        }
     }
 }

@@ -502,9 +502,12 @@ pub fn train(
     let uses_operating = uses(&|k| {
         matches!(
             k,
-            FeatureKind::Operating { .. } | FeatureKind::OperatingSquared { .. }
+            FeatureKind::Operating { .. }
+                | FeatureKind::OperatingSquared { .. }
+                | FeatureKind::RiseWhileRunning { .. }
         )
     });
+    let uses_running = uses(&|k| matches!(k, FeatureKind::RiseWhileRunning { .. }));
     let mut inputs: Vec<usize> = sensors.iter().map(|&s| cand.bank_inputs[s]).collect();
     if uses_operating {
         inputs.extend(
@@ -512,16 +515,28 @@ pub fn train(
                 .filter(|&i| dataset.input_kinds[i] == InputKind::Operating),
         );
     }
-    let (spec, order) = bank_for(dataset, &inputs, &settings.taus);
+    let (spec, order) = bank_for(dataset, &inputs, &settings.taus, uses_running);
     let bank = FeatureBank::new(spec).map_err(|e| e.to_string())?;
+    // The same feature in the candidate bank: same dataset input, same kind (a rise while
+    // running names its operating input by bank index, which differs between the two banks).
+    let dataset_kind = |kind: FeatureKind, inputs: &[usize]| match kind {
+        FeatureKind::RiseWhileRunning { running } => FeatureKind::RiseWhileRunning {
+            running: inputs[running],
+        },
+        other => other,
+    };
     let mut flat = Vec::new();
     for c in &coef {
         for f in bank.features() {
             let d = order[f.input];
+            let kind = dataset_kind(f.kind, &order);
             let j = cand
                 .features
                 .iter()
-                .position(|g| cand.bank_inputs[g.input] == d && g.kind == f.kind)
+                .position(|g| {
+                    cand.bank_inputs[g.input] == d
+                        && dataset_kind(g.kind, &cand.bank_inputs) == kind
+                })
                 .ok_or("internal: feature not among the candidates")?;
             flat.push(c[j]);
         }
@@ -676,9 +691,20 @@ mod tests {
 
     #[test]
     fn offline_features_equal_the_online_model() {
+        // Once with everything free, once with a running family on one sensor: the exported
+        // bank then has one temperature, so its rise-while-running features name the spindle by
+        // another index than the candidate bank does.
+        offline_equals_online(Settings::default());
+        offline_equals_online(Settings {
+            families: vec![Family::DynamicRatesRunning],
+            max_sensors: Some(1),
+            ..Settings::default()
+        });
+    }
+
+    fn offline_equals_online(settings: Settings) {
         let ds = twin_like();
         ds.check().unwrap();
-        let settings = Settings::default();
         let cand = candidates(&ds, &settings.taus).unwrap();
         let rows: Rows = (0..ds.runs.len())
             .flat_map(|r| (0..ds.runs[r].len()).map(move |i| (r, i)))
@@ -693,7 +719,7 @@ mod tests {
             .bank()
             .features()
             .iter()
-            .map(|f| f.name(&ds.input_names[trained.inputs[f.input]]))
+            .map(|f| f.name(|i| &ds.input_names[trained.inputs[i]]))
             .collect();
         let mut nonzero = 0;
         for (r, run) in ds.runs.iter().enumerate() {
@@ -715,6 +741,15 @@ mod tests {
             }
         }
         assert!(nonzero > 0 && n > 0);
+        if settings.families == [Family::DynamicRatesRunning] {
+            assert_eq!(trained.sensors, vec![0]);
+            let running = names
+                .iter()
+                .zip(model.coefficients())
+                .filter(|(name, c)| name.contains("running(spindle_rpm)") && **c != 0.0)
+                .count();
+            assert_eq!(running, 1, "{names:?}");
+        }
         // And the model is good: the data are exactly representable by lags of the inputs.
         let rel = ds.runs[1].relative_target(0);
         let rms = (rel
@@ -774,7 +809,7 @@ mod tests {
             .bank()
             .features()
             .iter()
-            .map(|f| f.name(&ds.input_names[trained.inputs[f.input]]))
+            .map(|f| f.name(|i| &ds.input_names[trained.inputs[i]]))
             .collect();
         let coef = |name: &str| m.coefficients()[names.iter().position(|x| x == name).unwrap()];
         assert!((coef("rise(t1_c)") - 2.0).abs() < 1e-9);

@@ -5,7 +5,7 @@
 //! { "format": "truepos-dynamic-model", "version": 1, "machine": "fl-thermal",
 //!   "inputs": [{"name": "t5_c", "kind": "temperature"}, {"name": "spindle_rpm", "kind": "operating"}],
 //!   "temperature_rise": true, "temperature_taus_s": [900, 3600], "rate_taus_s": [1800],
-//!   "operating_taus_s": [300, …], "operating_square": true,
+//!   "operating_taus_s": [300, …], "operating_square": true, "rise_while_running": true,
 //!   "features": ["rise(t5_c)", …],
 //!   "outputs": [{"name": "ch1_um", "intercept_um": 0.1, "coefficients": [ … one per feature … ]}],
 //!   "provenance": {…}, "validation": {…} }
@@ -86,6 +86,9 @@ pub struct DynamicModelFile {
     pub operating_taus_s: Vec<f64>,
     /// See [`FeatureSpec::operating_square`].
     pub operating_square: bool,
+    /// See [`FeatureSpec::rise_while_running`] (absent in older files: false).
+    #[serde(default)]
+    pub rise_while_running: bool,
     /// Feature names, for people (checked against the spec on load).
     pub features: Vec<String>,
     /// Outputs.
@@ -119,7 +122,7 @@ impl DynamicModelFile {
                 .bank()
                 .features()
                 .iter()
-                .map(|f| f.name(&inputs[f.input].name))
+                .map(|f| f.name(|i| &inputs[i].name))
                 .collect(),
             inputs,
             temperature_rise: spec.temperature_rise,
@@ -127,6 +130,7 @@ impl DynamicModelFile {
             rate_taus_s: spec.rate_taus_s.clone(),
             operating_taus_s: spec.operating_taus_s.clone(),
             operating_square: spec.operating_square,
+            rise_while_running: spec.rise_while_running,
             outputs: outputs
                 .iter()
                 .enumerate()
@@ -170,6 +174,7 @@ impl DynamicModelFile {
             rate_taus_s: self.rate_taus_s.clone(),
             operating_taus_s: self.operating_taus_s.clone(),
             operating_square: self.operating_square,
+            rise_while_running: self.rise_while_running,
         })
         .map_err(|e| format!("time constants: {e}"))?;
         let n = bank.features().len();
@@ -370,11 +375,12 @@ mod tests {
             rate_taus_s: vec![],
             operating_taus_s: vec![300.0],
             operating_square: true,
+            rise_while_running: true,
         };
         let model = DynamicModel::new(
             FeatureBank::new(spec).unwrap(),
             vec![0.5],
-            vec![1.0, 2.0, 3e-3, 4e-7],
+            vec![1.0, 2.0, 3e-3, 4e-7, 0.25],
         )
         .unwrap();
         let inputs = vec![
@@ -401,7 +407,8 @@ mod tests {
                 "rise(t5_c)",
                 "lp600(t5_c)",
                 "lp300(spindle_rpm)",
-                "lp300(spindle_rpm^2)"
+                "lp300(spindle_rpm^2)",
+                "rise(t5_c)·running(spindle_rpm)"
             ]
         );
         let back = DynamicModelFile::from_json(&file.to_json()).unwrap();
@@ -411,7 +418,7 @@ mod tests {
         assert!(bad
             .to_model()
             .unwrap_err()
-            .contains("expected 4 values, got 3"));
+            .contains("expected 5 values, got 4"));
         bad.version = 2;
         assert!(bad.to_model().is_err());
         assert!(DynamicModelFile::from_json("{\n\"format\": 3}")

@@ -1,6 +1,9 @@
 //! Dynamic thermal models: structures lag their sensors, so a model may read first-order low-pass
 //! filtered temperatures, their filtered rates of change, and filtered operating state (spindle
-//! speed and its square), besides the temperature rises themselves.
+//! speed and its square), besides the temperature rises themselves; and the rises again while
+//! the spindle runs, because the error a given rise stands for differs between running and
+//! standing (the temperature field behind a surface sensor has another shape when the spindle's
+//! own heat and forced convection act on it).
 //!
 //! The filters are stateful and run every cycle on the control. [`FeatureBank`] holds their
 //! states (allocated once, at construction) and turns one cycle's inputs into the feature vector;
@@ -18,7 +21,9 @@
 //! For every temperature input i (°C): the rise ΔT_i = T_i − T_i(first cycle) if `temperature_rise`,
 //! then LPF_τ(ΔT_i) for each τ of `temperature_taus_s`, then the rate (ΔT_i − LPF_τ(ΔT_i))/τ in
 //! K/s for each τ of `rate_taus_s`. Then for every operating input u: LPF_τ(u) for each τ of
-//! `operating_taus_s`, followed (if `operating_square`) by LPF_τ(u²) for each τ.
+//! `operating_taus_s`, followed (if `operating_square`) by LPF_τ(u²) for each τ, followed (if
+//! `rise_while_running`) by ΔT_i·[u ≠ 0] for every temperature input i: a commanded value of 0
+//! means standing (a measured speed that is never exactly 0 needs a threshold, not provided).
 //!
 //! Temperatures are taken relative to the first cycle after [`FeatureBank::reset`], so a model
 //! predicts the error relative to the moment it was started; every filter starts in steady state
@@ -48,6 +53,9 @@ pub struct FeatureSpec {
     /// Whether the squares of the operating inputs are filtered too (spindle heat grows with
     /// speed faster than linearly).
     pub operating_square: bool,
+    /// Whether every temperature rise is a feature again while each operating input is
+    /// non-zero (a regime-dependent gain: running vs standing).
+    pub rise_while_running: bool,
 }
 
 /// What a feature is, for names and reports.
@@ -75,6 +83,11 @@ pub enum FeatureKind {
         /// τ in s.
         tau_s: f64,
     },
+    /// ΔT of a temperature input while an operating input is non-zero, else 0.
+    RiseWhileRunning {
+        /// Index of the operating input (in the input slice).
+        running: usize,
+    },
 }
 
 /// One feature: the input it reads and what it computes.
@@ -87,9 +100,11 @@ pub struct Feature {
 }
 
 impl Feature {
-    /// A readable name, e.g. `lp3600(t5_c)`, given the input's name.
-    pub fn name(&self, input_name: &str) -> String {
+    /// A readable name, e.g. `lp3600(t5_c)` or `rise(t5_c)·running(spindle_rpm)`, given the
+    /// name of each input by its index.
+    pub fn name<'a>(&self, names: impl Fn(usize) -> &'a str) -> String {
         use core::fmt::Write;
+        let input_name = names(self.input);
         let mut s = String::new();
         let _ = match self.kind {
             FeatureKind::Rise => write!(s, "rise({input_name})"),
@@ -97,6 +112,9 @@ impl Feature {
             FeatureKind::Rate { tau_s } => write!(s, "rate{tau_s}({input_name})"),
             FeatureKind::Operating { tau_s } => write!(s, "lp{tau_s}({input_name})"),
             FeatureKind::OperatingSquared { tau_s } => write!(s, "lp{tau_s}({input_name}^2)"),
+            FeatureKind::RiseWhileRunning { running } => {
+                write!(s, "rise({input_name})·running({})", names(running))
+            }
         };
         s
     }
@@ -216,6 +234,14 @@ impl FeatureBank {
                     });
                 }
             }
+            if spec.rise_while_running {
+                for temperature in 0..spec.temperatures {
+                    features.push(Feature {
+                        input: temperature,
+                        kind: FeatureKind::RiseWhileRunning { running: input },
+                    });
+                }
+            }
         }
         let n = features.len();
         Ok(Self {
@@ -276,11 +302,18 @@ impl FeatureBank {
                 FeatureKind::Rise | FeatureKind::LowPass { .. } | FeatureKind::Rate { .. } => {
                     inputs[f.input] - self.initial[f.input]
                 }
+                FeatureKind::RiseWhileRunning { running } => {
+                    if inputs[running] != 0.0 {
+                        inputs[f.input] - self.initial[f.input]
+                    } else {
+                        0.0
+                    }
+                }
                 FeatureKind::Operating { .. } => inputs[f.input],
                 FeatureKind::OperatingSquared { .. } => inputs[f.input] * inputs[f.input],
             };
             let value = match f.kind {
-                FeatureKind::Rise => x,
+                FeatureKind::Rise | FeatureKind::RiseWhileRunning { .. } => x,
                 FeatureKind::LowPass { tau_s }
                 | FeatureKind::Operating { tau_s }
                 | FeatureKind::OperatingSquared { tau_s } => {
@@ -404,6 +437,7 @@ mod tests {
             rate_taus_s: vec![100.0],
             operating_taus_s: vec![50.0],
             operating_square: true,
+            rise_while_running: false,
         }
     }
 
@@ -425,6 +459,49 @@ mod tests {
         }
     }
 
+    /// Two temperatures, one spindle: the rises come back as features while the spindle runs.
+    /// Cycle 1: 20 °C, 30 °C, standing → rises 0, 0 and 0, 0. Cycle 2: 22 °C, 31 °C, 800 rpm →
+    /// rises 2, 1 and while running 2, 1. Cycle 3: 23 °C, 33 °C, stopped → rises 3, 3, while
+    /// running 0, 0. Names carry both inputs.
+    #[test]
+    fn rises_while_running_follow_the_operating_input() {
+        let mut bank = FeatureBank::new(FeatureSpec {
+            temperatures: 2,
+            operating: 1,
+            temperature_rise: true,
+            temperature_taus_s: vec![],
+            rate_taus_s: vec![],
+            operating_taus_s: vec![],
+            operating_square: false,
+            rise_while_running: true,
+        })
+        .unwrap();
+        let names = ["t1_c", "t2_c", "spindle_rpm"];
+        let named: Vec<String> = bank
+            .features()
+            .iter()
+            .map(|f| f.name(|i| names[i]))
+            .collect();
+        assert_eq!(
+            named,
+            [
+                "rise(t1_c)",
+                "rise(t2_c)",
+                "rise(t1_c)·running(spindle_rpm)",
+                "rise(t2_c)·running(spindle_rpm)"
+            ]
+        );
+        assert_eq!(bank.step(0.0, &[20.0, 30.0, 0.0]).unwrap(), &[0.0; 4]);
+        assert_eq!(
+            bank.step(15.0, &[22.0, 31.0, 800.0]).unwrap(),
+            &[2.0, 1.0, 2.0, 1.0]
+        );
+        assert_eq!(
+            bank.step(15.0, &[23.0, 33.0, 0.0]).unwrap(),
+            &[3.0, 3.0, 0.0, 0.0]
+        );
+    }
+
     #[test]
     fn step_response_reaches_63_percent_after_tau() {
         let mut bank = FeatureBank::new(FeatureSpec {
@@ -435,6 +512,7 @@ mod tests {
             rate_taus_s: vec![],
             operating_taus_s: vec![],
             operating_square: false,
+            rise_while_running: false,
         })
         .unwrap();
         bank.step(0.0, &[0.0]).unwrap();
