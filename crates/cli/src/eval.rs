@@ -41,8 +41,13 @@ pub fn run(args: Args) -> Result<(), String> {
         .map_err(|e| e.to_string())?
         .machine;
     let mut model = Evaluator::load(&args.model, &machine)?;
-    let cycles =
-        cycles::load(&args.run, &machine, &model.used_sensors()).map_err(|e| e.to_string())?;
+    let cycles = cycles::load_with(
+        &args.run,
+        &machine,
+        &model.used_sensors(),
+        model.positions(),
+    )
+    .map_err(|e| e.to_string())?;
 
     let to_stdout = args.out.as_os_str() == "-";
     let mut writer: Option<csv::Writer<Box<dyn Write>>> = if to_stdout && args.json {

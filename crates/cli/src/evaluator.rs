@@ -50,6 +50,14 @@ impl Evaluator {
         }
     }
 
+    /// Whether it reads the axis positions (a fitted dynamic model does not).
+    pub fn positions(&self) -> cycles::Positions {
+        match self {
+            Self::Static(_) => cycles::Positions::Required,
+            Self::Dynamic { .. } => cycles::Positions::Optional,
+        }
+    }
+
     /// Temperature channels it reads.
     pub fn used_sensors(&self) -> Vec<usize> {
         match self {

@@ -171,8 +171,13 @@ pub fn run(args: Args) -> Result<(), String> {
         .map_err(|e| e.to_string())?
         .machine;
     let mut model = Evaluator::load(&args.model, &machine)?;
-    let run =
-        cycles::load(&args.run, &machine, &model.used_sensors()).map_err(|e| e.to_string())?;
+    let run = cycles::load_with(
+        &args.run,
+        &machine,
+        &model.used_sensors(),
+        model.positions(),
+    )
+    .map_err(|e| e.to_string())?;
     let mut pairs = Vec::new();
     for spec in &args.measured {
         let (axis, column) = spec

@@ -85,6 +85,16 @@ pub fn machine_temperatures<'a>(
     temps
 }
 
+/// Whether a run must hold the axis positions.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Positions {
+    /// Every axis position column is required (models with position-dependent terms).
+    Required,
+    /// Missing position columns read as NaN (a model that reads no position, such as a fitted
+    /// dynamic model, on a spindle test run per ISO 230-3 where no axis moves).
+    Optional,
+}
+
 /// Reads a run CSV. Every axis position column is required, and so is every temperature
 /// channel listed in `required_sensors` (the ones the model reads).
 pub fn load(
@@ -92,9 +102,19 @@ pub fn load(
     machine: &Machine,
     required_sensors: &[usize],
 ) -> Result<Cycles, InputError> {
+    load_with(path, machine, required_sensors, Positions::Required)
+}
+
+/// [`load`], saying whether the axis positions are required.
+pub fn load_with(
+    path: &Path,
+    machine: &Machine,
+    required_sensors: &[usize],
+    positions: Positions,
+) -> Result<Cycles, InputError> {
     let file = std::fs::File::open(path)
         .map_err(|e| InputError::file(path, format!("cannot read: {e}")))?;
-    read(path, file, machine, required_sensors)
+    read_with(path, file, machine, required_sensors, positions)
 }
 
 /// Reads a run CSV from any reader; `path` only names it in errors.
@@ -103,6 +123,17 @@ pub fn read(
     reader: impl std::io::Read,
     machine: &Machine,
     required_sensors: &[usize],
+) -> Result<Cycles, InputError> {
+    read_with(path, reader, machine, required_sensors, Positions::Required)
+}
+
+/// [`read`], saying whether the axis positions are required.
+pub fn read_with(
+    path: &Path,
+    reader: impl std::io::Read,
+    machine: &Machine,
+    required_sensors: &[usize],
+    positions_needed: Positions,
 ) -> Result<Cycles, InputError> {
     let mut rdr = csv::ReaderBuilder::new()
         .trim(csv::Trim::All)
@@ -148,7 +179,11 @@ pub fn read(
     let mut position_cols = Vec::new();
     for a in 0..machine.axes.len() {
         let name = position_column(machine, a);
-        position_cols.push(find(&name).ok_or_else(|| missing(name, "axis position"))?);
+        let col = find(&name);
+        if col.is_none() && positions_needed == Positions::Required {
+            return Err(missing(name, "axis position"));
+        }
+        position_cols.push(col);
     }
     let mut temperature_cols = Vec::new();
     for (i, t) in machine.temperatures.iter().enumerate() {
@@ -220,7 +255,7 @@ pub fn read(
         // the model's job, and a bad value must show as a failed cycle, not vanish here.
         let positions = position_cols
             .iter()
-            .map(|&c| cell(c))
+            .map(|c| c.map_or(Ok(f64::NAN), cell))
             .collect::<Result<_, _>>()?;
         let temperatures = temperature_cols
             .iter()

@@ -187,3 +187,28 @@ fn cycles_errors_name_line_column_and_key() {
         "run.csv:2:1: expected 6 fields as in the header, found 5"
     );
 }
+
+/// A spindle test run (ISO 230-3) has no axis positions: a model that reads none may be
+/// evaluated on it (positions read NaN), one that may read them is refused with the column named.
+#[test]
+fn positions_may_be_absent_only_when_the_model_reads_none() {
+    let machine = vmc();
+    let text = "time_s,x_slide_top\n0,20\n15,20.5\n";
+    let read = |positions| {
+        cycles::read_with(
+            Path::new("spindle.csv"),
+            text.as_bytes(),
+            &machine,
+            &[0],
+            positions,
+        )
+    };
+    let run = read(cycles::Positions::Optional).unwrap();
+    assert_eq!(run.time_s, [0.0, 15.0]);
+    assert_eq!(run.temperatures_c[1][0], 20.5);
+    assert!(run.positions.iter().flatten().all(|p| p.is_nan()));
+    assert_eq!(
+        read(cycles::Positions::Required).unwrap_err().to_string(),
+        "spindle.csv:1:1: `X_mm`: missing column `X_mm` (axis position); the header has: time_s, x_slide_top"
+    );
+}
