@@ -3,7 +3,7 @@
 use std::io::Write;
 use std::path::PathBuf;
 
-use truepos_io::{cycles, machine_file};
+use truepos_io::machine_file;
 
 use crate::evaluator::Evaluator;
 
@@ -41,13 +41,7 @@ pub fn run(args: Args) -> Result<(), String> {
         .map_err(|e| e.to_string())?
         .machine;
     let mut model = Evaluator::load(&args.model, &machine)?;
-    let cycles = cycles::load_with(
-        &args.run,
-        &machine,
-        &model.used_sensors(),
-        model.positions(),
-    )
-    .map_err(|e| e.to_string())?;
+    let cycles = model.load_run(&args.run, &machine)?;
 
     let to_stdout = args.out.as_os_str() == "-";
     let mut writer: Option<csv::Writer<Box<dyn Write>>> = if to_stdout && args.json {

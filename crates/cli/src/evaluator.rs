@@ -50,12 +50,18 @@ impl Evaluator {
         }
     }
 
-    /// Whether it reads the axis positions (a fitted dynamic model does not).
-    pub fn positions(&self) -> cycles::Positions {
-        match self {
+    /// Reads a run for it: the sensors it reads must be there, the axis positions only if it
+    /// reads them (a fitted dynamic model does not).
+    pub fn load_run(
+        &self,
+        path: &std::path::Path,
+        machine: &Machine,
+    ) -> Result<cycles::Cycles, String> {
+        let positions = match self {
             Self::Static(_) => cycles::Positions::Required,
             Self::Dynamic { .. } => cycles::Positions::Optional,
-        }
+        };
+        cycles::load_with(path, machine, &self.used_sensors(), positions).map_err(|e| e.to_string())
     }
 
     /// Temperature channels it reads.

@@ -4,7 +4,7 @@
 
 use std::path::{Path, PathBuf};
 
-use truepos_io::{cycles, machine_file};
+use truepos_io::machine_file;
 use truepos_model::{Model, PartForm};
 
 use crate::evaluator::Evaluator;
@@ -171,13 +171,7 @@ pub fn run(args: Args) -> Result<(), String> {
         .map_err(|e| e.to_string())?
         .machine;
     let mut model = Evaluator::load(&args.model, &machine)?;
-    let run = cycles::load_with(
-        &args.run,
-        &machine,
-        &model.used_sensors(),
-        model.positions(),
-    )
-    .map_err(|e| e.to_string())?;
+    let run = model.load_run(&args.run, &machine)?;
     let mut pairs = Vec::new();
     for spec in &args.measured {
         let (axis, column) = spec
