@@ -11,10 +11,12 @@ For each example machine the script
    and truepos's compensated inverse transform (`truepos kin inv`: closed form + Newton through
    every error table to 5e-7 mm / 5e-7 rad, no seed: each row starts from the previous row's
    result) on the poses the real chain reaches at the same samples. Throughputs are the median
-   over chunks of 1000 targets (robust to other processes); the total-time ratio is reported too.
+   over chunks of 1000 targets (robust to other processes), and both sides are timed --repeats
+   times, alternately, the median repeat counting (truepos's solve lasts ~50 ms: one busy moment
+   on a shared machine would otherwise decide a run); the total-time ratio is reported too.
 
 Usage: /usr/bin/python3 scripts/kdl_compare.py [--points N] [--truepos PATH] [--json]
-          [--min-ratio R]
+          [--min-ratio R] [--repeats N]
 Exit status 1 if forward results disagree, a truepos target does not converge, or the
 throughput ratio is below --min-ratio (default 0: report only).
 """
@@ -89,7 +91,12 @@ def sample(desc, rng):
     return q
 
 
-def compare(machine, points, truepos, tmp):
+def median(values):
+    v = sorted(values)
+    return v[len(v) // 2]
+
+
+def compare(machine, points, truepos, tmp, repeats):
     d = os.path.join(ROOT, "examples", "kinematics", machine)
     ktab = os.path.join(d, "kinematics.ktab")
     desc = json.loads(run([truepos, "kin", "chain", "--kinematics", ktab]))
@@ -138,22 +145,23 @@ def compare(machine, points, truepos, tmp):
     for q in qs:
         seeds.append(kdl_q([v + 0.5 for v in q]))
     out = K.JntArray(nj)
-    kdl_ok = 0
-    # Total time, and the rate of every chunk of 1000 targets: the median chunk is robust to
-    # other processes taking the core for a while (truepos reports the same statistic).
-    rates = []
-    t0 = time.perf_counter()
-    tc = t0
-    for i, (fr, seed) in enumerate(zip(frames, seeds)):
-        if i > 0 and i % 1000 == 0:
-            now = time.perf_counter()
-            rates.append(1000 / (now - tc))
-            tc = now
-        if ik.CartToJnt(seed, fr, out) >= 0:
-            kdl_ok += 1
-    kdl_s = time.perf_counter() - t0
-    rates.sort()
-    kdl_median = rates[len(rates) // 2] if rates else points / kdl_s
+
+    def time_kdl():
+        # Total time, and the rate of every chunk of 1000 targets: the median chunk is robust
+        # to other processes taking the core for a while (truepos reports the same statistic).
+        ok = 0
+        rates = []
+        t0 = time.perf_counter()
+        tc = t0
+        for i, (fr, seed) in enumerate(zip(frames, seeds)):
+            if i > 0 and i % 1000 == 0:
+                now = time.perf_counter()
+                rates.append(1000 / (now - tc))
+                tc = now
+            if ik.CartToJnt(seed, fr, out) >= 0:
+                ok += 1
+        total = time.perf_counter() - t0
+        return ok, total, median(rates) if rates else points / total
 
     # 3. truepos inverse through every error table. Its targets are the poses the real
     # (erroneous) chain reaches at the same axis samples: a nominal pose can lie a few µrad
@@ -162,9 +170,22 @@ def compare(machine, points, truepos, tmp):
     actual_csv = os.path.join(tmp, f"{machine}.actual.csv")
     run([truepos, "kin", "fwd", "--kinematics", ktab, "--tool-length", str(TOOL),
          "--input", axes_csv, "--output", actual_csv, "--json"])
-    inv = json.loads(run([truepos, "kin", "inv", "--kinematics", ktab,
-                          "--tool-length", str(TOOL), "--input", actual_csv,
-                          "--output", os.path.join(tmp, f"{machine}.inv.csv"), "--json"]))
+
+    def time_truepos():
+        return json.loads(run([truepos, "kin", "inv", "--kinematics", ktab,
+                               "--tool-length", str(TOOL), "--input", actual_csv,
+                               "--output", os.path.join(tmp, f"{machine}.inv.csv"), "--json"]))
+
+    # Both sides alternately, `repeats` times; the median repeat of each side counts.
+    kdl_runs, inv_runs = [], []
+    for _ in range(max(1, repeats)):
+        kdl_runs.append(time_kdl())
+        inv_runs.append(time_truepos())
+    kdl_ok = min(r[0] for r in kdl_runs)
+    kdl_s = median([r[1] for r in kdl_runs])
+    kdl_median = median([r[2] for r in kdl_runs])
+    inv = sorted(inv_runs, key=lambda r: r["median_chunk_points_per_second"])[len(inv_runs) // 2]
+    inv_converged = min(r["converged"] for r in inv_runs)
     return {
         "machine": machine,
         "points": points,
@@ -176,7 +197,11 @@ def compare(machine, points, truepos, tmp):
         "kdl_ik_converged": kdl_ok,
         "truepos_inverse_seconds": inv["solve_seconds"],
         "truepos_inverse_points_per_second": inv["points_per_second"],
-        "truepos_inverse_converged": inv["converged"],
+        "truepos_inverse_converged": inv_converged,
+        "repeats": len(inv_runs),
+        "kdl_ik_median_chunk_points_per_second_each_repeat": [r[2] for r in kdl_runs],
+        "truepos_inverse_median_chunk_points_per_second_each_repeat": [
+            r["median_chunk_points_per_second"] for r in inv_runs],
         "truepos_max_position_residual_mm": inv["max_position_residual_mm"],
         "truepos_max_direction_residual_rad": inv["max_direction_residual_rad"],
         "kdl_ik_median_chunk_points_per_second": kdl_median,
@@ -193,12 +218,13 @@ def main():
     ap.add_argument("--json", action="store_true")
     ap.add_argument("--min-ratio", type=float, default=0.0)
     ap.add_argument("--machines", default=",".join(MACHINES))
+    ap.add_argument("--repeats", type=int, default=3)
     args = ap.parse_args()
     failed = []
     results = []
     with tempfile.TemporaryDirectory() as tmp:
         for m in args.machines.split(","):
-            r = compare(m, args.points, args.truepos, tmp)
+            r = compare(m, args.points, args.truepos, tmp, args.repeats)
             results.append(r)
             if r["forward_max_tcp_difference_mm"] > 1e-9 or r["forward_max_direction_difference"] > 1e-12:
                 failed.append(f"{m}: forward results differ from KDL")
@@ -209,7 +235,8 @@ def main():
     if args.json:
         print(json.dumps({"results": results, "failures": failed}, indent=1))
     else:
-        print("throughputs are the median over chunks of 1000 targets (total-time ratio in brackets)")
+        print("throughputs are the median over chunks of 1000 targets, median of "
+              f"{args.repeats} alternating repeats per side (total-time ratio in brackets)")
         print(f"{'machine':10s} {'fwd Δ mm':>9s} {'KDL IK/s':>10s} {'conv':>7s} "
               f"{'truepos inv/s':>13s} {'conv':>7s} {'ratio':>6s} {'(total)':>8s} {'fwd/s':>10s}")
         for r in results:
