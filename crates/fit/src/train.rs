@@ -88,7 +88,7 @@ impl InnerCv {
         }
     }
 
-    /// Whether block `f` is held out, and whether block `g` trains the model that predicts it.
+    /// Whether block `g` trains the model that predicts held-out block `f`.
     fn trains(self, g: usize, f: usize) -> bool {
         match self {
             Self::Blocked => g != f,
@@ -96,6 +96,7 @@ impl InnerCv {
         }
     }
 
+    /// Whether block `f` is scored at all.
     fn holds_out(self, f: usize) -> bool {
         match self {
             Self::Blocked => true,
