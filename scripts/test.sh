@@ -24,3 +24,5 @@ bash scripts/linuxcnc_e2e.sh
 
 echo "== FL_THERMAL benchmark (real measured run; prints its figures)"
 bash scripts/fl_thermal_bench.sh
+echo "== FL_THERMAL benchmark, rolling-origin selection (docs/fitting.md: why it is not the default)"
+bash scripts/fl_thermal_bench.sh --inner-cv rolling
