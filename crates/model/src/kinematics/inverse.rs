@@ -452,7 +452,10 @@ impl Chain {
         };
         // The start of the chord iterations when the closed form already knows the real pose
         // and its derivatives there (see below).
-        let mut start: Option<(Pose, Tangents)> = None;
+        // (The derivatives are written where they stay, in `start_t`: moving 432 bytes into
+        // the option was a `memcpy` call per target. Zeroed only on that path.)
+        let mut start: Option<Pose> = None;
+        let mut start_t: Option<Tangents> = None;
         let closed = match &self.layout {
             Layout::General => {
                 // Damped least squares from the previous set-point.
@@ -475,7 +478,6 @@ impl Chain {
                 // axes outside the rotary ones the derivatives do not depend on them; inside
                 // (a trunnion table) the rotary ones are moved to the solution through the
                 // angular velocities. Other arrangements take the nominal closed form.
-                let mut t = Tangents::ZERO;
                 let pose = self.five_axis(
                     fa,
                     &target,
@@ -483,9 +485,9 @@ impl Chain {
                     &prev,
                     &mut q,
                     Some(previous_dirs),
-                    &mut t,
+                    start_t.insert(Tangents::ZERO),
                 )?;
-                start = Some((pose, t));
+                start = Some(pose);
                 true
             }
             layout => {
@@ -525,7 +527,7 @@ impl Chain {
                         dirs,
                         use_direction,
                         &mut q,
-                        start.as_ref(),
+                        start.as_ref().zip(start_t.as_ref()),
                     ),
                 };
                 match chord {
@@ -878,10 +880,11 @@ impl Chain {
         // Derivatives valid at the solution for linear axes inside the rotary ones need the
         // angular velocities (see `FiveAxis::linear_inside`).
         let omega = actual.is_some() && fa.real_linear && fa.linear_inside;
-        for (cost, mut cand) in cands {
+        for &(cost, ref branch) in &cands {
             if !cost.is_finite() {
                 continue;
             }
+            let mut cand = *branch;
             let before = cand;
             let mut w = [[0.0; 3]; MAX_AXES];
             let mut pose = if omega {
@@ -1066,7 +1069,7 @@ impl Chain {
         dirs: Directions,
         use_direction: bool,
         q: &mut [f64; MAX_AXES],
-        start: Option<&(Pose, Tangents)>,
+        start: Option<(&Pose, &Tangents)>,
     ) -> Result<(u32, f64, f64), KinError> {
         const CHORD_STEPS: u32 = 4;
         let n = self.axes.len();
@@ -1111,14 +1114,17 @@ impl Chain {
                 return Ok((0, np, nd));
             }
         }
-        let (jac, colscale) = weighted_jacobian(t, n, w);
+        let mut jac = [[0.0; 6]; MAX_AXES];
+        let mut colscale = [1.0; MAX_AXES];
+        weighted_jacobian_into(t, n, w, &mut jac, &mut colscale);
         let not_converged = |np, nd| KinError::NotConverged {
             position_mm: np,
             direction_rad: nd,
         };
-        let Some(factor) = Normal::factor(&jac, &colscale, n, 1e-14) else {
+        let mut factor = Normal::EMPTY;
+        if !factor.factor(&jac, &colscale, n, 1e-14) {
             return Err(not_converged(np, nd));
-        };
+        }
         let cost = |r: &[f64; 6]| r.iter().map(|v| v * v).sum::<f64>();
         for iterations in 1..=CHORD_STEPS {
             let Some(step) = factor.solve(&jac, &r) else {
@@ -1248,17 +1254,36 @@ impl Chain {
 /// The Jacobian with the direction rows weighted by `w`, and the scale of each column to unit
 /// length (`n` a constant for common counts, as in [`Normal::factor`]).
 fn weighted_jacobian(t: &Tangents, n: usize, w: f64) -> ([[f64; 6]; MAX_AXES], [f64; MAX_AXES]) {
+    let mut jac = [[0.0; 6]; MAX_AXES];
+    let mut colscale = [1.0; MAX_AXES];
+    weighted_jacobian_into(t, n, w, &mut jac, &mut colscale);
+    (jac, colscale)
+}
+
+/// [`weighted_jacobian`] written into the caller's arrays (columns from `n` on untouched):
+/// returned by value, the two arrays (504 bytes) were copied by a `memcpy` call per chord.
+fn weighted_jacobian_into(
+    t: &Tangents,
+    n: usize,
+    w: f64,
+    jac: &mut [[f64; 6]; MAX_AXES],
+    colscale: &mut [f64; MAX_AXES],
+) {
     match n {
-        5 => weighted_jacobian_n(t, 5, w),
-        3 => weighted_jacobian_n(t, 3, w),
-        _ => weighted_jacobian_n(t, n, w),
+        5 => weighted_jacobian_n(t, 5, w, jac, colscale),
+        3 => weighted_jacobian_n(t, 3, w, jac, colscale),
+        _ => weighted_jacobian_n(t, n, w, jac, colscale),
     }
 }
 
 #[inline(always)]
-fn weighted_jacobian_n(t: &Tangents, n: usize, w: f64) -> ([[f64; 6]; MAX_AXES], [f64; MAX_AXES]) {
-    let mut jac = [[0.0; 6]; MAX_AXES];
-    let mut colscale = [1.0; MAX_AXES];
+fn weighted_jacobian_n(
+    t: &Tangents,
+    n: usize,
+    w: f64,
+    jac: &mut [[f64; 6]; MAX_AXES],
+    colscale: &mut [f64; MAX_AXES],
+) {
     for j in 0..n {
         for i in 0..3 {
             jac[j][i] = t.dp[j][i];
@@ -1267,7 +1292,6 @@ fn weighted_jacobian_n(t: &Tangents, n: usize, w: f64) -> ([[f64; 6]; MAX_AXES],
         let l = libm::sqrt(jac[j].iter().map(|v| v * v).sum::<f64>());
         colscale[j] = if l > 0.0 { 1.0 / l } else { 1.0 };
     }
-    (jac, colscale)
 }
 
 /// The Cholesky factor of the scaled normal equations SᵀJᵀJS + μI = L·Lᵀ, kept to solve for
@@ -1279,30 +1303,44 @@ struct Normal {
 }
 
 impl Normal {
-    /// Factorises; `None` if the matrix is not positive definite. The common axis counts get
-    /// their own copy with `n` a constant, so the small loops unroll and lose their bounds
-    /// checks (this runs once per inverse transform).
+    /// Room for a factor (see [`Normal::factor`]); all zeros, so it is set by a `memset`
+    /// rather than copied from a constant.
+    const EMPTY: Self = Self {
+        l: [[0.0; MAX_AXES]; MAX_AXES],
+        colscale: [0.0; MAX_AXES],
+        n: 0,
+    };
+
+    /// Factorises into `self` (written in place: returned by value, the 648-byte factor was
+    /// copied twice by `memcpy` calls); `false` if the matrix is not positive definite. The
+    /// common axis counts get their own copy with `n` a constant, so the small loops unroll
+    /// and lose their bounds checks (this runs once per inverse transform).
     fn factor(
+        &mut self,
         jac: &[[f64; 6]; MAX_AXES],
         colscale: &[f64; MAX_AXES],
         n: usize,
         mu: f64,
-    ) -> Option<Self> {
+    ) -> bool {
         match n {
-            5 => Self::factor_n(jac, colscale, 5, mu),
-            3 => Self::factor_n(jac, colscale, 3, mu),
-            _ => Self::factor_n(jac, colscale, n, mu),
+            5 => self.factor_n(jac, colscale, 5, mu),
+            3 => self.factor_n(jac, colscale, 3, mu),
+            _ => self.factor_n(jac, colscale, n, mu),
         }
     }
 
+    /// Reads and writes only the lower triangle of the first `n` rows and columns.
     #[inline(always)]
     fn factor_n(
+        &mut self,
         jac: &[[f64; 6]; MAX_AXES],
         colscale: &[f64; MAX_AXES],
         n: usize,
         mu: f64,
-    ) -> Option<Self> {
-        let mut a = [[0.0; MAX_AXES]; MAX_AXES];
+    ) -> bool {
+        self.colscale = *colscale;
+        self.n = n;
+        let a = &mut self.l;
         for i in 0..n {
             for j in 0..=i {
                 let mut s = 0.0;
@@ -1319,7 +1357,7 @@ impl Normal {
                 d -= a[j][k] * a[j][k];
             }
             if d <= 0.0 || d.is_nan() {
-                return None;
+                return false;
             }
             let d = libm::sqrt(d);
             a[j][j] = d;
@@ -1331,11 +1369,7 @@ impl Normal {
                 a[i][j] = s / d;
             }
         }
-        Some(Self {
-            l: a,
-            colscale: *colscale,
-            n,
-        })
+        true
     }
 
     /// The step Δ = −S·(L·Lᵀ)⁻¹·SᵀJᵀr; `None` if not finite.
@@ -1395,7 +1429,11 @@ fn normal_step(
     n: usize,
     mu: f64,
 ) -> Option<[f64; MAX_AXES]> {
-    Normal::factor(jac, colscale, n, mu)?.solve(jac, r)
+    let mut factor = Normal::EMPTY;
+    if !factor.factor(jac, colscale, n, mu) {
+        return None;
+    }
+    factor.solve(jac, r)
 }
 
 /// The step Δ minimising |J·Δ + r|² + μ·|S⁻¹Δ|² (S: column scaling), by Householder QR of the
