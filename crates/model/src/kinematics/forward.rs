@@ -187,28 +187,27 @@ impl Pd {
     }
 }
 
-/// See [`Chain::eval_position_jacobian3`]: lane 0 the TCP, lane 3 − j its derivative with
-/// respect to axis j.
+/// See [`Chain::eval_position_jacobian3`]: lane 0 the TCP, lanes 1–3 its derivatives with
+/// respect to the three axes.
 #[derive(Clone, Copy)]
 struct Lanes([[f64; 4]; 3]);
 
 impl Lanes {
     /// Every lane turned by R_k(θ), with the operations of [`rotate`]. Every index is a
     /// constant (one arm per axis), so the lanes can stay in registers.
-    /// Turns lanes 0 to L − 1 only: with `L` < 4 the others must still be zero.
     #[inline(always)]
-    fn rotate<const L: usize>(&mut self, k: usize, c: f64, s: f64) {
+    fn rotate(&mut self, k: usize, c: f64, s: f64) {
         match k {
-            0 => self.rotate_rows::<1, 2, L>(c, s),
-            1 => self.rotate_rows::<2, 0, L>(c, s),
-            _ => self.rotate_rows::<0, 1, L>(c, s),
+            0 => self.rotate_rows::<1, 2>(c, s),
+            1 => self.rotate_rows::<2, 0>(c, s),
+            _ => self.rotate_rows::<0, 1>(c, s),
         }
     }
 
     #[inline(always)]
-    fn rotate_rows<const I: usize, const J: usize, const L: usize>(&mut self, c: f64, s: f64) {
+    fn rotate_rows<const I: usize, const J: usize>(&mut self, c: f64, s: f64) {
         let (a, b) = (self.0[I], self.0[J]);
-        for l in 0..L {
+        for l in 0..4 {
             self.0[I][l] = c * a[l] - s * b[l];
             self.0[J][l] = s * a[l] + c * b[l];
         }
@@ -354,7 +353,7 @@ impl Chain {
     /// tool, so the tool direction is left out), `dp[j]` for axis j; `None` for another chain.
     ///
     /// The walk keeps everything one rotation turns as lanes of the coordinate it changes,
-    /// `[p, ∂p/∂q₂, ∂p/∂q₁, ∂p/∂q₀]`, so a rotation turns the TCP and the three derivatives
+    /// `[p, ∂p/∂q₀, ∂p/∂q₁, ∂p/∂q₂]`, so a rotation turns the TCP and the three derivatives
     /// with the same two two-lane operations per coordinate instead of a loop over the
     /// derivatives, with constant indices so the lanes stay in registers. The TCP lane takes
     /// exactly the operations of [`Chain::eval`].
@@ -367,21 +366,8 @@ impl Chain {
         if q.len() != 3 || self.axes.len() != 3 {
             return None;
         }
-        // Lane of the derivative with respect to axis j: 3 − j (j < 3 here), so in the usual
-        // order from the tool (Z, then Y, then X) the lanes become non-zero from the front
-        // and the rotations before the second axis turn only lanes 0 and 1 (one register
-        // pair instead of two; the zero lanes would stay zero). `live`: the lanes that may be
-        // non-zero. The TCP lane takes the same operations either way.
-        let lane_of = |axis: usize| 3 - axis;
-        let mut live = 1;
+        // Lane of the derivative with respect to axis j: 1 + j (j < 3 here).
         let mut x = Lanes([[0.0; 4]; 3]);
-        let rotate = |x: &mut Lanes, live: usize, k: usize, c: f64, s: f64| {
-            if live <= 2 {
-                x.rotate::<2>(k, c, s)
-            } else {
-                x.rotate::<4>(k, c, s)
-            }
-        };
         let mut at = Location::default();
         for step in &self.steps {
             match *step {
@@ -389,29 +375,23 @@ impl Chain {
                 Step::Tool { k, sign, offset } => x.translate(k, sign * tool_mm + offset),
                 Step::AxisTranslate { k, axis, sign } => {
                     x.translate(k, sign * q[axis]);
-                    let lane = lane_of(axis);
-                    live = live.max(lane + 1);
-                    x.add(k, lane, sign);
+                    x.add(k, 1 + axis, sign);
                 }
                 Step::ErrTranslate { k, e } => {
                     let (v, slope) = self.error_value::<true>(&e, &mut at, q, dirs);
                     x.translate(k, v);
-                    let lane = lane_of(usize::from(e.axis));
-                    live = live.max(lane + 1);
-                    x.add(k, lane, slope * e.per_unit);
+                    x.add(k, 1 + usize::from(e.axis), slope * e.per_unit);
                 }
                 Step::ConstErrTranslate { k, v, .. } => x.translate(k, v),
                 Step::ConstErrRotate { k, c, s, .. } | Step::Rotate { k, c, s } => {
-                    rotate(&mut x, live, k, c, s)
+                    x.rotate(k, c, s)
                 }
                 Step::AxisRotate { .. } => return None,
                 Step::ErrRotate { k, e } => {
                     let (angle, slope) = self.error_value::<true>(&e, &mut at, q, dirs);
                     let (s, c) = super::sincos(angle);
-                    rotate(&mut x, live, k, c, s);
-                    let lane = lane_of(usize::from(e.axis));
-                    live = live.max(lane + 1);
-                    x.add_cross(k, lane, slope * e.per_unit);
+                    x.rotate(k, c, s);
+                    x.add_cross(k, 1 + usize::from(e.axis), slope * e.per_unit);
                 }
                 Step::Slide { index } => {
                     let sl = self.slides.get(index)?;
@@ -424,8 +404,7 @@ impl Chain {
                     };
                     let block = self.slide_cubics.get(base as usize + at.segment())?;
                     let (v, slope) = at.cubics::<true, 6>(block);
-                    let lane = lane_of(axis);
-                    live = live.max(lane + 1);
+                    let lane = 1 + axis;
                     for k in 0..3 {
                         if sl.present >> k & 1 == 1 {
                             x.translate(k, v[k]);
@@ -435,7 +414,7 @@ impl Chain {
                     for k in 0..3 {
                         if sl.present >> (3 + k) & 1 == 1 {
                             let (s, c) = super::sincos(v[3 + k]);
-                            rotate(&mut x, live, k, c, s);
+                            x.rotate(k, c, s);
                             x.add_cross(k, lane, slope[3 + k] * sl.per_unit);
                         }
                     }
@@ -443,10 +422,7 @@ impl Chain {
             }
         }
         let lane = |l: usize| [x.0[0][l], x.0[1][l], x.0[2][l]];
-        Some((
-            lane(0),
-            [lane(lane_of(0)), lane(lane_of(1)), lane(lane_of(2))],
-        ))
+        Some((lane(0), [lane(1), lane(2), lane(3)]))
     }
 
     /// [`Chain::eval`] with derivatives through the error tables, and the angular velocity of
