@@ -20,7 +20,20 @@ echo "== kinematics side by side with Orocos KDL"
 bash scripts/kdl_check.sh
 
 echo "== LinuxCNC end to end (real control, headless simulated machine)"
-bash scripts/linuxcnc_e2e.sh
+# The host can hold the component or LinuxCNC's servo thread for seconds (this VM's hypervisor
+# steals time, the kernel has no PREEMPT_RT: one run saw a 7 s stall). A run that failed during
+# such a stall (the component's longest cycle interval > 100 ms, in its stats.json) says nothing
+# about truepos and runs again, at most three times in all; a failure without one fails at once.
+e2e_ok=0
+for attempt in 1 2 3; do
+  if bash scripts/linuxcnc_e2e.sh; then e2e_ok=1; break; fi
+  stall_ms=$(/usr/bin/python3 -c 'import json; print(json.load(open("target/linuxcnc-e2e/stats.json"))["max_interval_ms"])' 2>/dev/null || echo 0)
+  if ! /usr/bin/python3 -c "import sys; sys.exit(0 if float('$stall_ms') > 100 else 1)"; then
+    break
+  fi
+  echo "linuxcnc_e2e: attempt $attempt failed during a host stall of $stall_ms ms; running it again"
+done
+[ "$e2e_ok" = 1 ] || { echo "linuxcnc_e2e: FAIL"; exit 1; }
 
 echo "== FL_THERMAL benchmark (real measured run; prints its figures)"
 bash scripts/fl_thermal_bench.sh

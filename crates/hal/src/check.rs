@@ -183,11 +183,13 @@ pub struct CheckConfig {
     pub rate_window_s: f64,
     /// Largest lag fraction that passes (the issue: 1 %).
     pub max_lag_fraction: f64,
-    /// Largest share of the moving cycles that may lie in update gaps. A gap is the host holding
-    /// up the component or LinuxCNC's (non-realtime, without PREEMPT_RT) servo thread; it says
-    /// nothing about the compensation, but beyond this share too few cycles ran in step for the
-    /// lag figure to mean anything. Measured on the project's 2-core VMs: 0.4 … 19.7 %.
-    pub max_gap_fraction: f64,
+    /// Fewest moving cycles, compared with the model and in step (outside update gaps), on
+    /// which the lag figure must rest. A gap is the host holding up the component or LinuxCNC's
+    /// (non-realtime, without PREEMPT_RT) servo thread; it says nothing about the compensation,
+    /// so its share is reported, not judged (measured on the project's 2-core VMs: 0.4 … 54.5 %,
+    /// the latter with the hypervisor stealing time) — but a run with too few cycles in step
+    /// could not show a lag, and fails.
+    pub min_in_step_moving_cycles: usize,
 }
 
 impl Default for CheckConfig {
@@ -198,7 +200,7 @@ impl Default for CheckConfig {
             min_span_um: 2.0,
             rate_window_s: 0.05,
             max_lag_fraction: 0.01,
-            max_gap_fraction: 0.5,
+            min_in_step_moving_cycles: 2000,
         }
     }
 }
@@ -227,6 +229,9 @@ pub struct CheckReport {
     /// Moving cycles inside or just after an update gap of more than 2 cycles, as a fraction of
     /// the moving cycles.
     pub gap_fraction: f64,
+    /// Moving cycles compared with the model in step (outside update gaps): what
+    /// `max_lag_fraction` rests on.
+    pub in_step_moving_cycles: usize,
     /// Longest run of servo cycles in which an axis moved but the offsets truepos sent did not
     /// change (an update gap: the component or LinuxCNC's servo thread was held up), cycles.
     pub longest_update_gap_cycles: usize,
@@ -271,6 +276,7 @@ impl CheckReport {
             "max_lag_fraction": self.max_lag_fraction,
             "max_lag_fraction_all": self.max_lag_fraction_all,
             "gap_fraction": self.gap_fraction,
+            "in_step_moving_cycles": self.in_step_moving_cycles,
             "longest_update_gap_cycles": self.longest_update_gap_cycles,
             "max_offset_um": self.max_offset_um,
             "max_feed_mm_per_min": self.max_feed_mm_per_min,
@@ -360,6 +366,7 @@ pub fn check(
         max_lag_fraction: 0.0,
         max_lag_fraction_all: 0.0,
         gap_fraction: 0.0,
+        in_step_moving_cycles: 0,
         longest_update_gap_cycles: 0,
         max_offset_um: 0.0,
         max_feed_mm_per_min: 0.0,
@@ -459,6 +466,7 @@ pub fn check(
         let span = position_span_um(model, machine, s, &operating);
         report.compared += 1;
         let in_step = !(moving && (gap > 2 || after_gap > 0));
+        report.in_step_moving_cycles += usize::from(moving && in_step);
         for (a, &span_a) in span.iter().enumerate().filter(|(a, _)| in_path(*a)) {
             let diff = s.applied_mm[a] * 1000.0 - correction.compensation_um(a);
             sum_sq += diff * diff;
@@ -532,12 +540,13 @@ pub fn check(
             config.max_lag_fraction * 100.0
         ));
     }
-    if report.gap_fraction > config.max_gap_fraction {
+    if report.in_step_moving_cycles < config.min_in_step_moving_cycles {
         report.failures.push(format!(
-            "{:.2} % of the moving cycles lie in update gaps (the component or the servo thread \
-             was held up); at most {:.0} % passes",
+            "only {} moving cycles ran in step with the servo thread ({:.2} % of the moving \
+             cycles lie in update gaps): too few to judge the lag, at least {} are needed",
+            report.in_step_moving_cycles,
             report.gap_fraction * 100.0,
-            config.max_gap_fraction * 100.0
+            config.min_in_step_moving_cycles
         ));
     }
     for (a, (&rate, &limit)) in report
@@ -665,7 +674,8 @@ mod tests {
             min_span_um: 2.0,
             rate_window_s: 0.002,
             max_lag_fraction: 0.01,
-            max_gap_fraction: 0.5,
+            // The axes stand still here: no moving cycle to ask for.
+            min_in_step_moving_cycles: 0,
         };
         let r = check(
             &machine,
@@ -719,10 +729,31 @@ mod tests {
                 s
             })
             .collect();
-        let r = check(&machine, &[model], &limits(100.0), &moving, &config);
+        let r = check(
+            &machine,
+            std::slice::from_ref(&model),
+            &limits(100.0),
+            &moving,
+            &config,
+        );
         assert_eq!(r.longest_update_gap_cycles, 30);
         assert!((r.gap_fraction - 0.7).abs() < 1e-12, "{}", r.gap_fraction);
-        assert!(r.failures.iter().any(|f| f.contains("update gaps")));
+        // The gaps' share is reported, not judged. In step and compared: cycles 2…12 = 11 (the
+        // first two settle); a run needs at least `min_in_step_moving_cycles` of them.
+        assert_eq!(r.in_step_moving_cycles, 11);
+        assert!(!r.failures.iter().any(|f| f.contains("update gaps")));
+        let strict = CheckConfig {
+            min_in_step_moving_cycles: 12,
+            ..config
+        };
+        let r = check(&machine, &[model], &limits(100.0), &moving, &strict);
+        assert!(
+            r.failures
+                .iter()
+                .any(|f| f.contains("only 11 moving cycles ran in step")),
+            "{:?}",
+            r.failures
+        );
     }
 
     #[test]
@@ -757,6 +788,7 @@ mod tests {
         let config = CheckConfig {
             settle_s: 0.0,
             rate_window_s: 0.002,
+            min_in_step_moving_cycles: 0, // the axes stand still here
             ..CheckConfig::default()
         };
         let r = check(

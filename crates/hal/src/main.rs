@@ -404,14 +404,15 @@ fn run_check(args: CheckArgs) -> Result<bool, Box<dyn std::error::Error>> {
             report.rate_limit_um_per_s
         );
         println!(
-            "{} cycles holding after a sensor fault, {} model switch(es), {} axis switch(es) ({} settled cycles on another model than seed D selects, {:.3} µm largest offset on an axis in no path); update gaps: {:.3} % of moving cycles, longest {} servo cycles",
+            "{} cycles holding after a sensor fault, {} model switch(es), {} axis switch(es) ({} settled cycles on another model than seed D selects, {:.3} µm largest offset on an axis in no path); update gaps: {:.3} % of moving cycles, longest {} servo cycles; {} moving cycles in step",
             report.holding_samples,
             report.model_switches,
             report.axis_switches,
             report.wrong_model_cycles,
             report.max_parked_offset_um,
             report.gap_fraction * 100.0,
-            report.longest_update_gap_cycles
+            report.longest_update_gap_cycles,
+            report.in_step_moving_cycles
         );
         for f in &report.failures {
             println!("FAIL: {f}");
