@@ -218,6 +218,8 @@ struct Campaign {
     held_p: Vec<f64>,
     /// Operating channels: never delivered (the static models do not read them).
     operating: Vec<f64>,
+    /// The axis configuration the frame holds (a lost source does not change it).
+    held_path: Vec<usize>,
     prev_out: Vec<f64>,
     prev_time: f64,
 }
@@ -269,6 +271,7 @@ impl Campaign {
             held_t: vec![f64::NAN; n_t],
             held_p: vec![f64::NAN; n_a],
             operating: vec![f64::NAN; n_o],
+            held_path: (0..n_a).collect(),
             prev_out: vec![0.0; n_a],
             prev_time: f64::NAN,
         }
@@ -288,7 +291,10 @@ impl Campaign {
                 }
             }
         }
-        let path = delivery.path.clone();
+        if !delivery.lost {
+            self.held_path.clone_from(&delivery.path);
+        }
+        let path = self.held_path.clone();
         *self.next.lock().unwrap() = delivery;
         let out = *self.service.cycle(t);
         let state = self.service.path_states()[0];
