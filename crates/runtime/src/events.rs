@@ -99,8 +99,9 @@ pub enum EventKind {
     },
 }
 
-/// Bytes a [`Reason`] holds; longer text is cut on a character boundary.
-pub const REASON_BYTES: usize = 96;
+/// Bytes a [`Reason`] holds; longer text is cut on a character boundary. Small enough that a
+/// `Result<(), LinkError>` stays under 128 bytes.
+pub const REASON_BYTES: usize = 112;
 
 /// A short text that is `Copy` and fixed in size, so that a reason can travel with an event and
 /// through a lock-free queue without allocating: UTF-8, at most [`REASON_BYTES`] bytes (longer
@@ -236,13 +237,13 @@ mod tests {
         assert!(Reason::EMPTY.is_empty());
         let exact = "x".repeat(REASON_BYTES);
         assert_eq!(Reason::new(&exact).as_str(), exact);
-        // 'é' takes bytes 92–93, so the cut at byte 93 (96 less the 3 of '…') falls inside it.
-        let long = format!("{}é{}", "a".repeat(92), "b".repeat(50));
+        // 'é' takes bytes 108–109, so the cut at byte 109 (112 less the 3 of '…') falls inside it.
+        let long = format!("{}é{}", "a".repeat(108), "b".repeat(50));
         let r = Reason::new(&long);
         assert!(r.len() <= REASON_BYTES, "{}", r.len());
         assert!(r.ends_with('…'), "{r}");
-        assert!(r.starts_with(&"a".repeat(92)));
-        let multi = "°".repeat(100);
+        assert!(r.starts_with(&"a".repeat(108)));
+        let multi = "°".repeat(200);
         let r = Reason::new(&multi);
         assert!(r.chars().all(|c| c == '°' || c == '…'), "{r}");
         assert!(r.len() <= REASON_BYTES);

@@ -524,10 +524,10 @@ fn answer_error(e: &std::io::Error, ms: u128, got: usize, whole: Option<usize>) 
     };
     ModbusError::Io(match e.kind() {
         ErrorKind::TimedOut if got == 0 => format!("no answer within {ms} ms (timeout)"),
-        ErrorKind::TimedOut => format!("answer incomplete after {ms} ms (timeout, {of} received)"),
-        ErrorKind::UnexpectedEof => format!("the server closed the connection ({of} received)"),
+        ErrorKind::TimedOut => format!("answer incomplete after {ms} ms (timeout; {of})"),
+        ErrorKind::UnexpectedEof => format!("the server closed the connection ({of})"),
         ErrorKind::Interrupted => "stopped while waiting for an answer".to_string(),
-        _ => format!("reading the answer: {e} ({of} received)"),
+        _ => format!("reading the answer: {e} ({of})"),
     })
 }
 
@@ -921,9 +921,9 @@ impl Poller {
                 if self.stop.load(Ordering::Acquire) {
                     return None;
                 }
+                // The source's name carries the server's address.
                 let what = format!(
-                    "Modbus server {} unit {} function {:02X} registers {}–{}",
-                    self.peer,
+                    "unit {} function {:02X} registers {}–{}",
                     block.unit,
                     block.kind.function_code(),
                     block.address,

@@ -650,7 +650,8 @@ mod tests {
     fn every_read_of_an_outage_carries_the_latest_reason() {
         let status = LinkStatus::default();
         let mut r = OutageReporter::default();
-        let down = |why: &str| Err(LinkError::Disconnected(why.into()));
+        let down =
+            |why: &str| -> Result<(), LinkError> { Err(LinkError::Disconnected(why.into())) };
         assert_eq!(r.check(&status), down("not connected yet"));
         status.set_lost(1.0, "connection refused".into());
         assert_eq!(r.check(&status), down("connection refused"));

@@ -829,10 +829,7 @@ impl Health {
             let last = why
                 .strip_prefix(&format!("adapter {address}: "))
                 .unwrap_or(&why);
-            let message = format!(
-                "adapter {address} sends only unusable lines ({} in a row), e.g. {last}",
-                self.bad_in_row
-            );
+            let message = format!("garbage only ({} lines in a row): {last}", self.bad_in_row);
             self.fail(status, now_s, Failing::Garbage, message);
         }
     }
