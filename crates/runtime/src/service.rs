@@ -11,7 +11,7 @@ use truepos_io::machine_file::MachineFile;
 use truepos_model::{CycleInput, LagFilters, MAX_AXES};
 
 use crate::envelope::Envelope;
-use crate::events::{Event, EventKind, EventQueue};
+use crate::events::{Event, EventKind, EventQueue, Reason};
 use crate::frame::{Frame, NEVER};
 use crate::io_traits::{LinkError, Sink, Source};
 use crate::model_set::{ModelEntry, ModelSet};
@@ -106,6 +106,8 @@ pub struct Service {
     sources: Vec<Box<dyn Source>>,
     sinks: Vec<Box<dyn Sink>>,
     source_ok: Vec<bool>,
+    /// Per source, the reason of its current failure (empty while it delivers).
+    source_reason: Vec<Reason>,
     sink_ok: Vec<bool>,
     finished: bool,
     frame: Frame,
@@ -174,6 +176,7 @@ impl Service {
             envelope: Envelope::new(&machine.axis_runtime),
             output: Output::zero(m.axes.len()),
             source_ok: vec![true; sources.len()],
+            source_reason: vec![Reason::EMPTY; sources.len()],
             sink_ok: vec![true; sinks.len()],
             sources,
             sinks,
@@ -202,6 +205,15 @@ impl Service {
             set,
             config,
             machine,
+        }
+    }
+
+    /// Why source `i` does not deliver, as its latest `SourceLost` event said; `None` while it
+    /// delivers (or for an index out of range). For the status line.
+    pub fn source_reason(&self, i: usize) -> Option<&str> {
+        match (self.source_ok.get(i), self.source_reason.get(i)) {
+            (Some(false), Some(r)) => Some(r.as_str()),
+            _ => None,
         }
     }
 
@@ -341,28 +353,36 @@ impl Service {
             });
     }
 
+    /// Reads every source; raises `SourceLost` when a source stops delivering or its reason
+    /// changes while it stays lost, and `SourceBack` when it delivers again.
     fn read_sources(&mut self, now_s: f64) {
         for (i, s) in self.sources.iter_mut().enumerate() {
-            let ok = match s.read(&mut self.frame) {
-                Ok(()) => true,
+            let reason = match s.read(&mut self.frame) {
+                Ok(()) => None,
                 Err(LinkError::Finished) => {
                     self.finished = true;
-                    true
+                    None
                 }
-                Err(_) => false,
+                Err(LinkError::Disconnected(why)) => Some(why),
+                // Only sources that allocate anyway return `Failed`.
+                Err(LinkError::Failed(why)) => Some(Reason::new(&why)),
             };
-            if ok != self.source_ok[i] {
-                self.source_ok[i] = ok;
-                let kind = if ok {
-                    EventKind::SourceBack { source: i }
-                } else {
-                    EventKind::SourceLost { source: i }
-                };
-                self.events.push(Event {
-                    time_s: now_s,
-                    kind,
-                });
-            }
+            let kind = match reason {
+                None if !self.source_ok[i] => EventKind::SourceBack { source: i },
+                Some(why) if self.source_ok[i] || why != self.source_reason[i] => {
+                    EventKind::SourceLost {
+                        source: i,
+                        reason: why,
+                    }
+                }
+                _ => continue,
+            };
+            self.source_ok[i] = reason.is_none();
+            self.source_reason[i] = reason.unwrap_or(Reason::EMPTY);
+            self.events.push(Event {
+                time_s: now_s,
+                kind,
+            });
         }
     }
 

@@ -365,15 +365,18 @@ fn a_lost_server_makes_the_channels_stale_until_it_is_back() {
     }));
     let why = why.unwrap();
     assert!(
-        why.starts_with(&format!("Modbus server 127.0.0.1:{port}")),
+        why.contains("closed the connection")
+            || why.contains("reset")
+            || why.contains(&format!("cannot connect to Modbus server 127.0.0.1:{port}")),
         "{why}"
     );
     let stamp = frame.temperature_stamp_s[amb];
     std::thread::sleep(Duration::from_millis(300));
-    assert_eq!(
+    // Every read while down carries the reason (fixed-size text, no allocation).
+    assert!(matches!(
         read(&mut source, &mut frame, epoch),
-        Err(LinkError::Disconnected(String::new()))
-    );
+        Err(LinkError::Disconnected(w)) if !w.is_empty()
+    ));
     assert_eq!(frame.temperature_stamp_s[amb], stamp, "stale while lost");
     assert!(source.status().failures >= 2, "retrying with backoff");
     // The server comes back on the same port: the source reconnects by itself.
