@@ -18,12 +18,11 @@ use std::str::FromStr;
 
 /// A parser of a finite number in `[lo, hi]`; the error states the range and what was given.
 pub fn finite_in(lo: f64, hi: f64) -> impl Fn(&str) -> Result<f64, String> + Clone + Send + Sync {
-    move |text: &str| {
-        let v = text
-            .trim()
-            .parse::<f64>()
-            .map_err(|_| format!("expected a finite number in [{lo}, {hi}], got `{text}`"))?;
-        check_in(v, lo, hi)
+    move |text: &str| match text.trim().parse::<f64>() {
+        Ok(v) if v.is_finite() && v >= lo && v <= hi => Ok(v),
+        _ => Err(format!(
+            "expected a finite number in [{lo}, {hi}], got `{text}`"
+        )),
     }
 }
 
@@ -32,7 +31,10 @@ pub fn check_in(v: f64, lo: f64, hi: f64) -> Result<f64, String> {
     if v.is_finite() && v >= lo && v <= hi {
         Ok(v)
     } else {
-        Err(format!("expected a finite number in [{lo}, {hi}], got {v}"))
+        // Debug shows 1e300 as such, where Display would print 301 digits.
+        Err(format!(
+            "expected a finite number in [{lo}, {hi}], got {v:?}"
+        ))
     }
 }
 
