@@ -84,8 +84,15 @@ pub enum EventKind {
         /// Index of the source.
         source: usize,
     },
-    /// A sink failed to take the output.
+    /// A sink failed to take the output (raised on the change, not every cycle).
     SinkFailed {
+        /// Index of the sink.
+        sink: usize,
+        /// Why, as the sink said it.
+        reason: Reason,
+    },
+    /// A sink that failed takes the output again.
+    SinkBack {
         /// Index of the sink.
         sink: usize,
     },
@@ -94,6 +101,71 @@ pub enum EventKind {
         /// Lateness in µs.
         late_us: u32,
     },
+}
+
+/// Bytes a [`Reason`] holds; a longer text is cut at a character boundary.
+pub const REASON_BYTES: usize = 96;
+
+/// A short text (why a sink or source failed) that an event can carry: fixed capacity and
+/// `Copy`, so raising the event on the cycle path allocates nothing.
+#[derive(Clone, Copy, PartialEq, Eq)]
+pub struct Reason {
+    len: u8,
+    bytes: [u8; REASON_BYTES],
+}
+
+impl Reason {
+    /// The text, cut to [`REASON_BYTES`] at a character boundary.
+    pub fn new(text: &str) -> Self {
+        let mut r = Self::default();
+        r.push_str(text);
+        r
+    }
+
+    /// The text.
+    pub fn as_str(&self) -> &str {
+        // Only whole characters are ever copied in, so this never fails.
+        std::str::from_utf8(&self.bytes[..usize::from(self.len)]).unwrap_or("")
+    }
+
+    fn push_str(&mut self, text: &str) {
+        let start = usize::from(self.len);
+        let mut end = text.len().min(REASON_BYTES - start);
+        while !text.is_char_boundary(end) {
+            end -= 1;
+        }
+        self.bytes[start..start + end].copy_from_slice(&text.as_bytes()[..end]);
+        self.len = (start + end) as u8;
+    }
+}
+
+impl Default for Reason {
+    fn default() -> Self {
+        Self {
+            len: 0,
+            bytes: [0; REASON_BYTES],
+        }
+    }
+}
+
+/// `write!` into a reason formats without allocating; what does not fit is cut off.
+impl std::fmt::Write for Reason {
+    fn write_str(&mut self, s: &str) -> std::fmt::Result {
+        self.push_str(s);
+        Ok(())
+    }
+}
+
+impl std::fmt::Debug for Reason {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{:?}", self.as_str())
+    }
+}
+
+impl std::fmt::Display for Reason {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
+    }
 }
 
 /// An event with its service time.
@@ -138,5 +210,22 @@ impl EventQueue {
     /// Events dropped because the queue was full.
     pub fn dropped(&self) -> u64 {
         self.dropped.load(Ordering::Relaxed)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_reason_keeps_short_text_and_cuts_long_text_at_a_character() {
+        assert_eq!(Reason::new("disk full").as_str(), "disk full");
+        let long = "é".repeat(REASON_BYTES);
+        let r = Reason::new(&long);
+        assert_eq!(r.as_str().len(), REASON_BYTES);
+        assert!(long.starts_with(r.as_str()));
+        let mut w = Reason::new("a");
+        std::fmt::Write::write_fmt(&mut w, format_args!("{}", "ü".repeat(200))).unwrap();
+        assert!(w.as_str().starts_with("aü") && w.as_str().len() <= REASON_BYTES);
     }
 }

@@ -6,14 +6,24 @@
 //! killed at any moment (only a power loss may take the last commits), and SQLite's journal
 //! keeps the file consistent; so a SIGKILL loses at most the records of the last interval.
 //!
+//! Failures: a write that fails (a full disk, an I/O error) leaves what was drained in a bounded
+//! buffer of the thread; the thread retries with a backoff (250 ms doubling up to
+//! [`MAX_BACKOFF`]) and, when a write succeeds again, writes the buffer, a `log-failed` event
+//! (the reason, at the service time it happened) and a `log-resumed` event counting what did
+//! not fit in the buffer. Meanwhile [`Logger::health`] shows the failure; compensation never
+//! waits for the log.
+//!
+//! A log belongs to one machine: [`Logger::start`] refuses a file whose `meta` names another
+//! machine, or whose `cycles` table has other columns.
+//!
 //! The `cycles` table has one column per channel, named as in a run CSV (`X_mm`, sensor ids,
 //! operating ids) plus `<axis>_offset_um`, so `truepos log --csv` gives a run `truepos fit` reads.
 
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use crossbeam_queue::ArrayQueue;
 use rusqlite::{params_from_iter, Connection};
@@ -84,10 +94,92 @@ fn quote(name: &str) -> String {
     format!("\"{}\"", name.replace('"', "\"\""))
 }
 
+/// Longest wait between two attempts to write a failing log.
+pub const MAX_BACKOFF: Duration = Duration::from_secs(2);
+/// Cycle records the thread keeps while the log fails (at the default 10 records/s, 1.8 h);
+/// more are counted as dropped.
+pub const MAX_PENDING_RECORDS: usize = 1 << 16;
+/// Events the thread keeps while the log fails; more are counted as dropped.
+pub const MAX_PENDING_EVENTS: usize = 1 << 14;
+
+/// How the log is doing, for status lines and the end of a run.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct LogHealth {
+    /// Why writing fails now (`None`: the last write succeeded).
+    pub failing: Option<String>,
+    /// Service time (of the latest record seen) when the current failure began.
+    pub failing_since_s: Option<f64>,
+    /// Failures in this run that later resumed.
+    pub resumed: u64,
+    /// The first failure of this run: service time and reason.
+    pub first_failure: Option<(f64, String)>,
+    /// Records and events waiting in the thread's buffer.
+    pub pending: usize,
+    /// Records dropped because the buffer was full while the log failed.
+    pub records_dropped: u64,
+    /// Events dropped because the buffer was full while the log failed.
+    pub events_dropped: u64,
+}
+
+/// What the logger thread shares with the rest of the process (never with the cycle).
+#[derive(Debug, Default)]
+struct Shared {
+    health: Mutex<LogHealth>,
+    /// Page limit to apply (0: none asked).
+    page_limit: AtomicU64,
+}
+
 /// The logger thread; stop it with [`Logger::stop`] (dropping it stops it too).
 pub struct Logger {
     stop: Arc<AtomicBool>,
+    shared: Arc<Shared>,
     handle: Option<JoinHandle<Result<(), LogError>>>,
+}
+
+/// Refuses a log written for another machine or with another layout of cycles: appending would
+/// mix two machines' records under one `meta`, and the inserts would fail only later.
+fn check_owner(
+    conn: &Connection,
+    path: &Path,
+    machine: &str,
+    columns: &[String],
+) -> Result<(), LogError> {
+    let refuse = |message: String| LogError {
+        file: path.to_path_buf(),
+        message,
+    };
+    let meta: Option<String> = conn
+        .query_row("SELECT value FROM meta WHERE key = 'service'", [], |r| {
+            r.get(0)
+        })
+        .ok();
+    if let Some(meta) = meta {
+        let v: serde_json::Value = serde_json::from_str(&meta).unwrap_or_default();
+        let other = v["machine"].as_str().unwrap_or("(unnamed)");
+        if other != machine {
+            return Err(refuse(format!(
+                "this log belongs to machine `{other}`, not to `{machine}` that this service runs; \
+                 refusing to mix two machines in one log (give another --log file)"
+            )));
+        }
+    }
+    let mut st = conn
+        .prepare("SELECT name FROM pragma_table_info('cycles')")
+        .map_err(err(path))?;
+    let existing = st
+        .query_map([], |r| r.get::<_, String>(0))
+        .map_err(err(path))?
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(err(path))?;
+    if !existing.is_empty() && existing != columns {
+        return Err(refuse(format!(
+            "this log's cycles have the columns [{}], machine `{machine}` needs [{}] \
+             (another machine file, or another number of paths); give another --log file",
+            existing.join(", "),
+            columns.join(", ")
+        )));
+    }
+    Ok(())
 }
 
 /// What the logger is told at start.
@@ -131,6 +223,17 @@ impl Logger {
                 format!("{} {ty}", quote(c))
             })
             .collect();
+        let has_meta: bool = conn
+            .query_row(
+                "SELECT count(*) FROM sqlite_master WHERE name = 'meta'",
+                [],
+                |r| r.get::<_, i64>(0),
+            )
+            .map_err(err(&path))?
+            > 0;
+        if has_meta {
+            check_owner(&conn, &path, &m.name, &columns)?;
+        }
         conn.execute_batch(&format!(
             "CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
              CREATE TABLE IF NOT EXISTS events (time_s REAL NOT NULL, kind TEXT NOT NULL,
@@ -176,6 +279,8 @@ impl Logger {
         };
         let stop = Arc::new(AtomicBool::new(false));
         let stop_thread = Arc::clone(&stop);
+        let shared = Arc::new(Shared::default());
+        let shared_thread = Arc::clone(&shared);
         let every = setup.commit_every;
         let handle = std::thread::Builder::new()
             .name("truepos-log".into())
@@ -188,15 +293,14 @@ impl Logger {
                     layout,
                     dropped_seen: 0,
                     last_time: 0.0,
+                    records: Vec::new(),
+                    events: Vec::new(),
+                    notes: Vec::new(),
+                    failure: None,
+                    health: LogHealth::default(),
+                    page_limit: 0,
                 };
-                loop {
-                    let stopping = stop_thread.load(Ordering::Acquire);
-                    writer.drain(&events, &records)?;
-                    if stopping {
-                        return Ok(());
-                    }
-                    std::thread::sleep(every);
-                }
+                writer.run(&stop_thread, &shared_thread, &events, &records, every)
             })
             .map_err(|e| LogError {
                 file: setup.path.to_path_buf(),
@@ -204,8 +308,25 @@ impl Logger {
             })?;
         Ok(Self {
             stop,
+            shared,
             handle: Some(handle),
         })
+    }
+
+    /// How the log is doing now (written by the thread after every attempt).
+    pub fn health(&self) -> LogHealth {
+        match self.shared.health.lock() {
+            Ok(h) => h.clone(),
+            Err(p) => p.into_inner().clone(),
+        }
+    }
+
+    /// Caps the database at `pages` pages (SQLite's `max_page_count`, applied by the thread
+    /// before its next write): beyond it a write fails with SQLITE_FULL exactly as on a full
+    /// disk, and raising the cap lets it resume. For a bounded log, and for testing the
+    /// failure path without filling a disk.
+    pub fn set_page_limit(&self, pages: u64) {
+        self.shared.page_limit.store(pages, Ordering::Release);
     }
 
     /// Writes what is still queued and stops the thread.
@@ -248,6 +369,24 @@ struct Writer {
     layout: Layout,
     dropped_seen: u64,
     last_time: f64,
+    /// Drained and not yet committed (kept across failed attempts, bounded).
+    records: Vec<CycleRecord>,
+    events: Vec<Event>,
+    /// The logger's own events (failure, resumption, drops) as (time, kind, subject, detail).
+    notes: Vec<(f64, &'static str, String, String)>,
+    /// The current failure: when, why, and when to try again after how long a wait.
+    failure: Option<Failure>,
+    health: LogHealth,
+    page_limit: u64,
+}
+
+struct Failure {
+    since_s: f64,
+    reason: String,
+    retry_at: Instant,
+    backoff: Duration,
+    records_dropped: u64,
+    events_dropped: u64,
 }
 
 /// A float for SQLite: NaN and ∞ become NULL.
@@ -260,17 +399,178 @@ fn real(v: f64) -> rusqlite::types::Value {
 }
 
 impl Writer {
-    fn drain(
+    /// The thread's loop: drain the queues every `every`, write when no backoff is running,
+    /// publish the health; on stop, one last attempt whatever the backoff.
+    fn run(
         &mut self,
+        stop: &AtomicBool,
+        shared: &Shared,
         events: &EventQueue,
         records: &ArrayQueue<CycleRecord>,
+        every: Duration,
     ) -> Result<(), LogError> {
-        let tx = self.conn.transaction().map_err(err(&self.path))?;
+        loop {
+            let stopping = stop.load(Ordering::Acquire);
+            self.collect(events, records);
+            let limit = shared.page_limit.load(Ordering::Acquire);
+            if limit != 0 && limit != self.page_limit {
+                // A failed pragma leaves the old cap; the next write shows what that means.
+                if self
+                    .conn
+                    .pragma_update(None, "max_page_count", limit)
+                    .is_ok()
+                {
+                    self.page_limit = limit;
+                }
+            }
+            let due = match &self.failure {
+                None => true,
+                Some(f) => stopping || Instant::now() >= f.retry_at,
+            };
+            if due {
+                self.attempt();
+            }
+            self.publish(shared);
+            if stopping {
+                return match &self.failure {
+                    None => Ok(()),
+                    Some(f) => Err(LogError {
+                        file: self.path.clone(),
+                        message: format!(
+                            "writing the log failed since service time {:.1} s and never resumed: {}; \
+                             {} records and {} events not written",
+                            f.since_s,
+                            f.reason,
+                            self.records.len() as u64 + f.records_dropped,
+                            self.events.len() as u64 + f.events_dropped
+                        ),
+                    }),
+                };
+            }
+            std::thread::sleep(every);
+        }
+    }
+
+    /// Moves what the cycle queued into the buffer; beyond its bound, counts the drop.
+    fn collect(&mut self, events: &EventQueue, records: &ArrayQueue<CycleRecord>) {
+        while let Some(r) = records.pop() {
+            self.last_time = self.last_time.max(r.time_s);
+            if self.records.len() < MAX_PENDING_RECORDS {
+                self.records.push(r);
+            } else {
+                self.health.records_dropped += 1;
+                if let Some(f) = &mut self.failure {
+                    f.records_dropped += 1;
+                }
+            }
+        }
+        while let Some(e) = events.pop() {
+            self.last_time = self.last_time.max(e.time_s);
+            if self.events.len() < MAX_PENDING_EVENTS {
+                self.events.push(e);
+            } else {
+                self.health.events_dropped += 1;
+                if let Some(f) = &mut self.failure {
+                    f.events_dropped += 1;
+                }
+            }
+        }
+        let dropped = events.dropped();
+        if dropped > self.dropped_seen {
+            self.notes.push((
+                self.last_time,
+                "events-dropped",
+                "log".into(),
+                format!(
+                    "{} events were dropped: the log fell behind",
+                    dropped - self.dropped_seen
+                ),
+            ));
+            self.dropped_seen = dropped;
+        }
+    }
+
+    /// One attempt to write the buffer; on failure, starts or extends the backoff.
+    fn attempt(&mut self) {
+        // While failing, the resumption note rides in the same transaction as the buffer, so
+        // it is written exactly when the buffer is.
+        let resumed = self.failure.as_ref().map(|f| {
+            (
+                self.last_time,
+                "log-resumed",
+                "log".to_string(),
+                format!(
+                    "writing resumed after failing since {:.1} s; {} records and {} events \
+                     dropped meanwhile (the buffer holds {MAX_PENDING_RECORDS} records and \
+                     {MAX_PENDING_EVENTS} events)",
+                    f.since_s, f.records_dropped, f.events_dropped
+                ),
+            )
+        });
+        let had = self.notes.len();
+        self.notes.extend(resumed);
+        match self.write_buffer() {
+            Ok(()) => {
+                if self.failure.take().is_some() {
+                    self.health.resumed += 1;
+                }
+                self.records.clear();
+                self.events.clear();
+                self.notes.clear();
+            }
+            Err(e) => {
+                self.notes.truncate(had);
+                let reason = e.to_string();
+                match &mut self.failure {
+                    Some(f) => {
+                        f.backoff = (f.backoff * 2).min(MAX_BACKOFF);
+                        f.retry_at = Instant::now() + f.backoff;
+                        f.reason = reason;
+                    }
+                    None => {
+                        let backoff = Duration::from_millis(250);
+                        self.notes.push((
+                            self.last_time,
+                            "log-failed",
+                            "log".into(),
+                            reason.clone(),
+                        ));
+                        self.health
+                            .first_failure
+                            .get_or_insert((self.last_time, reason.clone()));
+                        self.failure = Some(Failure {
+                            since_s: self.last_time,
+                            reason,
+                            retry_at: Instant::now() + backoff,
+                            backoff,
+                            records_dropped: 0,
+                            events_dropped: 0,
+                        });
+                    }
+                }
+            }
+        }
+    }
+
+    fn publish(&mut self, shared: &Shared) {
+        let h = &mut self.health;
+        h.failing = self.failure.as_ref().map(|f| f.reason.clone());
+        h.failing_since_s = self.failure.as_ref().map(|f| f.since_s);
+        h.pending = self.records.len() + self.events.len();
+        let mut out = match shared.health.lock() {
+            Ok(g) => g,
+            Err(p) => p.into_inner(),
+        };
+        *out = h.clone();
+    }
+
+    /// Writes the buffer in one transaction (rolled back whole on any error).
+    fn write_buffer(&mut self) -> Result<(), rusqlite::Error> {
+        let tx = self.conn.transaction()?;
         {
-            let mut insert = tx.prepare_cached(&self.insert).map_err(err(&self.path))?;
-            while let Some(r) = records.pop() {
-                self.last_time = r.time_s;
-                let l = &self.layout;
+            let mut insert = tx.prepare_cached(&self.insert)?;
+            let l = &self.layout;
+            for r in &self.records {
                 let mut values: Vec<rusqlite::types::Value> = Vec::new();
                 values.push(real(r.time_s));
                 values.push(rusqlite::types::Value::Text(state_name(r.state).into()));
@@ -285,37 +585,20 @@ impl Writer {
                 values.extend(r.temperatures_c[..l.temperatures].iter().map(|&v| real(v)));
                 values.extend(r.operating[..l.operating].iter().map(|&v| real(v)));
                 values.extend(r.offsets_um[..l.axes].iter().map(|&v| real(v)));
-                insert
-                    .execute(params_from_iter(values))
-                    .map_err(err(&self.path))?;
+                insert.execute(params_from_iter(values))?;
             }
-            let mut ev = tx
-                .prepare_cached(
-                    "INSERT INTO events (time_s, kind, subject, detail) VALUES (?1, ?2, ?3, ?4)",
-                )
-                .map_err(err(&self.path))?;
-            while let Some(e) = events.pop() {
-                self.last_time = self.last_time.max(e.time_s);
-                let (kind, subject, detail) = describe(&e, &self.names);
-                ev.execute(rusqlite::params![e.time_s, kind, subject, detail])
-                    .map_err(err(&self.path))?;
+            let mut ev = tx.prepare_cached(
+                "INSERT INTO events (time_s, kind, subject, detail) VALUES (?1, ?2, ?3, ?4)",
+            )?;
+            for e in &self.events {
+                let (kind, subject, detail) = describe(e, &self.names);
+                ev.execute(rusqlite::params![e.time_s, kind, subject, detail])?;
             }
-            let dropped = events.dropped();
-            if dropped > self.dropped_seen {
-                ev.execute(rusqlite::params![
-                    self.last_time,
-                    "events-dropped",
-                    "log",
-                    format!(
-                        "{} events were dropped: the log fell behind",
-                        dropped - self.dropped_seen
-                    )
-                ])
-                .map_err(err(&self.path))?;
-                self.dropped_seen = dropped;
+            for (time_s, kind, subject, detail) in &self.notes {
+                ev.execute(rusqlite::params![time_s, kind, subject, detail])?;
             }
         }
-        tx.commit().map_err(err(&self.path))
+        tx.commit()
     }
 }
 
@@ -384,7 +667,12 @@ fn describe(e: &Event, n: &Names) -> (&'static str, String, String) {
         EventKind::SourceBack { source } => {
             ("source-back", name(&n.sources, source), String::new())
         }
-        EventKind::SinkFailed { sink } => ("sink-failed", name(&n.sinks, sink), String::new()),
+        EventKind::SinkFailed { sink, reason } => (
+            "sink-failed",
+            name(&n.sinks, sink),
+            reason.as_str().to_string(),
+        ),
+        EventKind::SinkBack { sink } => ("sink-back", name(&n.sinks, sink), String::new()),
         EventKind::Overrun { late_us } => ("overrun", "cycle".into(), format!("{late_us} µs late")),
     }
 }
