@@ -334,6 +334,12 @@ impl Logger {
         self.finish()
     }
 
+    /// Like [`Logger::stop`], and how the log did over the run (after the last attempt).
+    pub fn stop_with_health(mut self) -> (Result<(), LogError>, LogHealth) {
+        let result = self.finish();
+        (result, self.health())
+    }
+
     fn finish(&mut self) -> Result<(), LogError> {
         self.stop.store(true, Ordering::Release);
         match self.handle.take() {
@@ -717,6 +723,18 @@ pub fn read_events(path: &Path) -> Result<Vec<LoggedEvent>, LogError> {
         })
         .map_err(err(path))?;
     rows.collect::<Result<Vec<_>, _>>().map_err(err(path))
+}
+
+/// The `meta` a service wrote at start (machine, axes, sensors, models, sources, sinks), or
+/// `None` for a log without one.
+pub fn read_meta(path: &Path) -> Result<Option<serde_json::Value>, LogError> {
+    let conn = open_read(path)?;
+    let text: Option<String> = conn
+        .query_row("SELECT value FROM meta WHERE key = 'service'", [], |r| {
+            r.get(0)
+        })
+        .ok();
+    Ok(text.and_then(|t| serde_json::from_str(&t).ok()))
 }
 
 /// The cycles of a log as (column names, rows); NULL becomes NaN, the state column its text.

@@ -255,6 +255,11 @@ impl Service {
         &self.sink_health
     }
 
+    /// The name of sink `i` (empty if there is none).
+    pub fn sink_name(&self, i: usize) -> &str {
+        self.sinks.get(i).map_or("", |s| s.name())
+    }
+
     /// A sink that drives the axes and fails now, if any: the offsets no longer reach the
     /// axes and the run must stop with an alarm; a failing recording sink does not stop it.
     pub fn axes_unreachable(&self) -> Option<usize> {
