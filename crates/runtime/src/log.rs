@@ -207,76 +207,7 @@ impl Logger {
         events: Arc<EventQueue>,
         records: Arc<ArrayQueue<CycleRecord>>,
     ) -> Result<Self, LogError> {
-        let path = setup.path.to_path_buf();
-        let conn = Connection::open(&path).map_err(err(&path))?;
-        conn.pragma_update(None, "journal_mode", "WAL")
-            .map_err(err(&path))?;
-        conn.pragma_update(None, "synchronous", "NORMAL")
-            .map_err(err(&path))?;
-        let m = &setup.machine.machine;
-        let paths = setup.paths.min(MAX_PATHS);
-        let columns = cycle_columns(setup.machine, paths);
-        let defs: Vec<String> = columns
-            .iter()
-            .map(|c| {
-                let ty = if c == "state" { "TEXT" } else { "REAL" };
-                format!("{} {ty}", quote(c))
-            })
-            .collect();
-        let has_meta: bool = conn
-            .query_row(
-                "SELECT count(*) FROM sqlite_master WHERE name = 'meta'",
-                [],
-                |r| r.get::<_, i64>(0),
-            )
-            .map_err(err(&path))?
-            > 0;
-        if has_meta {
-            check_owner(&conn, &path, &m.name, &columns)?;
-        }
-        conn.execute_batch(&format!(
-            "CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
-             CREATE TABLE IF NOT EXISTS events (time_s REAL NOT NULL, kind TEXT NOT NULL,
-                 subject TEXT NOT NULL, detail TEXT NOT NULL);
-             CREATE TABLE IF NOT EXISTS cycles ({});",
-            defs.join(", ")
-        ))
-        .map_err(err(&path))?;
-        let names = Names {
-            axes: m.axes.iter().map(|a| a.name.clone()).collect(),
-            sensors: m.temperatures.iter().map(|t| t.id.clone()).collect(),
-            sources: setup.sources,
-            sinks: setup.sinks,
-            models: setup.models,
-        };
-        let meta = serde_json::json!({
-            "machine": m.name,
-            "axes": names.axes,
-            "sensors": names.sensors,
-            "models": names.models,
-            "sources": names.sources,
-            "sinks": names.sinks,
-        });
-        conn.execute(
-            "INSERT OR REPLACE INTO meta (key, value) VALUES ('service', ?1)",
-            [meta.to_string()],
-        )
-        .map_err(err(&path))?;
-        let insert = format!(
-            "INSERT INTO cycles ({}) VALUES ({})",
-            columns
-                .iter()
-                .map(|c| quote(c))
-                .collect::<Vec<_>>()
-                .join(", "),
-            vec!["?"; columns.len()].join(", ")
-        );
-        let layout = Layout {
-            axes: m.axes.len(),
-            temperatures: m.temperatures.len().min(MAX_LOG_TEMPERATURES),
-            operating: m.operating.len().min(MAX_LOG_OPERATING),
-            paths,
-        };
+        let mut writer = Writer::open(&setup)?;
         let stop = Arc::new(AtomicBool::new(false));
         let stop_thread = Arc::clone(&stop);
         let shared = Arc::new(Shared::default());
@@ -284,24 +215,7 @@ impl Logger {
         let every = setup.commit_every;
         let handle = std::thread::Builder::new()
             .name("truepos-log".into())
-            .spawn(move || {
-                let mut writer = Writer {
-                    conn,
-                    path,
-                    insert,
-                    names,
-                    layout,
-                    dropped_seen: 0,
-                    last_time: 0.0,
-                    records: Vec::new(),
-                    events: Vec::new(),
-                    notes: Vec::new(),
-                    failure: None,
-                    health: LogHealth::default(),
-                    page_limit: 0,
-                };
-                writer.run(&stop_thread, &shared_thread, &events, &records, every)
-            })
+            .spawn(move || writer.run(&stop_thread, &shared_thread, &events, &records, every))
             .map_err(|e| LogError {
                 file: setup.path.to_path_buf(),
                 message: format!("cannot start the log thread: {e}"),
@@ -384,6 +298,12 @@ struct Writer {
     failure: Option<Failure>,
     health: LogHealth,
     page_limit: u64,
+    /// Dropped from the full buffer since the last successful write.
+    records_dropped: u64,
+    events_dropped: u64,
+    /// Bounds of the buffer ([`MAX_PENDING_RECORDS`], [`MAX_PENDING_EVENTS`]).
+    max_records: usize,
+    max_events: usize,
 }
 
 struct Failure {
@@ -391,8 +311,6 @@ struct Failure {
     reason: String,
     retry_at: Instant,
     backoff: Duration,
-    records_dropped: u64,
-    events_dropped: u64,
 }
 
 /// A float for SQLite: NaN and ∞ become NULL.
@@ -405,6 +323,99 @@ fn real(v: f64) -> rusqlite::types::Value {
 }
 
 impl Writer {
+    /// Opens (or creates) the log for this service, refusing one of another machine.
+    fn open(setup: &LogSetup<'_>) -> Result<Self, LogError> {
+        let path = setup.path.to_path_buf();
+        let conn = Connection::open(&path).map_err(err(&path))?;
+        conn.pragma_update(None, "journal_mode", "WAL")
+            .map_err(err(&path))?;
+        conn.pragma_update(None, "synchronous", "NORMAL")
+            .map_err(err(&path))?;
+        let m = &setup.machine.machine;
+        let paths = setup.paths.min(MAX_PATHS);
+        let columns = cycle_columns(setup.machine, paths);
+        let defs: Vec<String> = columns
+            .iter()
+            .map(|c| {
+                let ty = if c == "state" { "TEXT" } else { "REAL" };
+                format!("{} {ty}", quote(c))
+            })
+            .collect();
+        let has_meta: bool = conn
+            .query_row(
+                "SELECT count(*) FROM sqlite_master WHERE name = 'meta'",
+                [],
+                |r| r.get::<_, i64>(0),
+            )
+            .map_err(err(&path))?
+            > 0;
+        if has_meta {
+            check_owner(&conn, &path, &m.name, &columns)?;
+        }
+        conn.execute_batch(&format!(
+            "CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
+             CREATE TABLE IF NOT EXISTS events (time_s REAL NOT NULL, kind TEXT NOT NULL,
+                 subject TEXT NOT NULL, detail TEXT NOT NULL);
+             CREATE TABLE IF NOT EXISTS cycles ({});",
+            defs.join(", ")
+        ))
+        .map_err(err(&path))?;
+        let names = Names {
+            axes: m.axes.iter().map(|a| a.name.clone()).collect(),
+            sensors: m.temperatures.iter().map(|t| t.id.clone()).collect(),
+            sources: setup.sources.clone(),
+            sinks: setup.sinks.clone(),
+            models: setup.models.clone(),
+        };
+        let meta = serde_json::json!({
+            "machine": m.name,
+            "axes": names.axes,
+            "sensors": names.sensors,
+            "models": names.models,
+            "sources": names.sources,
+            "sinks": names.sinks,
+        });
+        conn.execute(
+            "INSERT OR REPLACE INTO meta (key, value) VALUES ('service', ?1)",
+            [meta.to_string()],
+        )
+        .map_err(err(&path))?;
+        let insert = format!(
+            "INSERT INTO cycles ({}) VALUES ({})",
+            columns
+                .iter()
+                .map(|c| quote(c))
+                .collect::<Vec<_>>()
+                .join(", "),
+            vec!["?"; columns.len()].join(", ")
+        );
+        let layout = Layout {
+            axes: m.axes.len(),
+            temperatures: m.temperatures.len().min(MAX_LOG_TEMPERATURES),
+            operating: m.operating.len().min(MAX_LOG_OPERATING),
+            paths,
+        };
+        Ok(Self {
+            conn,
+            path,
+            insert,
+            names,
+            layout,
+            dropped_seen: 0,
+            last_time: 0.0,
+            records: Vec::new(),
+            events: Vec::new(),
+            notes: Vec::new(),
+            failure: None,
+            health: LogHealth::default(),
+            page_limit: 0,
+            records_dropped: 0,
+            events_dropped: 0,
+            max_records: MAX_PENDING_RECORDS,
+            max_events: MAX_PENDING_EVENTS,
+        })
+    }
+
     /// The thread's loop: drain the queues every `every`, write when no backoff is running,
     /// publish the health; on stop, one last attempt whatever the backoff.
     fn run(
@@ -447,8 +458,8 @@ impl Writer {
                              {} records and {} events not written",
                             f.since_s,
                             f.reason,
-                            self.records.len() as u64 + f.records_dropped,
-                            self.events.len() as u64 + f.events_dropped
+                            self.records.len() as u64 + self.records_dropped,
+                            self.events.len() as u64 + self.events_dropped
                         ),
                     }),
                 };
@@ -461,24 +472,20 @@ impl Writer {
     fn collect(&mut self, events: &EventQueue, records: &ArrayQueue<CycleRecord>) {
         while let Some(r) = records.pop() {
             self.last_time = self.last_time.max(r.time_s);
-            if self.records.len() < MAX_PENDING_RECORDS {
+            if self.records.len() < self.max_records {
                 self.records.push(r);
             } else {
                 self.health.records_dropped += 1;
-                if let Some(f) = &mut self.failure {
-                    f.records_dropped += 1;
-                }
+                self.records_dropped += 1;
             }
         }
         while let Some(e) = events.pop() {
             self.last_time = self.last_time.max(e.time_s);
-            if self.events.len() < MAX_PENDING_EVENTS {
+            if self.events.len() < self.max_events {
                 self.events.push(e);
             } else {
                 self.health.events_dropped += 1;
-                if let Some(f) = &mut self.failure {
-                    f.events_dropped += 1;
-                }
+                self.events_dropped += 1;
             }
         }
         let dropped = events.dropped();
@@ -507,9 +514,12 @@ impl Writer {
                 "log".to_string(),
                 format!(
                     "writing resumed after failing since {:.1} s; {} records and {} events \
-                     dropped meanwhile (the buffer holds {MAX_PENDING_RECORDS} records and \
-                     {MAX_PENDING_EVENTS} events)",
-                    f.since_s, f.records_dropped, f.events_dropped
+                     dropped meanwhile (the buffer holds {} records and {} events)",
+                    f.since_s,
+                    self.records_dropped,
+                    self.events_dropped,
+                    self.max_records,
+                    self.max_events
                 ),
             )
         });
@@ -523,6 +533,8 @@ impl Writer {
                 self.records.clear();
                 self.events.clear();
                 self.notes.clear();
+                self.records_dropped = 0;
+                self.events_dropped = 0;
             }
             Err(e) => {
                 self.notes.truncate(had);
@@ -549,8 +561,6 @@ impl Writer {
                             reason,
                             retry_at: Instant::now() + backoff,
                             backoff,
-                            records_dropped: 0,
-                            events_dropped: 0,
                         });
                     }
                 }
@@ -782,4 +792,93 @@ pub fn integrity_check(path: &Path) -> Result<String, LogError> {
     let conn = open_read(path)?;
     conn.query_row("PRAGMA integrity_check", [], |r| r.get(0))
         .map_err(err(path))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::output::CompensationState;
+    use truepos_model::MAX_AXES;
+
+    fn record(time_s: f64) -> CycleRecord {
+        CycleRecord {
+            time_s,
+            state: CompensationState::Active,
+            positions: [0.0; MAX_AXES],
+            offsets_um: [0.0; MAX_AXES],
+            temperatures_c: [20.0; MAX_LOG_TEMPERATURES],
+            operating: [0.0; MAX_LOG_OPERATING],
+            model_per_path: [0; MAX_PATHS],
+        }
+    }
+
+    /// While the log fails, the buffer keeps what fits; the rest is counted, and the count is
+    /// logged with the failure once writing resumes. (The failure here is a connection set
+    /// `query_only`; tests/log_faults.rs has the full disk.)
+    #[test]
+    fn what_does_not_fit_the_buffer_while_failing_is_counted_and_logged_on_resumption() {
+        let dir = std::env::temp_dir().join(format!("truepos-logbuf-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let db = dir.join("log.sqlite");
+        let machine = truepos_io::machine_file::load(
+            &Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/vmc3/machine.toml"),
+        )
+        .unwrap();
+        let setup = LogSetup {
+            path: &db,
+            machine: &machine,
+            models: vec!["m".into()],
+            sources: vec![],
+            sinks: vec!["csv out.csv".into()],
+            paths: 1,
+            commit_every: Duration::from_millis(250),
+        };
+        let mut w = Writer::open(&setup).unwrap();
+        w.max_records = 5;
+        w.max_events = 2;
+        let events = EventQueue::new(64);
+        let records = ArrayQueue::new(64);
+        w.conn.pragma_update(None, "query_only", true).unwrap();
+        for i in 0..8 {
+            records.push(record(f64::from(i))).unwrap();
+        }
+        for _ in 0..3 {
+            events.push(Event {
+                time_s: 1.0,
+                kind: EventKind::SinkFailed {
+                    sink: 0,
+                    reason: crate::events::Reason::new("disk full"),
+                },
+            });
+        }
+        w.collect(&events, &records);
+        w.attempt();
+        assert!(w.failure.is_some());
+        records.push(record(8.0)).unwrap();
+        records.push(record(9.0)).unwrap();
+        w.collect(&events, &records);
+        w.attempt();
+        assert_eq!((w.health.records_dropped, w.health.events_dropped), (5, 1));
+        w.conn.pragma_update(None, "query_only", false).unwrap();
+        w.attempt();
+        assert!(w.failure.is_none());
+        assert_eq!(w.health.resumed, 1);
+        let logged = read_events(&db).unwrap();
+        let kinds: Vec<&str> = logged.iter().map(|e| e.kind.as_str()).collect();
+        assert_eq!(
+            kinds,
+            ["sink-failed", "sink-failed", "log-failed", "log-resumed"]
+        );
+        assert_eq!(logged[0].detail, "disk full");
+        assert!(logged[2].detail.contains("readonly"), "{logged:?}");
+        assert!(
+            logged[3]
+                .detail
+                .contains("5 records and 1 events dropped meanwhile"),
+            "{logged:?}"
+        );
+        assert_eq!(read_cycles(&db, None).unwrap().1.len(), 5);
+        std::fs::remove_dir_all(&dir).ok();
+    }
 }
