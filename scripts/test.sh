@@ -13,6 +13,9 @@ bash scripts/install_linuxcnc.sh      # LinuxCNC 2.9 (Debian), for the HAL compo
 echo "== unit, integration and doc tests of every crate"
 cargo test --workspace
 
+echo "== fault campaign: 10 000 random fault schedules, the output invariant checked every cycle (release)"
+PROPTEST_CASES=10000 cargo test --release -p truepos-runtime --test fault_campaign
+
 echo "== network-source fuzzing, 1.1 million inputs (release)"
 cargo test --release -p truepos-runtime --test fuzz_network
 

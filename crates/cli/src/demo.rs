@@ -28,8 +28,8 @@ pub struct Args {
     /// Folder for the model files and the report.
     #[arg(long, default_value = "demo")]
     out: PathBuf,
-    /// Grid points per axis for the working-volume check (n × n × n positions).
-    #[arg(long, default_value_t = 3)]
+    /// Grid points per axis for the working-volume check (n × n × n positions), 1–10.
+    #[arg(long, default_value_t = 3, value_parser = truepos_io::limits::int_in(1usize, 10))]
     grid: usize,
     /// Print the figures as JSON.
     #[arg(long)]

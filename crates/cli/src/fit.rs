@@ -9,6 +9,7 @@ use truepos_fit::features::{candidates, Family};
 use truepos_fit::train::{InnerCv, Rule, Settings};
 use truepos_fit::validate::{validate, Split};
 use truepos_io::dynamic_model_file::{DynamicModelFile, InputEntry};
+use truepos_io::limits::{finite_in, int_in};
 use truepos_io::run::{glob_match, read, Table};
 
 /// Arguments of `truepos fit`.
@@ -41,22 +42,23 @@ pub struct Args {
     /// automatically.
     #[arg(long)]
     family: Option<String>,
-    /// Fix the ridge parameter(s), comma-separated. Default: chosen automatically.
+    /// Fix the ridge parameter(s), comma-separated, each 0–10¹². Default: chosen automatically.
     #[arg(long)]
     ridge: Option<String>,
     /// How inner-CV scores choose: 1se (the most regularised candidate within one standard error
     /// of the best) or min (the lowest CV error).
     #[arg(long, default_value = "1se")]
     rule: String,
-    /// Use at most this many temperature sensors (correlation ranking + greedy forward selection).
-    #[arg(long)]
+    /// Use at most this many temperature sensors (correlation ranking + greedy forward
+    /// selection), 1–1000.
+    #[arg(long, value_parser = int_in(1usize, 1000))]
     max_sensors: Option<usize>,
     /// Seed C's reference sensor (an input temperature column, e.g. the ambient or a reference
     /// spot on the machine): adds the seed-c family, Y = Σ k_i·(t_i − t_r) + c, to the candidates.
     #[arg(long)]
     reference: Option<String>,
-    /// Blocks of the inner cross-validation on the training part.
-    #[arg(long, default_value_t = 8)]
+    /// Blocks of the inner cross-validation on the training part, 2–100.
+    #[arg(long, default_value_t = 8, value_parser = int_in(2usize, 100))]
     folds: usize,
     /// Which blocks train the model scored on a held-out block: blocked (all others) or rolling
     /// (only those before it, rolling origin; the first two blocks only train).
@@ -200,10 +202,7 @@ fn settings(args: &Args, ds: &Dataset) -> Result<Settings, String> {
     if let Some(r) = &args.ridge {
         s.ridges = patterns(r)
             .into_iter()
-            .map(|v| match v.parse::<f64>() {
-                Ok(x) if x >= 0.0 && x.is_finite() => Ok(x),
-                _ => Err(format!("--ridge `{v}`: expected a number ≥ 0")),
-            })
+            .map(|v| finite_in(0.0, 1e12)(v).map_err(|e| format!("--ridge: {e}")))
             .collect::<Result<_, _>>()?;
     }
     Ok(s)

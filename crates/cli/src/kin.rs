@@ -32,8 +32,8 @@ struct Common {
     /// The machine description (TOML); axis travels are taken from it.
     #[arg(long)]
     machine: Option<PathBuf>,
-    /// Tool length in mm (default: `tool_length` of the kinematics file).
-    #[arg(long)]
+    /// Tool length in mm, −10 000–10 000 (default: `tool_length` of the kinematics file).
+    #[arg(long, value_parser = truepos_io::limits::finite_in(-10_000.0, 10_000.0))]
     tool_length: Option<f64>,
     /// Use the nominal chain (ignore the error tables).
     #[arg(long)]

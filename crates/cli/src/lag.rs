@@ -1,18 +1,19 @@
 //! `truepos lag`: seed A's timing argument.
 
+use truepos_io::limits::finite_in;
 use truepos_model::{lag_error_fraction, travel_per_update_mm, PositionFactor};
 
 /// Arguments of `truepos lag`.
 #[derive(clap::Args)]
 pub struct Args {
-    /// Maximum feed of the axis in m/min.
-    #[arg(long, default_value_t = 100.0)]
+    /// Maximum feed of the axis in m/min, 0.001–1000.
+    #[arg(long, default_value_t = 100.0, value_parser = finite_in(0.001, 1000.0))]
     feed_m_min: f64,
-    /// Update period of the position-dependent terms in ms.
-    #[arg(long, default_value_t = 4.0)]
+    /// Update period of the position-dependent terms in ms, 0.001–60 000.
+    #[arg(long, default_value_t = 4.0, value_parser = finite_in(0.001, 60_000.0))]
     period_ms: f64,
-    /// Length of the axis (travel) in mm.
-    #[arg(long, default_value_t = 500.0)]
+    /// Length of the axis (travel) in mm, 0.001–100 000.
+    #[arg(long, default_value_t = 500.0, value_parser = finite_in(0.001, 100_000.0))]
     length_mm: f64,
     /// Print the figures as JSON.
     #[arg(long)]
@@ -20,15 +21,6 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> Result<(), String> {
-    for (name, v) in [
-        ("--feed-m-min", args.feed_m_min),
-        ("--period-ms", args.period_ms),
-        ("--length-mm", args.length_mm),
-    ] {
-        if !(v.is_finite() && v > 0.0) {
-            return Err(format!("{name} must be a positive number, got {v}"));
-        }
-    }
     let feed_mm_min = args.feed_m_min * 1000.0;
     let travel = travel_per_update_mm(feed_mm_min, args.period_ms);
     let pct = |f| 100.0 * lag_error_fraction(feed_mm_min, args.period_ms, args.length_mm, f);

@@ -27,8 +27,8 @@ pub struct Args {
     #[arg(long, value_delimiter = ',', required = true)]
     measured: Vec<String>,
     /// Time (s) from which the run is held out (was not used to make the model); the figures of
-    /// merit are computed from there on. Default: the whole run.
-    #[arg(long)]
+    /// merit are computed from there on, −10¹⁰–10¹⁰ (epoch seconds fit). Default: the whole run.
+    #[arg(long, value_parser = truepos_io::limits::finite_in(-1e10, 1e10))]
     test_from_s: Option<f64>,
     /// Output folder.
     #[arg(long, default_value = "report")]

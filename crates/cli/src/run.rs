@@ -7,6 +7,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
+use truepos_io::limits::{check_in, finite_in};
 use truepos_io::{cycles, machine_file};
 use truepos_runtime::log::{self, LogSetup, Logger};
 use truepos_runtime::modbus::{ModbusConfig, ModbusSource};
@@ -28,7 +29,7 @@ pub struct RunArgs {
         default_value = "examples/vmc3/model.toml"
     )]
     models: Vec<PathBuf>,
-    /// Sources: `replay:RUN.csv[@SPEED]` (a recorded run at SPEED × real time), and
+    /// Sources: `replay:RUN.csv[@SPEED]` (a recorded run at SPEED × real time, 0.001–10⁶), and
     /// `twin:SCENARIO[@SPEED]` (the thermal twin's sensors on a built-in scenario or scenario
     /// file; temperatures and operating state only, positions come from the other sources),
     /// `modbus:CONFIG.toml` (temperature modules) and `shdr:CONFIG.toml` (an MTConnect adapter);
@@ -41,31 +42,35 @@ pub struct RunArgs {
     /// SQLite log of inputs, outputs and events (WAL mode).
     #[arg(long)]
     log: Option<PathBuf>,
-    /// Cycle period in ms.
-    #[arg(long, default_value_t = 1.0)]
+    /// Cycle period in ms, 0.1–10 000.
+    #[arg(long, default_value_t = 1.0, value_parser = finite_in(0.1, 10_000.0))]
     period_ms: f64,
-    /// Stop after this many seconds (default: when a replay ends).
-    #[arg(long)]
+    /// Stop after this many seconds, 0.001–31 536 000 (a year; default: when a replay ends).
+    #[arg(long, value_parser = finite_in(0.001, MAX_RUN_S))]
     duration_s: Option<f64>,
     /// Run as fast as possible on a simulated clock (replays and tests), not in real time.
     #[arg(long)]
     fast: bool,
-    /// Blend time in s for model switches and enabling/disabling.
-    #[arg(long, default_value_t = 5.0)]
+    /// Blend time in s for model switches and enabling/disabling, 0–3600.
+    #[arg(long, default_value_t = 5.0, value_parser = finite_in(0.0, 3600.0))]
     blend_s: f64,
-    /// Time in s over which a held compensation ramps to zero.
-    #[arg(long, default_value_t = 60.0)]
+    /// Time in s over which a held compensation ramps to zero, 0–86 400.
+    #[arg(long, default_value_t = 60.0, value_parser = finite_in(0.0, 86_400.0))]
     hold_ramp_s: f64,
-    /// Interval in s between cycle records in the log.
-    #[arg(long, default_value_t = 0.1)]
+    /// Interval in s between cycle records in the log, 0–3600 (0: every cycle).
+    #[arg(long, default_value_t = 0.1, value_parser = finite_in(0.0, 3600.0))]
     log_every_s: f64,
-    /// Interval in s between rows of a CSV sink.
-    #[arg(long, default_value_t = 0.1)]
+    /// Interval in s between rows of a CSV sink, 0–3600 (0: every cycle).
+    #[arg(long, default_value_t = 0.1, value_parser = finite_in(0.0, 3600.0))]
     sink_every_s: f64,
     /// Print a summary as JSON at the end (and no status line).
     #[arg(long)]
     json: bool,
 }
+
+/// Longest run in s, a year: bounds `--duration-s` and a replay's length at its speed, so that a
+/// `--fast` run always ends.
+const MAX_RUN_S: f64 = 31_536_000.0;
 
 /// Arguments of `truepos status`.
 #[derive(clap::Args)]
@@ -176,9 +181,6 @@ impl Timing {
 }
 
 pub fn run(args: RunArgs) -> Result<(), String> {
-    if !(args.period_ms.is_finite() && args.period_ms > 0.0) {
-        return Err(format!("--period-ms must be > 0, got {}", args.period_ms));
-    }
     let machine = machine_file::load(&args.machine).map_err(|e| e.to_string())?;
     let m = &machine.machine;
     let entries = load_entries(&args.models, &machine).map_err(|e| e.to_string())?;
@@ -191,10 +193,8 @@ pub fn run(args: RunArgs) -> Result<(), String> {
         let (what, speed) = match rest.rsplit_once('@') {
             Some((f, s)) => (
                 f,
-                s.parse::<f64>()
-                    .ok()
-                    .filter(|v| v.is_finite() && *v > 0.0)
-                    .ok_or_else(|| format!("--source `{spec}`: expected a speed > 0 after @"))?,
+                check_in(s.parse().unwrap_or(f64::NAN), 0.001, 1e6)
+                    .map_err(|e| format!("--source `{spec}`: speed after @: {e}"))?,
             ),
             None => (rest, 1.0),
         };
@@ -204,6 +204,9 @@ pub fn run(args: RunArgs) -> Result<(), String> {
                     .map_err(|e| e.to_string())?;
                 let replay = ReplaySource::new(format!("replay {what}"), run, speed);
                 replay_end_s = Some(replay.duration_s() / speed);
+                if args.duration_s.is_none() && replay.duration_s() / speed > MAX_RUN_S {
+                    return Err(format!("--source `{spec}`: lasts {} s at speed {speed}, over the {MAX_RUN_S} s (a year) a run may last; give --duration-s or a higher speed", replay.duration_s() / speed));
+                }
                 Box::new(replay)
             }
             "twin" => Box::new(twin_source(what, m, speed)?),

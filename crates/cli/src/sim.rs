@@ -27,8 +27,9 @@ pub struct Args {
     /// Seed of the random draws (noise, random motion); the same seed gives the same run.
     #[arg(long, default_value_t = 1)]
     seed: u64,
-    /// Sampling period of the CSV rows in s (overrides the scenario's `sample_s`).
-    #[arg(long)]
+    /// Sampling period of the CSV rows in s, 0.01–86 400 and a whole multiple of the scenario's
+    /// step (overrides the scenario's `sample_s`; at most 300 000 rows in all).
+    #[arg(long, value_parser = truepos_io::limits::finite_in(0.01, 86_400.0))]
     sample_s: Option<f64>,
     /// Also write the true ambient and every thermal node's temperature (`node:<name>`).
     #[arg(long)]
@@ -86,6 +87,9 @@ pub fn run(args: Args) -> Result<(), String> {
             ));
         }
         scenario.sample_s = s;
+        scenario
+            .check_size()
+            .map_err(|e| format!("--sample-s {s}: {e}"))?;
     }
     let show_bar = std::io::stderr().is_terminal() && std::env::var_os("CI").is_none();
     let bar = show_bar.then(|| {

@@ -300,3 +300,143 @@ fn a_fitted_dynamic_model_runs_in_the_service() {
         "the dynamic coefficients are listed"
     );
 }
+
+/// Runs `truepos` with `args`, killed after `limit`: a process still running then is a hang.
+/// Returns the exit code and standard error.
+fn bounded(args: &[&str], limit: Duration) -> (i32, String) {
+    // A directory per call: tests run in parallel.
+    static CALLS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+    let n = CALLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let err_path = scratch(&format!("bounded-{n}")).join("stderr");
+    let mut child = truepos()
+        .args(args)
+        .stdout(Stdio::null())
+        .stderr(std::fs::File::create(&err_path).unwrap())
+        .spawn()
+        .unwrap();
+    let start = Instant::now();
+    let status = loop {
+        if let Some(s) = child.try_wait().unwrap() {
+            break s;
+        }
+        if start.elapsed() > limit {
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!(
+                "`truepos {}` still running after {limit:?}: a hang",
+                args.join(" ")
+            );
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    let stderr = std::fs::read_to_string(&err_path).unwrap();
+    (status.code().unwrap_or(-1), stderr)
+}
+
+/// Issue 11: `--period-ms 1e300` panicked in `Duration::from_secs_f64` (exit 101).
+#[test]
+fn a_huge_period_is_refused_naming_the_option_and_range() {
+    let (code, err) = bounded(
+        &["run", "--fast", "--period-ms", "1e300"],
+        Duration::from_secs(10),
+    );
+    assert_eq!(code, 2, "{err}");
+    assert!(
+        err.contains("--period-ms") && err.contains("[0.1, 10000]"),
+        "{err}"
+    );
+}
+
+/// Issue 11: `--period-ms 1e-7 --duration-s 1` spun forever (the period rounded to 0 ns).
+#[test]
+fn a_tiny_period_is_refused_not_spun_on() {
+    let args = ["run", "--fast", "--period-ms", "1e-7", "--duration-s", "1"];
+    let (code, err) = bounded(&args, Duration::from_secs(10));
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("--period-ms"), "{err}");
+}
+
+/// Issue 11: `--duration-s nan` never ended (no time is > NaN).
+#[test]
+fn a_nan_duration_is_refused() {
+    let (code, err) = bounded(
+        &["run", "--fast", "--duration-s", "nan"],
+        Duration::from_secs(10),
+    );
+    assert_eq!(code, 2, "{err}");
+    assert!(
+        err.contains("--duration-s") && err.contains("31536000"),
+        "{err}"
+    );
+}
+
+/// Issue 11: a replay at 1e-300 × real time never ended.
+#[test]
+fn a_vanishing_replay_speed_is_refused() {
+    let spec = "replay:examples/vmc3/run.csv@1e-300";
+    let (code, err) = bounded(
+        &["run", "--fast", "--source", spec],
+        Duration::from_secs(10),
+    );
+    assert_eq!(code, 1, "{err}");
+    assert!(
+        err.contains(spec) && err.contains("[0.001, 1000000]"),
+        "{err}"
+    );
+}
+
+/// Issue 11: a twin scenario of 10⁹ hours grew `run --source twin:` to 1.7 GB before its first
+/// cycle (and `sim` to 5.6 GB); now it is refused at the phase's line, at once.
+#[test]
+fn a_billion_hour_twin_scenario_is_refused_before_any_cycle() {
+    let dir = scratch("billion");
+    let sc = dir.join("billion.toml");
+    std::fs::write(
+        &sc,
+        "[scenario]\nname = \"billion\"\n\n[[phase]]\nname = \"p\"\nduration_min = 6e10\n",
+    )
+    .unwrap();
+    let source = format!("twin:{}", sc.display());
+    let (code, err) = bounded(
+        &["run", "--fast", "--source", &source],
+        Duration::from_secs(10),
+    );
+    assert_eq!(code, 1, "{err}");
+    let place = format!("{}:6:", sc.display());
+    assert!(
+        err.contains(&place) && err.contains("phase[0].duration_min"),
+        "{err}"
+    );
+    let sc = sc.to_str().unwrap();
+    let (code, err) = bounded(
+        &["sim", "--scenario", sc, "-o", "-"],
+        Duration::from_secs(10),
+    );
+    assert_eq!(code, 1, "{err}");
+    assert!(err.contains("30 days"), "{err}");
+}
+
+/// Issue 11: a run whose first time is NaN was accepted (`eval` wrote NaN into `time_s`, `run`
+/// never ended); now both refuse it at file:line:column.
+#[test]
+fn a_run_with_a_nan_first_time_is_refused_by_eval_and_run() {
+    let dir = scratch("nan-time");
+    let run = dir.join("run.csv");
+    let text = std::fs::read_to_string(repo("examples/vmc3/run.csv")).unwrap();
+    let mut lines: Vec<String> = text.lines().map(str::to_string).collect();
+    let rest = lines[1].split_once(',').unwrap().1.to_string();
+    lines[1] = format!("NaN,{rest}");
+    std::fs::write(&run, lines.join("\n") + "\n").unwrap();
+    let place = format!("{}:2:1: `time_s`: expected a finite time", run.display());
+    let run_arg = run.to_str().unwrap();
+    let (code, err) = bounded(&["eval", "--run", run_arg], Duration::from_secs(20));
+    assert_eq!(code, 1, "{err}");
+    assert!(err.contains(&place), "{err}");
+    let source = format!("replay:{run_arg}");
+    let (code, err) = bounded(
+        &["run", "--fast", "--source", &source],
+        Duration::from_secs(20),
+    );
+    assert_eq!(code, 1, "{err}");
+    assert!(err.contains(&place), "{err}");
+}

@@ -15,6 +15,7 @@ use truepos_hal::ffi::{self, Component};
 use truepos_hal::pacer::{keep_off_cpu, realtime_setup, Pacer};
 use truepos_hal::timing::{self, TimingConfig};
 use truepos_hal::{pins, HalSink, HalSource};
+use truepos_io::limits::{finite_in, int_in};
 use truepos_runtime::log::{LogSetup, Logger};
 use truepos_runtime::model_set::load_entries;
 use truepos_runtime::{PathState, Service, ServiceConfig, Sink, Source};
@@ -55,23 +56,23 @@ struct TimingArgs {
     /// SQLite log of the service (as in production); none if not given.
     #[arg(long)]
     log: Option<PathBuf>,
-    /// Length of the run in s.
-    #[arg(long, default_value_t = 600.0)]
+    /// Length of the run in s, 0.001–86 400.
+    #[arg(long, default_value_t = 600.0, value_parser = finite_in(0.001, 86_400.0))]
     duration_s: f64,
-    /// Cycle period in ms.
-    #[arg(long, default_value_t = 1.0)]
+    /// Cycle period in ms, 0.1–1000.
+    #[arg(long, default_value_t = 1.0, value_parser = finite_in(0.1, 1000.0))]
     period_ms: f64,
-    /// SCHED_FIFO priority of the cycle (0: normal scheduling).
-    #[arg(long, default_value_t = 50)]
+    /// SCHED_FIFO priority of the cycle, 0–99 (0: normal scheduling).
+    #[arg(long, default_value_t = 50, value_parser = int_in(0i32, 99))]
     rt_priority: i32,
-    /// CPU to bind the cycle to (default: the last one).
-    #[arg(long)]
+    /// CPU to bind the cycle to, 0–1023 (default: the last one).
+    #[arg(long, value_parser = int_in(0usize, 1023))]
     cpu: Option<usize>,
-    /// Interval of the steal-time sampling in ms.
-    #[arg(long, default_value_t = 5.0)]
+    /// Interval of the steal-time sampling in ms, 0.1–60 000.
+    #[arg(long, default_value_t = 5.0, value_parser = finite_in(0.1, 60_000.0))]
     sample_ms: f64,
-    /// A cycle finishing more than this after its deadline is late (ms).
-    #[arg(long, default_value_t = 2.0)]
+    /// A cycle finishing more than this after its deadline is late (ms), 0.01–60 000.
+    #[arg(long, default_value_t = 2.0, value_parser = finite_in(0.01, 60_000.0))]
     late_ms: f64,
 }
 
@@ -86,15 +87,15 @@ struct RunArgs {
     /// HAL component name.
     #[arg(long, default_value = "truepos")]
     name: String,
-    /// Cycle period in ms.
-    #[arg(long, default_value_t = 1.0)]
+    /// Cycle period in ms, 0.1–1000.
+    #[arg(long, default_value_t = 1.0, value_parser = finite_in(0.1, 1000.0))]
     period_ms: f64,
     /// With no valid model left after a sensor fault, ramp the held offsets to zero over this
-    /// time (s).
-    #[arg(long, default_value_t = 60.0)]
+    /// time (s), 0–86 400.
+    #[arg(long, default_value_t = 60.0, value_parser = finite_in(0.0, 86_400.0))]
     hold_ramp_s: f64,
-    /// Blend time of model switches and of switching compensation on or off (s).
-    #[arg(long, default_value_t = 5.0)]
+    /// Blend time of model switches and of switching compensation on or off (s), 0–3600.
+    #[arg(long, default_value_t = 5.0, value_parser = finite_in(0.0, 3600.0))]
     blend_s: f64,
     /// SQLite log (WAL) of inputs, outputs and events, readable with `truepos log`.
     #[arg(long)]
@@ -104,11 +105,11 @@ struct RunArgs {
     stats: Option<PathBuf>,
     /// Run the cycle thread under SCHED_FIFO at this priority (1–99; needs root or
     /// CAP_SYS_NICE). 0 keeps normal scheduling.
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = 0, value_parser = int_in(0i32, 99))]
     rt_priority: i32,
-    /// Bind the cycle thread to this CPU (leave unset beside LinuxCNC's own realtime thread
-    /// unless that is bound elsewhere).
-    #[arg(long)]
+    /// Bind the cycle thread to this CPU, 0–1023 (leave unset beside LinuxCNC's own realtime
+    /// thread unless that is bound elsewhere).
+    #[arg(long, value_parser = int_in(0usize, 1023))]
     cpu: Option<usize>,
 }
 
@@ -126,8 +127,8 @@ struct CheckArgs {
     /// `halsampler -t` output of the temperature sampler.
     #[arg(long)]
     temperatures: PathBuf,
-    /// Servo period in ms.
-    #[arg(long, default_value_t = 1.0)]
+    /// Servo period in ms, 0.1–1000.
+    #[arg(long, default_value_t = 1.0, value_parser = finite_in(0.1, 1000.0))]
     period_ms: f64,
     /// The component's SQLite log, for `--expect-event`.
     #[arg(long)]
@@ -145,9 +146,6 @@ struct CheckArgs {
 const EDGES_MS: [f64; 8] = [0.5, 0.9, 1.1, 1.5, 2.0, 3.0, 5.0, 10.0];
 
 fn run(args: RunArgs) -> Result<(), Box<dyn std::error::Error>> {
-    if !(args.period_ms > 0.0 && args.period_ms <= 1000.0) {
-        return Err(format!("--period-ms {} must lie in (0, 1000]", args.period_ms).into());
-    }
     let machine = truepos_io::machine_file::load(&args.machine)?;
     let m = &machine.machine;
     // Seed D: a model without an index in its file serves path 1's axes.

@@ -95,6 +95,18 @@ pub enum Positions {
     Optional,
 }
 
+/// A row's time after `prev` (the previous row's): finite and strictly increasing, because the
+/// lag filters step by the difference and a replay waits for the next time.
+pub fn check_time(t: f64, prev: Option<f64>) -> Result<f64, String> {
+    if !t.is_finite() {
+        return Err(format!("expected a finite time in s, got {t}"));
+    }
+    match prev {
+        Some(p) if t <= p => Err(format!("expected time to increase, got {t} after {p}")),
+        _ => Ok(t),
+    }
+}
+
 /// Reads a run CSV. Every axis position column is required, and so is every temperature
 /// channel listed in `required_sensors` (the ones the model reads).
 pub fn load(
@@ -236,18 +248,10 @@ pub fn read_with(
         let time = match time_col {
             Some(c) => {
                 let t = cell(c)?;
-                if let Some(&prev) = out.time_s.last() {
-                    if t.is_nan() || t <= prev {
-                        return Err(InputError::at(
-                            path,
-                            line as usize,
-                            c + 1,
-                            "time_s",
-                            format!("expected time to increase, got {t} after {prev}"),
-                        ));
-                    }
-                }
-                t
+                // Every row's time, the first and the last included: a NaN or infinite time
+                // would end up in outputs, stall a replay or change the lag filters' steps.
+                check_time(t, out.time_s.last().copied())
+                    .map_err(|e| InputError::at(path, line as usize, c + 1, "time_s", e))?
             }
             None => row_index as f64,
         };

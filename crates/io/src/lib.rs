@@ -29,6 +29,7 @@ pub mod cycles;
 pub mod dynamic_model_file;
 pub mod error;
 pub mod kinematics_file;
+pub mod limits;
 pub mod machine_file;
 pub mod model_file;
 pub mod run;

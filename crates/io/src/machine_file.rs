@@ -87,6 +87,10 @@ struct RawTemperature {
     max_age_s: Option<Spanned<f64>>,
     /// A reading that does not change at all for this long (s) is stuck; 0 switches it off.
     stuck_after_s: Option<Spanned<f64>>,
+    /// Changes up to this size (K) between readings are never a rate fault (resolution, noise).
+    noise_k: Option<Spanned<f64>>,
+    /// A faulted reading is used again after this long (s) of sound readings.
+    recover_after_s: Option<Spanned<f64>>,
     /// A lagged channel: the control computes it as the first-order lag of this sensor.
     lag_of: Option<Spanned<String>>,
     /// Time constant of the lag in s.
@@ -138,6 +142,16 @@ pub const DEFAULT_MAX_RATE_UM_PER_S: f64 = 50.0;
 pub const DEFAULT_MAX_RATE_K_PER_MIN: f64 = 2.0;
 /// Default staleness limit: 10 s without an update.
 pub const DEFAULT_MAX_AGE_S: f64 = 10.0;
+/// Default stuck limit in s: four hours. A sound sensor read at 0.1 K resolution on a machine at
+/// rest can hold one value for hours (FL_THERMAL's t7: 2.5 h), so a shorter default would call
+/// healthy sensors stuck.
+pub const DEFAULT_STUCK_AFTER_S: f64 = 14_400.0;
+/// Default noise band in K: changes this small are never a rate fault. A 0.1 K module flickers
+/// between adjacent levels at rest, and FL_THERMAL's noisiest sensor (t16) steps by up to 2.9 K
+/// between 15 s samples; a 5 K step within one poll stays a fault.
+pub const DEFAULT_NOISE_K: f64 = 3.0;
+/// Default time in s a faulted reading must stay sound before it is used again.
+pub const DEFAULT_RECOVER_AFTER_S: f64 = 2.0;
 
 /// The per-axis settings of the runtime: safety envelope and seed D identity.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -168,6 +182,11 @@ pub struct SensorChecks {
     pub max_age_s: f64,
     /// Time without any change after which a reading is stuck, in s (0: not checked).
     pub stuck_after_s: f64,
+    /// Largest change in K between readings that is never judged by rate: the channel's
+    /// quantisation steps and noise.
+    pub noise_k: f64,
+    /// Time in s a faulted reading must stay sound before it is used again.
+    pub recover_after_s: f64,
 }
 
 /// A checked machine description with what the file says beyond the real-time core's needs.
@@ -393,7 +412,19 @@ pub fn parse(path: &Path, text: &str) -> Result<MachineFile, InputError> {
             stuck_after_s: positive(
                 &t.stuck_after_s,
                 format!("temperature[{i}].stuck_after_s"),
-                0.0,
+                DEFAULT_STUCK_AFTER_S,
+                true,
+            )?,
+            noise_k: positive(
+                &t.noise_k,
+                format!("temperature[{i}].noise_k"),
+                DEFAULT_NOISE_K,
+                true,
+            )?,
+            recover_after_s: positive(
+                &t.recover_after_s,
+                format!("temperature[{i}].recover_after_s"),
+                DEFAULT_RECOVER_AFTER_S,
                 true,
             )?,
         });

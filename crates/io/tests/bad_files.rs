@@ -182,7 +182,7 @@ fn m09_unknown_key() {
     );
     assert_eq!(
         machine_error(&text),
-        "m.toml:22:1: `temperature[1].unit`: unknown field `unit`, expected one of `id`, `location`, `valid_range`, `max_rate_k_per_min`, `max_age_s`, `stuck_after_s`, `lag_of`, `lag_s`, `gain_k_per_unit`, `power`"
+        "m.toml:22:1: `temperature[1].unit`: unknown field `unit`, expected one of `id`, `location`, `valid_range`, `max_rate_k_per_min`, `max_age_s`, `stuck_after_s`, `noise_k`, `recover_after_s`, `lag_of`, `lag_s`, `gain_k_per_unit`, `power`"
     );
 }
 

@@ -2,9 +2,12 @@
 //!
 //! Switching models, enabling or disabling compensation, or falling back to holding must never
 //! make the output jump (seed D's prior art, JP 2017-170532: blend via the difference of the
-//! two values). When the origin of an axis' raw offset changes, the difference between what was
-//! last sent and the new raw value is kept and faded out linearly over the blend time. Then the
-//! envelope clamps the rate (µm/s against the last sent value) and the magnitude (µm).
+//! two values). Each axis has exactly one blend: when the origin of its offset changes, the blend
+//! restarts from the output last sent and moves linearly to the new target over the blend time,
+//! `from + (target − from)·w` with `w` rising from 0 to 1. A new change restarts it from wherever
+//! the output then is; blends are never stacked, so the output always lies between the value it
+//! left and the value it is going to. Then the envelope clamps the rate (µm/s against the last
+//! sent value) and the magnitude (µm).
 
 use truepos_io::machine_file::AxisRuntime;
 use truepos_model::MAX_AXES;
@@ -16,10 +19,11 @@ use crate::events::{Event, EventKind, EventQueue};
 pub struct Envelope {
     limits: Vec<AxisRuntime>,
     last_out: [f64; MAX_AXES],
-    /// Difference faded out since `blend_start`.
+    /// The output when the running blend began.
     blend_from: [f64; MAX_AXES],
     blend_start: [f64; MAX_AXES],
     blend_s: [f64; MAX_AXES],
+    blending: [bool; MAX_AXES],
     clamping: [bool; MAX_AXES],
     last_time: f64,
     started: bool,
@@ -34,6 +38,7 @@ impl Envelope {
             blend_from: [0.0; MAX_AXES],
             blend_start: [0.0; MAX_AXES],
             blend_s: [0.0; MAX_AXES],
+            blending: [false; MAX_AXES],
             clamping: [false; MAX_AXES],
             last_time: 0.0,
             started: false,
@@ -45,52 +50,72 @@ impl Envelope {
         &self.last_out[..self.limits.len()]
     }
 
-    /// Starts a bumpless transition of `axis` to a new origin whose raw value now is `raw_um`:
-    /// the output continues from what was last sent and reaches the new origin after
-    /// `blend_s` seconds.
-    pub fn begin_blend(&mut self, axis: usize, raw_um: f64, now_s: f64, blend_s: f64) {
+    /// The value `axis`' running blend started from, if a blend is running.
+    pub fn blend_origin(&self, axis: usize) -> Option<f64> {
+        (axis < self.limits.len() && self.blending[axis]).then(|| self.blend_from[axis])
+    }
+
+    /// Restarts the blend of `axis` because the origin of its target changes now: the output
+    /// continues from what was last sent and reaches the new target after `blend_s` seconds. A
+    /// blend still running is replaced, not added to.
+    pub fn restart_blend(&mut self, axis: usize, now_s: f64, blend_s: f64) {
         if axis < self.limits.len() {
-            self.blend_from[axis] = self.last_out[axis] - raw_um;
+            self.blend_from[axis] = self.last_out[axis];
             self.blend_start[axis] = now_s;
-            self.blend_s[axis] = blend_s.max(0.0);
+            self.blend_s[axis] = if blend_s.is_finite() {
+                blend_s.max(0.0)
+            } else {
+                0.0
+            };
+            self.blending[axis] = self.blend_s[axis] > 0.0;
         }
     }
 
-    /// Takes the raw offsets of one cycle (finite), applies blending and the envelope, writes
-    /// the result to `out` and returns whether any axis was clamped. Raises an event when an
-    /// axis starts or stops being clamped.
+    /// The blended value of `axis` for `target` at `now_s`: between the blend's origin and the
+    /// target. Ends the blend once it is complete.
+    fn blend(&mut self, a: usize, target: f64, now_s: f64) -> f64 {
+        if !self.blending[a] {
+            return target;
+        }
+        let w = ((now_s - self.blend_start[a]) / self.blend_s[a]).clamp(0.0, 1.0);
+        if w >= 1.0 {
+            self.blending[a] = false;
+            return target;
+        }
+        let from = self.blend_from[a];
+        from + (target - from) * w
+    }
+
+    /// Takes the target offsets of one cycle, applies blending and the envelope, writes the
+    /// result to `out` and returns whether any axis was clamped. A target that is not finite
+    /// keeps the axis where it is. Raises an event when an axis starts or stops being clamped.
     pub fn apply(
         &mut self,
-        raw_um: &[f64],
+        target_um: &[f64],
         now_s: f64,
         out: &mut [f64],
         events: &EventQueue,
     ) -> bool {
-        let dt = if self.started {
+        let dt = if self.started && now_s.is_finite() {
             (now_s - self.last_time).max(0.0)
         } else {
             0.0
         };
-        self.started = true;
-        self.last_time = now_s;
+        if now_s.is_finite() {
+            self.started = true;
+            self.last_time = now_s;
+        }
         let mut any = false;
-        for (a, lim) in self.limits.iter().enumerate() {
-            let mut v = raw_um.get(a).copied().unwrap_or(0.0);
+        for a in 0..self.limits.len() {
+            let lim = self.limits[a];
+            let target = target_um.get(a).copied().unwrap_or(0.0);
+            let mut v = if target.is_finite() {
+                self.blend(a, target, now_s)
+            } else {
+                self.last_out[a]
+            };
             if !v.is_finite() {
-                v = 0.0;
-            }
-            if self.blend_from[a] != 0.0 {
-                let elapsed = now_s - self.blend_start[a];
-                let left = if self.blend_s[a] > 0.0 {
-                    (1.0 - elapsed / self.blend_s[a]).clamp(0.0, 1.0)
-                } else {
-                    0.0
-                };
-                if left == 0.0 {
-                    self.blend_from[a] = 0.0;
-                } else {
-                    v += self.blend_from[a] * left;
-                }
+                v = self.last_out[a];
             }
             let mut clamped_rate = false;
             let max_step = lim.max_rate_um_per_s * dt;
@@ -179,7 +204,7 @@ mod tests {
         e.apply(&[0.0], 0.0, &mut out, &q);
         e.apply(&[20.0], 1.0, &mut out, &q);
         assert_eq!(out[0], 20.0);
-        e.begin_blend(0, 30.0, 1.0, 10.0);
+        e.restart_blend(0, 1.0, 10.0);
         e.apply(&[30.0], 1.0, &mut out, &q);
         assert!((out[0] - 20.0).abs() < 1e-12);
         e.apply(&[30.0], 6.0, &mut out, &q);
@@ -187,6 +212,33 @@ mod tests {
         e.apply(&[30.0], 11.0, &mut out, &q);
         assert!((out[0] - 30.0).abs() < 1e-12);
         assert!(q.pop().is_none());
+    }
+
+    #[test]
+    fn a_restarted_blend_continues_from_the_output_and_never_stacks() {
+        // Blending 0 → 40 over 10 s; at 5 s (output 20) the target changes to −10: the new blend
+        // starts at 20, not at 20 plus what was left of the first one.
+        let q = EventQueue::new(16);
+        let mut e = Envelope::new(&[LIMIT]);
+        let mut out = [0.0];
+        e.apply(&[0.0], 0.0, &mut out, &q);
+        e.restart_blend(0, 0.0, 10.0);
+        e.apply(&[40.0], 5.0, &mut out, &q);
+        assert!((out[0] - 20.0).abs() < 1e-12);
+        e.restart_blend(0, 5.0, 10.0);
+        assert_eq!(e.blend_origin(0), Some(20.0));
+        for k in 1..=10 {
+            let t = 5.0 + k as f64;
+            e.apply(&[-10.0], t, &mut out, &q);
+            let expected = 20.0 + (-10.0 - 20.0) * (k as f64 / 10.0);
+            assert!(
+                (out[0] - expected).abs() < 1e-9,
+                "{t}: {} vs {expected}",
+                out[0]
+            );
+        }
+        assert_eq!(e.blend_origin(0), None);
+        assert_eq!(out[0], -10.0);
     }
 
     #[test]

@@ -74,10 +74,13 @@ pub enum EventKind {
         /// Machine axis.
         axis: usize,
     },
-    /// A source failed to deliver this cycle (it keeps trying).
+    /// A source failed to deliver this cycle (it keeps trying), or the reason of its failure
+    /// changed while it stays lost.
     SourceLost {
         /// Index of the source.
         source: usize,
+        /// Why, as the source reported it.
+        reason: Reason,
     },
     /// A source delivers again.
     SourceBack {
@@ -103,68 +106,86 @@ pub enum EventKind {
     },
 }
 
-/// Bytes a [`Reason`] holds; a longer text is cut at a character boundary.
-pub const REASON_BYTES: usize = 96;
+/// Bytes a [`Reason`] holds; longer text is cut on a character boundary. Small enough that a
+/// `Result<(), LinkError>` stays under 128 bytes.
+pub const REASON_BYTES: usize = 112;
 
-/// A short text (why a sink or source failed) that an event can carry: fixed capacity and
-/// `Copy`, so raising the event on the cycle path allocates nothing.
+/// A short text that is `Copy` and fixed in size, so that a reason can travel with an event and
+/// through a lock-free queue without allocating: UTF-8, at most [`REASON_BYTES`] bytes (longer
+/// text is cut on a character boundary and ends with `…`).
 #[derive(Clone, Copy, PartialEq, Eq)]
 pub struct Reason {
-    len: u8,
     bytes: [u8; REASON_BYTES],
+    len: u8,
 }
 
 impl Reason {
-    /// The text, cut to [`REASON_BYTES`] at a character boundary.
+    /// The empty reason.
+    pub const EMPTY: Reason = Reason {
+        bytes: [0; REASON_BYTES],
+        len: 0,
+    };
+
+    /// `text`, cut to [`REASON_BYTES`] bytes on a character boundary if longer.
     pub fn new(text: &str) -> Self {
-        let mut r = Self::default();
-        r.push_str(text);
+        let mut r = Self::EMPTY;
+        if text.len() <= REASON_BYTES {
+            r.bytes[..text.len()].copy_from_slice(text.as_bytes());
+            r.len = text.len() as u8;
+            return r;
+        }
+        const ELLIPSIS: &str = "…";
+        let mut cut = REASON_BYTES - ELLIPSIS.len();
+        while !text.is_char_boundary(cut) {
+            cut -= 1;
+        }
+        r.bytes[..cut].copy_from_slice(&text.as_bytes()[..cut]);
+        r.bytes[cut..cut + ELLIPSIS.len()].copy_from_slice(ELLIPSIS.as_bytes());
+        r.len = (cut + ELLIPSIS.len()) as u8;
         r
     }
 
     /// The text.
     pub fn as_str(&self) -> &str {
-        // Only whole characters are ever copied in, so this never fails.
-        std::str::from_utf8(&self.bytes[..usize::from(self.len)]).unwrap_or("")
+        // Only whole characters are ever copied in, so this cannot fail; an empty text is the
+        // harmless answer if it ever did.
+        std::str::from_utf8(&self.bytes[..usize::from(self.len)]).unwrap_or_default()
     }
 
-    fn push_str(&mut self, text: &str) {
-        let start = usize::from(self.len);
-        let mut end = text.len().min(REASON_BYTES - start);
-        while !text.is_char_boundary(end) {
-            end -= 1;
-        }
-        self.bytes[start..start + end].copy_from_slice(&text.as_bytes()[..end]);
-        self.len = (start + end) as u8;
+    /// Whether the text is empty.
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
     }
 }
 
 impl Default for Reason {
     fn default() -> Self {
-        Self {
-            len: 0,
-            bytes: [0; REASON_BYTES],
-        }
+        Self::EMPTY
     }
 }
 
-/// `write!` into a reason formats without allocating; what does not fit is cut off.
-impl std::fmt::Write for Reason {
-    fn write_str(&mut self, s: &str) -> std::fmt::Result {
-        self.push_str(s);
-        Ok(())
-    }
-}
-
-impl std::fmt::Debug for Reason {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "{:?}", self.as_str())
+impl std::ops::Deref for Reason {
+    type Target = str;
+    fn deref(&self) -> &str {
+        self.as_str()
     }
 }
 
 impl std::fmt::Display for Reason {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.write_str(self.as_str())
+    }
+}
+
+impl std::fmt::Debug for Reason {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        std::fmt::Debug::fmt(self.as_str(), f)
+    }
+}
+
+impl From<&str> for Reason {
+    fn from(text: &str) -> Self {
+        Self::new(text)
     }
 }
 
@@ -218,14 +239,20 @@ mod tests {
     use super::*;
 
     #[test]
-    fn a_reason_keeps_short_text_and_cuts_long_text_at_a_character() {
-        assert_eq!(Reason::new("disk full").as_str(), "disk full");
-        let long = "é".repeat(REASON_BYTES);
+    fn reasons_are_cut_on_a_character_boundary() {
+        assert_eq!(Reason::new("timed out").as_str(), "timed out");
+        assert!(Reason::EMPTY.is_empty());
+        let exact = "x".repeat(REASON_BYTES);
+        assert_eq!(Reason::new(&exact).as_str(), exact);
+        // 'é' takes bytes 108–109, so the cut at byte 109 (112 less the 3 of '…') falls inside it.
+        let long = format!("{}é{}", "a".repeat(108), "b".repeat(50));
         let r = Reason::new(&long);
-        assert_eq!(r.as_str().len(), REASON_BYTES);
-        assert!(long.starts_with(r.as_str()));
-        let mut w = Reason::new("a");
-        std::fmt::Write::write_fmt(&mut w, format_args!("{}", "ü".repeat(200))).unwrap();
-        assert!(w.as_str().starts_with("aü") && w.as_str().len() <= REASON_BYTES);
+        assert!(r.len() <= REASON_BYTES, "{}", r.len());
+        assert!(r.ends_with('…'), "{r}");
+        assert!(r.starts_with(&"a".repeat(108)));
+        let multi = "°".repeat(200);
+        let r = Reason::new(&multi);
+        assert!(r.chars().all(|c| c == '°' || c == '…'), "{r}");
+        assert!(r.len() <= REASON_BYTES);
     }
 }

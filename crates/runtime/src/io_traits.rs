@@ -9,14 +9,17 @@
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 
+use crate::events::Reason;
 use crate::frame::{Frame, NEVER};
 use crate::output::Output;
 
 /// Why a source or sink could not do its part this cycle.
 #[derive(Debug, Clone, PartialEq)]
 pub enum LinkError {
-    /// The connection is down (it reconnects by itself); the channels it feeds go stale.
-    Disconnected(String),
+    /// The source does not deliver: its connection is down (it reconnects by itself) or the peer
+    /// answers with nothing usable; the channels it feeds go stale. The reason is fixed-size
+    /// text, so a source reports it on every cycle of the outage without allocating.
+    Disconnected(Reason),
     /// The source has nothing more to give (a replayed run has ended).
     Finished,
     /// Anything else, with a reason.

@@ -677,8 +677,8 @@ fn describe(e: &Event, n: &Names) -> (&'static str, String, String) {
             },
         ),
         EventKind::ClampReleased { axis } => ("clamp-released", name(&n.axes, axis), String::new()),
-        EventKind::SourceLost { source } => {
-            ("source-lost", name(&n.sources, source), String::new())
+        EventKind::SourceLost { source, reason } => {
+            ("source-lost", name(&n.sources, source), reason.to_string())
         }
         EventKind::SourceBack { source } => {
             ("source-back", name(&n.sources, source), String::new())

@@ -27,7 +27,7 @@
 //! connection stays); a timeout or a malformed answer ends the connection, and the thread
 //! reconnects with backoff ([`crate::reconnect`]) while the stamps stand still.
 
-use std::io::{Read, Write};
+use std::io::Write;
 use std::net::{SocketAddr, TcpStream};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
@@ -40,9 +40,9 @@ use truepos_model::Machine;
 use crate::frame::Frame;
 use crate::io_traits::{LinkError, SharedChannels, Source};
 use crate::reconnect::{
-    check_source_config, check_unique_targets, resolve_address, seconds_since,
-    sleep_unless_stopped, Backoff, BackoffConfig, ConfigError, LinkSnapshot, LinkStatus,
-    OutageReporter, Target,
+    check_source_config, check_unique_targets, read_exact_until, resolve_address, seconds_since,
+    sleep_unless_stopped, stop_thread, Backoff, BackoffConfig, ConfigError, LinkSnapshot,
+    LinkStatus, OutageReporter, Target, STOP_LIMIT,
 };
 
 /// Which register table a value is read from.
@@ -440,25 +440,33 @@ pub fn parse_response_adu(request: &ReadRequest, adu: &[u8]) -> Result<Vec<u16>,
 #[derive(Debug)]
 pub struct ModbusClient {
     stream: TcpStream,
-    peer: SocketAddr,
     transaction: u16,
+    timeout: Duration,
+    stop: Arc<AtomicBool>,
 }
 
 impl ModbusClient {
-    /// Connects, with `timeout` for the connection and for every answer.
+    /// Connects, with `timeout` for the connection and for every whole answer (header and PDU
+    /// together, however slowly the server sends them).
     pub fn connect(peer: SocketAddr, timeout: Duration) -> Result<Self, ModbusError> {
         let stream = TcpStream::connect_timeout(&peer, timeout)
             .map_err(|e| ModbusError::Io(format!("cannot connect to Modbus server {peer}: {e}")))?;
         stream
-            .set_read_timeout(Some(timeout))
-            .and_then(|_| stream.set_write_timeout(Some(timeout)))
+            .set_write_timeout(Some(timeout))
             .and_then(|_| stream.set_nodelay(true))
             .map_err(|e| ModbusError::Io(format!("cannot set up the connection to {peer}: {e}")))?;
         Ok(Self {
             stream,
-            peer,
             transaction: 0,
+            timeout,
+            stop: Arc::new(AtomicBool::new(false)),
         })
+    }
+
+    /// Gives up a pending answer (with an `Io` error) within about 20 ms of `stop` being set.
+    pub fn stop_on(mut self, stop: Arc<AtomicBool>) -> Self {
+        self.stop = stop;
+        self
     }
 
     /// Reads `count` registers from protocol address `address` of `unit`.
@@ -478,32 +486,49 @@ impl ModbusClient {
             count,
         };
         let bytes = request.encode()?;
-        let peer = self.peer;
-        let io = |what: &str, e: std::io::Error| {
-            let why = match e.kind() {
-                std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut => {
-                    "timed out".to_string()
-                }
-                std::io::ErrorKind::UnexpectedEof => "the server closed the connection".to_string(),
-                _ => e.to_string(),
-            };
-            ModbusError::Io(format!("Modbus server {peer}: {what}: {why}"))
-        };
         self.stream
             .write_all(&bytes)
-            .map_err(|e| io("sending a request", e))?;
+            .map_err(|e| ModbusError::Io(format!("cannot send the request: {e}")))?;
+        // One deadline for the whole answer: a server dripping bytes cannot stretch it.
+        let deadline = Instant::now() + self.timeout;
+        let ms = self.timeout.as_millis();
+        let mut filled = 0;
         let mut head = [0u8; MBAP_HEADER_BYTES];
-        self.stream
-            .read_exact(&mut head)
-            .map_err(|e| io("waiting for the answer", e))?;
+        read_exact_until(
+            &mut self.stream,
+            &mut head,
+            deadline,
+            &self.stop,
+            &mut filled,
+        )
+        .map_err(|e| answer_error(&e, ms, filled, None))?;
         let header = parse_header(&head)?;
         let mut pdu = [0u8; MAX_MBAP_LENGTH as usize];
         let pdu = &mut pdu[..header.pdu_bytes()];
-        self.stream
-            .read_exact(pdu)
-            .map_err(|e| io("reading the answer", e))?;
+        read_exact_until(&mut self.stream, pdu, deadline, &self.stop, &mut filled).map_err(
+            |e| {
+                let whole = MBAP_HEADER_BYTES + pdu.len();
+                answer_error(&e, ms, MBAP_HEADER_BYTES + filled, Some(whole))
+            },
+        )?;
         parse_read_response(&request, &header, pdu)
     }
+}
+
+/// Why an answer did not come whole: `got` bytes of `whole` (unknown before the header is in).
+fn answer_error(e: &std::io::Error, ms: u128, got: usize, whole: Option<usize>) -> ModbusError {
+    use std::io::ErrorKind;
+    let of = match whole {
+        Some(n) => format!("{got} of {n} bytes"),
+        None => format!("{got} of {MBAP_HEADER_BYTES} header bytes"),
+    };
+    ModbusError::Io(match e.kind() {
+        ErrorKind::TimedOut if got == 0 => format!("no answer within {ms} ms (timeout)"),
+        ErrorKind::TimedOut => format!("answer incomplete after {ms} ms (timeout; {of})"),
+        ErrorKind::UnexpectedEof => format!("the server closed the connection ({of})"),
+        ErrorKind::Interrupted => "stopped while waiting for an answer".to_string(),
+        _ => format!("reading the answer: {e} ({of})"),
+    })
 }
 
 /// One Modbus register feeding one machine channel (configuration, TOML). Give exactly one of
@@ -826,9 +851,8 @@ impl Source for ModbusSource {
 
 impl Drop for ModbusSource {
     fn drop(&mut self) {
-        self.stop.store(true, Ordering::Release);
         if let Some(t) = self.thread.take() {
-            let _ = t.join();
+            stop_thread(&self.stop, t, STOP_LIMIT);
         }
     }
 }
@@ -856,7 +880,8 @@ impl Poller {
         let mut value_problem: Vec<Option<DecodeError>> = vec![None; self.decoders.len()];
         while !self.stop.load(Ordering::Acquire) {
             match ModbusClient::connect(self.peer, self.timeout) {
-                Ok(mut client) => {
+                Ok(client) => {
+                    let mut client = client.stop_on(Arc::clone(&self.stop));
                     backoff.reset();
                     self.status.set_connected(
                         seconds_since(self.epoch),
@@ -879,6 +904,8 @@ impl Poller {
     }
 
     /// Polls until the connection is lost (returns why) or the source stops (returns `None`).
+    /// A round in which the server refuses a request (an exception) makes the source fail with
+    /// that reason until a round is answered in full.
     fn poll_until_lost(
         &mut self,
         client: &mut ModbusClient,
@@ -886,12 +913,22 @@ impl Poller {
         value_problem: &mut [Option<DecodeError>],
     ) -> Option<String> {
         let mut next = Instant::now();
+        let mut failing: Option<String> = None;
         loop {
             let mut split = Vec::new();
+            let mut refused: Option<String> = None;
             for (b, block) in self.blocks.iter().enumerate() {
                 if self.stop.load(Ordering::Acquire) {
                     return None;
                 }
+                // The source's name carries the server's address.
+                let what = format!(
+                    "unit {} function {:02X} registers {}–{}",
+                    block.unit,
+                    block.kind.function_code(),
+                    block.address,
+                    u32::from(block.address) + u32::from(block.count) - 1
+                );
                 match client.read_registers(block.unit, block.kind, block.address, block.count) {
                     Ok(registers) => {
                         let now = seconds_since(self.epoch);
@@ -951,21 +988,30 @@ impl Poller {
                         );
                     }
                     Err(e) if e.keeps_connection() => {
-                        let why = format!(
-                            "Modbus server {} unit {} function {:02X} registers {}–{}: {e}",
-                            self.peer,
-                            block.unit,
-                            block.kind.function_code(),
-                            block.address,
-                            u32::from(block.address) + u32::from(block.count) - 1
-                        );
+                        let why = format!("{what}: {e}");
                         if block_problem[b].as_deref() != Some(why.as_str()) {
                             self.status.bad_data(seconds_since(self.epoch), why.clone());
-                            block_problem[b] = Some(why);
+                            block_problem[b] = Some(why.clone());
                         }
+                        refused.get_or_insert(why);
                     }
-                    Err(e) => return Some(e.to_string()),
+                    Err(e) => return Some(format!("{what}: {e}")),
                 }
+            }
+            match refused {
+                Some(why) if failing.as_deref() != Some(why.as_str()) => {
+                    self.status
+                        .set_failing(seconds_since(self.epoch), why.clone());
+                    failing = Some(why);
+                }
+                None if failing.is_some() => {
+                    failing = None;
+                    self.status.set_delivering(
+                        seconds_since(self.epoch),
+                        format!("Modbus server {} answers every request again", self.peer),
+                    );
+                }
+                _ => {}
             }
             if !split.is_empty() {
                 self.blocks = split_blocks(&self.blocks, &split, &self.decoders);

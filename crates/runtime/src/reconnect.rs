@@ -12,11 +12,14 @@ use std::collections::VecDeque;
 use std::net::{SocketAddr, ToSocketAddrs};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Mutex;
+use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
+use crossbeam_queue::ArrayQueue;
 use serde::Deserialize;
 use truepos_model::Machine;
 
+use crate::events::Reason;
 use crate::frame::Frame;
 use crate::io_traits::LinkError;
 
@@ -122,6 +125,66 @@ pub fn sleep_unless_stopped(duration: Duration, stop: &AtomicBool) -> bool {
     }
 }
 
+/// Asks a source thread to stop and waits for it at most `limit`. A thread still busy after that
+/// (inside a connection attempt, which std cannot interrupt) is left to end by itself: it holds
+/// only shared state, checks `stop` as soon as the attempt returns, and nobody reads what it
+/// publishes any more. So dropping a source never takes much longer than `limit`, whatever the
+/// peer does. Returns whether the thread ended within the limit.
+pub fn stop_thread(stop: &AtomicBool, thread: JoinHandle<()>, limit: Duration) -> bool {
+    stop.store(true, Ordering::Release);
+    let end = Instant::now() + limit;
+    while !thread.is_finished() {
+        if Instant::now() >= end {
+            return false;
+        }
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    let _ = thread.join();
+    true
+}
+
+/// How long dropping a network source waits for its thread (see [`stop_thread`]).
+pub const STOP_LIMIT: Duration = Duration::from_millis(500);
+
+/// Reads from `stream` until `buf` is full or `deadline` passes: the deadline covers the whole
+/// answer, however the peer spreads its bytes. Waits in slices of at most 20 ms and gives up
+/// with `Interrupted` once `stop` is set, so that a source thread stops promptly even while a
+/// peer drips bytes. On a timeout the error is `TimedOut` and `filled` tells how many bytes came.
+pub fn read_exact_until(
+    stream: &mut std::net::TcpStream,
+    buf: &mut [u8],
+    deadline: Instant,
+    stop: &AtomicBool,
+    filled: &mut usize,
+) -> std::io::Result<()> {
+    use std::io::{Error, ErrorKind, Read};
+    const SLICE: Duration = Duration::from_millis(20);
+    *filled = 0;
+    while *filled < buf.len() {
+        if stop.load(Ordering::Acquire) {
+            return Err(Error::new(ErrorKind::Interrupted, "stopped"));
+        }
+        let now = Instant::now();
+        if now >= deadline {
+            return Err(Error::new(ErrorKind::TimedOut, "timed out"));
+        }
+        stream.set_read_timeout(Some(
+            (deadline - now).clamp(Duration::from_millis(1), SLICE),
+        ))?;
+        match stream.read(&mut buf[*filled..]) {
+            Ok(0) => return Err(Error::new(ErrorKind::UnexpectedEof, "closed")),
+            Ok(n) => *filled += n,
+            Err(e)
+                if matches!(
+                    e.kind(),
+                    ErrorKind::WouldBlock | ErrorKind::TimedOut | ErrorKind::Interrupted
+                ) => {}
+            Err(e) => return Err(e),
+        }
+    }
+    Ok(())
+}
+
 /// What happened on a link, for the event log and the status line.
 #[derive(Debug, Clone, PartialEq)]
 pub struct LinkEvent {
@@ -143,16 +206,31 @@ pub enum LinkEventKind {
     /// Data arrived that could not be used (malformed line, Modbus exception, bad value); the
     /// channels concerned are not updated.
     BadData,
+    /// The connection is up but the source does not deliver (every answer refused, only garbage,
+    /// an adapter silent while answering PINGs): its channels go stale.
+    Failing,
+    /// The source delivers again on the same connection.
+    Delivering,
 }
+
+/// The longest message a [`LinkEvent`] keeps (bytes; longer ones are cut), so that a peer
+/// flooding long garbage cannot make the pending events grow beyond
+/// `MAX_PENDING_EVENTS × MAX_EVENT_MESSAGE_BYTES`.
+pub const MAX_EVENT_MESSAGE_BYTES: usize = 512;
 
 /// The most events a link keeps before the oldest are dropped (and counted).
 pub const MAX_PENDING_EVENTS: usize = 256;
 
-/// The state of one link, shared by its thread (writer), the cycle (reads atomics only) and the
-/// status line (reads everything, off the cycle).
-#[derive(Debug, Default)]
+/// The state of one link, shared by its thread (writer), the cycle (reads atomics and takes the
+/// latest reason from a lock-free one-slot queue) and the status line (reads everything, off the
+/// cycle).
+#[derive(Debug)]
 pub struct LinkStatus {
     connected: AtomicBool,
+    /// Connected, but nothing usable arrives (see [`LinkEventKind::Failing`]).
+    failing: AtomicBool,
+    /// The reason of the latest loss or failure; the writer replaces it, the cycle takes it.
+    reason: ArrayQueue<Reason>,
     /// Number of the current (or last) connection, 0 before the first.
     connections: AtomicU64,
     /// Failed attempts plus lost connections.
@@ -165,11 +243,29 @@ pub struct LinkStatus {
     last_error: Mutex<String>,
 }
 
+impl Default for LinkStatus {
+    fn default() -> Self {
+        Self {
+            connected: AtomicBool::new(false),
+            failing: AtomicBool::new(false),
+            reason: ArrayQueue::new(1),
+            connections: AtomicU64::new(0),
+            failures: AtomicU64::new(0),
+            bad_data: AtomicU64::new(0),
+            dropped_events: AtomicU64::new(0),
+            events: Mutex::new(VecDeque::new()),
+            last_error: Mutex::new(String::new()),
+        }
+    }
+}
+
 /// A copy of a [`LinkStatus`] for the status line.
 #[derive(Debug, Clone, PartialEq)]
 pub struct LinkSnapshot {
     /// Whether the connection is up.
     pub connected: bool,
+    /// Whether the source fails to deliver although connected.
+    pub failing: bool,
     /// Successful connections so far.
     pub connections: u64,
     /// Failed attempts plus lost connections.
@@ -188,6 +284,16 @@ impl LinkStatus {
         self.connected.load(Ordering::Acquire)
     }
 
+    /// Whether the source fails to deliver although connected (lock-free).
+    pub fn is_failing(&self) -> bool {
+        self.failing.load(Ordering::Acquire)
+    }
+
+    /// Whether the source delivers: connected and not failing (lock-free).
+    pub fn is_delivering(&self) -> bool {
+        self.is_connected() && !self.is_failing()
+    }
+
     /// Number of the current connection (lock-free), 0 before the first one.
     pub fn connection_number(&self) -> u64 {
         self.connections.load(Ordering::Acquire)
@@ -197,6 +303,7 @@ impl LinkStatus {
     pub fn snapshot(&self) -> LinkSnapshot {
         LinkSnapshot {
             connected: self.is_connected(),
+            failing: self.is_failing(),
             connections: self.connections.load(Ordering::Acquire),
             failures: self.failures.load(Ordering::Acquire),
             bad_data: self.bad_data.load(Ordering::Acquire),
@@ -213,16 +320,35 @@ impl LinkStatus {
     /// The source thread: the connection is up.
     pub fn set_connected(&self, time_s: f64, message: String) {
         self.connections.fetch_add(1, Ordering::AcqRel);
+        self.failing.store(false, Ordering::Release);
         self.connected.store(true, Ordering::Release);
         self.push(time_s, LinkEventKind::Connected, message);
     }
 
     /// The source thread: an attempt failed or the connection was lost.
     pub fn set_lost(&self, time_s: f64, message: String) {
+        // The reason first: a reader that sees the link down then finds it.
+        self.reason.force_push(Reason::new(&message));
         self.connected.store(false, Ordering::Release);
         self.failures.fetch_add(1, Ordering::AcqRel);
         lock(&self.last_error).clone_from(&message);
         self.push(time_s, LinkEventKind::Lost, message);
+    }
+
+    /// The source thread: connected, but nothing usable arrives, for `message`'s reason. Call it
+    /// when the reason appears or changes, not for every repetition.
+    pub fn set_failing(&self, time_s: f64, message: String) {
+        self.reason.force_push(Reason::new(&message));
+        self.failing.store(true, Ordering::Release);
+        lock(&self.last_error).clone_from(&message);
+        self.push(time_s, LinkEventKind::Failing, message);
+    }
+
+    /// The source thread: usable data arrives again on the connection (no-op if not failing).
+    pub fn set_delivering(&self, time_s: f64, message: String) {
+        if self.failing.swap(false, Ordering::AcqRel) {
+            self.push(time_s, LinkEventKind::Delivering, message);
+        }
     }
 
     /// The source thread: received data that cannot be used.
@@ -232,7 +358,15 @@ impl LinkStatus {
         self.push(time_s, LinkEventKind::BadData, message);
     }
 
-    fn push(&self, time_s: f64, kind: LinkEventKind, message: String) {
+    fn push(&self, time_s: f64, kind: LinkEventKind, mut message: String) {
+        if message.len() > MAX_EVENT_MESSAGE_BYTES {
+            let mut cut = MAX_EVENT_MESSAGE_BYTES;
+            while !message.is_char_boundary(cut) {
+                cut -= 1;
+            }
+            message.truncate(cut);
+            message.push('…');
+        }
         let mut events = lock(&self.events);
         if events.len() >= MAX_PENDING_EVENTS {
             events.pop_front();
@@ -257,33 +391,34 @@ fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
     m.lock().unwrap_or_else(|e| e.into_inner())
 }
 
-/// Turns a link's state into the result of `Source::read` without allocating on every cycle:
-/// while the link is down, the first read of each outage carries the reason, later ones
-/// `Disconnected("")` (the reason stays in the status and the events).
+/// Turns a link's state into the result of `Source::read` without allocating, locking or
+/// blocking: `Ok` while the source delivers, otherwise `Disconnected` with the reason of the
+/// latest loss or failure on every cycle (the service raises an event when it changes).
 #[derive(Debug, Default)]
 pub struct OutageReporter {
-    reported_for: Option<u64>,
+    reason: Reason,
 }
 
 impl OutageReporter {
-    /// `Ok` while connected; `Err(Disconnected)` otherwise (see the type's description).
+    /// `Ok` while connected and delivering; `Err(Disconnected(reason))` otherwise.
     pub fn check(&mut self, status: &LinkStatus) -> Result<(), LinkError> {
-        if status.is_connected() {
-            self.reported_for = None;
+        // The flags before the reason: the writer stores the reason before raising a flag.
+        let delivering = status.is_delivering();
+        if let Some(r) = status.reason.pop() {
+            self.reason = r;
+        }
+        if delivering {
             return Ok(());
         }
-        // An outage lasts from the loss of connection n (or the start, n = 0) to the next
-        // connection, however many attempts fail in between.
-        let outage = status.connection_number();
-        if self.reported_for == Some(outage) {
-            return Err(LinkError::Disconnected(String::new()));
+        if self.reason.is_empty() {
+            self.reason = Reason::new("not connected yet");
         }
-        self.reported_for = Some(outage);
-        let why = match status.last_error.try_lock() {
-            Ok(m) if !m.is_empty() => m.clone(),
-            _ => "not connected".to_string(),
-        };
-        Err(LinkError::Disconnected(why))
+        Err(LinkError::Disconnected(self.reason))
+    }
+
+    /// The reason last reported (empty before the first fault).
+    pub fn reason(&self) -> Reason {
+        self.reason
     }
 }
 
@@ -512,29 +647,38 @@ mod tests {
     }
 
     #[test]
-    fn outage_is_reported_once_with_its_reason() {
+    fn every_read_of_an_outage_carries_the_latest_reason() {
         let status = LinkStatus::default();
         let mut r = OutageReporter::default();
-        let down = |why: &str| Err(LinkError::Disconnected(why.into()));
-        assert_eq!(r.check(&status), down("not connected"));
-        // Failed attempts during the same outage: no new reason on the cycle.
+        let down =
+            |why: &str| -> Result<(), LinkError> { Err(LinkError::Disconnected(why.into())) };
+        assert_eq!(r.check(&status), down("not connected yet"));
         status.set_lost(1.0, "connection refused".into());
-        assert_eq!(r.check(&status), down(""));
+        assert_eq!(r.check(&status), down("connection refused"));
+        assert_eq!(r.check(&status), down("connection refused"));
         status.set_connected(2.0, "up".into());
         assert_eq!(r.check(&status), Ok(()));
         status.set_lost(3.0, "no PONG".into());
         assert_eq!(r.check(&status), down("no PONG"));
-        assert_eq!(r.check(&status), down(""));
         status.set_lost(3.5, "connection refused".into());
-        assert_eq!(r.check(&status), down(""));
+        assert_eq!(r.check(&status), down("connection refused"));
+        // Connected but failing: not delivering, with the failure's reason.
+        status.set_connected(4.0, "up".into());
+        status.set_failing(4.1, "exception 02".into());
+        assert_eq!(r.check(&status), down("exception 02"));
+        status.set_delivering(4.2, "back".into());
+        assert_eq!(r.check(&status), Ok(()));
         let events = status.drain_events();
         let kinds: Vec<_> = events.iter().map(|e| e.kind).collect();
         use LinkEventKind::*;
-        assert_eq!(kinds, [Lost, Connected, Lost, Lost]);
+        assert_eq!(
+            kinds,
+            [Lost, Connected, Lost, Lost, Connected, Failing, Delivering]
+        );
         assert!(status.drain_events().is_empty());
         let s = status.snapshot();
-        assert_eq!((s.connected, s.connections, s.failures), (false, 1, 3));
-        assert_eq!(s.last_error, "connection refused");
+        assert_eq!((s.connected, s.connections, s.failures), (true, 2, 3));
+        assert_eq!(s.last_error, "exception 02");
     }
 
     #[test]

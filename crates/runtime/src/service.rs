@@ -76,6 +76,17 @@ pub struct SinkHealth {
     pub first_failure_s: Option<f64>,
 }
 
+/// Where an axis' target comes from. A change of origin restarts the axis' blend.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Origin {
+    /// Zero: compensation off, no model, or the axis is in no path.
+    Zero,
+    /// A model of the set, evaluated for a path.
+    Model { path: usize, model: usize },
+    /// The output held when a path lost its inputs, ramping to zero.
+    Hold { path: usize },
+}
+
 /// One cycle as the log keeps it (fixed size, so queuing it allocates nothing).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CycleRecord {
@@ -109,6 +120,8 @@ pub struct Service {
     sources: Vec<Box<dyn Source>>,
     sinks: Vec<Box<dyn Sink>>,
     source_ok: Vec<bool>,
+    /// Per source, the reason of its current failure (empty while it delivers).
+    source_reason: Vec<Reason>,
     sink_health: Vec<SinkHealth>,
     finished: bool,
     frame: Frame,
@@ -123,7 +136,9 @@ pub struct Service {
     states: Vec<PathState>,
     preferred: Vec<Option<usize>>,
     axis_path: [Option<usize>; MAX_AXES],
-    raw: [f64; MAX_AXES],
+    /// Per axis: where its target comes from, and the target of this cycle.
+    origin: [Origin; MAX_AXES],
+    target: [f64; MAX_AXES],
     hold_from: [f64; MAX_AXES],
     hold_start: [f64; MAX_AXES],
     positions_ok: bool,
@@ -175,6 +190,7 @@ impl Service {
             envelope: Envelope::new(&machine.axis_runtime),
             output: Output::zero(m.axes.len()),
             source_ok: vec![true; sources.len()],
+            source_reason: vec![Reason::EMPTY; sources.len()],
             sink_health: vec![SinkHealth::default(); sinks.len()],
             sources,
             sinks,
@@ -192,7 +208,8 @@ impl Service {
             states: vec![PathState::Disabled; n_paths],
             preferred: vec![None; n_paths],
             axis_path: [None; MAX_AXES],
-            raw: [0.0; MAX_AXES],
+            origin: [Origin::Zero; MAX_AXES],
+            target: [0.0; MAX_AXES],
             hold_from: [0.0; MAX_AXES],
             hold_start: [0.0; MAX_AXES],
             positions_ok: false,
@@ -202,6 +219,15 @@ impl Service {
             set,
             config,
             machine,
+        }
+    }
+
+    /// Why source `i` does not deliver, as its latest `SourceLost` event said; `None` while it
+    /// delivers (or for an index out of range). For the status line.
+    pub fn source_reason(&self, i: usize) -> Option<&str> {
+        match (self.source_ok.get(i), self.source_reason.get(i)) {
+            (Some(false), Some(r)) => Some(r.as_str()),
+            _ => None,
         }
     }
 
@@ -311,9 +337,10 @@ impl Service {
         for p in 0..self.states.len() {
             self.update_path(p, now_s);
         }
+        self.update_free_axes(now_s);
         let n = self.output.axes;
         let clamped = self.envelope.apply(
-            &self.raw[..n],
+            &self.target[..n],
             now_s,
             &mut self.output.offset_um[..n],
             &self.events,
@@ -359,28 +386,36 @@ impl Service {
             });
     }
 
+    /// Reads every source; raises `SourceLost` when a source stops delivering or its reason
+    /// changes while it stays lost, and `SourceBack` when it delivers again.
     fn read_sources(&mut self, now_s: f64) {
         for (i, s) in self.sources.iter_mut().enumerate() {
-            let ok = match s.read(&mut self.frame) {
-                Ok(()) => true,
+            let reason = match s.read(&mut self.frame) {
+                Ok(()) => None,
                 Err(LinkError::Finished) => {
                     self.finished = true;
-                    true
+                    None
                 }
-                Err(_) => false,
+                Err(LinkError::Disconnected(why)) => Some(why),
+                // Only sources that allocate anyway return `Failed`.
+                Err(LinkError::Failed(why)) => Some(Reason::new(&why)),
             };
-            if ok != self.source_ok[i] {
-                self.source_ok[i] = ok;
-                let kind = if ok {
-                    EventKind::SourceBack { source: i }
-                } else {
-                    EventKind::SourceLost { source: i }
-                };
-                self.events.push(Event {
-                    time_s: now_s,
-                    kind,
-                });
-            }
+            let kind = match reason {
+                None if !self.source_ok[i] => EventKind::SourceBack { source: i },
+                Some(why) if self.source_ok[i] || why != self.source_reason[i] => {
+                    EventKind::SourceLost {
+                        source: i,
+                        reason: why,
+                    }
+                }
+                _ => continue,
+            };
+            self.source_ok[i] = reason.is_none();
+            self.source_reason[i] = reason.unwrap_or(Reason::EMPTY);
+            self.events.push(Event {
+                time_s: now_s,
+                kind,
+            });
         }
     }
 
@@ -435,7 +470,6 @@ impl Service {
             }
         }
         self.set.select(&self.frame.paths, &self.codes);
-        let before = self.axis_path;
         self.axis_path = [None; MAX_AXES];
         for (p, axes) in self.frame.paths.iter().enumerate().take(self.states.len()) {
             for &a in axes {
@@ -445,14 +479,6 @@ impl Service {
             }
         }
         if !first {
-            // An axis that left every path (handed over or parked) blends to zero like any
-            // other change of origin, rather than running down at the envelope's rate.
-            for (a, was) in before.iter().enumerate().take(self.output.axes) {
-                if was.is_some() && self.axis_path[a].is_none() {
-                    self.envelope
-                        .begin_blend(a, 0.0, now_s, self.config.blend_s);
-                }
-            }
             self.events.push(Event {
                 time_s: now_s,
                 kind: EventKind::AxisSwitch,
@@ -487,83 +513,119 @@ impl Service {
         }
     }
 
-    fn update_path(&mut self, p: usize, now_s: f64) {
-        let mut wanted = self.wanted_state(p);
-        // Evaluate first: a model that fails on this cycle's values (a position outside
-        // travel) is treated like a bad sensor.
-        let mut fresh = [0.0; MAX_AXES];
-        if let PathState::Model(m) = wanted {
-            let input = CycleInput {
-                temperatures_c: &self.frame.temperatures_c,
-                positions: &self.frame.positions,
-                operating: &self.frame.operating,
-            };
-            if !self.set.entries()[m].model.compensation(&input, &mut fresh) {
-                wanted = PathState::Holding;
-            }
+    /// The state path `p` takes this cycle, with the model's compensation in `fresh` when it is
+    /// a model: a model that fails on this cycle's values (a position outside travel, a value
+    /// that is not finite) is treated like a bad sensor.
+    fn evaluate_path(&self, p: usize, fresh: &mut [f64; MAX_AXES]) -> PathState {
+        let wanted = self.wanted_state(p);
+        let PathState::Model(m) = wanted else {
+            return wanted;
+        };
+        let input = CycleInput {
+            temperatures_c: &self.frame.temperatures_c,
+            positions: &self.frame.positions,
+            operating: &self.frame.operating,
+        };
+        let ok = self.set.entries()[m].model.compensation(&input, fresh)
+            && (0..self.output.axes)
+                .filter(|&a| self.axis_path[a] == Some(p))
+                .all(|a| fresh[a].is_finite());
+        if ok {
+            wanted
+        } else {
+            PathState::Holding
         }
-        let previous = self.states[p];
-        if wanted != previous {
-            self.states[p] = wanted;
-            let path = p as u32 + 1;
-            let kind = match wanted {
-                PathState::Model(m) => {
-                    let first = self.set.candidates(p).first().copied();
-                    match first {
-                        Some(f) if f != m && self.preferred[p] != Some(m) => {
-                            EventKind::ModelSubstituted {
-                                path,
-                                from: f,
-                                to: m,
-                            }
+    }
+
+    /// Records a change of a path's state and raises its event.
+    fn note_path_state(&mut self, p: usize, wanted: PathState, now_s: f64) {
+        if wanted == self.states[p] {
+            return;
+        }
+        self.states[p] = wanted;
+        let path = p as u32 + 1;
+        let kind = match wanted {
+            PathState::Model(m) => {
+                let first = self.set.candidates(p).first().copied();
+                match first {
+                    Some(f) if f != m && self.preferred[p] != Some(m) => {
+                        EventKind::ModelSubstituted {
+                            path,
+                            from: f,
+                            to: m,
                         }
-                        _ => EventKind::ModelSelected { path, model: m },
                     }
+                    _ => EventKind::ModelSelected { path, model: m },
                 }
-                PathState::Holding => EventKind::Holding { path },
-                PathState::NoModel => EventKind::NoModel {
-                    path,
-                    target: self.set.target(p),
-                },
-                PathState::Disabled => EventKind::Enabled(false),
-            };
-            if !matches!(kind, EventKind::Enabled(_)) {
-                self.events.push(Event {
-                    time_s: now_s,
-                    kind,
-                });
             }
-        }
-        #[allow(clippy::needless_range_loop)] // a indexes five per-axis arrays in step
-        for a in 0..self.output.axes {
+            PathState::Holding => EventKind::Holding { path },
+            PathState::NoModel => EventKind::NoModel {
+                path,
+                target: self.set.target(p),
+            },
+            // `set_enabled` raised it already.
+            PathState::Disabled => return,
+        };
+        self.events.push(Event {
+            time_s: now_s,
+            kind,
+        });
+    }
+
+    fn update_path(&mut self, p: usize, now_s: f64) {
+        let mut fresh = [0.0; MAX_AXES];
+        let wanted = self.evaluate_path(p, &mut fresh);
+        self.note_path_state(p, wanted, now_s);
+        let origin = match wanted {
+            PathState::Model(model) => Origin::Model { path: p, model },
+            PathState::Holding => Origin::Hold { path: p },
+            PathState::NoModel | PathState::Disabled => Origin::Zero,
+        };
+        for (a, &value) in fresh.iter().enumerate().take(self.output.axes) {
             if self.axis_path[a] != Some(p) {
-                if self.axis_path[a].is_none() {
-                    self.raw[a] = 0.0;
-                }
                 continue;
             }
-            let raw = match wanted {
-                PathState::Model(_) => fresh[a],
-                PathState::Holding => {
-                    if previous != PathState::Holding {
-                        self.hold_from[a] = self.envelope.last()[a];
-                        self.hold_start[a] = now_s;
-                    }
-                    let left = if self.config.hold_ramp_s > 0.0 {
-                        (1.0 - (now_s - self.hold_start[a]) / self.config.hold_ramp_s).max(0.0)
-                    } else {
-                        0.0
-                    };
-                    self.hold_from[a] * left
-                }
-                PathState::NoModel | PathState::Disabled => 0.0,
+            self.set_origin(a, origin, now_s);
+            self.target[a] = match origin {
+                Origin::Model { .. } => value,
+                Origin::Hold { .. } => self.held(a, now_s),
+                Origin::Zero => 0.0,
             };
-            if wanted != previous && wanted != PathState::Holding {
-                self.envelope
-                    .begin_blend(a, raw, now_s, self.config.blend_s);
-            }
-            self.raw[a] = raw;
         }
+    }
+
+    /// Axes outside every path (handed over or parked) go to zero.
+    fn update_free_axes(&mut self, now_s: f64) {
+        for a in 0..self.output.axes {
+            if self.axis_path[a].is_none() {
+                self.set_origin(a, Origin::Zero, now_s);
+                self.target[a] = 0.0;
+            }
+        }
+    }
+
+    /// Changes where `axis`' target comes from. Any change restarts the axis' one blend from the
+    /// output last sent; entering a hold takes that output as the value to hold.
+    fn set_origin(&mut self, a: usize, origin: Origin, now_s: f64) {
+        if origin == self.origin[a] {
+            return;
+        }
+        self.origin[a] = origin;
+        if let Origin::Hold { .. } = origin {
+            self.hold_from[a] = self.envelope.last()[a];
+            self.hold_start[a] = now_s;
+        }
+        self.envelope.restart_blend(a, now_s, self.config.blend_s);
+    }
+
+    /// The held value of `axis` now: the output when the hold began, ramped linearly to zero.
+    fn held(&self, a: usize, now_s: f64) -> f64 {
+        let left = if self.config.hold_ramp_s > 0.0 {
+            (1.0 - (now_s - self.hold_start[a]) / self.config.hold_ramp_s).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        self.hold_from[a] * left
     }
 
     fn overall_state(&self) -> CompensationState {
@@ -582,7 +644,7 @@ impl Service {
 
     /// Writes the output to every sink; a failure is an event on the change (not one per
     /// cycle) and stays visible in [`Service::sink_health`]. Allocates nothing unless a sink
-    /// does: the reason is formatted into a fixed-size [`Reason`] once, when the sink fails.
+    /// does: the reason is copied into a fixed-size [`Reason`] once, when the sink fails.
     fn write_sinks(&mut self, now_s: f64) {
         for (i, s) in self.sinks.iter_mut().enumerate() {
             let h = &mut self.sink_health[i];
@@ -598,8 +660,12 @@ impl Service {
                     }
                     h.failing_since_s = Some(now_s);
                     h.first_failure_s.get_or_insert(now_s);
-                    h.reason = Reason::default();
-                    let _ = std::fmt::Write::write_fmt(&mut h.reason, format_args!("{e}"));
+                    h.reason = match e {
+                        LinkError::Disconnected(why) => why,
+                        // Only sinks that allocate anyway (a file) return `Failed`.
+                        LinkError::Failed(why) => Reason::new(&why),
+                        LinkError::Finished => Reason::new("finished"),
+                    };
                     EventKind::SinkFailed {
                         sink: i,
                         reason: h.reason,

@@ -41,8 +41,8 @@ use crate::frame::{Frame, NEVER};
 use crate::io_traits::{LinkError, SharedChannels, Source};
 use crate::reconnect::{
     check_source_config, check_unique_targets, resolve_address, seconds_since,
-    sleep_unless_stopped, Backoff, BackoffConfig, ConfigError, LinkSnapshot, LinkStatus,
-    OutageReporter, Target,
+    sleep_unless_stopped, stop_thread, Backoff, BackoffConfig, ConfigError, LinkSnapshot,
+    LinkStatus, OutageReporter, Target, STOP_LIMIT,
 };
 
 /// One line from an adapter.
@@ -254,6 +254,16 @@ impl LineBuffer {
         }
         Ok(())
     }
+
+    /// Bytes of the line under way (received, no line end yet).
+    pub fn pending_len(&self) -> usize {
+        self.pending.len()
+    }
+
+    /// Bytes the buffer holds room for (bounded: about [`MAX_LINE_BYTES`] plus one read).
+    pub fn capacity(&self) -> usize {
+        self.pending.capacity()
+    }
 }
 
 /// One SHDR data item feeding one machine channel (configuration, TOML). Give exactly one of
@@ -301,6 +311,15 @@ pub struct ShdrConfig {
     /// (default 5000). Afterwards the announced interval is the limit.
     #[serde(default = "default_first_pong_ms")]
     pub first_pong_timeout_ms: u64,
+    /// Longest time in ms a line may take from its first byte to its end (default 1000); an
+    /// adapter dripping a line more slowly loses the connection.
+    #[serde(default = "default_line_timeout_ms")]
+    pub line_timeout_ms: u64,
+    /// Longest time in ms without a usable data line while the adapter still answers `* PING`
+    /// (default 300 000, the validator's default stuck-value limit): after it, the source counts
+    /// as failing and PONGs no longer confirm its values.
+    #[serde(default = "default_data_timeout_ms")]
+    pub data_timeout_ms: u64,
     /// Reconnection waits.
     #[serde(default)]
     pub backoff: BackoffConfig,
@@ -318,6 +337,19 @@ fn default_ping_ms() -> u64 {
 fn default_first_pong_ms() -> u64 {
     5000
 }
+fn default_line_timeout_ms() -> u64 {
+    1000
+}
+fn default_data_timeout_ms() -> u64 {
+    300_000
+}
+
+/// Unusable lines in a row (no usable data line between them) after which the source counts as
+/// failing: the adapter sends garbage only.
+pub const MAX_BAD_LINES_IN_ROW: u32 = 3;
+
+/// `* PONG`s without a `* PING` after which the connection is dropped as a PONG flood.
+pub const MAX_UNSOLICITED_PONGS: u32 = 8;
 
 impl ShdrConfig {
     /// Reads the configuration from TOML text (a table with the fields above).
@@ -347,6 +379,8 @@ impl ShdrConfig {
                 ("connect_timeout_ms", self.connect_timeout_ms),
                 ("ping_ms", self.ping_ms),
                 ("first_pong_timeout_ms", self.first_pong_timeout_ms),
+                ("line_timeout_ms", self.line_timeout_ms),
+                ("data_timeout_ms", self.data_timeout_ms),
             ],
             &self.backoff,
             self.channels.len(),
@@ -484,9 +518,8 @@ impl Source for ShdrSource {
 
 impl Drop for ShdrSource {
     fn drop(&mut self) {
-        self.shared.stop.store(true, Ordering::Release);
         if let Some(t) = self.thread.take() {
-            let _ = t.join();
+            stop_thread(&self.shared.stop, t, STOP_LIMIT);
         }
     }
 }
@@ -569,6 +602,7 @@ impl Client {
     /// Reads lines and keeps the heartbeat until the connection ends.
     fn serve(&self, mut stream: TcpStream) -> End {
         let connection = self.shared.status.connection_number();
+        let address = &self.config.address;
         let mut lines = LineBuffer::default();
         let mut chunk = [0u8; 4096];
         // The limit for the PONG we wait for: the configured one until the adapter announces its
@@ -578,6 +612,7 @@ impl Client {
         let mut outstanding: Option<Instant> = None;
         let mut last_ping: Option<Instant> = None;
         let mut skip_until: Option<String> = None;
+        let mut health = Health::new(Instant::now());
         loop {
             if self.shared.stop.load(Ordering::Acquire) {
                 return End::Stopped;
@@ -586,28 +621,37 @@ impl Client {
             if let Some(sent) = outstanding {
                 if now.duration_since(sent) > pong_limit {
                     return End::Lost(format!(
-                        "no `* PONG` from {} within {} ms of `* PING`",
-                        self.config.address,
+                        "no `* PONG` from {address} within {} ms of `* PING`",
                         pong_limit.as_millis()
                     ));
                 }
             } else if last_ping.is_none_or(|t| now.duration_since(t) >= ping_every) {
                 if let Err(e) = stream.write_all(b"* PING\n") {
-                    return End::Lost(format!(
-                        "cannot send `* PING` to {}: {e}",
-                        self.config.address
-                    ));
+                    return End::Lost(format!("cannot send `* PING` to {address}: {e}"));
                 }
                 outstanding = Some(now);
                 last_ping = Some(now);
+                health.unsolicited_pongs = 0;
+            }
+            if let Some(why) = health.overdue(now, &self.config) {
+                return End::Lost(why);
+            }
+            if health.failing.is_none()
+                && now.duration_since(health.last_data).as_millis()
+                    > u128::from(self.config.data_timeout_ms)
+            {
+                health.fail(
+                    &self.shared.status,
+                    self.now_s(),
+                    Failing::Silent,
+                    format!(
+                        "adapter {address} sent no data for {} ms while answering `* PING`",
+                        self.config.data_timeout_ms
+                    ),
+                );
             }
             let n = match stream.read(&mut chunk) {
-                Ok(0) => {
-                    return End::Lost(format!(
-                        "adapter {} closed the connection",
-                        self.config.address
-                    ))
-                }
+                Ok(0) => return End::Lost(format!("adapter {address} closed the connection")),
                 Ok(n) => n,
                 Err(e)
                     if matches!(
@@ -619,61 +663,65 @@ impl Client {
                 {
                     continue
                 }
-                Err(e) => {
-                    return End::Lost(format!(
-                        "cannot read from adapter {}: {e}",
-                        self.config.address
-                    ))
-                }
+                Err(e) => return End::Lost(format!("cannot read from adapter {address}: {e}")),
             };
             let mut pong: Option<u64> = None;
+            let mut complete = false;
             let pushed = lines.push(&chunk[..n], |bytes| {
-                if let Some(ms) = self.handle_line(bytes, connection, &mut skip_until) {
-                    pong = Some(ms);
+                complete = true;
+                match self.handle_line(bytes, connection, &mut skip_until) {
+                    Line::Pong(ms) if outstanding.take().is_some() => pong = Some(ms),
+                    Line::Pong(_) => health.unsolicited_pongs += 1,
+                    Line::Data => health.data(&self.shared.status, self.now_s(), address),
+                    Line::Bad(why) => health.bad(&self.shared.status, self.now_s(), address, why),
+                    Line::Other => {}
                 }
             });
             if let Err(why) = pushed {
-                return End::Lost(format!("adapter {}: {why}", self.config.address));
+                return End::Lost(format!("adapter {address}: {why}"));
+            }
+            health.track_partial(Instant::now(), complete, lines.pending_len());
+            if health.unsolicited_pongs > MAX_UNSOLICITED_PONGS {
+                return End::Lost(format!(
+                    "adapter {address} sent {} `* PONG` without a `* PING` (a PONG flood)",
+                    health.unsolicited_pongs
+                ));
             }
             if let Some(ms) = pong {
-                outstanding = None;
+                // A PONG confirms the values only while the adapter also delivers data.
+                if health.failing.is_none() {
+                    self.shared
+                        .alive_s
+                        .store(self.now_s().to_bits(), Ordering::Release);
+                }
                 pong_limit = Duration::from_millis(ms);
                 ping_every = Duration::from_millis(self.config.ping_ms.min(ms));
             }
         }
     }
 
-    /// Handles one complete line; returns the announced interval of a PONG.
-    fn handle_line(
-        &self,
-        bytes: &[u8],
-        connection: u64,
-        skip_until: &mut Option<String>,
-    ) -> Option<u64> {
+    /// Handles one complete line: publishes its values, reports what cannot be used.
+    fn handle_line(&self, bytes: &[u8], connection: u64, skip_until: &mut Option<String>) -> Line {
         let now = self.now_s();
         let status = &self.shared.status;
+        let address = &self.config.address;
         let Ok(text) = std::str::from_utf8(bytes) else {
-            status.bad_data(
-                now,
-                format!("adapter {}: a line is not UTF-8 text", self.config.address),
-            );
-            return None;
+            let why = format!("adapter {address}: a line is not UTF-8 text");
+            status.bad_data(now, why.clone());
+            return Line::Bad(why);
         };
         if let Some(marker) = skip_until.as_deref() {
             if text.trim() == marker {
                 *skip_until = None;
             }
-            return None;
+            return Line::Other;
         }
         if text.trim().is_empty() {
-            return None;
+            return Line::Other;
         }
         match parse_line(text) {
-            Ok(ShdrLine::Pong { interval_ms }) => {
-                self.shared.alive_s.store(now.to_bits(), Ordering::Release);
-                Some(interval_ms)
-            }
-            Ok(ShdrLine::Command { .. }) => None,
+            Ok(ShdrLine::Pong { interval_ms }) => Line::Pong(interval_ms),
+            Ok(ShdrLine::Command { .. }) => Line::Other,
             Ok(ShdrLine::Data { items, .. }) => {
                 for item in &items {
                     if let ShdrValue::Text(t) = item.value {
@@ -691,8 +739,8 @@ impl Client {
                             status.bad_data(
                                 now,
                                 format!(
-                                    "adapter {}: data item `{}`: expected a number or UNAVAILABLE, found `{t}`",
-                                    self.config.address, item.id
+                                    "adapter {address}: data item `{}`: expected a number or UNAVAILABLE, found `{t}`",
+                                    item.id
                                 ),
                             );
                             f64::NAN
@@ -704,13 +752,109 @@ impl Client {
                     }
                 }
                 self.shared.alive_s.store(now.to_bits(), Ordering::Release);
-                None
+                Line::Data
             }
             Err(e) => {
-                status.bad_data(now, format!("adapter {}: {e}", self.config.address));
-                None
+                let why = format!("adapter {address}: {e}");
+                status.bad_data(now, why.clone());
+                Line::Bad(why)
             }
         }
+    }
+}
+
+/// What a complete line was, for the health of the connection.
+enum Line {
+    /// `* PONG` with its announced interval in ms.
+    Pong(u64),
+    /// A data line (its values published).
+    Data,
+    /// An unusable line, with the reason.
+    Bad(String),
+    /// A command, an empty line or part of a skipped asset.
+    Other,
+}
+
+/// Why a connected adapter counts as not delivering.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Failing {
+    /// Only unusable lines arrive.
+    Garbage,
+    /// No data line for `data_timeout_ms`, while PONGs still come.
+    Silent,
+}
+
+/// What the connection delivered lately: whether it counts as failing, and the deadlines of a
+/// line under way.
+struct Health {
+    last_data: Instant,
+    bad_in_row: u32,
+    unsolicited_pongs: u32,
+    /// When the first byte of the line under way arrived.
+    partial_since: Option<Instant>,
+    partial_bytes: usize,
+    failing: Option<Failing>,
+}
+
+impl Health {
+    fn new(now: Instant) -> Self {
+        Self {
+            last_data: now,
+            bad_in_row: 0,
+            unsolicited_pongs: 0,
+            partial_since: None,
+            partial_bytes: 0,
+            failing: None,
+        }
+    }
+
+    fn fail(&mut self, status: &LinkStatus, now_s: f64, kind: Failing, why: String) {
+        if self.failing != Some(kind) {
+            self.failing = Some(kind);
+            status.set_failing(now_s, why);
+        }
+    }
+
+    fn data(&mut self, status: &LinkStatus, now_s: f64, address: &str) {
+        self.last_data = Instant::now();
+        self.bad_in_row = 0;
+        if self.failing.take().is_some() {
+            status.set_delivering(now_s, format!("adapter {address} sends data again"));
+        }
+    }
+
+    fn bad(&mut self, status: &LinkStatus, now_s: f64, address: &str, why: String) {
+        self.bad_in_row = self.bad_in_row.saturating_add(1);
+        if self.bad_in_row >= MAX_BAD_LINES_IN_ROW {
+            let last = why
+                .strip_prefix(&format!("adapter {address}: "))
+                .unwrap_or(&why);
+            let message = format!("garbage only ({} lines in a row): {last}", self.bad_in_row);
+            self.fail(status, now_s, Failing::Garbage, message);
+        }
+    }
+
+    /// After a chunk: the line under way started in this chunk if a line ended in it, else
+    /// when its first byte came.
+    fn track_partial(&mut self, now: Instant, line_ended: bool, pending: usize) {
+        self.partial_bytes = pending;
+        if pending == 0 {
+            self.partial_since = None;
+        } else if line_ended || self.partial_since.is_none() {
+            self.partial_since = Some(now);
+        }
+    }
+
+    /// A line under way for longer than `line_timeout_ms` ends the connection.
+    fn overdue(&self, now: Instant, config: &ShdrConfig) -> Option<String> {
+        let since = self.partial_since?;
+        let limit = Duration::from_millis(config.line_timeout_ms);
+        (now.duration_since(since) > limit).then(|| {
+            format!(
+                "adapter {}: a line took longer than {} ms ({} bytes without a line end)",
+                config.address, config.line_timeout_ms, self.partial_bytes
+            )
+        })
     }
 }
 

@@ -56,6 +56,10 @@ impl std::fmt::Display for Fault {
     }
 }
 
+/// Longest quiet spell (s) credited to the rate check: a reading that changes after holding
+/// still for longer is judged as if the previous change was this long ago.
+pub const RATE_WINDOW_S: f64 = 30.0;
+
 /// The validator of the temperature channels.
 #[derive(Debug, Clone)]
 pub struct SensorValidator {
@@ -67,6 +71,13 @@ pub struct SensorValidator {
     last_value: Vec<f64>,
     unchanged_since: Vec<f64>,
     health: Vec<Option<Fault>>,
+    /// Per channel: when the current fault began, and since when the readings are sound again
+    /// (a faulted channel returns only after `recover_after_s` of sound readings).
+    fault_since: Vec<f64>,
+    sound_since: Vec<f64>,
+    /// Service time of the first check, and whether a channel that never delivered was reported.
+    first_check_s: f64,
+    never_reported: Vec<bool>,
     /// Per channel: what a lagged channel follows; it shares a sensor source's verdict.
     lag_source: Vec<Option<LagSource>>,
 }
@@ -88,6 +99,10 @@ impl SensorValidator {
             last_value: vec![f64::NAN; n],
             unchanged_since: vec![NEVER; n],
             health: vec![Some(Fault::NeverUpdated); n],
+            fault_since: vec![NEVER; n],
+            sound_since: vec![NEVER; n],
+            first_check_s: NEVER,
+            never_reported: vec![false; n],
             lag_source: machine
                 .temperatures
                 .iter()
@@ -112,6 +127,9 @@ impl SensorValidator {
     /// changes. Allocates nothing.
     pub fn check(&mut self, frame: &Frame, events: &EventQueue) {
         let now = frame.time_s;
+        if self.first_check_s == NEVER {
+            self.first_check_s = now;
+        }
         for c in 0..self.health.len() {
             if self.lag_source[c].is_some() {
                 continue;
@@ -134,24 +152,8 @@ impl SensorValidator {
                 self.last_good[c] = value;
                 self.last_good_stamp[c] = stamp;
             }
-            let from_start = self.health[c] == Some(Fault::NeverUpdated);
-            let transition = match (&self.health[c], &verdict) {
-                (None, Some(_)) | (Some(_), None) => true,
-                // A different kind of fault is news; the same kind with another value is not.
-                (Some(a), Some(b)) => std::mem::discriminant(a) != std::mem::discriminant(b),
-                (None, None) => false,
-            };
-            self.health[c] = verdict;
-            if transition {
-                let kind = match verdict {
-                    Some(fault) => EventKind::SensorFault { channel: c, fault },
-                    None => EventKind::SensorRecovered { channel: c },
-                };
-                // The first good reading after start-up is not worth an event.
-                if !(from_start && verdict.is_none()) {
-                    events.push(Event { time_s: now, kind });
-                }
-            }
+            let verdict = self.hold_off(c, verdict, now);
+            self.record(c, verdict, now, events);
         }
         // A lagged channel is computed from its source: it is exactly as good as the source
         // (no event of its own; the source's event names the sensor).
@@ -168,6 +170,70 @@ impl SensorValidator {
                 // shows as NaN and stops the model at evaluation.
                 Some(LagSource::Operating { .. }) => self.health[c] = None,
                 None => {}
+            }
+        }
+    }
+
+    /// A channel that faulted is used again only after `recover_after_s` of sound readings: an
+    /// intermittent fault (a loose contact, NaN every few polls) keeps it out instead of
+    /// toggling the model on and off every cycle.
+    fn hold_off(&mut self, c: usize, verdict: Option<Fault>, now: f64) -> Option<Fault> {
+        let current = self.health[c];
+        match (current, verdict) {
+            (Some(Fault::NeverUpdated), None) | (None, None) => None,
+            (Some(held), None) => {
+                if self.sound_since[c] == NEVER {
+                    self.sound_since[c] = now;
+                }
+                if now - self.sound_since[c] >= self.checks[c].recover_after_s {
+                    None
+                } else {
+                    Some(held)
+                }
+            }
+            (_, Some(fault)) => {
+                self.sound_since[c] = NEVER;
+                Some(fault)
+            }
+        }
+    }
+
+    /// Stores the verdict and raises an event for news: a change between good and faulty, a
+    /// different kind of fault, or a channel still without any reading `max_age_s` after start.
+    fn record(&mut self, c: usize, verdict: Option<Fault>, now: f64, events: &EventQueue) {
+        let previous = self.health[c];
+        let from_start = previous == Some(Fault::NeverUpdated);
+        let transition = match (&previous, &verdict) {
+            (None, Some(_)) | (Some(_), None) => true,
+            // A different kind of fault is news; the same kind with another value is not.
+            (Some(a), Some(b)) => std::mem::discriminant(a) != std::mem::discriminant(b),
+            (None, None) => false,
+        };
+        if transition && verdict.is_some() {
+            self.fault_since[c] = now;
+        }
+        self.health[c] = verdict;
+        let never = verdict == Some(Fault::NeverUpdated)
+            && !self.never_reported[c]
+            && now - self.first_check_s > self.checks[c].max_age_s;
+        if never {
+            self.never_reported[c] = true;
+            events.push(Event {
+                time_s: now,
+                kind: EventKind::SensorFault {
+                    channel: c,
+                    fault: Fault::NeverUpdated,
+                },
+            });
+        }
+        if transition {
+            let kind = match verdict {
+                Some(fault) => EventKind::SensorFault { channel: c, fault },
+                None => EventKind::SensorRecovered { channel: c },
+            };
+            // The first good reading after start-up is not worth an event.
+            if !(from_start && verdict.is_none()) {
+                events.push(Event { time_s: now, kind });
             }
         }
     }
@@ -190,13 +256,25 @@ impl SensorValidator {
         }
         if fresh || self.health[c].is_some() {
             // Against the last good reading, so a spike is caught and the next sound reading
-            // after it is accepted; a genuine fast change is accepted once the average rate
-            // since the last good reading becomes plausible.
-            let dt = stamp - self.last_good_stamp[c];
-            if self.last_good_stamp[c] != NEVER && dt > 0.0 {
-                let rate = (value - self.last_good[c]).abs() / dt;
-                if rate > checks.max_rate_k_per_s {
-                    return Some(Fault::TooFast { rate_k_per_s: rate });
+            // after it is accepted. The change allowed is the plausible rate over the time since
+            // that reading plus the channel's noise band (quantisation steps and noise are no
+            // rate). The time counts from the last *change* (a polled module or a replay
+            // re-delivers a held value every cycle) but at most `RATE_WINDOW_S` of it, so a
+            // long quiet spell does not excuse a jump; time spent in the fault counts in full,
+            // so a genuine level shift is accepted once it has become plausible on average.
+            let last = self.last_good_stamp[c];
+            let dt = stamp - last;
+            if last != NEVER && dt > 0.0 {
+                let in_fault = match self.health[c] {
+                    Some(Fault::TooFast { .. }) => (stamp - self.fault_since[c]).max(0.0),
+                    _ => 0.0,
+                };
+                let credit = dt.min(RATE_WINDOW_S + in_fault);
+                let change = (value - self.last_good[c]).abs();
+                if change > checks.max_rate_k_per_s * credit + checks.noise_k {
+                    return Some(Fault::TooFast {
+                        rate_k_per_s: change / dt,
+                    });
                 }
             }
         }
@@ -218,6 +296,10 @@ impl SensorValidator {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use truepos_io::machine_file::{
+        DEFAULT_MAX_AGE_S, DEFAULT_MAX_RATE_K_PER_MIN, DEFAULT_NOISE_K, DEFAULT_RECOVER_AFTER_S,
+        DEFAULT_STUCK_AFTER_S,
+    };
     use truepos_model::{Axis, AxisKind, Carriage, TemperatureChannel};
 
     fn machine() -> Machine {
@@ -247,12 +329,30 @@ mod tests {
         max_rate_k_per_s: 2.0 / 60.0,
         max_age_s: 10.0,
         stuck_after_s: 300.0,
+        noise_k: 0.5,
+        recover_after_s: 0.0,
+    };
+
+    /// The machine file's defaults.
+    const DEFAULTS: SensorChecks = SensorChecks {
+        max_rate_k_per_s: DEFAULT_MAX_RATE_K_PER_MIN / 60.0,
+        max_age_s: DEFAULT_MAX_AGE_S,
+        stuck_after_s: DEFAULT_STUCK_AFTER_S,
+        noise_k: DEFAULT_NOISE_K,
+        recover_after_s: DEFAULT_RECOVER_AFTER_S,
     };
 
     /// Feeds (time, value, updated?) and returns the verdict after each.
     fn run(samples: &[(f64, f64, bool)]) -> (Vec<Option<Fault>>, Vec<Event>) {
+        run_with(CHECKS, samples)
+    }
+
+    fn run_with(
+        checks: SensorChecks,
+        samples: &[(f64, f64, bool)],
+    ) -> (Vec<Option<Fault>>, Vec<Event>) {
         let m = machine();
-        let mut v = SensorValidator::new(&m, &[CHECKS]);
+        let mut v = SensorValidator::new(&m, &[checks]);
         let q = EventQueue::new(64);
         let mut frame = Frame::new(1, 1, 0);
         let mut out = Vec::new();
@@ -334,5 +434,76 @@ mod tests {
         let (h, _) = run(&samples);
         assert_eq!(h[60], None); // 300 s: not yet more than 300
         assert!(matches!(h[61], Some(Fault::Stuck { .. })));
+    }
+
+    /// Issue 11, case 2: a 0.1 K module flickering between two adjacent levels at a 100 ms poll
+    /// was judged a 60 K/min rate fault (432 faults in 10 s).
+    #[test]
+    fn a_quantisation_flicker_is_no_fault() {
+        let samples: Vec<_> = (0..6000)
+            .map(|i| (i as f64 * 0.1, if i % 2 == 0 { 21.3 } else { 21.4 }, true))
+            .collect();
+        let (h, e) = run_with(DEFAULTS, &samples);
+        assert!(
+            h.iter().all(Option::is_none),
+            "{:?}",
+            h.iter().find(|v| v.is_some())
+        );
+        assert!(e.is_empty(), "{e:?}");
+    }
+
+    /// A genuine jump is still caught with the defaults: 5 K within one poll, also after a
+    /// long quiet spell; once the new level has held long enough to be plausible it is used.
+    #[test]
+    fn a_five_kelvin_step_is_a_fault_and_a_lasting_shift_returns() {
+        let mut samples: Vec<_> = (0..6000).map(|i| (i as f64 * 0.1, 21.3, true)).collect();
+        samples.extend((6000..12000).map(|i| (i as f64 * 0.1, 26.3, true)));
+        let (h, _) = run_with(DEFAULTS, &samples);
+        assert!(
+            matches!(h[6000], Some(Fault::TooFast { .. })),
+            "{:?}",
+            h[6000]
+        );
+        // 5 K = the 3 K band + 2 K/min over 60 s (the 30 s window before the jump and 30 s in
+        // the fault): plausible 30 s after the jump, used after the 2 s hold-off.
+        let back = h.iter().rposition(Option::is_some).unwrap() + 1;
+        let t_back = samples[back].0 - 600.0;
+        assert!((31.9..=32.2).contains(&t_back), "{t_back}");
+    }
+
+    /// An intermittent NaN (every third poll) keeps the channel out instead of toggling it in
+    /// and out every cycle: one fault event, not thousands.
+    #[test]
+    fn an_intermittent_nan_keeps_the_channel_out() {
+        let samples: Vec<_> = (0..600)
+            .map(|i| {
+                (
+                    i as f64 * 0.1,
+                    if i % 3 == 2 { f64::NAN } else { 21.3 },
+                    true,
+                )
+            })
+            .collect();
+        let (h, e) = run_with(DEFAULTS, &samples);
+        assert!(h[2..].iter().all(Option::is_some));
+        assert_eq!(e.len(), 1, "{e:?}");
+        // Sound again: used after the hold-off.
+        let mut samples = samples;
+        samples.extend((600..700).map(|i| (i as f64 * 0.1, 21.3, true)));
+        let (h, e) = run_with(DEFAULTS, &samples);
+        assert_eq!(h[619], Some(Fault::NotANumber));
+        assert_eq!(h[620], None);
+        assert_eq!(e.len(), 2, "{e:?}");
+    }
+
+    /// A channel that never delivers a value raises one event once its staleness limit has
+    /// passed since start.
+    #[test]
+    fn a_channel_that_never_updates_is_reported_once() {
+        let samples: Vec<_> = (0..300).map(|i| (i as f64 * 0.1, 0.0, false)).collect();
+        let (h, e) = run(&samples);
+        assert!(h.iter().all(|v| *v == Some(Fault::NeverUpdated)));
+        assert_eq!(e.len(), 1, "{e:?}");
+        assert!((e[0].time_s - 10.1).abs() < 1e-9, "{}", e[0].time_s);
     }
 }

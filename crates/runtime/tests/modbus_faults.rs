@@ -179,10 +179,7 @@ fn a_silent_server_times_out() {
     assert!(t.elapsed() < Duration::from_secs(2));
     assert_eq!(
         e,
-        ModbusError::Io(format!(
-            "Modbus server {}: waiting for the answer: timed out",
-            server.address
-        ))
+        ModbusError::Io("no answer within 100 ms (timeout)".into())
     );
     assert!(!e.keeps_connection());
 }
@@ -230,9 +227,9 @@ fn the_source_reconnects_after_protocol_errors_and_stays_stale() {
     assert!(frame.temperatures_c[amb].is_nan());
     assert_eq!(frame.temperature_stamp_s[amb], truepos_runtime::NEVER);
     let events = source.link().drain_events();
-    assert!(events
-        .iter()
-        .any(|e| e.kind == LinkEventKind::Lost && e.message == "expected transaction 1, found 2"));
+    assert!(events.iter().any(|e| e.kind == LinkEventKind::Lost
+        && e.message
+            .ends_with("registers 0–0: expected transaction 1, found 2")));
 }
 
 #[test]
@@ -333,10 +330,10 @@ fn reading_allocates_nothing() {
     .is_err()));
     let counted = allocation_counter::measure(|| {
         for _ in 0..10_000 {
-            assert_eq!(
+            assert!(matches!(
                 read(&mut source, &mut frame, epoch),
-                Err(LinkError::Disconnected(String::new()))
-            );
+                Err(LinkError::Disconnected(why)) if !why.is_empty()
+            ));
         }
     });
     assert_eq!(counted.count_total, 0);

@@ -4,7 +4,7 @@ use std::fmt;
 use std::io::Write;
 
 use crate::machine::{Operating, Spot, Twin, AXES};
-use crate::scenario::{check_fault_sensors, Pattern, Phase, Probing, Scenario};
+use crate::scenario::{check_fault_sensors, Pattern, Phase, Probing, Scenario, MAX_SAMPLES};
 use crate::sensor::{normal, Draws, Noise, SensorState};
 
 /// A run that could not start (the scenario does not fit the twin).
@@ -350,6 +350,7 @@ impl Twin {
         seed: u64,
         progress: &mut dyn FnMut(f64),
     ) -> Result<SimRun, SimError> {
+        sc.check_size().map_err(SimError)?;
         let ids: Vec<String> = self.sensors.iter().map(|s| s.id.clone()).collect();
         check_fault_sensors(sc, &ids).map_err(SimError)?;
         for ph in &sc.phases {
@@ -577,6 +578,14 @@ impl Twin {
                     probe_reading,
                     amb_end,
                 );
+                // Probe touches add rows beyond the sampled ones: bound them as well.
+                if run.rows.len() as f64 > 2.0 * MAX_SAMPLES {
+                    return Err(SimError(format!(
+                        "scenario {}: more than {} rows (sampled rows and probe touches); probe less often (probing.every_min)",
+                        sc.name,
+                        2.0 * MAX_SAMPLES
+                    )));
+                }
             }
             if (k + 1) % steps_per_minute == 0 {
                 progress((k + 1) as f64 / total_steps as f64);

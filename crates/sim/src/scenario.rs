@@ -32,6 +32,17 @@ fn builtin_text(name: &str) -> Option<&'static str> {
     })
 }
 
+/// Longest scenario, s: 30 days. A twin day is hours; a month covers soak and drift studies
+/// while bounding the time and memory of a run (and of `truepos run --source twin:`, which
+/// computes the whole run before its first cycle).
+pub const MAX_DURATION_S: f64 = 30.0 * 86_400.0;
+/// Most sampled CSV rows of a run: 30 days at the default 10 s fit. A row holds every sensor,
+/// error and node temperature, about 1 kB in memory, so a run stays near 300 MB at most.
+pub const MAX_SAMPLES: f64 = 300_000.0;
+/// Most integration steps of a run (a day at 0.01 s, 30 days at 0.26 s): seconds of CPU in a
+/// release build, about a minute in a debug one.
+pub const MAX_STEPS: f64 = 10_000_000.0;
+
 /// A bad scenario file: where and what was expected.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ScenarioError {
@@ -418,6 +429,37 @@ impl Scenario {
         self.phases.iter().map(|p| p.duration_s).sum()
     }
 
+    /// Checks the size of a run of this scenario: duration, sampled rows and integration
+    /// steps within [`MAX_DURATION_S`], [`MAX_SAMPLES`] and [`MAX_STEPS`]. [`Scenario::parse`]
+    /// reports the same at the key in the file; this covers scenarios built or changed in code
+    /// (`truepos sim --sample-s`).
+    pub fn check_size(&self) -> Result<(), String> {
+        let d = self.duration_s();
+        if !(d.is_finite() && d <= MAX_DURATION_S) {
+            return Err(format!(
+                "scenario {}: lasts {d} s; expected at most {MAX_DURATION_S} s (30 days)",
+                self.name
+            ));
+        }
+        if !(self.sample_s.is_finite() && self.sample_s > 0.0 && d / self.sample_s <= MAX_SAMPLES) {
+            return Err(format!(
+                "scenario {}: {d} s sampled every {} s gives more than {MAX_SAMPLES} rows; expected sample_s ≥ {} s",
+                self.name,
+                self.sample_s,
+                d / MAX_SAMPLES
+            ));
+        }
+        if !(self.step_s.is_finite() && self.step_s > 0.0 && d / self.step_s <= MAX_STEPS) {
+            return Err(format!(
+                "scenario {}: {d} s in steps of {} s gives more than {MAX_STEPS} steps; expected step_s ≥ {} s",
+                self.name,
+                self.step_s,
+                d / MAX_STEPS
+            ));
+        }
+        Ok(())
+    }
+
     /// Parses and checks a scenario. `file` names it in errors; `travel_mm` (X, Y, Z) bounds
     /// ranges and probe points when given.
     pub fn parse(
@@ -588,6 +630,59 @@ impl<'a> Checker<'a> {
         } else {
             Err(self.err(path, format!("{what} between {lo} and {hi}, got {v}")))
         }
+    }
+
+    /// The bounds of [`Scenario::check_size`], reported at the key that crosses them: the
+    /// phase whose end passes [`MAX_DURATION_S`], else `sample_s` or `step_s`.
+    fn check_size(
+        &self,
+        phases: &[Phase],
+        step_s: f64,
+        sample_s: f64,
+        h: &Head,
+    ) -> Result<(), ScenarioError> {
+        use Seg::{Index as I, Key as K};
+        let mut end_s = 0.0;
+        for (i, p) in phases.iter().enumerate() {
+            end_s += p.duration_s;
+            if end_s > MAX_DURATION_S {
+                return Err(self.err(
+                    &[K("phase"), I(i), K("duration_min")],
+                    format!(
+                        "phases lasting at most {} min (30 days) in all; this one ends at {} min",
+                        MAX_DURATION_S / 60.0,
+                        end_s / 60.0
+                    ),
+                ));
+            }
+        }
+        // Point at the key when it is written, else at the head of the file.
+        let at = |key: &'static str, given: bool| {
+            if given {
+                vec![K("scenario"), K(key)]
+            } else {
+                vec![K("scenario")]
+            }
+        };
+        if end_s / sample_s > MAX_SAMPLES {
+            return Err(self.err(
+                &at("sample_s", h.sample_s.is_some()),
+                format!(
+                    "sample_s ≥ {} s: {end_s} s sampled every {sample_s} s gives more than {MAX_SAMPLES} rows",
+                    end_s / MAX_SAMPLES
+                ),
+            ));
+        }
+        if end_s / step_s > MAX_STEPS {
+            return Err(self.err(
+                &at("step_s", h.step_s.is_some()),
+                format!(
+                    "step_s ≥ {} s: {end_s} s in steps of {step_s} s gives more than {MAX_STEPS} steps",
+                    end_s / MAX_STEPS
+                ),
+            ));
+        }
+        Ok(())
     }
 
     fn axis(&self, path: &[Seg], name: &str) -> Result<usize, ScenarioError> {
@@ -791,6 +886,7 @@ impl<'a> Checker<'a> {
                 motion,
             });
         }
+        self.check_size(&phases, step_s, sample_s, h)?;
         let probing = match &f.probing {
             None => None,
             Some(p) => {
@@ -970,6 +1066,40 @@ mod tests {
             Some([[0.0, 800.0], [0.0, 500.0], [0.0, 500.0]]),
         )
         .unwrap_err()
+    }
+
+    /// Issue 11: a scenario of 10⁹ hours allocated 5.6 GB and aborted; durations, sampled rows
+    /// and steps are bounded, each reported at its key.
+    #[test]
+    fn a_billion_hours_is_refused_at_the_phase_that_crosses_30_days() {
+        let src = "[scenario]\nname = \"a\"\n[[phase]]\nname = \"p\"\nduration_min = 600\n[[phase]]\nname = \"q\"\nduration_min = 6e10\n";
+        let e = err(src);
+        assert_eq!(
+            (e.line, e.key.as_str()),
+            (8, "phase[1].duration_min"),
+            "{e}"
+        );
+        assert!(e.expected.contains("at most 43200 min (30 days)"), "{e}");
+    }
+
+    #[test]
+    fn too_many_rows_or_steps_are_refused_at_sample_s_and_step_s() {
+        let month = "[[phase]]\nname = \"p\"\nduration_min = 43200\n";
+        // 30 days at the default 10 s and 1 s step: allowed.
+        let ok = format!("[scenario]\nname = \"a\"\n{month}");
+        let sc = Scenario::parse(&ok, "ok.toml", None).unwrap();
+        assert!(sc.check_size().is_ok());
+        let e = err(&format!("[scenario]\nname = \"a\"\nsample_s = 1\n{month}"));
+        assert_eq!((e.line, e.key.as_str()), (3, "scenario.sample_s"), "{e}");
+        assert!(e.expected.contains("300000 rows"), "{e}");
+        let e = err(&format!(
+            "[scenario]\nname = \"a\"\nstep_s = 0.01\nsample_s = 10\n{month}"
+        ));
+        assert_eq!((e.line, e.key.as_str()), (3, "scenario.step_s"), "{e}");
+        // Changed in code (`truepos sim --sample-s`): the run refuses it too.
+        let mut fine = sc;
+        fine.sample_s = 1.0;
+        assert!(fine.check_size().unwrap_err().contains("300000 rows"));
     }
 
     #[test]

@@ -1,0 +1,557 @@
+//! The fault campaign: random fault schedules over thousands of cycles, with the output
+//! invariant (ARCHITECTURE.md, "The output invariant") checked on every axis and every cycle
+//! against an independent reference — the models evaluated by the test on the inputs it
+//! delivered, and a blend reconstructed from the path states the service reports.
+//!
+//! The number of schedules follows `PROPTEST_CASES` (256 by default; the README's test command
+//! runs 10 000 in a release build).
+
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
+
+use proptest::prelude::*;
+use truepos_io::{cycles, machine_file, model_file};
+use truepos_model::{CycleInput, Model};
+use truepos_runtime::model_set::ModelEntry;
+use truepos_runtime::*;
+
+fn repo(path: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../..")
+        .join(path)
+}
+
+fn vmc() -> machine_file::MachineFile {
+    machine_file::load(&repo("examples/vmc3/machine.toml")).unwrap()
+}
+
+/// The example model and a fallback without its spindle part (no spindle sensors), both for
+/// the machine's one path.
+fn models(machine: &machine_file::MachineFile) -> Vec<ModelEntry> {
+    let full = model_file::load(&repo("examples/vmc3/model.toml"), &machine.machine).unwrap();
+    let parts = full.parts()[..1].to_vec();
+    let fallback = Model::new("structure-only", &machine.machine, parts).unwrap();
+    vec![
+        ModelEntry {
+            name: "full".into(),
+            model: full.into(),
+            index: [101, 102, 103],
+        },
+        ModelEntry {
+            name: "structure-only".into(),
+            model: fallback.into(),
+            index: [101, 102, 103],
+        },
+    ]
+}
+
+/// What the test delivers in one cycle.
+#[derive(Debug, Clone, Default)]
+struct Delivery {
+    /// Per temperature channel: `Some(value)` if delivered (stamped) this cycle.
+    temperatures: Vec<Option<f64>>,
+    /// Per axis: `Some(position)` if delivered this cycle.
+    positions: Vec<Option<f64>>,
+    /// The control's axis configuration of path 1.
+    path: Vec<usize>,
+    /// The source fails this cycle (and delivers nothing).
+    lost: bool,
+}
+
+struct ScriptedSource {
+    next: Arc<Mutex<Delivery>>,
+}
+
+impl Source for ScriptedSource {
+    fn name(&self) -> &str {
+        "scripted"
+    }
+    fn read(&mut self, frame: &mut Frame) -> Result<(), LinkError> {
+        let d = self.next.lock().unwrap();
+        if d.lost {
+            return Err(LinkError::Disconnected("scripted loss".into()));
+        }
+        for (c, v) in d.temperatures.iter().enumerate() {
+            if let Some(v) = v {
+                frame.set_temperature(c, *v);
+            }
+        }
+        for (a, p) in d.positions.iter().enumerate() {
+            if let Some(p) = p {
+                frame.set_position(a, *p);
+            }
+        }
+        frame.paths = vec![d.path.clone()];
+        Ok(())
+    }
+}
+
+/// One kind of fault, applied for an episode of cycles.
+#[derive(Debug, Clone, Copy)]
+enum FaultKind {
+    Nan(usize),
+    OutOfRange(usize, f64),
+    Spike(usize, f64),
+    /// Alternates ±0.1 K around the true value (a quantisation flicker).
+    Flicker(usize),
+    /// Not delivered at all.
+    Stale(usize),
+    /// Delivered, but frozen at the value when the episode began.
+    Stuck(usize),
+    /// NaN every `k`-th cycle.
+    Intermittent(usize, usize),
+    SourceLost,
+    PositionNan(usize),
+    PositionStale,
+    PreferFallback,
+    Disabled,
+    /// Z leaves the path (parked or handed over).
+    AxisOut,
+}
+
+#[derive(Debug, Clone, Copy)]
+struct Episode {
+    start: usize,
+    len: usize,
+    kind: FaultKind,
+}
+
+#[derive(Debug, Clone)]
+struct Schedule {
+    cycles: usize,
+    dt: f64,
+    /// Per temperature channel: rise in K and time constant in s of a warm-up.
+    warmup: Vec<(f64, f64)>,
+    /// Per axis: sweep frequency in Hz and phase.
+    sweep: Vec<(f64, f64)>,
+    episodes: Vec<Episode>,
+}
+
+fn fault_kind(n_t: usize) -> impl Strategy<Value = FaultKind> {
+    let ch = 0..n_t;
+    prop_oneof![
+        ch.clone().prop_map(FaultKind::Nan),
+        (
+            ch.clone(),
+            prop_oneof![Just(850.0), Just(-40.0), Just(61.0)]
+        )
+            .prop_map(|(c, v)| FaultKind::OutOfRange(c, v)),
+        (ch.clone(), -8.0..8.0f64).prop_map(|(c, k)| FaultKind::Spike(c, k)),
+        ch.clone().prop_map(FaultKind::Flicker),
+        ch.clone().prop_map(FaultKind::Stale),
+        ch.clone().prop_map(FaultKind::Stuck),
+        (ch, 2usize..12).prop_map(|(c, k)| FaultKind::Intermittent(c, k)),
+        Just(FaultKind::SourceLost),
+        (0usize..3).prop_map(FaultKind::PositionNan),
+        Just(FaultKind::PositionStale),
+        Just(FaultKind::PreferFallback),
+        Just(FaultKind::Disabled),
+        Just(FaultKind::AxisOut),
+    ]
+}
+
+fn schedule(n_t: usize) -> impl Strategy<Value = Schedule> {
+    (
+        1000usize..3000,
+        prop_oneof![Just(0.001), Just(0.01), Just(0.1), Just(0.5)],
+        proptest::collection::vec((0.0..8.0f64, 60.0..3600.0f64), n_t),
+        proptest::collection::vec((0.001..0.5f64, 0.0..6.3f64), 3),
+        proptest::collection::vec((0usize..3000, 1usize..800, fault_kind(n_t)), 0..12),
+    )
+        .prop_map(|(cycles, dt, warmup, sweep, eps)| Schedule {
+            cycles,
+            dt,
+            warmup,
+            sweep,
+            episodes: eps
+                .into_iter()
+                .map(|(start, len, kind)| Episode { start, len, kind })
+                .collect(),
+        })
+}
+
+/// The inputs of cycle `i` without faults.
+fn clean_inputs(s: &Schedule, travel: &[(f64, f64)], t: f64) -> (Vec<f64>, Vec<f64>) {
+    let temps = s
+        .warmup
+        .iter()
+        .map(|&(rise, tau)| 20.0 + rise * (1.0 - (-t / tau).exp()))
+        .collect();
+    let positions = s
+        .sweep
+        .iter()
+        .zip(travel)
+        .map(|(&(f, ph), &(lo, hi))| {
+            lo + (hi - lo) * 0.5 * (1.0 + (std::f64::consts::TAU * f * t + ph).sin())
+        })
+        .collect();
+    (temps, positions)
+}
+
+/// Where an axis' target comes from, as the test reconstructs it from what it observes.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Origin {
+    Zero,
+    Model(usize),
+    Hold,
+}
+
+/// The test's own account of one axis.
+#[derive(Debug, Clone, Copy)]
+struct AxisTrack {
+    origin: Origin,
+    /// The output when the origin last changed, and when.
+    from: f64,
+    since: f64,
+}
+
+struct Campaign {
+    service: Service,
+    next: Arc<Mutex<Delivery>>,
+    reference: Vec<Model>,
+    limits: Vec<machine_file::AxisRuntime>,
+    ranges: Vec<(f64, f64)>,
+    config: ServiceConfig,
+    tracks: Vec<AxisTrack>,
+    /// The values the frame holds: the last delivered per channel.
+    held_t: Vec<f64>,
+    held_p: Vec<f64>,
+    /// Operating channels: never delivered (the static models do not read them).
+    operating: Vec<f64>,
+    /// The axis configuration the frame holds (a lost source does not change it).
+    held_path: Vec<usize>,
+    prev_out: Vec<f64>,
+    prev_time: f64,
+}
+
+impl Campaign {
+    fn new(config: ServiceConfig) -> Self {
+        let machine = vmc();
+        let entries = models(&machine);
+        let reference = entries
+            .iter()
+            .map(|e| e.model.as_static().unwrap().clone())
+            .collect();
+        let next = Arc::new(Mutex::new(Delivery::default()));
+        let source = ScriptedSource {
+            next: Arc::clone(&next),
+        };
+        let n_t = machine.machine.temperatures.len();
+        let n_a = machine.machine.axes.len();
+        let n_o = machine.machine.operating.len();
+        let limits = machine.axis_runtime.clone();
+        let ranges = machine
+            .machine
+            .temperatures
+            .iter()
+            .map(|t| (t.valid_min_c, t.valid_max_c))
+            .collect();
+        let service = Service::new(
+            machine,
+            entries,
+            vec![Box::new(source)],
+            vec![],
+            config.clone(),
+        );
+        Self {
+            service,
+            next,
+            reference,
+            limits,
+            ranges,
+            config,
+            tracks: vec![
+                AxisTrack {
+                    origin: Origin::Zero,
+                    from: 0.0,
+                    since: 0.0,
+                };
+                n_a
+            ],
+            held_t: vec![f64::NAN; n_t],
+            held_p: vec![f64::NAN; n_a],
+            operating: vec![f64::NAN; n_o],
+            held_path: (0..n_a).collect(),
+            prev_out: vec![0.0; n_a],
+            prev_time: f64::NAN,
+        }
+    }
+
+    /// Runs one cycle with `delivery` and checks the invariant; returns the output.
+    fn step(&mut self, t: f64, delivery: Delivery) -> Result<Output, TestCaseError> {
+        if !delivery.lost {
+            for (h, d) in self.held_t.iter_mut().zip(&delivery.temperatures) {
+                if let Some(v) = d {
+                    *h = *v;
+                }
+            }
+            for (h, d) in self.held_p.iter_mut().zip(&delivery.positions) {
+                if let Some(v) = d {
+                    *h = *v;
+                }
+            }
+        }
+        if !delivery.lost {
+            self.held_path.clone_from(&delivery.path);
+        }
+        let path = self.held_path.clone();
+        *self.next.lock().unwrap() = delivery;
+        let out = *self.service.cycle(t);
+        let state = self.service.path_states()[0];
+        let dt = if self.prev_time.is_nan() {
+            0.0
+        } else {
+            t - self.prev_time
+        };
+        let reference = match state {
+            PathState::Model(m) => Some(self.check_model_inputs(m, t)?),
+            _ => None,
+        };
+        for a in 0..self.tracks.len() {
+            let origin = if !path.contains(&a) {
+                Origin::Zero
+            } else {
+                match state {
+                    PathState::Model(m) => Origin::Model(m),
+                    PathState::Holding => Origin::Hold,
+                    PathState::NoModel | PathState::Disabled => Origin::Zero,
+                }
+            };
+            let tr = &mut self.tracks[a];
+            if origin != tr.origin {
+                *tr = AxisTrack {
+                    origin,
+                    from: self.prev_out[a],
+                    since: t,
+                };
+            }
+            let target = match origin {
+                Origin::Zero => 0.0,
+                Origin::Model(_) => reference.as_ref().unwrap()[a],
+                Origin::Hold => {
+                    let left = if self.config.hold_ramp_s > 0.0 {
+                        (1.0 - (t - tr.since) / self.config.hold_ramp_s).clamp(0.0, 1.0)
+                    } else {
+                        0.0
+                    };
+                    tr.from * left
+                }
+            };
+            let o = out.offset_um[a];
+            let prev = self.prev_out[a];
+            let lim = self.limits[a];
+            let eps = 1e-9 * (1.0 + o.abs());
+            prop_assert!(o.is_finite(), "t {t} axis {a}: output {o}");
+            prop_assert!(o.abs() <= lim.max_offset_um + eps, "t {t} axis {a}: {o}");
+            prop_assert!(
+                (o - prev).abs() <= lim.max_rate_um_per_s * dt + eps,
+                "t {t} axis {a}: step {} in {dt} s",
+                o - prev
+            );
+            // The output moves from where it was towards a value between the output it left
+            // (at the latest change of origin) and its current target, never beyond.
+            let lo = prev.min(tr.from).min(target) - eps;
+            let hi = prev.max(tr.from).max(target) + eps;
+            prop_assert!(
+                (lo..=hi).contains(&o),
+                "t {t} axis {a}: output {o} outside [{lo}, {hi}] (prev {prev}, from {}, target {target}, origin {:?} since {})",
+                tr.from,
+                tr.origin,
+                tr.since
+            );
+            // Active, blend over and no clamp binding: exactly the model's value.
+            let settled = t - tr.since >= self.config.blend_s;
+            let free = (o - prev).abs() < lim.max_rate_um_per_s * dt - eps
+                && o.abs() < lim.max_offset_um - eps;
+            if matches!(origin, Origin::Model(_)) && settled && free {
+                prop_assert!(
+                    (o - target).abs() <= eps,
+                    "t {t} axis {a}: active output {o} but model {target}"
+                );
+            }
+        }
+        self.prev_out.copy_from_slice(out.offsets());
+        self.prev_time = t;
+        Ok(out)
+    }
+
+    /// A path reported active uses a model whose inputs, as delivered, are numbers within their
+    /// valid range and whose positions are usable; returns the reference compensation.
+    fn check_model_inputs(&self, m: usize, t: f64) -> Result<Vec<f64>, TestCaseError> {
+        let model = &self.reference[m];
+        for &c in model.used_sensors() {
+            let v = self.held_t[c];
+            let (lo, hi) = self.ranges[c];
+            prop_assert!(
+                v.is_finite() && (lo..=hi).contains(&v),
+                "t {t}: active on model {m} while sensor {c} reads {v}"
+            );
+        }
+        prop_assert!(
+            self.held_p.iter().all(|p| p.is_finite()),
+            "t {t}: active with positions {:?}",
+            self.held_p
+        );
+        let c = model
+            .evaluate(&CycleInput {
+                temperatures_c: &self.held_t,
+                positions: &self.held_p,
+                operating: &self.operating,
+            })
+            .map_err(|e| TestCaseError::fail(format!("t {t}: active but the model fails: {e}")))?;
+        Ok((0..self.held_p.len())
+            .map(|a| c.compensation_um(a))
+            .collect())
+    }
+}
+
+fn run_schedule(s: &Schedule) -> Result<(), TestCaseError> {
+    let config = ServiceConfig {
+        blend_s: 2.0,
+        hold_ramp_s: 30.0,
+        ..ServiceConfig::default()
+    };
+    let mut c = Campaign::new(config);
+    let travel: Vec<(f64, f64)> = vmc()
+        .machine
+        .axes
+        .iter()
+        .map(|a| (a.travel_min, a.travel_max))
+        .collect();
+    let mut frozen: Vec<Option<f64>> = vec![None; s.warmup.len()];
+    let mut enabled = true;
+    let mut preferred = None;
+    for i in 0..s.cycles {
+        let t = i as f64 * s.dt;
+        let (temps, positions) = clean_inputs(s, &travel, t);
+        let mut d = Delivery {
+            temperatures: temps.iter().map(|&v| Some(v)).collect(),
+            positions: positions.iter().map(|&p| Some(p)).collect(),
+            path: vec![0, 1, 2],
+            lost: false,
+        };
+        let mut want_enabled = true;
+        let mut want_pref = None;
+        for e in &s.episodes {
+            let active = i >= e.start && i < e.start + e.len;
+            if let FaultKind::Stuck(ch) = e.kind {
+                if i == e.start {
+                    frozen[ch] = Some(temps[ch]);
+                } else if i == e.start + e.len {
+                    frozen[ch] = None;
+                }
+            }
+            if !active {
+                continue;
+            }
+            apply_fault(e, i, &temps, &frozen, &mut d);
+            match e.kind {
+                FaultKind::Disabled => want_enabled = false,
+                FaultKind::PreferFallback => want_pref = Some(1),
+                _ => {}
+            }
+        }
+        if want_enabled != enabled {
+            c.service.set_enabled(want_enabled);
+            enabled = want_enabled;
+        }
+        if want_pref != preferred {
+            c.service.prefer_model(0, want_pref);
+            preferred = want_pref;
+        }
+        c.step(t, d)?;
+    }
+    Ok(())
+}
+
+fn apply_fault(e: &Episode, i: usize, temps: &[f64], frozen: &[Option<f64>], d: &mut Delivery) {
+    match e.kind {
+        FaultKind::Nan(ch) => d.temperatures[ch] = Some(f64::NAN),
+        FaultKind::OutOfRange(ch, v) => d.temperatures[ch] = Some(v),
+        FaultKind::Spike(ch, k) if i == e.start => d.temperatures[ch] = Some(temps[ch] + k),
+        FaultKind::Spike(..) => {}
+        FaultKind::Flicker(ch) => {
+            let s = if i.is_multiple_of(2) { 0.1 } else { -0.1 };
+            d.temperatures[ch] = Some(((temps[ch] + s) * 10.0).round() / 10.0);
+        }
+        FaultKind::Stale(ch) => d.temperatures[ch] = None,
+        FaultKind::Stuck(ch) => d.temperatures[ch] = frozen[ch].or(Some(temps[ch])),
+        FaultKind::Intermittent(ch, k) if (i - e.start).is_multiple_of(k) => {
+            d.temperatures[ch] = Some(f64::NAN)
+        }
+        FaultKind::Intermittent(..) => {}
+        FaultKind::SourceLost => d.lost = true,
+        FaultKind::PositionNan(a) => d.positions[a] = Some(f64::NAN),
+        FaultKind::PositionStale => d.positions.iter_mut().for_each(|p| *p = None),
+        FaultKind::AxisOut => d.path = vec![0, 1],
+        FaultKind::PreferFallback | FaultKind::Disabled => {}
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig {
+        // The count comes from PROPTEST_CASES; shrinking a 3000-cycle schedule is slow and its
+        // first failure is already readable.
+        max_shrink_iters: 64,
+        failure_persistence: None,
+        ..ProptestConfig::default()
+    })]
+
+    /// The output invariant holds on every axis and cycle of every random fault schedule.
+    #[test]
+    fn the_output_invariant_holds_under_random_faults(s in schedule(vmc().machine.temperatures.len())) {
+        run_schedule(&s)?;
+    }
+}
+
+/// Issue 11, case 1: the example run from the warm machine (3 h in) at 10 Hz with
+/// `x_slide_top` NaN on every third cycle. The output used to run away to the envelope's
+/// 100 µm (X +97.96 µm where the model gave −17.28 µm) while the state read `active`.
+#[test]
+fn an_intermittent_nan_does_not_run_the_output_away() {
+    let machine = vmc();
+    let run = cycles::load(&repo("examples/vmc3/run.csv"), &machine.machine, &[]).unwrap();
+    let mut c = Campaign::new(ServiceConfig::default());
+    let start = run.time_s.iter().position(|&t| t >= 3.0 * 3600.0).unwrap();
+    let (mut lo, mut hi) = ([0.0f64; 3], [0.0f64; 3]);
+    let mut t = 0.0;
+    let mut i = 0usize;
+    // Ten minutes at 10 Hz, each recorded row (60 s apart) held until the next.
+    while t < 600.0 {
+        let row = (start + (t / 60.0) as usize).min(run.time_s.len() - 1);
+        let mut temps: Vec<Option<f64>> =
+            run.temperatures_c[row].iter().map(|&v| Some(v)).collect();
+        if i % 3 == 2 {
+            temps[0] = Some(f64::NAN);
+        }
+        let d = Delivery {
+            temperatures: temps,
+            positions: run.positions[row].iter().map(|&p| Some(p)).collect(),
+            path: vec![0, 1, 2],
+            lost: false,
+        };
+        let model = c.reference[0]
+            .evaluate(&CycleInput {
+                temperatures_c: &run.temperatures_c[row],
+                positions: &run.positions[row],
+                operating: &run.operating[row],
+            })
+            .unwrap();
+        for a in 0..3 {
+            lo[a] = lo[a].min(model.compensation_um(a));
+            hi[a] = hi[a].max(model.compensation_um(a));
+        }
+        let out = c.step(t, d).map_err(|e| e.to_string()).unwrap();
+        for a in 0..3 {
+            let o = out.offset_um[a];
+            assert!(
+                o >= lo[a] - 1e-9 && o <= hi[a] + 1e-9,
+                "t {t} axis {a}: {o} µm outside the model's range [{}, {}]",
+                lo[a],
+                hi[a]
+            );
+        }
+        t += 0.1;
+        i += 1;
+    }
+}
