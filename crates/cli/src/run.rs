@@ -492,8 +492,15 @@ fn status(service: &Service, models: &[String], took_us: u32) -> String {
         .collect();
     let health = service.validator().health();
     let good = health.iter().filter(|h| h.is_none()).count();
+    let lost: String = (0..service.source_count())
+        .filter_map(|i| {
+            service
+                .source_reason(i)
+                .map(|r| format!(" | source {i} lost: {r}"))
+        })
+        .collect();
     format!(
-        "t {:.1} s | cycle {took_us} µs | {} µm | {} | sensors {good}/{} ok | {}",
+        "t {:.1} s | cycle {took_us} µs | {} µm | {} | sensors {good}/{} ok | {}{lost}",
         out.time_s,
         offsets.join(" "),
         paths.join(", "),
@@ -595,7 +602,7 @@ pub fn show_status(args: StatusArgs) -> Result<(), String> {
     Ok(())
 }
 
-/// Sinks failing at the last event, and failures of the log itself: (what, why).
+/// Sources lost and sinks failing at the last event, and failures of the log itself: (what, why).
 fn link_faults(events: &[log::LoggedEvent]) -> Vec<(String, String)> {
     let mut out: Vec<(String, String)> = Vec::new();
     let mut log_failed = None;
@@ -607,6 +614,13 @@ fn link_faults(events: &[log::LoggedEvent]) -> Vec<(String, String)> {
                 if e.kind == "sink-failed" {
                     let why = format!("FAILING since {:.1} s: {}", e.time_s, e.detail);
                     out.push((what, why));
+                }
+            }
+            "source-lost" | "source-back" => {
+                let what = format!("source `{}`", e.subject);
+                out.retain(|(w, _)| w != &what);
+                if e.kind == "source-lost" {
+                    out.push((what, format!("LOST since {:.1} s: {}", e.time_s, e.detail)));
                 }
             }
             "log-failed" => log_failed = Some(e),

@@ -145,6 +145,11 @@ fn status_does_not_call_sensors_good_that_never_delivered() {
         text.contains("sensor ambient: no value in the last logged cycle"),
         "{text}"
     );
+    // The reason the source delivers nothing reaches the status.
+    assert!(
+        text.contains("LOST since") && text.contains("refused"),
+        "{text}"
+    );
     let json = truepos()
         .args(["status", "--json", "--log"])
         .arg(&db)

@@ -222,6 +222,11 @@ impl Service {
         }
     }
 
+    /// Number of sources.
+    pub fn source_count(&self) -> usize {
+        self.sources.len()
+    }
+
     /// Why source `i` does not deliver, as its latest `SourceLost` event said; `None` while it
     /// delivers (or for an index out of range). For the status line.
     pub fn source_reason(&self, i: usize) -> Option<&str> {
