@@ -14,6 +14,9 @@ use truepos_model::MAX_AXES;
 
 use crate::events::{Event, EventKind, EventQueue};
 
+/// Time in s without clamping after which an axis' clamp counts as released.
+pub const CLAMP_RELEASE_S: f64 = 1.0;
+
 /// Per-axis blending and clamping state.
 #[derive(Debug, Clone)]
 pub struct Envelope {
@@ -25,6 +28,8 @@ pub struct Envelope {
     blend_s: [f64; MAX_AXES],
     blending: [bool; MAX_AXES],
     clamping: [bool; MAX_AXES],
+    /// Service time of the latest clamped cycle per axis.
+    clamp_seen_s: [f64; MAX_AXES],
     last_time: f64,
     started: bool,
 }
@@ -40,6 +45,7 @@ impl Envelope {
             blend_s: [0.0; MAX_AXES],
             blending: [false; MAX_AXES],
             clamping: [false; MAX_AXES],
+            clamp_seen_s: [f64::NEG_INFINITY; MAX_AXES],
             last_time: 0.0,
             started: false,
         }
@@ -130,7 +136,13 @@ impl Envelope {
                 clamped_abs = true;
             }
             let clamped = clamped_rate || clamped_abs;
-            if clamped != self.clamping[a] {
+            if clamped {
+                self.clamp_seen_s[a] = now_s;
+            }
+            // Released only after a quiet second: an output held at its rate limit every other
+            // cycle (an input flickering between two levels) is one clamp, not thousands.
+            let report = clamped || now_s - self.clamp_seen_s[a] >= CLAMP_RELEASE_S;
+            if report && clamped != self.clamping[a] {
                 let kind = if clamped {
                     EventKind::Clamped {
                         axis: a,
@@ -239,6 +251,30 @@ mod tests {
         }
         assert_eq!(e.blend_origin(0), None);
         assert_eq!(out[0], -10.0);
+    }
+
+    #[test]
+    fn a_clamp_every_other_cycle_is_one_event() {
+        // A target flickering by ±1 µm at 1 kHz: the 50 µm/s limit (0.05 µm per cycle) binds
+        // on every cycle that moves; one clamp event, released a quiet second after it ends.
+        let q = EventQueue::new(16);
+        let mut e = Envelope::new(&[LIMIT]);
+        let mut out = [0.0];
+        for k in 0..4000 {
+            let target = if k < 2000 && k % 2 == 1 { 1.0 } else { 0.0 };
+            e.apply(&[target], k as f64 * 0.001, &mut out, &q);
+        }
+        let kinds: Vec<_> = std::iter::from_fn(|| q.pop()).map(|e| e.kind).collect();
+        assert_eq!(
+            kinds,
+            vec![
+                EventKind::Clamped {
+                    axis: 0,
+                    rate: true
+                },
+                EventKind::ClampReleased { axis: 0 }
+            ]
+        );
     }
 
     #[test]

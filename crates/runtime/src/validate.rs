@@ -231,8 +231,9 @@ impl SensorValidator {
                 Some(fault) => EventKind::SensorFault { channel: c, fault },
                 None => EventKind::SensorRecovered { channel: c },
             };
-            // The first good reading after start-up is not worth an event.
-            if !(from_start && verdict.is_none()) {
+            // The first good reading after start-up is not worth an event, unless the channel
+            // was reported as never delivering.
+            if !(from_start && verdict.is_none() && !self.never_reported[c]) {
                 events.push(Event { time_s: now, kind });
             }
         }
@@ -505,5 +506,14 @@ mod tests {
         assert!(h.iter().all(|v| *v == Some(Fault::NeverUpdated)));
         assert_eq!(e.len(), 1, "{e:?}");
         assert!((e[0].time_s - 10.1).abs() < 1e-9, "{}", e[0].time_s);
+        // Its first value is news then.
+        let mut samples = samples;
+        samples.push((30.0, 21.0, true));
+        let (h, e) = run(&samples);
+        assert_eq!(h[300], None);
+        assert!(
+            matches!(e[1].kind, EventKind::SensorRecovered { channel: 0 }),
+            "{e:?}"
+        );
     }
 }
