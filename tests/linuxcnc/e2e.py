@@ -6,11 +6,15 @@ component plays examples/vmc3/run.csv (time-compressed) into the truepos.temp.* 
 it injects a sensor fault (x_slide_bottom reads 200 degC, outside its valid range, for 4 s), a
 model switch (truepos.model-select 0 -> 1) and an axis switch (Z leaves path 1 for 8 s:
 truepos.axis.z.path 1 -> 0 -> 1, so seed D's rule selects model_c.toml, which serves X and Y alone,
-and back). Two halsampler processes record every servo cycle
+and back). Two faults are injected in the servo thread (vmc3.hal.in: a `streamer` fed by
+halstreamer drives two `mux2`): x_slide_top reads NaN on every third servo cycle for 2 s (an
+intermittent fault) and y_slide_bottom alternates between two adjacent 0.1 K levels on every
+servo cycle for 4 s (a quantisation flicker). Two halsampler processes record every servo cycle
 into OUT/motion.txt and OUT/temperatures.txt for `truepos-hal check`. Exits non-zero on any
 failure; LinuxCNC then shuts down (and sends SIGTERM to truepos-hal).
 """
 import configparser
+import math
 import csv
 import os
 import subprocess
@@ -53,9 +57,14 @@ def temperatures_at(run_s):
     return [float(r[t]) for t in temp_ids]
 
 
+# The injected sensors: the NaN goes through mux tp-inject-nan, the flicker's upper level
+# (twin pin FLICKER_up) through tp-inject-flicker; truepos and the sampler read the mux outputs.
+NAN_ID, FLICKER_ID = "x_slide_top", "y_slide_bottom"
+INJECT = {NAN_ID: "tp-inject-nan", FLICKER_ID: "tp-inject-flicker"}
 twin = hal.component("twin")
 for t in temp_ids:
     twin.newpin(t, hal.HAL_FLOAT, hal.HAL_OUT)
+twin.newpin(FLICKER_ID + "_up", hal.HAL_FLOAT, hal.HAL_OUT)
 twin.ready()
 # The signal carries the twin's value before truepos's pin joins it, so that truepos never sees
 # a made-up value (its unconnected pins read NaN, a fault it reports and recovers from).
@@ -65,10 +74,21 @@ for k, (t, v) in enumerate(zip(temp_ids, start_temps)):
     hal.new_sig(sig, hal.HAL_FLOAT)
     hal.connect(f"twin.{t}", sig)
     twin[t] = v
+    if t in INJECT:
+        hal.connect(f"{INJECT[t]}.in0", sig)
+        if t == FLICKER_ID:
+            hal.new_sig("tp-t-flicker-up", hal.HAL_FLOAT)
+            hal.connect(f"twin.{t}_up", "tp-t-flicker-up")
+            twin[t + "_up"] = v
+            hal.connect(f"{INJECT[t]}.in1", "tp-t-flicker-up")
+        sig = f"tp-tin-{t}"
+        hal.new_sig(sig, hal.HAL_FLOAT)
+        hal.connect(f"{INJECT[t]}.out", sig)
+        time.sleep(0.05)  # the servo thread runs the mux: its output carries the twin's value
     hal.connect(f"truepos.temp.{t}", sig)
     hal.connect(f"sampler.1.pin.{k}", sig)
 
-fault = {"on": False}
+fault = {"on": False, "flicker": False}
 play = {"t0": None, "stop": False}
 
 
@@ -78,6 +98,12 @@ def feeder():
         if t0 is not None:
             run_s = FROM_S + (time.time() - t0) / PLAY_S * (TO_S - FROM_S)
             for t, v in zip(temp_ids, temperatures_at(min(run_s, TO_S))):
+                if t == FLICKER_ID:
+                    # While flickering: the lower of two adjacent 0.1 K levels, and the upper
+                    # one for the mux, which the streamer selects on every other servo cycle.
+                    lower = math.floor(v * 10.0) / 10.0 if fault["flicker"] else v
+                    twin[t + "_up"] = lower + 0.1 if fault["flicker"] else v
+                    v = lower
                 twin[t] = 200.0 if (fault["on"] and t == "x_slide_bottom") else v
         time.sleep(0.005)
 
@@ -110,6 +136,29 @@ def halcmd(*args):
     subprocess.run(["halcmd", *args], check=True)
 
 
+streamers = []
+
+
+def stream(rows):
+    """Feeds rows of streamer.0 (bit 0: x_slide_top NaN, bit 1: y_slide_bottom upper level), one
+    per servo cycle, ending with 0 0 (the streamer keeps the last row once its FIFO is empty)."""
+    p = subprocess.Popen(["halstreamer", "-c", "0"], stdin=subprocess.PIPE, text=True)
+    p.stdin.write("".join(f"{a} {b}\n" for a, b in rows) + "0 0\n")
+    p.stdin.close()
+    streamers.append(p)
+
+
+def intermittent_nan():
+    stream([(1 if k % 3 == 2 else 0, 0) for k in range(2000)])  # NaN every third cycle, 2 s
+
+
+def flicker(on):
+    fault.update(flicker=on)
+    if on:
+        time.sleep(0.02)  # the feeder has written both levels
+        stream([(0, k % 2) for k in range(4000)])  # lower, upper, lower, … for 4 s
+
+
 failed = False
 samplers = []
 try:
@@ -139,6 +188,9 @@ try:
     events = [
         (18.0, "fault on", lambda: fault.update(on=True)),
         (22.0, "fault off", lambda: fault.update(on=False)),
+        (26.0, "x_slide_top NaN every third servo cycle for 2 s", intermittent_nan),
+        (31.0, "y_slide_bottom 0.1 K flicker for 4 s", lambda: flicker(True)),
+        (35.5, "flicker over", lambda: flicker(False)),
         (40.0, "switch to model 1", lambda: halcmd("sets", "tp-select", "1")),
         (46.0, "Z leaves path 1", lambda: halcmd("sets", "tp-z-path", "0")),
         (54.0, "Z back in path 1", lambda: halcmd("sets", "tp-z-path", "1")),
@@ -161,6 +213,10 @@ try:
     log(f"program finished after {time.time() - started:.1f} s; events left: {len(events)}")
     if events:
         failed = True
+    for p in streamers:
+        if p.wait(5) != 0:
+            log(f"halstreamer exited with {p.returncode}")
+            failed = True
     time.sleep(2.0)
 except SystemExit as e:
     print(e, flush=True)

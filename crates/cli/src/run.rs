@@ -316,6 +316,10 @@ pub fn run(args: RunArgs) -> Result<(), String> {
         }
         let t0 = Instant::now();
         service.cycle(now_s);
+        // Nothing computed from here on would reach the axes, nor could it resume bumplessly.
+        if service.axes_unreachable().is_some() {
+            break;
+        }
         let took = t0.elapsed().as_micros().min(u32::MAX as u128) as u32;
         if timing.samples.len() < timing.samples.capacity() {
             timing.samples.push(took);
@@ -335,6 +339,7 @@ pub fn run(args: RunArgs) -> Result<(), String> {
         if now_s >= next_status {
             next_status += 1.0;
             last_status = status(&service, &model_names, took);
+            last_status += &faults_status(&service, logger.as_ref().map(Logger::health));
             if status_line {
                 eprint!("\r{last_status}\x1b[K");
                 let _ = std::io::stderr().flush();
@@ -349,9 +354,7 @@ pub fn run(args: RunArgs) -> Result<(), String> {
         (Some(a), Some(b)) if wall_s > 0.0 => Some(100.0 * (b - a) / wall_s),
         _ => None,
     };
-    if let Some(l) = logger {
-        l.stop().map_err(|e| e.to_string())?;
-    }
+    let failures = run_failures(&service, logger.map(Logger::stop_with_health));
     let out = *service.output();
     let p50 = timing.percentile(0.5);
     let p99 = timing.percentile(0.99);
@@ -376,6 +379,7 @@ pub fn run(args: RunArgs) -> Result<(), String> {
             "state": state_name(out.state),
             "offsets_um": axis_names.iter().zip(out.offsets()).map(|(a, v)| (a.clone(), serde_json::Value::from(*v))).collect::<serde_json::Map<_, _>>(),
             "log_records_dropped": service.records_dropped(),
+            "failures": failures,
         });
         println!("{v}");
     } else {
@@ -400,7 +404,66 @@ pub fn run(args: RunArgs) -> Result<(), String> {
             );
         }
     }
-    Ok(())
+    if failures.is_empty() {
+        Ok(())
+    } else {
+        Err(failures.join("; "))
+    }
+}
+
+/// What went wrong with the sinks and the log over a run, one sentence each: any failure,
+/// even one that recovered, makes the run's exit status non-zero (ARCHITECTURE.md).
+fn run_failures(
+    service: &Service,
+    log: Option<(Result<(), log::LogError>, log::LogHealth)>,
+) -> Vec<String> {
+    let mut out = Vec::new();
+    for (i, h) in service.sink_health().iter().enumerate() {
+        let Some(first) = h.first_failure_s else {
+            continue;
+        };
+        let name = service.sink_name(i);
+        let now = match h.failing_since_s {
+            Some(_) if service.axes_unreachable() == Some(i) => {
+                "it drives the axes: the run stopped with this alarm".to_string()
+            }
+            Some(since) => format!("still failing at the end (since {since:.1} s)"),
+            None => "it recovered".to_string(),
+        };
+        out.push(format!(
+            "sink `{name}` failed at {first:.1} s: {}; {now}; {} cycles' output not taken",
+            h.reason, h.failed_writes
+        ));
+    }
+    if let Some((result, h)) = log {
+        match result {
+            Err(e) => out.push(format!("log {e}")),
+            Ok(()) => {
+                if let Some((t, reason)) = &h.first_failure {
+                    out.push(format!(
+                        "log: writing failed at {t:.1} s ({reason}) and resumed; {} records and \
+                         {} events dropped",
+                        h.records_dropped, h.events_dropped
+                    ));
+                }
+            }
+        }
+    }
+    out
+}
+
+/// The failing sinks and log, for the status line (empty when all is well).
+fn faults_status(service: &Service, log: Option<log::LogHealth>) -> String {
+    let mut out = String::new();
+    for (i, h) in service.sink_health().iter().enumerate() {
+        if h.failing_since_s.is_some() {
+            out += &format!(" | sink `{}` FAILING: {}", service.sink_name(i), h.reason);
+        }
+    }
+    if let Some(reason) = log.and_then(|h| h.failing) {
+        out += &format!(" | log FAILING: {reason}");
+    }
+    out
 }
 
 /// The status line: time, cycle time, offsets, model per path, sensor health.
@@ -429,8 +492,15 @@ fn status(service: &Service, models: &[String], took_us: u32) -> String {
         .collect();
     let health = service.validator().health();
     let good = health.iter().filter(|h| h.is_none()).count();
+    let lost: String = (0..service.source_count())
+        .filter_map(|i| {
+            service
+                .source_reason(i)
+                .map(|r| format!(" | source {i} lost: {r}"))
+        })
+        .collect();
     format!(
-        "t {:.1} s | cycle {took_us} µs | {} µm | {} | sensors {good}/{} ok | {}",
+        "t {:.1} s | cycle {took_us} µs | {} µm | {} | sensors {good}/{} ok | {}{lost}",
         out.time_s,
         offsets.join(" "),
         paths.join(", "),
@@ -455,6 +525,23 @@ pub fn show_status(args: StatusArgs) -> Result<(), String> {
             _ => {}
         }
     }
+    // A sensor that never delivered raises no event (the validator starts every channel as
+    // "never updated"): the last cycle, where it has no value, tells.
+    let meta = log::read_meta(&args.log).map_err(|e| e.to_string())?;
+    let sensors = meta
+        .as_ref()
+        .and_then(|m| m["sensors"].as_array().cloned())
+        .unwrap_or_default();
+    for id in sensors.iter().filter_map(|v| v.as_str()) {
+        let empty = names
+            .iter()
+            .position(|n| n == id)
+            .and_then(|c| last.map(|row| row[c].is_empty()));
+        if empty == Some(true) && !faults.iter().any(|(s, _)| s == id) {
+            faults.push((id.to_string(), "no value in the last logged cycle".into()));
+        }
+    }
+    let links = link_faults(&events);
     if args.json {
         let cycle: serde_json::Map<String, serde_json::Value> = match last {
             Some(row) => names
@@ -474,6 +561,7 @@ pub fn show_status(args: StatusArgs) -> Result<(), String> {
             "last_cycle": cycle,
             "events": events.len(),
             "bad_sensors": faults.iter().map(|(s, d)| serde_json::json!({"sensor": s, "reason": d})).collect::<Vec<_>>(),
+            "failing": links.iter().map(|(s, d)| serde_json::json!({"what": s, "reason": d})).collect::<Vec<_>>(),
             "recent_events": events.iter().rev().take(5).collect::<Vec<_>>(),
         });
         println!("{v}");
@@ -493,7 +581,12 @@ pub fn show_status(args: StatusArgs) -> Result<(), String> {
         }
         None => println!("no cycle logged yet"),
     }
-    if faults.is_empty() {
+    for (what, d) in &links {
+        println!("{what}: {d}");
+    }
+    if last.is_none() {
+        println!("sensors: unknown (no cycle logged yet)");
+    } else if faults.is_empty() {
         println!("sensors: all good");
     } else {
         for (s, d) in &faults {
@@ -507,6 +600,44 @@ pub fn show_status(args: StatusArgs) -> Result<(), String> {
         );
     }
     Ok(())
+}
+
+/// Sources lost and sinks failing at the last event, and failures of the log itself: (what, why).
+fn link_faults(events: &[log::LoggedEvent]) -> Vec<(String, String)> {
+    let mut out: Vec<(String, String)> = Vec::new();
+    let mut log_failed = None;
+    for e in events {
+        match e.kind.as_str() {
+            "sink-failed" | "sink-back" => {
+                let what = format!("sink `{}`", e.subject);
+                out.retain(|(w, _)| w != &what);
+                if e.kind == "sink-failed" {
+                    let why = format!("FAILING since {:.1} s: {}", e.time_s, e.detail);
+                    out.push((what, why));
+                }
+            }
+            "source-lost" | "source-back" => {
+                let what = format!("source `{}`", e.subject);
+                out.retain(|(w, _)| w != &what);
+                if e.kind == "source-lost" {
+                    out.push((what, format!("LOST since {:.1} s: {}", e.time_s, e.detail)));
+                }
+            }
+            "log-failed" => log_failed = Some(e),
+            // The logger writes both once the disk takes them again: while it still fails,
+            // only the running service's status line and its exit message can tell.
+            "log-resumed" => {
+                let failed = log_failed.map_or(String::new(), |f| {
+                    format!(" at {:.1} s ({})", f.time_s, f.detail)
+                });
+                let why = format!("writing FAILED{failed}; {}", e.detail);
+                out.retain(|(w, _)| w != "log");
+                out.push(("log".into(), why));
+            }
+            _ => {}
+        }
+    }
+    out
 }
 
 pub fn show_log(args: LogArgs) -> Result<(), String> {

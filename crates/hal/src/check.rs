@@ -6,8 +6,9 @@
 //! - **motion** (`sampler.0`): `tag`, then per axis `axis.L.pos-cmd` (nominal, mm), per axis
 //!   `axis.L.eoffset` (applied external offset, mm), per joint `joint.N.pos-fb` (mm), per axis
 //!   `truepos.axis.L.offset-um` (sent, µm), then `truepos.status`, `truepos.model-select`,
-//!   `truepos.path.1.model` (the model in effect) and per axis `truepos.axis.L.path` (the
-//!   control's axis configuration).
+//!   `truepos.path.1.model` (the model in effect), per axis `truepos.axis.L.path` (the
+//!   control's axis configuration) and `motion.servo.last-period` (the servo cycle's real
+//!   length, in CPU clocks of unknown rate: the check scales it by its median to the period).
 //! - **temperatures** (`sampler.1`): `tag`, then every `truepos.temp.<id>` pin in machine order.
 //!
 //! For every cycle the check works out which model seed D's rule selects for path 1 from the
@@ -48,6 +49,8 @@ pub struct Sample {
     pub model: i32,
     /// `truepos.axis.L.path` per axis: the path each axis belonged to (0: none).
     pub axis_paths: Vec<i32>,
+    /// `motion.servo.last-period`: the time since the previous servo cycle, in CPU clocks.
+    pub servo_clocks: f64,
     /// Temperatures on the `truepos.temp.*` pins, °C.
     pub temperatures_c: Vec<f64>,
 }
@@ -100,7 +103,12 @@ fn parse_lines(
             .iter()
             .enumerate()
             .map(|(c, f)| {
+                // halsampler prints a NaN as `nan` or `-nan` (printf).
                 f.parse::<f64>()
+                    .or_else(|e| match f.trim_start_matches(['-', '+']) {
+                        "nan" | "NaN" => Ok(f64::NAN),
+                        _ => Err(e),
+                    })
                     .map_err(|_| err(format!("column {}: {f:?} is not a number", c + 2)))
             })
             .collect::<Result<Vec<_>, _>>()?;
@@ -119,7 +127,7 @@ pub fn parse_samples(
     axes: usize,
     temperature_count: usize,
 ) -> Result<Vec<Sample>, SampleError> {
-    let m = parse_lines(motion_file, motion, 5 * axes + 3)?;
+    let m = parse_lines(motion_file, motion, 5 * axes + 4)?;
     let t = parse_lines(temperature_file, temperatures, temperature_count)?;
     let mut out = Vec::with_capacity(m.len().min(t.len()));
     let mut j = 0;
@@ -136,7 +144,11 @@ pub fn parse_samples(
                 status: v[4 * axes] as i32,
                 select: v[4 * axes + 1] as i32,
                 model: v[4 * axes + 2] as i32,
-                axis_paths: v[4 * axes + 3..].iter().map(|&p| p as i32).collect(),
+                axis_paths: v[4 * axes + 3..5 * axes + 3]
+                    .iter()
+                    .map(|&p| p as i32)
+                    .collect(),
+                servo_clocks: v[5 * axes + 3],
                 temperatures_c: t[j].1.clone(),
             });
         }
@@ -190,6 +202,18 @@ pub struct CheckConfig {
     /// the latter with the hypervisor stealing time) — but a run with too few cycles in step
     /// could not show a lag, and fails.
     pub min_in_step_moving_cycles: usize,
+    /// The output invariant: the applied offset is compared with the brackets of this many
+    /// cycles before it (LinuxCNC's pipeline and the component's read of positions and
+    /// temperatures a cycle or two before the servo thread samples them), see
+    /// [`output_invariant`].
+    pub invariant_window_cycles: usize,
+    /// Servo cycles between the component's write and LinuxCNC's application of an offset
+    /// that the rate allowance adds to the time since the offset last stood still.
+    pub pipeline_cycles: usize,
+    /// Largest distance of an applied offset outside its bracket that passes, µm.
+    pub max_bracket_excess_um: f64,
+    /// The component's `--hold-ramp-s`: a held offset ramps to zero over it, s.
+    pub hold_ramp_s: f64,
 }
 
 impl Default for CheckConfig {
@@ -201,6 +225,10 @@ impl Default for CheckConfig {
             rate_window_s: 0.05,
             max_lag_fraction: 0.01,
             min_in_step_moving_cycles: 2000,
+            invariant_window_cycles: 5,
+            pipeline_cycles: 3,
+            max_bracket_excess_um: 0.5,
+            hold_ramp_s: 60.0,
         }
     }
 }
@@ -254,6 +282,8 @@ pub struct CheckReport {
     pub wrong_model_cycles: usize,
     /// Largest |applied offset| on an axis in no path (settled cycles), µm.
     pub max_parked_offset_um: f64,
+    /// The output invariant on the applied offsets, every cycle.
+    pub invariant: InvariantReport,
     /// What failed (empty: the run passed).
     pub failures: Vec<String>,
 }
@@ -287,6 +317,15 @@ impl CheckReport {
             "axis_switches": self.axis_switches,
             "wrong_model_cycles": self.wrong_model_cycles,
             "max_parked_offset_um": self.max_parked_offset_um,
+            "invariant": {
+                "nonfinite_cycles": self.invariant.nonfinite_cycles,
+                "max_abs_um": self.invariant.max_abs_um,
+                "max_step_um": self.invariant.max_step_um,
+                "max_step_ratio": self.invariant.max_step_ratio,
+                "max_bracket_excess_um": self.invariant.max_bracket_excess_um,
+                "state_changes": self.invariant.state_changes,
+                "target_kept_cycles": self.invariant.target_kept_cycles,
+            },
             "passed": self.passed(),
             "failures": self.failures,
         })
@@ -343,6 +382,260 @@ pub fn expected_model(
         .or_else(|| (0..models.len()).find(matches))
 }
 
+/// The output invariant (ARCHITECTURE.md) judged on the offsets LinuxCNC applied.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct InvariantReport {
+    /// Cycles whose applied offset was not finite.
+    pub nonfinite_cycles: usize,
+    /// Largest |applied offset| per axis, µm (the envelope: `max_offset_um`).
+    pub max_abs_um: Vec<f64>,
+    /// Largest change of the applied offset from one servo cycle to the next, per axis, µm.
+    pub max_step_um: Vec<f64>,
+    /// Largest ratio of a cycle's change to what the envelope's rate allows over the real time
+    /// since the offset could last have moved (see [`output_invariant`]), per axis.
+    pub max_step_ratio: Vec<f64>,
+    /// Largest distance of the applied offset outside the values it may take (between the
+    /// output at the latest change of state and the current target, over the pipeline window),
+    /// per axis, µm.
+    pub max_bracket_excess_um: Vec<f64>,
+    /// Changes of state (status, model, axis configuration, model-select) seen.
+    pub state_changes: usize,
+    /// Cycles (any axis) where the model could not be evaluated on the recorded temperatures
+    /// (an injected NaN) and the previous target was kept.
+    pub target_kept_cycles: usize,
+}
+
+/// The real length of every servo cycle, s: `motion.servo.last-period` scaled so that its
+/// median is the nominal period (its clock's rate is unknown); the nominal period where the
+/// column reads nothing usable.
+fn servo_intervals_s(samples: &[Sample], period_s: f64) -> Vec<f64> {
+    let mut clocks: Vec<f64> = samples
+        .iter()
+        .map(|s| s.servo_clocks)
+        .filter(|c| c.is_finite() && *c > 0.0)
+        .collect();
+    if clocks.is_empty() {
+        return vec![period_s; samples.len()];
+    }
+    clocks.sort_by(f64::total_cmp);
+    let median = clocks[clocks.len() / 2];
+    samples
+        .iter()
+        .map(|s| {
+            if s.servo_clocks.is_finite() && s.servo_clocks > 0.0 {
+                s.servo_clocks / median * period_s
+            } else {
+                period_s
+            }
+        })
+        .collect()
+}
+
+/// Each axis' target in cycle `s` (µm): the model seed D's rule selects, at the cycle's recorded
+/// temperatures and nominal positions, for an active axis in path 1; zero for an axis in no
+/// path and for a component disabled or without a model (and for a hold, whose ramp
+/// [`output_invariant`] works out). `None` where the model cannot be evaluated.
+fn targets_um(
+    machine: &Machine,
+    models: &[ModelEntry],
+    limits: &[AxisRuntime],
+    s: &Sample,
+    operating: &[f64],
+) -> Vec<Option<f64>> {
+    let axes = machine.axes.len();
+    let in_path = |a: usize| s.axis_paths.get(a) == Some(&1);
+    if s.status != 1 {
+        return vec![Some(0.0); axes];
+    }
+    let evaluated = expected_model(models, limits, &s.axis_paths, s.select)
+        .and_then(|i| models[i].model.as_static())
+        .and_then(|m| {
+            m.evaluate(&CycleInput {
+                temperatures_c: &s.temperatures_c,
+                positions: &s.nominal,
+                operating,
+            })
+            .ok()
+        });
+    (0..axes)
+        .map(|a| match (&evaluated, in_path(a)) {
+            (_, false) => Some(0.0),
+            (Some(c), true) => Some(c.compensation_um(a)),
+            (None, true) => None,
+        })
+        .collect()
+}
+
+/// Judges the output invariant on the applied offsets (`axis.L.eoffset`), every cycle and axis:
+///
+/// - finite, and within `max_offset_um` (plus two counts of quantisation);
+/// - the change from the previous cycle is at most `max_rate_um_per_s` × (the real time since
+///   the offset could last have moved + one period of the component's own clock) + two counts.
+///   That time spans the cycles in which the applied offset stood still (the component held up:
+///   its next step covers the whole time) and the `pipeline_cycles` before them (LinuxCNC
+///   applies a request a cycle or more after the component wrote it), each at its real length
+///   from `motion.servo.last-period` (the servo thread held up: the component went on);
+/// - the offset lies between the output at the latest change of state and the current target
+///   (see [`targets_um`]; in a hold, the value at the change ramped linearly to zero over
+///   `hold_ramp_s` of real time): a *bracket*. The value at the change is what the component sent
+///   just before it, projected onto the bracket then allowed — never the output itself, so an
+///   output running away cannot carry its bracket along. Since LinuxCNC applies what the
+///   component computed from positions and temperatures read a few cycles before, the applied
+///   offset is compared with the union of the brackets over the last `invariant_window_cycles`
+///   cycles, and over the cycles in which the offset sent stood still before them.
+///
+/// A target that cannot be evaluated (the recorded temperatures hold the injected NaN, which
+/// the component may not have read) keeps the previous one.
+pub fn output_invariant(
+    machine: &Machine,
+    models: &[ModelEntry],
+    limits: &[AxisRuntime],
+    samples: &[Sample],
+    config: &CheckConfig,
+) -> InvariantReport {
+    let axes = machine.axes.len();
+    let operating = vec![0.0; machine.operating.len()];
+    let count = crate::eoffset::RESOLUTION_UM;
+    let intervals = servo_intervals_s(samples, config.period_s);
+    let mut r = InvariantReport {
+        max_abs_um: vec![0.0; axes],
+        max_step_um: vec![0.0; axes],
+        max_step_ratio: vec![0.0; axes],
+        max_bracket_excess_um: vec![0.0; axes],
+        ..InvariantReport::default()
+    };
+    // Per cycle and axis: the bracket (lo, hi), µm.
+    let mut brackets: Vec<Vec<(f64, f64)>> = Vec::with_capacity(samples.len());
+    let mut from = vec![0.0f64; axes];
+    let mut target = vec![0.0f64; axes];
+    // Cycles in which the sent offsets / each applied offset stood still, up to this one.
+    let mut since_change_s = 0.0f64;
+    let mut sent_still = 0usize;
+    let mut applied_still = vec![0usize; axes];
+    // The union of the brackets over the window of the previous cycle, per axis.
+    let mut allowed_before: Vec<Option<(f64, f64)>> = vec![None; axes];
+    for (k, s) in samples.iter().enumerate() {
+        let prev = k.checked_sub(1).map(|p| &samples[p]);
+        let changed = prev.is_none_or(|p| {
+            p.status != s.status
+                || p.model != s.model
+                || p.select != s.select
+                || p.axis_paths != s.axis_paths
+        });
+        let targets = targets_um(machine, models, limits, s, &operating);
+        r.target_kept_cycles += usize::from(targets.iter().any(Option::is_none));
+        for a in 0..axes {
+            if let Some(t) = targets[a] {
+                target[a] = t;
+            } else if k == 0 {
+                target[a] = s.sent_um[a];
+            }
+        }
+        since_change_s += intervals[k];
+        if changed {
+            since_change_s = 0.0;
+            r.state_changes += usize::from(k > 0);
+            for a in 0..axes {
+                from[a] = match (prev, allowed_before[a]) {
+                    (Some(p), Some((lo, hi))) if p.sent_um[a].is_finite() => {
+                        p.sent_um[a].clamp(lo, hi)
+                    }
+                    (Some(_), Some((lo, hi))) => (lo + hi) / 2.0,
+                    _ => s.sent_um[a],
+                };
+            }
+        }
+        if s.status == 2 {
+            // The held value ramps to zero; one period more, for the two clocks.
+            let left = (1.0 - (since_change_s + config.period_s) / config.hold_ramp_s).max(0.0);
+            for a in (0..axes).filter(|&a| s.axis_paths.get(a) == Some(&1)) {
+                target[a] = from[a] * left;
+            }
+        }
+        brackets.push(
+            (0..axes)
+                .map(|a| (from[a].min(target[a]), from[a].max(target[a])))
+                .collect(),
+        );
+        if let Some(p) = prev {
+            sent_still = if p.sent_um == s.sent_um {
+                sent_still + 1
+            } else {
+                0
+            };
+        }
+        let first = k.saturating_sub(config.invariant_window_cycles + sent_still.min(1000));
+        for a in 0..axes {
+            let v = s.applied_mm[a] * 1000.0;
+            if !v.is_finite() {
+                r.nonfinite_cycles += 1;
+                continue;
+            }
+            r.max_abs_um[a] = r.max_abs_um[a].max(v.abs());
+            let (lo, hi) = brackets[first..=k]
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), b| {
+                    (lo.min(b[a].0), hi.max(b[a].1))
+                });
+            allowed_before[a] = Some((lo, hi));
+            let excess = (lo - v).max(v - hi).max(0.0);
+            r.max_bracket_excess_um[a] = r.max_bracket_excess_um[a].max(excess);
+            let Some(p) = prev else { continue };
+            let step = (v - p.applied_mm[a] * 1000.0).abs();
+            let since = k.saturating_sub(applied_still[a] + config.pipeline_cycles);
+            let time: f64 = intervals[since + 1..=k].iter().sum();
+            let allowed = limits[a].max_rate_um_per_s * (time + config.period_s) + 2.0 * count;
+            r.max_step_um[a] = r.max_step_um[a].max(step);
+            r.max_step_ratio[a] = r.max_step_ratio[a].max(step / allowed);
+            applied_still[a] = if step == 0.0 { applied_still[a] + 1 } else { 0 };
+        }
+    }
+    r
+}
+
+/// Adds the failures of the output invariant to the report.
+fn invariant_failures(
+    machine: &Machine,
+    limits: &[AxisRuntime],
+    config: &CheckConfig,
+    report: &mut CheckReport,
+) {
+    let inv = &report.invariant;
+    let mut failures = Vec::new();
+    if inv.nonfinite_cycles > 0 {
+        failures.push(format!(
+            "the applied offset was not finite in {} cycle(s)",
+            inv.nonfinite_cycles
+        ));
+    }
+    for (a, axis) in machine.axes.iter().enumerate() {
+        let name = &axis.name;
+        let max = limits[a].max_offset_um + 2.0 * crate::eoffset::RESOLUTION_UM;
+        if inv.max_abs_um[a] > max {
+            failures.push(format!(
+                "axis {name}: applied offset {:.3} µm exceeds the envelope's {} µm",
+                inv.max_abs_um[a], limits[a].max_offset_um
+            ));
+        }
+        if inv.max_step_ratio[a] > 1.0 {
+            failures.push(format!(
+                "axis {name}: the applied offset changed in one servo cycle by {:.2} × what the \
+                 envelope's {} µm/s allows (largest step {:.3} µm)",
+                inv.max_step_ratio[a], limits[a].max_rate_um_per_s, inv.max_step_um[a]
+            ));
+        }
+        if inv.max_bracket_excess_um[a] > config.max_bracket_excess_um {
+            failures.push(format!(
+                "axis {name}: the applied offset left the range between its value at the latest \
+                 change of state and its target (model, held value ramping to zero, or zero) by \
+                 {:.3} µm (allowed {} µm)",
+                inv.max_bracket_excess_um[a], config.max_bracket_excess_um
+            ));
+        }
+    }
+    report.failures.extend(failures);
+}
+
 /// Compares what LinuxCNC applied with the models seed D's rule selects (see
 /// [`expected_model`]) and the envelope.
 pub fn check(
@@ -377,6 +670,7 @@ pub fn check(
         axis_switches: 0,
         wrong_model_cycles: 0,
         max_parked_offset_um: 0.0,
+        invariant: output_invariant(machine, models, limits, samples, config),
         failures: Vec::new(),
     };
     let (mut sum_sq, mut diffs) = (0.0, 0usize);
@@ -389,7 +683,10 @@ pub fn check(
         let mut moving = false;
         if let Some(p) = prev {
             moving = (0..axes).any(|a| s.nominal[a] != p.nominal[a]);
-            gap = if moving && s.sent_um == p.sent_um {
+            // A change of state restarts the blend from the output last sent, which then stands
+            // still for a cycle by design (a fault flickering every cycle freezes it): no gap.
+            let new_state = p.status != s.status || p.model != s.model;
+            gap = if moving && s.sent_um == p.sent_um && !new_state {
                 gap + 1
             } else {
                 0
@@ -549,6 +846,7 @@ pub fn check(
             config.min_in_step_moving_cycles
         ));
     }
+    invariant_failures(machine, limits, config, &mut report);
     for (a, (&rate, &limit)) in report
         .max_rate_um_per_s
         .iter()
@@ -662,6 +960,7 @@ mod tests {
             select: 0,
             model: 0,
             axis_paths: vec![1, 1],
+            servo_clocks: 1000.0,
             temperatures_c: vec![25.0, 20.0],
         };
         let mut samples = vec![sample(-0.020); 9];
@@ -676,6 +975,7 @@ mod tests {
             max_lag_fraction: 0.01,
             // The axes stand still here: no moving cycle to ask for.
             min_in_step_moving_cycles: 0,
+            ..CheckConfig::default()
         };
         let r = check(
             &machine,
@@ -783,6 +1083,7 @@ mod tests {
             select: 0,
             model,
             axis_paths: vec![1, 0],
+            servo_clocks: 1000.0,
             temperatures_c: vec![25.0, 20.0],
         };
         let config = CheckConfig {
@@ -813,22 +1114,143 @@ mod tests {
         assert_eq!(r.failures.len(), 2, "{:?}", r.failures);
     }
 
+    /// Y at the example's −20 µm, then an intermittent fault: the status flaps between active
+    /// (1) and holding (2) every third cycle while Y moves at the envelope's rate of 50 µm/s.
+    fn flapping(step_um: f64, cycles: usize) -> Vec<Sample> {
+        (0..cycles)
+            .map(|k| {
+                let y_um = -20.0 + step_um * k.saturating_sub(10) as f64;
+                Sample {
+                    nominal: vec![250.0, 100.0],
+                    applied_mm: vec![0.0, y_um / 1000.0],
+                    joint: vec![250.0, 100.0 + y_um / 1000.0],
+                    // The component is a cycle ahead of what LinuxCNC applied.
+                    sent_um: vec![0.0, y_um + step_um],
+                    status: if k >= 10 && k % 3 == 2 { 2 } else { 1 },
+                    select: 0,
+                    model: 0,
+                    axis_paths: vec![1, 1],
+                    servo_clocks: 1000.0,
+                    temperatures_c: vec![25.0, 20.0],
+                }
+            })
+            .collect()
+    }
+
+    #[test]
+    fn the_output_invariant_catches_a_runaway_beyond_model_and_hold() {
+        let (machine, model) = example();
+        let models = [entry(&model)];
+        let limits = limits(50.0);
+        let config = CheckConfig {
+            min_in_step_moving_cycles: 0,
+            ..CheckConfig::default()
+        };
+        // Standing at the model's value through the flapping: inside every bracket.
+        let r = output_invariant(&machine, &models, &limits, &flapping(0.0, 400), &config);
+        assert_eq!(r.max_bracket_excess_um, vec![0.0, 0.0]);
+        assert!(r.state_changes > 200, "{}", r.state_changes);
+        assert!(r.max_step_ratio[1] < 1e-12);
+        // Running away at the envelope's rate, 0.05 µm per cycle, towards +100 µm (the bug of
+        // f5778f7): the rate is kept, but after 389 cycles the output is 19.4 µm above both the
+        // model's −20 µm and the held value (ramping to zero over 60 s), which the bracket does
+        // not follow.
+        let r = output_invariant(&machine, &models, &limits, &flapping(0.05, 400), &config);
+        assert!(r.max_step_ratio[1] <= 1.0, "{:?}", r.max_step_ratio);
+        assert!(
+            r.max_bracket_excess_um[1] > 19.0,
+            "{:?}",
+            r.max_bracket_excess_um
+        );
+        let report = check(&machine, &models, &limits, &flapping(0.05, 400), &config);
+        assert!(
+            report
+                .failures
+                .iter()
+                .any(|f| f.contains("axis Y: the applied offset left")),
+            "{:?}",
+            report.failures
+        );
+        // A hold ramps to zero: over 0.4 s, −19.95 µm ramp at 50 µm/s; following it from −20 µm
+        // is inside (the first 10 cycles sit 0.05 µm below the value sent)...
+        let mut hold = flapping(0.05, 600);
+        for s in &mut hold {
+            s.status = 2;
+        }
+        let fast_ramp = CheckConfig {
+            hold_ramp_s: 0.4,
+            ..config.clone()
+        };
+        let r = output_invariant(&machine, &models, &limits, &hold[..300], &fast_ramp);
+        assert!(
+            r.max_bracket_excess_um[1] < 0.06,
+            "{:?}",
+            r.max_bracket_excess_um
+        );
+        // ...but not beyond zero (+9.45 µm at the end).
+        let r = output_invariant(&machine, &models, &limits, &hold, &fast_ramp);
+        assert!(
+            r.max_bracket_excess_um[1] > 9.0,
+            "{:?}",
+            r.max_bracket_excess_um
+        );
+    }
+
+    #[test]
+    fn the_step_allowance_follows_the_real_time() {
+        let (machine, model) = example();
+        let models = [entry(&model)];
+        let limits = limits(50.0);
+        let config = CheckConfig {
+            min_in_step_moving_cycles: 0,
+            ..CheckConfig::default()
+        };
+        // Twice the rate: 0.1 µm per 1 ms cycle against 50 µm/s × (3 + 1) ms + 0.02 = 0.22 µm
+        // passes (the pipeline's cycles are allowed), 0.3 µm per cycle does not.
+        let r = output_invariant(&machine, &models, &limits, &flapping(0.1, 50), &config);
+        assert!(r.max_step_ratio[1] < 1.0, "{:?}", r.max_step_ratio);
+        let mut fast = flapping(0.3, 50);
+        let r = output_invariant(&machine, &models, &limits, &fast, &config);
+        assert!(r.max_step_ratio[1] > 1.0, "{:?}", r.max_step_ratio);
+        // The same steps after servo cycles held up by 10 ms each pass (the component went on);
+        // the clock's rate comes from the median cycle.
+        for s in fast.iter_mut().step_by(3) {
+            s.servo_clocks = 10_000.0;
+        }
+        let r = output_invariant(&machine, &models, &limits, &fast, &config);
+        assert!(r.max_step_ratio[1] < 1.0, "{:?}", r.max_step_ratio);
+        // The component held up for 10 cycles, then one step of 0.5 µm: allowed too.
+        let mut held = flapping(0.0, 40);
+        for s in &mut held[30..] {
+            s.applied_mm[1] += 0.0005;
+        }
+        let r = output_invariant(&machine, &models, &limits, &held, &config);
+        assert!(r.max_step_ratio[1] < 1.0, "{:?}", r.max_step_ratio);
+        assert!((r.max_step_um[1] - 0.5).abs() < 1e-9);
+        // A NaN offset fails.
+        held[35].applied_mm[0] = f64::NAN;
+        let r = output_invariant(&machine, &models, &limits, &held, &config);
+        assert_eq!(r.nonfinite_cycles, 1);
+    }
+
     #[test]
     fn joins_by_tag_and_names_bad_lines() {
-        // One axis, one temperature: motion has tag + 5·1 + 3 = 9 fields.
-        let motion =
-            "0 1.0 0.001 1.001 1.0 1 0 0 1\n1 2.0 0.002 2.002 2.0 1 0 0 1\n2 3 0 3 0 1 0 0 1\n";
-        let temps = "1 20.5\n2 21.0\n";
+        // One axis, one temperature: motion has tag + 5·1 + 4 = 10 fields.
+        let motion = "0 1.0 0.001 1.001 1.0 1 0 0 1 999\n1 2.0 0.002 2.002 2.0 1 0 0 1 1001\n\
+                      2 3 0 3 0 1 0 0 1 1000\n";
+        let temps = "1 20.5\n2 -nan\n";
         let s = parse_samples("m", motion, "t", temps, 1, 1).unwrap();
         assert_eq!(s.len(), 2); // tag 0 has no temperature line
         assert_eq!(s[0].nominal, vec![2.0]);
         assert_eq!(s[0].temperatures_c, vec![20.5]);
         assert_eq!(s[1].select, 0);
         assert_eq!((s[1].model, s[1].axis_paths.clone()), (0, vec![1]));
+        assert_eq!(s[1].servo_clocks, 1000.0);
+        assert!(s[1].temperatures_c[0].is_nan());
         let bad = parse_samples("m.txt", "0 1 2\n", "t", temps, 1, 1).unwrap_err();
         assert_eq!(
             bad.to_string(),
-            "m.txt:1: expected a sample tag and 8 values, found 3 fields"
+            "m.txt:1: expected a sample tag and 9 values, found 3 fields"
         );
         let bad = parse_samples("m.txt", motion, "t.txt", "1 x\n", 1, 1).unwrap_err();
         assert_eq!(bad.to_string(), "t.txt:1: column 2: \"x\" is not a number");

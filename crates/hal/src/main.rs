@@ -130,6 +130,9 @@ struct CheckArgs {
     /// Servo period in ms, 0.1–1000.
     #[arg(long, default_value_t = 1.0, value_parser = finite_in(0.1, 1000.0))]
     period_ms: f64,
+    /// The component's `--hold-ramp-s` (a held offset ramps to zero over it), s.
+    #[arg(long, default_value_t = 60.0)]
+    hold_ramp_s: f64,
     /// The component's SQLite log, for `--expect-event`.
     #[arg(long)]
     log: Option<PathBuf>,
@@ -336,6 +339,7 @@ fn run_check(args: CheckArgs) -> Result<bool, Box<dyn std::error::Error>> {
     let samples = load_samples(&args.motion, &args.temperatures, &machine.machine)?;
     let config = CheckConfig {
         period_s: args.period_ms / 1000.0,
+        hold_ramp_s: args.hold_ramp_s,
         ..CheckConfig::default()
     };
     let mut report = check(
@@ -411,6 +415,19 @@ fn run_check(args: CheckArgs) -> Result<bool, Box<dyn std::error::Error>> {
             report.gap_fraction * 100.0,
             report.longest_update_gap_cycles,
             report.in_step_moving_cycles
+        );
+        let inv = &report.invariant;
+        let round = |v: &[f64], k: f64| v.iter().map(|x| (x * k).round() / k).collect::<Vec<_>>();
+        println!(
+            "output invariant on the applied offsets, per axis: largest |offset| {:?} µm; largest step {:?} µm, {:?} of the envelope's rate over the real time; outside the bracket (from, target) by at most {:?} µm (limit {} µm); {} non-finite; {} changes of state; {} cycles kept the previous target",
+            round(&inv.max_abs_um, 1000.0),
+            round(&inv.max_step_um, 1000.0),
+            round(&inv.max_step_ratio, 1000.0),
+            round(&inv.max_bracket_excess_um, 1000.0),
+            config.max_bracket_excess_um,
+            inv.nonfinite_cycles,
+            inv.state_changes,
+            inv.target_kept_cycles
         );
         for f in &report.failures {
             println!("FAIL: {f}");

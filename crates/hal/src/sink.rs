@@ -84,4 +84,10 @@ impl Sink for HalSink {
         self.pins.clamped.set(output.clamped);
         Ok(())
     }
+
+    /// The path of the offsets to LinuxCNC's axes (its writes are plain memory writes, so it
+    /// does not fail; should a future one, the service reports the axes unreachable).
+    fn drives_axes(&self) -> bool {
+        true
+    }
 }

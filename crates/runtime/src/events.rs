@@ -87,8 +87,15 @@ pub enum EventKind {
         /// Index of the source.
         source: usize,
     },
-    /// A sink failed to take the output.
+    /// A sink failed to take the output (raised on the change, not every cycle).
     SinkFailed {
+        /// Index of the sink.
+        sink: usize,
+        /// Why, as the sink said it.
+        reason: Reason,
+    },
+    /// A sink that failed takes the output again.
+    SinkBack {
         /// Index of the sink.
         sink: usize,
     },

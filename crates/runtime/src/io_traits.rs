@@ -53,6 +53,13 @@ pub trait Sink: Send {
     fn name(&self) -> &str;
     /// Applies or records one cycle's output. Must not block.
     fn write(&mut self, output: &Output) -> Result<(), LinkError>;
+    /// Whether the offsets reach the axes through this sink (LinuxCNC's external offsets)
+    /// rather than being recorded (a CSV file). When such a sink fails, nothing the service
+    /// computes reaches the axes and it cannot resume bumplessly: the run stops with an alarm
+    /// (see `Service::axes_unreachable` and ARCHITECTURE.md).
+    fn drives_axes(&self) -> bool {
+        false
+    }
 }
 
 /// Latest values published by a source thread and read by the cycle without locks: one atomic

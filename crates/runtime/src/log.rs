@@ -6,14 +6,24 @@
 //! killed at any moment (only a power loss may take the last commits), and SQLite's journal
 //! keeps the file consistent; so a SIGKILL loses at most the records of the last interval.
 //!
+//! Failures: a write that fails (a full disk, an I/O error) leaves what was drained in a bounded
+//! buffer of the thread; the thread retries with a backoff (250 ms doubling up to
+//! [`MAX_BACKOFF`]) and, when a write succeeds again, writes the buffer, a `log-failed` event
+//! (the reason, at the service time it happened) and a `log-resumed` event counting what did
+//! not fit in the buffer. Meanwhile [`Logger::health`] shows the failure; compensation never
+//! waits for the log.
+//!
+//! A log belongs to one machine: [`Logger::start`] refuses a file whose `meta` names another
+//! machine, or whose `cycles` table has other columns.
+//!
 //! The `cycles` table has one column per channel, named as in a run CSV (`X_mm`, sensor ids,
 //! operating ids) plus `<axis>_offset_um`, so `truepos log --csv` gives a run `truepos fit` reads.
 
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use crossbeam_queue::ArrayQueue;
 use rusqlite::{params_from_iter, Connection};
@@ -84,10 +94,92 @@ fn quote(name: &str) -> String {
     format!("\"{}\"", name.replace('"', "\"\""))
 }
 
+/// Longest wait between two attempts to write a failing log.
+pub const MAX_BACKOFF: Duration = Duration::from_secs(2);
+/// Cycle records the thread keeps while the log fails (at the default 10 records/s, 1.8 h);
+/// more are counted as dropped.
+pub const MAX_PENDING_RECORDS: usize = 1 << 16;
+/// Events the thread keeps while the log fails; more are counted as dropped.
+pub const MAX_PENDING_EVENTS: usize = 1 << 14;
+
+/// How the log is doing, for status lines and the end of a run.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct LogHealth {
+    /// Why writing fails now (`None`: the last write succeeded).
+    pub failing: Option<String>,
+    /// Service time (of the latest record seen) when the current failure began.
+    pub failing_since_s: Option<f64>,
+    /// Failures in this run that later resumed.
+    pub resumed: u64,
+    /// The first failure of this run: service time and reason.
+    pub first_failure: Option<(f64, String)>,
+    /// Records and events waiting in the thread's buffer.
+    pub pending: usize,
+    /// Records dropped because the buffer was full while the log failed.
+    pub records_dropped: u64,
+    /// Events dropped because the buffer was full while the log failed.
+    pub events_dropped: u64,
+}
+
+/// What the logger thread shares with the rest of the process (never with the cycle).
+#[derive(Debug, Default)]
+struct Shared {
+    health: Mutex<LogHealth>,
+    /// Page limit to apply (0: none asked).
+    page_limit: AtomicU64,
+}
+
 /// The logger thread; stop it with [`Logger::stop`] (dropping it stops it too).
 pub struct Logger {
     stop: Arc<AtomicBool>,
+    shared: Arc<Shared>,
     handle: Option<JoinHandle<Result<(), LogError>>>,
+}
+
+/// Refuses a log written for another machine or with another layout of cycles: appending would
+/// mix two machines' records under one `meta`, and the inserts would fail only later.
+fn check_owner(
+    conn: &Connection,
+    path: &Path,
+    machine: &str,
+    columns: &[String],
+) -> Result<(), LogError> {
+    let refuse = |message: String| LogError {
+        file: path.to_path_buf(),
+        message,
+    };
+    let meta: Option<String> = conn
+        .query_row("SELECT value FROM meta WHERE key = 'service'", [], |r| {
+            r.get(0)
+        })
+        .ok();
+    if let Some(meta) = meta {
+        let v: serde_json::Value = serde_json::from_str(&meta).unwrap_or_default();
+        let other = v["machine"].as_str().unwrap_or("(unnamed)");
+        if other != machine {
+            return Err(refuse(format!(
+                "this log belongs to machine `{other}`, not to `{machine}` that this service runs; \
+                 refusing to mix two machines in one log (give another --log file)"
+            )));
+        }
+    }
+    let mut st = conn
+        .prepare("SELECT name FROM pragma_table_info('cycles')")
+        .map_err(err(path))?;
+    let existing = st
+        .query_map([], |r| r.get::<_, String>(0))
+        .map_err(err(path))?
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(err(path))?;
+    if !existing.is_empty() && existing != columns {
+        return Err(refuse(format!(
+            "this log's cycles have the columns [{}], machine `{machine}` needs [{}] \
+             (another machine file, or another number of paths); give another --log file",
+            existing.join(", "),
+            columns.join(", ")
+        )));
+    }
+    Ok(())
 }
 
 /// What the logger is told at start.
@@ -115,102 +207,51 @@ impl Logger {
         events: Arc<EventQueue>,
         records: Arc<ArrayQueue<CycleRecord>>,
     ) -> Result<Self, LogError> {
-        let path = setup.path.to_path_buf();
-        let conn = Connection::open(&path).map_err(err(&path))?;
-        conn.pragma_update(None, "journal_mode", "WAL")
-            .map_err(err(&path))?;
-        conn.pragma_update(None, "synchronous", "NORMAL")
-            .map_err(err(&path))?;
-        let m = &setup.machine.machine;
-        let paths = setup.paths.min(MAX_PATHS);
-        let columns = cycle_columns(setup.machine, paths);
-        let defs: Vec<String> = columns
-            .iter()
-            .map(|c| {
-                let ty = if c == "state" { "TEXT" } else { "REAL" };
-                format!("{} {ty}", quote(c))
-            })
-            .collect();
-        conn.execute_batch(&format!(
-            "CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
-             CREATE TABLE IF NOT EXISTS events (time_s REAL NOT NULL, kind TEXT NOT NULL,
-                 subject TEXT NOT NULL, detail TEXT NOT NULL);
-             CREATE TABLE IF NOT EXISTS cycles ({});",
-            defs.join(", ")
-        ))
-        .map_err(err(&path))?;
-        let names = Names {
-            axes: m.axes.iter().map(|a| a.name.clone()).collect(),
-            sensors: m.temperatures.iter().map(|t| t.id.clone()).collect(),
-            sources: setup.sources,
-            sinks: setup.sinks,
-            models: setup.models,
-        };
-        let meta = serde_json::json!({
-            "machine": m.name,
-            "axes": names.axes,
-            "sensors": names.sensors,
-            "models": names.models,
-            "sources": names.sources,
-            "sinks": names.sinks,
-        });
-        conn.execute(
-            "INSERT OR REPLACE INTO meta (key, value) VALUES ('service', ?1)",
-            [meta.to_string()],
-        )
-        .map_err(err(&path))?;
-        let insert = format!(
-            "INSERT INTO cycles ({}) VALUES ({})",
-            columns
-                .iter()
-                .map(|c| quote(c))
-                .collect::<Vec<_>>()
-                .join(", "),
-            vec!["?"; columns.len()].join(", ")
-        );
-        let layout = Layout {
-            axes: m.axes.len(),
-            temperatures: m.temperatures.len().min(MAX_LOG_TEMPERATURES),
-            operating: m.operating.len().min(MAX_LOG_OPERATING),
-            paths,
-        };
+        let mut writer = Writer::open(&setup)?;
         let stop = Arc::new(AtomicBool::new(false));
         let stop_thread = Arc::clone(&stop);
+        let shared = Arc::new(Shared::default());
+        let shared_thread = Arc::clone(&shared);
         let every = setup.commit_every;
         let handle = std::thread::Builder::new()
             .name("truepos-log".into())
-            .spawn(move || {
-                let mut writer = Writer {
-                    conn,
-                    path,
-                    insert,
-                    names,
-                    layout,
-                    dropped_seen: 0,
-                    last_time: 0.0,
-                };
-                loop {
-                    let stopping = stop_thread.load(Ordering::Acquire);
-                    writer.drain(&events, &records)?;
-                    if stopping {
-                        return Ok(());
-                    }
-                    std::thread::sleep(every);
-                }
-            })
+            .spawn(move || writer.run(&stop_thread, &shared_thread, &events, &records, every))
             .map_err(|e| LogError {
                 file: setup.path.to_path_buf(),
                 message: format!("cannot start the log thread: {e}"),
             })?;
         Ok(Self {
             stop,
+            shared,
             handle: Some(handle),
         })
+    }
+
+    /// How the log is doing now (written by the thread after every attempt).
+    pub fn health(&self) -> LogHealth {
+        match self.shared.health.lock() {
+            Ok(h) => h.clone(),
+            Err(p) => p.into_inner().clone(),
+        }
+    }
+
+    /// Caps the database at `pages` pages (SQLite's `max_page_count`, applied by the thread
+    /// before its next write): beyond it a write fails with SQLITE_FULL exactly as on a full
+    /// disk, and raising the cap lets it resume. For a bounded log, and for testing the
+    /// failure path without filling a disk.
+    pub fn set_page_limit(&self, pages: u64) {
+        self.shared.page_limit.store(pages, Ordering::Release);
     }
 
     /// Writes what is still queued and stops the thread.
     pub fn stop(mut self) -> Result<(), LogError> {
         self.finish()
+    }
+
+    /// Like [`Logger::stop`], and how the log did over the run (after the last attempt).
+    pub fn stop_with_health(mut self) -> (Result<(), LogError>, LogHealth) {
+        let result = self.finish();
+        (result, self.health())
     }
 
     fn finish(&mut self) -> Result<(), LogError> {
@@ -248,6 +289,28 @@ struct Writer {
     layout: Layout,
     dropped_seen: u64,
     last_time: f64,
+    /// Drained and not yet committed (kept across failed attempts, bounded).
+    records: Vec<CycleRecord>,
+    events: Vec<Event>,
+    /// The logger's own events (failure, resumption, drops) as (time, kind, subject, detail).
+    notes: Vec<(f64, &'static str, String, String)>,
+    /// The current failure: when, why, and when to try again after how long a wait.
+    failure: Option<Failure>,
+    health: LogHealth,
+    page_limit: u64,
+    /// Dropped from the full buffer since the last successful write.
+    records_dropped: u64,
+    events_dropped: u64,
+    /// Bounds of the buffer ([`MAX_PENDING_RECORDS`], [`MAX_PENDING_EVENTS`]).
+    max_records: usize,
+    max_events: usize,
+}
+
+struct Failure {
+    since_s: f64,
+    reason: String,
+    retry_at: Instant,
+    backoff: Duration,
 }
 
 /// A float for SQLite: NaN and ∞ become NULL.
@@ -260,17 +323,270 @@ fn real(v: f64) -> rusqlite::types::Value {
 }
 
 impl Writer {
-    fn drain(
+    /// Opens (or creates) the log for this service, refusing one of another machine.
+    fn open(setup: &LogSetup<'_>) -> Result<Self, LogError> {
+        let path = setup.path.to_path_buf();
+        let conn = Connection::open(&path).map_err(err(&path))?;
+        conn.pragma_update(None, "journal_mode", "WAL")
+            .map_err(err(&path))?;
+        conn.pragma_update(None, "synchronous", "NORMAL")
+            .map_err(err(&path))?;
+        let m = &setup.machine.machine;
+        let paths = setup.paths.min(MAX_PATHS);
+        let columns = cycle_columns(setup.machine, paths);
+        let defs: Vec<String> = columns
+            .iter()
+            .map(|c| {
+                let ty = if c == "state" { "TEXT" } else { "REAL" };
+                format!("{} {ty}", quote(c))
+            })
+            .collect();
+        let has_meta: bool = conn
+            .query_row(
+                "SELECT count(*) FROM sqlite_master WHERE name = 'meta'",
+                [],
+                |r| r.get::<_, i64>(0),
+            )
+            .map_err(err(&path))?
+            > 0;
+        if has_meta {
+            check_owner(&conn, &path, &m.name, &columns)?;
+        }
+        conn.execute_batch(&format!(
+            "CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
+             CREATE TABLE IF NOT EXISTS events (time_s REAL NOT NULL, kind TEXT NOT NULL,
+                 subject TEXT NOT NULL, detail TEXT NOT NULL);
+             CREATE TABLE IF NOT EXISTS cycles ({});",
+            defs.join(", ")
+        ))
+        .map_err(err(&path))?;
+        let names = Names {
+            axes: m.axes.iter().map(|a| a.name.clone()).collect(),
+            sensors: m.temperatures.iter().map(|t| t.id.clone()).collect(),
+            sources: setup.sources.clone(),
+            sinks: setup.sinks.clone(),
+            models: setup.models.clone(),
+        };
+        let meta = serde_json::json!({
+            "machine": m.name,
+            "axes": names.axes,
+            "sensors": names.sensors,
+            "models": names.models,
+            "sources": names.sources,
+            "sinks": names.sinks,
+        });
+        conn.execute(
+            "INSERT OR REPLACE INTO meta (key, value) VALUES ('service', ?1)",
+            [meta.to_string()],
+        )
+        .map_err(err(&path))?;
+        let insert = format!(
+            "INSERT INTO cycles ({}) VALUES ({})",
+            columns
+                .iter()
+                .map(|c| quote(c))
+                .collect::<Vec<_>>()
+                .join(", "),
+            vec!["?"; columns.len()].join(", ")
+        );
+        let layout = Layout {
+            axes: m.axes.len(),
+            temperatures: m.temperatures.len().min(MAX_LOG_TEMPERATURES),
+            operating: m.operating.len().min(MAX_LOG_OPERATING),
+            paths,
+        };
+        Ok(Self {
+            conn,
+            path,
+            insert,
+            names,
+            layout,
+            dropped_seen: 0,
+            last_time: 0.0,
+            records: Vec::new(),
+            events: Vec::new(),
+            notes: Vec::new(),
+            failure: None,
+            health: LogHealth::default(),
+            page_limit: 0,
+            records_dropped: 0,
+            events_dropped: 0,
+            max_records: MAX_PENDING_RECORDS,
+            max_events: MAX_PENDING_EVENTS,
+        })
+    }
+
+    /// The thread's loop: drain the queues every `every`, write when no backoff is running,
+    /// publish the health; on stop, one last attempt whatever the backoff.
+    fn run(
         &mut self,
+        stop: &AtomicBool,
+        shared: &Shared,
         events: &EventQueue,
         records: &ArrayQueue<CycleRecord>,
+        every: Duration,
     ) -> Result<(), LogError> {
-        let tx = self.conn.transaction().map_err(err(&self.path))?;
+        loop {
+            let stopping = stop.load(Ordering::Acquire);
+            self.collect(events, records);
+            let limit = shared.page_limit.load(Ordering::Acquire);
+            if limit != 0 && limit != self.page_limit {
+                // A failed pragma leaves the old cap; the next write shows what that means.
+                if self
+                    .conn
+                    .pragma_update(None, "max_page_count", limit)
+                    .is_ok()
+                {
+                    self.page_limit = limit;
+                }
+            }
+            let due = match &self.failure {
+                None => true,
+                Some(f) => stopping || Instant::now() >= f.retry_at,
+            };
+            if due {
+                self.attempt();
+            }
+            self.publish(shared);
+            if stopping {
+                return match &self.failure {
+                    None => Ok(()),
+                    Some(f) => Err(LogError {
+                        file: self.path.clone(),
+                        message: format!(
+                            "writing the log failed since service time {:.1} s and never resumed: {}; \
+                             {} records and {} events not written",
+                            f.since_s,
+                            f.reason,
+                            self.records.len() as u64 + self.records_dropped,
+                            self.events.len() as u64 + self.events_dropped
+                        ),
+                    }),
+                };
+            }
+            std::thread::sleep(every);
+        }
+    }
+
+    /// Moves what the cycle queued into the buffer; beyond its bound, counts the drop.
+    fn collect(&mut self, events: &EventQueue, records: &ArrayQueue<CycleRecord>) {
+        while let Some(r) = records.pop() {
+            self.last_time = self.last_time.max(r.time_s);
+            if self.records.len() < self.max_records {
+                self.records.push(r);
+            } else {
+                self.health.records_dropped += 1;
+                self.records_dropped += 1;
+            }
+        }
+        while let Some(e) = events.pop() {
+            self.last_time = self.last_time.max(e.time_s);
+            if self.events.len() < self.max_events {
+                self.events.push(e);
+            } else {
+                self.health.events_dropped += 1;
+                self.events_dropped += 1;
+            }
+        }
+        let dropped = events.dropped();
+        if dropped > self.dropped_seen {
+            self.notes.push((
+                self.last_time,
+                "events-dropped",
+                "log".into(),
+                format!(
+                    "{} events were dropped: the log fell behind",
+                    dropped - self.dropped_seen
+                ),
+            ));
+            self.dropped_seen = dropped;
+        }
+    }
+
+    /// One attempt to write the buffer; on failure, starts or extends the backoff.
+    fn attempt(&mut self) {
+        // While failing, the resumption note rides in the same transaction as the buffer, so
+        // it is written exactly when the buffer is.
+        let resumed = self.failure.as_ref().map(|f| {
+            (
+                self.last_time,
+                "log-resumed",
+                "log".to_string(),
+                format!(
+                    "writing resumed after failing since {:.1} s; {} records and {} events \
+                     dropped meanwhile (the buffer holds {} records and {} events)",
+                    f.since_s,
+                    self.records_dropped,
+                    self.events_dropped,
+                    self.max_records,
+                    self.max_events
+                ),
+            )
+        });
+        let had = self.notes.len();
+        self.notes.extend(resumed);
+        match self.write_buffer() {
+            Ok(()) => {
+                if self.failure.take().is_some() {
+                    self.health.resumed += 1;
+                }
+                self.records.clear();
+                self.events.clear();
+                self.notes.clear();
+                self.records_dropped = 0;
+                self.events_dropped = 0;
+            }
+            Err(e) => {
+                self.notes.truncate(had);
+                let reason = e.to_string();
+                match &mut self.failure {
+                    Some(f) => {
+                        f.backoff = (f.backoff * 2).min(MAX_BACKOFF);
+                        f.retry_at = Instant::now() + f.backoff;
+                        f.reason = reason;
+                    }
+                    None => {
+                        let backoff = Duration::from_millis(250);
+                        self.notes.push((
+                            self.last_time,
+                            "log-failed",
+                            "log".into(),
+                            reason.clone(),
+                        ));
+                        self.health
+                            .first_failure
+                            .get_or_insert((self.last_time, reason.clone()));
+                        self.failure = Some(Failure {
+                            since_s: self.last_time,
+                            reason,
+                            retry_at: Instant::now() + backoff,
+                            backoff,
+                        });
+                    }
+                }
+            }
+        }
+    }
+
+    fn publish(&mut self, shared: &Shared) {
+        let h = &mut self.health;
+        h.failing = self.failure.as_ref().map(|f| f.reason.clone());
+        h.failing_since_s = self.failure.as_ref().map(|f| f.since_s);
+        h.pending = self.records.len() + self.events.len();
+        let mut out = match shared.health.lock() {
+            Ok(g) => g,
+            Err(p) => p.into_inner(),
+        };
+        *out = h.clone();
+    }
+
+    /// Writes the buffer in one transaction (rolled back whole on any error).
+    fn write_buffer(&mut self) -> Result<(), rusqlite::Error> {
+        let tx = self.conn.transaction()?;
         {
-            let mut insert = tx.prepare_cached(&self.insert).map_err(err(&self.path))?;
-            while let Some(r) = records.pop() {
-                self.last_time = r.time_s;
-                let l = &self.layout;
+            let mut insert = tx.prepare_cached(&self.insert)?;
+            let l = &self.layout;
+            for r in &self.records {
                 let mut values: Vec<rusqlite::types::Value> = Vec::new();
                 values.push(real(r.time_s));
                 values.push(rusqlite::types::Value::Text(state_name(r.state).into()));
@@ -285,37 +601,20 @@ impl Writer {
                 values.extend(r.temperatures_c[..l.temperatures].iter().map(|&v| real(v)));
                 values.extend(r.operating[..l.operating].iter().map(|&v| real(v)));
                 values.extend(r.offsets_um[..l.axes].iter().map(|&v| real(v)));
-                insert
-                    .execute(params_from_iter(values))
-                    .map_err(err(&self.path))?;
+                insert.execute(params_from_iter(values))?;
             }
-            let mut ev = tx
-                .prepare_cached(
-                    "INSERT INTO events (time_s, kind, subject, detail) VALUES (?1, ?2, ?3, ?4)",
-                )
-                .map_err(err(&self.path))?;
-            while let Some(e) = events.pop() {
-                self.last_time = self.last_time.max(e.time_s);
-                let (kind, subject, detail) = describe(&e, &self.names);
-                ev.execute(rusqlite::params![e.time_s, kind, subject, detail])
-                    .map_err(err(&self.path))?;
+            let mut ev = tx.prepare_cached(
+                "INSERT INTO events (time_s, kind, subject, detail) VALUES (?1, ?2, ?3, ?4)",
+            )?;
+            for e in &self.events {
+                let (kind, subject, detail) = describe(e, &self.names);
+                ev.execute(rusqlite::params![e.time_s, kind, subject, detail])?;
             }
-            let dropped = events.dropped();
-            if dropped > self.dropped_seen {
-                ev.execute(rusqlite::params![
-                    self.last_time,
-                    "events-dropped",
-                    "log",
-                    format!(
-                        "{} events were dropped: the log fell behind",
-                        dropped - self.dropped_seen
-                    )
-                ])
-                .map_err(err(&self.path))?;
-                self.dropped_seen = dropped;
+            for (time_s, kind, subject, detail) in &self.notes {
+                ev.execute(rusqlite::params![time_s, kind, subject, detail])?;
             }
         }
-        tx.commit().map_err(err(&self.path))
+        tx.commit()
     }
 }
 
@@ -384,7 +683,12 @@ fn describe(e: &Event, n: &Names) -> (&'static str, String, String) {
         EventKind::SourceBack { source } => {
             ("source-back", name(&n.sources, source), String::new())
         }
-        EventKind::SinkFailed { sink } => ("sink-failed", name(&n.sinks, sink), String::new()),
+        EventKind::SinkFailed { sink, reason } => (
+            "sink-failed",
+            name(&n.sinks, sink),
+            reason.as_str().to_string(),
+        ),
+        EventKind::SinkBack { sink } => ("sink-back", name(&n.sinks, sink), String::new()),
         EventKind::Overrun { late_us } => ("overrun", "cycle".into(), format!("{late_us} µs late")),
     }
 }
@@ -429,6 +733,18 @@ pub fn read_events(path: &Path) -> Result<Vec<LoggedEvent>, LogError> {
         })
         .map_err(err(path))?;
     rows.collect::<Result<Vec<_>, _>>().map_err(err(path))
+}
+
+/// The `meta` a service wrote at start (machine, axes, sensors, models, sources, sinks), or
+/// `None` for a log without one.
+pub fn read_meta(path: &Path) -> Result<Option<serde_json::Value>, LogError> {
+    let conn = open_read(path)?;
+    let text: Option<String> = conn
+        .query_row("SELECT value FROM meta WHERE key = 'service'", [], |r| {
+            r.get(0)
+        })
+        .ok();
+    Ok(text.and_then(|t| serde_json::from_str(&t).ok()))
 }
 
 /// The cycles of a log as (column names, rows); NULL becomes NaN, the state column its text.
@@ -476,4 +792,93 @@ pub fn integrity_check(path: &Path) -> Result<String, LogError> {
     let conn = open_read(path)?;
     conn.query_row("PRAGMA integrity_check", [], |r| r.get(0))
         .map_err(err(path))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::output::CompensationState;
+    use truepos_model::MAX_AXES;
+
+    fn record(time_s: f64) -> CycleRecord {
+        CycleRecord {
+            time_s,
+            state: CompensationState::Active,
+            positions: [0.0; MAX_AXES],
+            offsets_um: [0.0; MAX_AXES],
+            temperatures_c: [20.0; MAX_LOG_TEMPERATURES],
+            operating: [0.0; MAX_LOG_OPERATING],
+            model_per_path: [0; MAX_PATHS],
+        }
+    }
+
+    /// While the log fails, the buffer keeps what fits; the rest is counted, and the count is
+    /// logged with the failure once writing resumes. (The failure here is a connection set
+    /// `query_only`; tests/log_faults.rs has the full disk.)
+    #[test]
+    fn what_does_not_fit_the_buffer_while_failing_is_counted_and_logged_on_resumption() {
+        let dir = std::env::temp_dir().join(format!("truepos-logbuf-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let db = dir.join("log.sqlite");
+        let machine = truepos_io::machine_file::load(
+            &Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/vmc3/machine.toml"),
+        )
+        .unwrap();
+        let setup = LogSetup {
+            path: &db,
+            machine: &machine,
+            models: vec!["m".into()],
+            sources: vec![],
+            sinks: vec!["csv out.csv".into()],
+            paths: 1,
+            commit_every: Duration::from_millis(250),
+        };
+        let mut w = Writer::open(&setup).unwrap();
+        w.max_records = 5;
+        w.max_events = 2;
+        let events = EventQueue::new(64);
+        let records = ArrayQueue::new(64);
+        w.conn.pragma_update(None, "query_only", true).unwrap();
+        for i in 0..8 {
+            records.push(record(f64::from(i))).unwrap();
+        }
+        for _ in 0..3 {
+            events.push(Event {
+                time_s: 1.0,
+                kind: EventKind::SinkFailed {
+                    sink: 0,
+                    reason: crate::events::Reason::new("disk full"),
+                },
+            });
+        }
+        w.collect(&events, &records);
+        w.attempt();
+        assert!(w.failure.is_some());
+        records.push(record(8.0)).unwrap();
+        records.push(record(9.0)).unwrap();
+        w.collect(&events, &records);
+        w.attempt();
+        assert_eq!((w.health.records_dropped, w.health.events_dropped), (5, 1));
+        w.conn.pragma_update(None, "query_only", false).unwrap();
+        w.attempt();
+        assert!(w.failure.is_none());
+        assert_eq!(w.health.resumed, 1);
+        let logged = read_events(&db).unwrap();
+        let kinds: Vec<&str> = logged.iter().map(|e| e.kind.as_str()).collect();
+        assert_eq!(
+            kinds,
+            ["sink-failed", "sink-failed", "log-failed", "log-resumed"]
+        );
+        assert_eq!(logged[0].detail, "disk full");
+        assert!(logged[2].detail.contains("readonly"), "{logged:?}");
+        assert!(
+            logged[3]
+                .detail
+                .contains("5 records and 1 events dropped meanwhile"),
+            "{logged:?}"
+        );
+        assert_eq!(read_cycles(&db, None).unwrap().1.len(), 5);
+        std::fs::remove_dir_all(&dir).ok();
+    }
 }

@@ -88,41 +88,100 @@ impl Source for ReplaySource {
     }
 }
 
+/// Interval in s of service time between two writes of a CSV sink's buffered rows to its
+/// file, and between two attempts while the file fails: a failure shows within this time.
+pub const CSV_FLUSH_EVERY_S: f64 = 0.5;
+/// Bytes of rows a CSV sink keeps while its file fails; rows beyond are dropped and counted.
+pub const CSV_MAX_PENDING: usize = 4 << 20;
+
 /// Writes every cycle's offsets to a CSV file: `time_s, <axis>_offset_um…, state, clamped`.
+///
+/// Rows are buffered and written every [`CSV_FLUSH_EVERY_S`] of service time. A failed write
+/// (a full disk, `/dev/full`) keeps the unwritten bytes (a short write leaves no duplicate and
+/// no gap), makes every call fail until a later attempt succeeds, and is retried at the same
+/// interval — so the service sees one failure and one recovery, not a flicker per cycle.
 pub struct CsvSink {
     name: String,
-    out: csv::Writer<std::io::BufWriter<std::fs::File>>,
+    file: std::fs::File,
+    pending: Vec<u8>,
     axes: usize,
     every_s: f64,
     last_s: f64,
-    line: Vec<String>,
+    last_flush_s: f64,
+    failure: Option<LinkError>,
+    rows_dropped: u64,
 }
 
 impl CsvSink {
-    /// A CSV sink writing at most one row every `every_s` seconds (0: every cycle).
+    /// A CSV sink writing at most one row every `every_s` seconds (0: every cycle). The header
+    /// goes out with the first rows, so a file that cannot take it fails in the service (an
+    /// event and a state), not here.
     pub fn create(path: &Path, axis_names: &[String], every_s: f64) -> Result<Self, InputError> {
         let file = std::fs::File::create(path)
             .map_err(|e| InputError::file(path, format!("cannot write: {e}")))?;
-        let mut out = csv::Writer::from_writer(std::io::BufWriter::new(file));
-        let mut header = vec!["time_s".to_string()];
-        header.extend(axis_names.iter().map(|a| format!("{a}_offset_um")));
-        header.push("state".into());
-        header.push("clamped".into());
-        out.write_record(&header)
+        let mut header = csv::Writer::from_writer(Vec::new());
+        let mut fields = vec!["time_s".to_string()];
+        fields.extend(axis_names.iter().map(|a| format!("{a}_offset_um")));
+        fields.push("state".into());
+        fields.push("clamped".into());
+        header
+            .write_record(&fields)
+            .map_err(|e| InputError::file(path, format!("cannot write: {e}")))?;
+        let pending = header
+            .into_inner()
             .map_err(|e| InputError::file(path, format!("cannot write: {e}")))?;
         Ok(Self {
             name: format!("csv {}", path.display()),
-            out,
+            file,
+            pending,
             axes: axis_names.len(),
             every_s,
             last_s: f64::NEG_INFINITY,
-            line: Vec::with_capacity(axis_names.len() + 3),
+            last_flush_s: f64::NEG_INFINITY,
+            failure: None,
+            rows_dropped: 0,
         })
     }
 
-    /// Flushes buffered rows to the file.
+    /// Writes buffered rows to the file.
     pub fn flush(&mut self) -> std::io::Result<()> {
-        self.out.flush()
+        while !self.pending.is_empty() {
+            match std::io::Write::write(&mut self.file, &self.pending) {
+                Ok(0) => return Err(std::io::ErrorKind::WriteZero.into()),
+                Ok(n) => {
+                    self.pending.drain(..n);
+                }
+                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+                Err(e) => return Err(e),
+            }
+        }
+        Ok(())
+    }
+
+    /// Rows dropped because the buffer was full while the file failed.
+    pub fn rows_dropped(&self) -> u64 {
+        self.rows_dropped
+    }
+
+    fn push_row(&mut self, output: &Output) {
+        use std::io::Write as _;
+        if self.pending.len() >= CSV_MAX_PENDING {
+            self.rows_dropped += 1;
+            return;
+        }
+        // Numbers and state words need no quoting. A file sink formats text; it is meant for
+        // replay, tests and monitoring, not for a 1 kHz control.
+        let p = &mut self.pending;
+        let _ = write!(p, "{:.4}", output.time_s);
+        for v in &output.offset_um[..self.axes] {
+            let _ = write!(p, ",{v:.4}");
+        }
+        let _ = writeln!(
+            p,
+            ",{},{}",
+            state_name(output.state),
+            u8::from(output.clamped)
+        );
     }
 }
 
@@ -142,26 +201,23 @@ impl Sink for CsvSink {
     }
 
     fn write(&mut self, output: &Output) -> Result<(), LinkError> {
-        if output.time_s - self.last_s < self.every_s {
-            return Ok(());
+        if output.time_s - self.last_s >= self.every_s {
+            self.last_s = output.time_s;
+            self.push_row(output);
         }
-        self.last_s = output.time_s;
-        // A file sink formats text; it is meant for replay and tests, not for a 1 kHz control.
-        self.line.clear();
-        self.line.push(format!("{:.4}", output.time_s));
-        for v in &output.offset_um[..self.axes] {
-            self.line.push(format!("{v:.4}"));
+        if output.time_s - self.last_flush_s >= CSV_FLUSH_EVERY_S {
+            self.last_flush_s = output.time_s;
+            self.failure = self.flush().err().map(|e| LinkError::Failed(e.to_string()));
         }
-        self.line.push(state_name(output.state).into());
-        self.line.push(u8::from(output.clamped).to_string());
-        self.out
-            .write_record(&self.line)
-            .map_err(|e| LinkError::Failed(e.to_string()))
+        match &self.failure {
+            None => Ok(()),
+            Some(e) => Err(e.clone()),
+        }
     }
 }
 
 impl Drop for CsvSink {
     fn drop(&mut self) {
-        let _ = self.out.flush();
+        let _ = self.flush();
     }
 }

@@ -62,6 +62,20 @@ pub enum PathState {
     Disabled,
 }
 
+/// How a sink is doing: whether it fails now, and whether it ever failed in this run (so the
+/// end of a run can say so even after it recovered).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct SinkHealth {
+    /// Service time since which the sink fails (`None`: it takes the output).
+    pub failing_since_s: Option<f64>,
+    /// Why it failed last.
+    pub reason: Reason,
+    /// Cycles whose output the sink did not take.
+    pub failed_writes: u64,
+    /// Service time of the first failure in this run.
+    pub first_failure_s: Option<f64>,
+}
+
 /// Where an axis' target comes from. A change of origin restarts the axis' blend.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Origin {
@@ -108,7 +122,7 @@ pub struct Service {
     source_ok: Vec<bool>,
     /// Per source, the reason of its current failure (empty while it delivers).
     source_reason: Vec<Reason>,
-    sink_ok: Vec<bool>,
+    sink_health: Vec<SinkHealth>,
     finished: bool,
     frame: Frame,
     configured_paths: Vec<Vec<usize>>,
@@ -177,7 +191,7 @@ impl Service {
             output: Output::zero(m.axes.len()),
             source_ok: vec![true; sources.len()],
             source_reason: vec![Reason::EMPTY; sources.len()],
-            sink_ok: vec![true; sinks.len()],
+            sink_health: vec![SinkHealth::default(); sinks.len()],
             sources,
             sinks,
             finished: false,
@@ -206,6 +220,11 @@ impl Service {
             config,
             machine,
         }
+    }
+
+    /// Number of sources.
+    pub fn source_count(&self) -> usize {
+        self.sources.len()
     }
 
     /// Why source `i` does not deliver, as its latest `SourceLost` event said; `None` while it
@@ -260,6 +279,25 @@ impl Service {
     /// Whether a source has said it has nothing more to give.
     pub fn finished(&self) -> bool {
         self.finished
+    }
+
+    /// How each sink is doing, in service order.
+    pub fn sink_health(&self) -> &[SinkHealth] {
+        &self.sink_health
+    }
+
+    /// The name of sink `i` (empty if there is none).
+    pub fn sink_name(&self, i: usize) -> &str {
+        self.sinks.get(i).map_or("", |s| s.name())
+    }
+
+    /// A sink that drives the axes and fails now, if any: the offsets no longer reach the
+    /// axes and the run must stop with an alarm; a failing recording sink does not stop it.
+    pub fn axes_unreachable(&self) -> Option<usize> {
+        self.sink_health
+            .iter()
+            .zip(&self.sinks)
+            .position(|(h, s)| h.failing_since_s.is_some() && s.drives_axes())
     }
 
     /// Cycles run.
@@ -609,18 +647,40 @@ impl Service {
         }
     }
 
+    /// Writes the output to every sink; a failure is an event on the change (not one per
+    /// cycle) and stays visible in [`Service::sink_health`]. Allocates nothing unless a sink
+    /// does: the reason is copied into a fixed-size [`Reason`] once, when the sink fails.
     fn write_sinks(&mut self, now_s: f64) {
         for (i, s) in self.sinks.iter_mut().enumerate() {
-            let ok = s.write(&self.output).is_ok();
-            if ok != self.sink_ok[i] {
-                self.sink_ok[i] = ok;
-                if !ok {
-                    self.events.push(Event {
-                        time_s: now_s,
-                        kind: EventKind::SinkFailed { sink: i },
-                    });
+            let h = &mut self.sink_health[i];
+            let kind = match s.write(&self.output) {
+                Ok(()) => match h.failing_since_s.take() {
+                    Some(_) => EventKind::SinkBack { sink: i },
+                    None => continue,
+                },
+                Err(e) => {
+                    h.failed_writes += 1;
+                    if h.failing_since_s.is_some() {
+                        continue;
+                    }
+                    h.failing_since_s = Some(now_s);
+                    h.first_failure_s.get_or_insert(now_s);
+                    h.reason = match e {
+                        LinkError::Disconnected(why) => why,
+                        // Only sinks that allocate anyway (a file) return `Failed`.
+                        LinkError::Failed(why) => Reason::new(&why),
+                        LinkError::Finished => Reason::new("finished"),
+                    };
+                    EventKind::SinkFailed {
+                        sink: i,
+                        reason: h.reason,
+                    }
                 }
-            }
+            };
+            self.events.push(Event {
+                time_s: now_s,
+                kind,
+            });
         }
     }
 
