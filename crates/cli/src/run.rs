@@ -10,10 +10,10 @@ use std::time::{Duration, Instant};
 use truepos_io::limits::{check_in, finite_in};
 use truepos_io::{cycles, machine_file};
 use truepos_runtime::log::{self, LogSetup, Logger};
-use truepos_runtime::modbus::{ModbusConfig, ModbusSource};
 use truepos_runtime::model_set::load_entries;
 use truepos_runtime::replay::{state_name, CsvSink, ReplaySource};
-use truepos_runtime::shdr::{ShdrConfig, ShdrSource};
+use truepos_runtime::sources::modbus::{ModbusConfig, ModbusSource};
+use truepos_runtime::sources::shdr::{ShdrConfig, ShdrSource};
 use truepos_runtime::{PathState, Service, ServiceConfig, Sink, Source};
 
 /// Arguments of `truepos run`.

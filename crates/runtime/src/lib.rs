@@ -10,13 +10,11 @@ pub mod events;
 pub mod frame;
 pub mod io_traits;
 pub mod log;
-pub mod modbus;
 pub mod model_set;
 pub mod output;
-pub mod reconnect;
 pub mod replay;
 pub mod service;
-pub mod shdr;
+pub mod sources;
 pub mod validate;
 
 pub use frame::{Frame, NEVER};

@@ -8,11 +8,11 @@
 use proptest::prelude::*;
 use proptest::test_runner::Config;
 
-use truepos_runtime::modbus::{
+use truepos_runtime::sources::modbus::{
     decode, parse_header, parse_response_adu, Encoding, ModbusError, ReadRequest, RegisterKind,
     WordOrder, MBAP_HEADER_BYTES,
 };
-use truepos_runtime::shdr::{parse_line, LineBuffer, ShdrLine, ShdrValue};
+use truepos_runtime::sources::shdr::{parse_line, LineBuffer, ShdrLine, ShdrValue};
 
 /// Cases for a property that runs `full` cases in a release build.
 fn cases(full: u32) -> Config {

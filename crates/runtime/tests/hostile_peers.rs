@@ -17,12 +17,12 @@ use std::time::{Duration, Instant};
 
 use truepos_io::{machine_file, model_file};
 use truepos_runtime::events::EventKind;
-use truepos_runtime::modbus::{
+use truepos_runtime::model_set::ModelEntry;
+use truepos_runtime::sources::modbus::{
     Addressing, Encoding, ModbusChannelConfig, ModbusConfig, ModbusSource, RegisterKind, WordOrder,
 };
-use truepos_runtime::model_set::ModelEntry;
-use truepos_runtime::reconnect::BackoffConfig;
-use truepos_runtime::shdr::{ShdrChannelConfig, ShdrConfig, ShdrSource};
+use truepos_runtime::sources::shdr::{ShdrChannelConfig, ShdrConfig, ShdrSource};
+use truepos_runtime::sources::BackoffConfig;
 use truepos_runtime::*;
 
 fn repo(path: &str) -> PathBuf {

@@ -10,11 +10,11 @@ use std::sync::Arc;
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use truepos_runtime::modbus::{
+use truepos_runtime::sources::modbus::{
     Addressing, Encoding, ModbusChannelConfig, ModbusClient, ModbusConfig, ModbusError,
     ModbusSource, RegisterKind, WordOrder,
 };
-use truepos_runtime::reconnect::{BackoffConfig, LinkEventKind};
+use truepos_runtime::sources::{BackoffConfig, LinkEventKind};
 use truepos_runtime::{Frame, LinkError, Source};
 
 type Answer = fn(&[u8; 12]) -> Option<Vec<u8>>;

@@ -9,11 +9,11 @@ use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 use truepos_model::Machine;
-use truepos_runtime::modbus::{
+use truepos_runtime::sources::modbus::{
     decode, Addressing, Encoding, ModbusChannelConfig, ModbusClient, ModbusConfig, ModbusError,
     ModbusSource, RegisterKind, WordOrder,
 };
-use truepos_runtime::reconnect::{BackoffConfig, LinkEventKind};
+use truepos_runtime::sources::{BackoffConfig, LinkEventKind};
 use truepos_runtime::{Frame, LinkError, Source, NEVER};
 
 fn repo() -> PathBuf {

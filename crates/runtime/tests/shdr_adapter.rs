@@ -11,8 +11,8 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use truepos_model::Machine;
-use truepos_runtime::reconnect::{BackoffConfig, LinkEventKind};
-use truepos_runtime::shdr::{ShdrChannelConfig, ShdrConfig, ShdrSource};
+use truepos_runtime::sources::shdr::{ShdrChannelConfig, ShdrConfig, ShdrSource};
+use truepos_runtime::sources::{BackoffConfig, LinkEventKind};
 use truepos_runtime::{Frame, LinkError, Source, NEVER};
 
 fn machine() -> Machine {

@@ -1,0 +1,28 @@
+//! Network sources — MTConnect SHDR ([`shdr`]) and Modbus TCP ([`modbus`]) — and what they
+//! share: reconnection with exponential backoff, the state of a link as the cycle and the status
+//! line see it, the mapping of a received value onto a machine channel of the frame, and the
+//! checks of their configurations.
+//!
+//! A network source runs its own thread. When its connection is lost the thread stops publishing,
+//! so the stamps of the channels it feeds stop advancing: the service's validation then sees
+//! them as missing updates, i.e. bad sensors, and applies its policy. The thread meanwhile tries
+//! to reconnect, waiting `initial_ms`, then twice as long after every failed attempt, up to
+//! `max_ms`; a successful connection resets the wait.
+
+mod backoff;
+mod config;
+mod link;
+mod target;
+mod thread;
+
+pub mod modbus;
+pub mod shdr;
+
+pub use backoff::{Backoff, BackoffConfig};
+pub use config::{check_source_config, resolve_address, ConfigError};
+pub use link::{
+    LinkEvent, LinkEventKind, LinkSnapshot, LinkStatus, OutageReporter, MAX_EVENT_MESSAGE_BYTES,
+    MAX_PENDING_EVENTS,
+};
+pub use target::{check_unique_targets, Target};
+pub use thread::{read_exact_until, seconds_since, sleep_unless_stopped, stop_thread, STOP_LIMIT};

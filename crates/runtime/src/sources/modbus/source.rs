@@ -1,0 +1,293 @@
+//! The Modbus source: its polling thread and the cycle's view of the values it publishes.
+
+use std::net::SocketAddr;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use truepos_model::Machine;
+
+use super::client::ModbusClient;
+use super::codec::{decode, DecodeError, Encoding, ModbusError, WordOrder};
+use super::config::ModbusConfig;
+use super::plan::{plan_reads, split_blocks, ReadBlock};
+use crate::frame::Frame;
+use crate::io_traits::{LinkError, SharedChannels, Source};
+use crate::sources::{
+    resolve_address, seconds_since, sleep_unless_stopped, stop_thread, Backoff, BackoffConfig,
+    ConfigError, LinkSnapshot, LinkStatus, OutageReporter, Target, STOP_LIMIT,
+};
+
+/// A Modbus TCP source: a polling thread and the cycle's view of its values.
+#[derive(Debug)]
+pub struct ModbusSource {
+    name: String,
+    targets: Vec<Target>,
+    channels: Arc<SharedChannels>,
+    status: Arc<LinkStatus>,
+    stop: Arc<AtomicBool>,
+    outage: OutageReporter,
+    thread: Option<JoinHandle<()>>,
+}
+
+impl ModbusSource {
+    /// Starts the polling thread for a checked configuration. `epoch` is the service clock's
+    /// zero: stamps are seconds since it.
+    pub fn start(
+        config: &ModbusConfig,
+        machine: &Machine,
+        epoch: Instant,
+    ) -> Result<Self, ConfigError> {
+        let (targets, spans) = config.resolve(machine)?;
+        let peer = resolve_address(&config.address, "modbus.address")?;
+        let channels = SharedChannels::new(targets.len());
+        let status = Arc::new(LinkStatus::default());
+        let stop = Arc::new(AtomicBool::new(false));
+        let poller = Poller {
+            peer,
+            poll: Duration::from_millis(config.poll_ms),
+            timeout: Duration::from_millis(config.timeout_ms),
+            backoff: config.backoff,
+            blocks: plan_reads(&spans),
+            decoders: config
+                .channels
+                .iter()
+                .map(|c| (c.encoding, c.word_order))
+                .collect(),
+            channels: Arc::clone(&channels),
+            status: Arc::clone(&status),
+            stop: Arc::clone(&stop),
+            epoch,
+        };
+        let name = format!("modbus {}", config.address);
+        let thread = std::thread::Builder::new()
+            .name(name.clone())
+            .spawn(move || poller.run())
+            .map_err(|e| {
+                ConfigError::new("modbus", format!("cannot start the polling thread: {e}"))
+            })?;
+        Ok(Self {
+            name,
+            targets,
+            channels,
+            status,
+            stop,
+            outage: OutageReporter::default(),
+            thread: Some(thread),
+        })
+    }
+
+    /// The link's state for the status line.
+    pub fn status(&self) -> LinkSnapshot {
+        self.status.snapshot()
+    }
+
+    /// The link's state, including its events to drain (off the cycle).
+    pub fn link(&self) -> &LinkStatus {
+        &self.status
+    }
+
+    /// The machine channels this source feeds, in configuration order.
+    pub fn targets(&self) -> &[Target] {
+        &self.targets
+    }
+}
+
+impl Source for ModbusSource {
+    fn name(&self) -> &str {
+        &self.name
+    }
+
+    /// Copies the latest values with the time of the answer that carried them (atomics only, no
+    /// allocation). A value that arrived after the frame's clock reading is stamped with the
+    /// frame's time: stamps never lie after `frame.time_s`.
+    fn read(&mut self, frame: &mut Frame) -> Result<(), LinkError> {
+        for (k, target) in self.targets.iter().enumerate() {
+            let (value, stamp) = self.channels.get(k);
+            target.write(frame, value, stamp.min(frame.time_s));
+        }
+        self.outage.check(&self.status)
+    }
+}
+
+impl Drop for ModbusSource {
+    fn drop(&mut self) {
+        if let Some(t) = self.thread.take() {
+            stop_thread(&self.stop, t, STOP_LIMIT);
+        }
+    }
+}
+
+/// The polling thread.
+struct Poller {
+    peer: SocketAddr,
+    poll: Duration,
+    timeout: Duration,
+    backoff: BackoffConfig,
+    blocks: Vec<ReadBlock>,
+    decoders: Vec<(Encoding, WordOrder)>,
+    channels: Arc<SharedChannels>,
+    status: Arc<LinkStatus>,
+    stop: Arc<AtomicBool>,
+    epoch: Instant,
+}
+
+impl Poller {
+    fn run(mut self) {
+        let mut backoff = Backoff::new(self.backoff);
+        // The last problem reported per block and per channel, so that a lasting one is reported
+        // once, not at every poll.
+        let mut block_problem: Vec<Option<String>> = vec![None; self.blocks.len()];
+        let mut value_problem: Vec<Option<DecodeError>> = vec![None; self.decoders.len()];
+        while !self.stop.load(Ordering::Acquire) {
+            match ModbusClient::connect(self.peer, self.timeout) {
+                Ok(client) => {
+                    let mut client = client.stop_on(Arc::clone(&self.stop));
+                    backoff.reset();
+                    self.status.set_connected(
+                        seconds_since(self.epoch),
+                        format!("connected to Modbus server {}", self.peer),
+                    );
+                    match self.poll_until_lost(&mut client, &mut block_problem, &mut value_problem)
+                    {
+                        None => return,
+                        Some(why) => self.status.set_lost(seconds_since(self.epoch), why),
+                    }
+                }
+                Err(e) => self
+                    .status
+                    .set_lost(seconds_since(self.epoch), e.to_string()),
+            }
+            if !sleep_unless_stopped(backoff.next_delay(), &self.stop) {
+                return;
+            }
+        }
+    }
+
+    /// Polls until the connection is lost (returns why) or the source stops (returns `None`).
+    /// A round in which the server refuses a request (an exception) makes the source fail with
+    /// that reason until a round is answered in full.
+    fn poll_until_lost(
+        &mut self,
+        client: &mut ModbusClient,
+        block_problem: &mut Vec<Option<String>>,
+        value_problem: &mut [Option<DecodeError>],
+    ) -> Option<String> {
+        let mut next = Instant::now();
+        let mut failing: Option<String> = None;
+        loop {
+            let mut split = Vec::new();
+            let mut refused: Option<String> = None;
+            for (b, block) in self.blocks.iter().enumerate() {
+                if self.stop.load(Ordering::Acquire) {
+                    return None;
+                }
+                // The source's name carries the server's address.
+                let what = format!(
+                    "unit {} function {:02X} registers {}–{}",
+                    block.unit,
+                    block.kind.function_code(),
+                    block.address,
+                    u32::from(block.address) + u32::from(block.count) - 1
+                );
+                match client.read_registers(block.unit, block.kind, block.address, block.count) {
+                    Ok(registers) => {
+                        let now = seconds_since(self.epoch);
+                        block_problem[b] = None;
+                        for &(k, offset) in &block.members {
+                            let (encoding, order) = self.decoders[k];
+                            let start = usize::from(offset);
+                            let end = start + usize::from(encoding.registers());
+                            let value = registers
+                                .get(start..end)
+                                .ok_or(DecodeError::WrongCount {
+                                    expected: end,
+                                    found: registers.len(),
+                                })
+                                .and_then(|r| decode(encoding, order, r));
+                            match value {
+                                Ok(x) => {
+                                    value_problem[k] = None;
+                                    self.channels.publish(k, x, now);
+                                }
+                                Err(e) => {
+                                    // An invalid value is published as NaN so that validation
+                                    // rejects it, and reported once while it lasts.
+                                    self.channels.publish(k, f64::NAN, now);
+                                    if value_problem[k] != Some(e) {
+                                        value_problem[k] = Some(e);
+                                        self.status.bad_data(
+                                            now,
+                                            format!(
+                                                "Modbus server {} unit {} register {}: {e}",
+                                                self.peer,
+                                                block.unit,
+                                                u32::from(block.address) + u32::from(offset)
+                                            ),
+                                        );
+                                    }
+                                }
+                            }
+                        }
+                    }
+                    // A module may refuse a read that spans registers it does not have (between
+                    // the ones configured): read the channels of that block one by one.
+                    Err(ModbusError::Exception { code: 0x02, .. }) if block.members.len() > 1 => {
+                        split.push(b);
+                        self.status.bad_data(
+                            seconds_since(self.epoch),
+                            format!(
+                                "Modbus server {} unit {} function {:02X} registers {}–{}: exception 02 \
+                                 (illegal data address) to a grouped read; reading its {} channels one by one",
+                                self.peer,
+                                block.unit,
+                                block.kind.function_code(),
+                                block.address,
+                                u32::from(block.address) + u32::from(block.count) - 1,
+                                block.members.len()
+                            ),
+                        );
+                    }
+                    Err(e) if e.keeps_connection() => {
+                        let why = format!("{what}: {e}");
+                        if block_problem[b].as_deref() != Some(why.as_str()) {
+                            self.status.bad_data(seconds_since(self.epoch), why.clone());
+                            block_problem[b] = Some(why.clone());
+                        }
+                        refused.get_or_insert(why);
+                    }
+                    Err(e) => return Some(format!("{what}: {e}")),
+                }
+            }
+            match refused {
+                Some(why) if failing.as_deref() != Some(why.as_str()) => {
+                    self.status
+                        .set_failing(seconds_since(self.epoch), why.clone());
+                    failing = Some(why);
+                }
+                None if failing.is_some() => {
+                    failing = None;
+                    self.status.set_delivering(
+                        seconds_since(self.epoch),
+                        format!("Modbus server {} answers every request again", self.peer),
+                    );
+                }
+                _ => {}
+            }
+            if !split.is_empty() {
+                self.blocks = split_blocks(&self.blocks, &split, &self.decoders);
+                block_problem.clear();
+                block_problem.resize(self.blocks.len(), None);
+            }
+            next += self.poll;
+            let now = Instant::now();
+            if next < now {
+                next = now; // a slow server: poll again at once, without catching up
+            }
+            if !sleep_unless_stopped(next - now, &self.stop) {
+                return None;
+            }
+        }
+    }
+}
