@@ -24,7 +24,7 @@
 use std::path::{Path, PathBuf};
 
 use truepos_model::kinematics::{Chain, Dof, ErrorTable, ErrorUnit, KinAxis, Row};
-use truepos_model::table::{Interpolation, Wrap};
+use truepos_model::table::{CompTable, Interpolation, Wrap};
 use truepos_model::{AxisKind, Machine};
 
 use crate::comp_table::{parse_csv, parse_linuxcnc, parse_siemens, LinuxCncType};
@@ -105,449 +105,603 @@ pub fn parse(
     text: &str,
     machine: Option<&Machine>,
 ) -> Result<KinematicsFile, InputError> {
-    let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
-    let mut name = String::new();
-    let mut tool_length_mm = 0.0;
-    let mut axes: Vec<KinAxis> = Vec::new();
-    let mut machine_axis: Vec<usize> = Vec::new();
-    let mut tables: Vec<ErrorTable> = Vec::new();
-    let mut rows: Vec<Row> = Vec::new();
-    let mut row_lines: Vec<usize> = Vec::new();
+    let mut draft = Draft {
+        path,
+        dir: path.parent().map(Path::to_path_buf).unwrap_or_default(),
+        machine,
+        name: String::new(),
+        tool_length_mm: 0.0,
+        axes: Vec::new(),
+        machine_axis: Vec::new(),
+        tables: Vec::new(),
+        rows: Vec::new(),
+        row_lines: Vec::new(),
+    };
     for (i, raw) in text.lines().enumerate() {
-        let ln = i + 1;
-        let line = raw.split('#').next().unwrap_or("");
-        let f = split_fields(line);
-        if f.is_empty() {
-            continue;
-        }
-        let at = |field: &Field<'_>, key: &str, msg: String| {
-            InputError::at(path, ln, field.col, key, msg)
+        let code = raw.split('#').next().unwrap_or("");
+        let line = Line {
+            path,
+            ln: i + 1,
+            raw,
+            f: split_fields(code),
         };
-        if let Some((key, value)) = line.split_once('=').filter(|_| f[0].text != "table") {
-            let key = key.trim();
-            let value = value.trim();
-            match key {
-                "name" => name = value.to_string(),
-                "tool_length" => {
-                    let vf = Field {
-                        col: raw
-                            .find('=')
-                            .map_or(1, |c| raw[..c + 1].chars().count() + 1),
-                        text: value,
-                    };
-                    tool_length_mm = number(path, ln, &vf, "tool_length")?;
-                }
-                _ => {
-                    return Err(at(
-                        &f[0],
-                        key,
-                        format!("unknown setting `{key}`; expected name or tool_length"),
-                    ))
-                }
-            }
+        if line.f.is_empty() {
             continue;
         }
-        match f[0].text {
+        if let Some((key, value)) = code.split_once('=').filter(|_| line.f[0].text != "table") {
+            draft.setting(&line, key.trim(), value.trim())?;
+            continue;
+        }
+        match line.f[0].text {
+            "axis" => draft.axis(&line)?,
+            "table" => draft.table(&line)?,
+            _ => draft.row(&line)?,
+        }
+    }
+    draft.finish()
+}
+
+/// One non-empty line of a kinematics file, split into fields.
+struct Line<'a> {
+    path: &'a Path,
+    /// 1-based line number.
+    ln: usize,
+    /// The whole line, comment included, for columns.
+    raw: &'a str,
+    f: Vec<Field<'a>>,
+}
+
+impl Line<'_> {
+    /// An error at `field` of this line.
+    fn at(&self, field: &Field<'_>, key: &str, msg: String) -> InputError {
+        InputError::at(self.path, self.ln, field.col, key, msg)
+    }
+}
+
+/// What the lines read so far declare, in file order; rows and tables may only reference axes
+/// and tables declared above them.
+struct Draft<'a> {
+    path: &'a Path,
+    /// Table files are read relative to this directory.
+    dir: PathBuf,
+    machine: Option<&'a Machine>,
+    name: String,
+    tool_length_mm: f64,
+    axes: Vec<KinAxis>,
+    machine_axis: Vec<usize>,
+    tables: Vec<ErrorTable>,
+    rows: Vec<Row>,
+    /// The line of each row, to place the chain's errors.
+    row_lines: Vec<usize>,
+}
+
+impl Draft<'_> {
+    /// A `key = value` setting: `name` or `tool_length`.
+    fn setting(&mut self, line: &Line<'_>, key: &str, value: &str) -> Result<(), InputError> {
+        match key {
+            "name" => self.name = value.to_string(),
+            "tool_length" => {
+                let vf = Field {
+                    col: line
+                        .raw
+                        .find('=')
+                        .map_or(1, |c| line.raw[..c + 1].chars().count() + 1),
+                    text: value,
+                };
+                self.tool_length_mm = number(self.path, line.ln, &vf, "tool_length")?;
+            }
+            _ => {
+                return Err(line.at(
+                    &line.f[0],
+                    key,
+                    format!("unknown setting `{key}`; expected name or tool_length"),
+                ))
+            }
+        }
+        Ok(())
+    }
+
+    /// An `axis` line: declared once, and its kind and travel come from the machine when one is
+    /// given, else from the line.
+    fn axis(&mut self, line: &Line<'_>) -> Result<(), InputError> {
+        let f = &line.f;
+        let Some(nf) = f.get(1) else {
+            return Err(line.at(
+                &f[0],
+                "axis",
+                "expected `axis NAME [linear|rotary MIN MAX]`".into(),
+            ));
+        };
+        let axis_name = nf.text;
+        if self.axes.iter().any(|a| a.name == axis_name) {
+            return Err(line.at(nf, "axis", format!("axis `{axis_name}` declared twice")));
+        }
+        let declared = declared_axis(line)?;
+        let from_machine = match self.machine {
+            Some(m) => {
+                let (idx, a) = machine_axis(line, m, declared)?;
+                self.machine_axis.push(idx);
+                Some(a)
+            }
+            None => None,
+        };
+        let Some((kind, lo, hi)) = from_machine.or(declared) else {
+            return Err(line.at(
+                nf,
+                "axis",
+                format!("axis `{axis_name}` needs `linear|rotary MIN MAX` when no machine file is given"),
+            ));
+        };
+        self.axes.push(KinAxis {
+            name: axis_name.to_string(),
+            kind,
+            travel_min: lo,
+            travel_max: hi,
+        });
+        Ok(())
+    }
+
+    /// A `table` line: its options are complete, its name is new, and the table it reads wraps
+    /// like its axis and holds the unit it claims.
+    fn table(&mut self, line: &Line<'_>) -> Result<(), InputError> {
+        let f = &line.f;
+        let Some(nf) = f.get(1) else {
+            return Err(line.at(
+                &f[0],
+                "table",
+                "expected `table NAME axis=… unit=… file=…`".into(),
+            ));
+        };
+        let TableOptions {
+            axis,
+            unit,
+            file,
+            format,
+            interp,
+        } = table_options(line, &self.axes)?;
+        let (Some(axis), Some(unit), Some((file_field, file))) = (axis, unit, file) else {
+            return Err(line.at(nf, "table", "expected axis=…, unit=… and file=…".into()));
+        };
+        if self.tables.iter().any(|t| t.name == nf.text) {
+            return Err(line.at(nf, "table", format!("table `{}` declared twice", nf.text)));
+        }
+        let wrap = match self.axes[axis].kind {
+            AxisKind::Linear => Wrap::Hold,
+            AxisKind::Rotary => Wrap::Rotary,
+        };
+        let table_path: PathBuf = self.dir.join(file);
+        let table_text = read_text(&table_path)
+            .map_err(|e| line.at(file_field, "file", format!("table `{}`: {}", nf.text, e)))?;
+        let built = read_table(&table_path, &table_text, format, wrap, interp)?;
+        if built.wrap() != wrap {
+            return Err(line.at(
+                nf,
+                "table",
+                "a modulo (rotary) table on a linear axis or the other way round".into(),
+            ));
+        }
+        if format != "csv" && unit != ErrorUnit::Micrometre {
+            return Err(line.at(
+                nf,
+                "unit",
+                "LinuxCNC and Siemens tables hold lengths in mm, read as µm: expected unit=um"
+                    .into(),
+            ));
+        }
+        self.tables.push(ErrorTable {
+            name: nf.text.to_string(),
+            axis,
+            unit,
+            table: built,
+        });
+        Ok(())
+    }
+
+    /// A row `Nr Key Axis Delta KompFile`: numbered from 0 without gaps, five columns, a known
+    /// direction, and a `Trans` or `MachAxis` key.
+    fn row(&mut self, line: &Line<'_>) -> Result<(), InputError> {
+        let f = &line.f;
+        let nr = f[0].text;
+        if nr.parse::<usize>().ok() != Some(self.rows.len()) {
+            return Err(line.at(
+                &f[0],
+                "Nr",
+                format!(
+                    "expected row number {} (rows count from 0 without gaps) or a setting, `axis` or `table` line, got `{nr}`",
+                    self.rows.len()
+                ),
+            ));
+        }
+        if f.len() != 5 {
+            return Err(line.at(
+                &f[0],
+                "",
+                format!(
+                    "expected 5 columns `Nr Key Axis Delta KompFile`, got {}",
+                    f.len()
+                ),
+            ));
+        }
+        let (key, axis_f) = (&f[1], &f[2]);
+        let (neg, letter) = match axis_f.text.strip_prefix('-') {
+            Some(l) => (true, l),
+            None => (false, axis_f.text),
+        };
+        let Some(dof) = Dof::parse(letter) else {
+            return Err(line.at(
+                axis_f,
+                "Axis",
+                format!("expected X, Y, Z, A, B or C, got `{}`", axis_f.text),
+            ));
+        };
+        let row = match key.text {
+            "Trans" => self.trans_row(line, neg, dof)?,
+            "MachAxis" => self.mach_axis_row(line, neg, letter, dof)?,
+            other => {
+                return Err(line.at(
+                    key,
+                    "Key",
+                    format!("expected Trans or MachAxis, got `{other}`"),
+                ))
+            }
+        };
+        self.rows.push(row);
+        self.row_lines.push(line.ln);
+        Ok(())
+    }
+
+    /// A `Trans` row: an error row when it names a table (whose unit fits the direction), a
+    /// tool-length row when Delta holds `L`, else a fixed translation or rotation.
+    fn trans_row(&self, line: &Line<'_>, neg: bool, dof: Dof) -> Result<Row, InputError> {
+        let (axis_f, delta, komp) = (&line.f[2], &line.f[3], &line.f[4]);
+        if neg {
+            return Err(line.at(
+                axis_f,
+                "Axis",
+                "a Trans row takes no sign on its axis; put the sign on Delta".into(),
+            ));
+        }
+        if komp.text != "-" {
+            let Some(t) = self.tables.iter().position(|t| t.name == komp.text) else {
+                return Err(line.at(
+                    komp,
+                    "KompFile",
+                    format!(
+                        "unknown table `{}`; declare it with a `table` line first",
+                        komp.text
+                    ),
+                ));
+            };
+            let offset = if delta.text == "-" {
+                0.0
+            } else {
+                number(self.path, line.ln, delta, "Delta")?
+            };
+            if self.tables[t].unit.is_angle() != dof.is_rotation() {
+                return Err(line.at(
+                    komp,
+                    "KompFile",
+                    format!(
+                        "table `{}` is in {}, which does not fit direction {}",
+                        komp.text,
+                        self.tables[t].unit.name(),
+                        dof.name()
+                    ),
+                ));
+            }
+            Ok(Row::Error {
+                dof,
+                offset,
+                table: t,
+            })
+        } else if let Some((sign, offset)) = tool_expression(delta.text) {
+            if dof.is_rotation() {
+                return Err(line.at(
+                    delta,
+                    "Delta",
+                    "the tool length L can only enter a translation (X, Y, Z)".into(),
+                ));
+            }
+            Ok(Row::Tool { dof, sign, offset })
+        } else {
+            Ok(Row::Fixed {
+                dof,
+                value: number(self.path, line.ln, delta, "Delta")?,
+            })
+        }
+    }
+
+    /// A `MachAxis` row: a declared axis (Delta, or the direction letter when Delta is `-`)
+    /// whose kind fits the direction, and no table.
+    fn mach_axis_row(
+        &self,
+        line: &Line<'_>,
+        neg: bool,
+        letter: &str,
+        dof: Dof,
+    ) -> Result<Row, InputError> {
+        let (axis_f, delta, komp) = (&line.f[2], &line.f[3], &line.f[4]);
+        let axis_name = if delta.text == "-" {
+            letter
+        } else {
+            delta.text
+        };
+        let Some(axis) = self.axes.iter().position(|a| a.name == axis_name) else {
+            return Err(line.at(
+                if delta.text == "-" { axis_f } else { delta },
+                "Axis",
+                format!("unknown machine axis `{axis_name}`; declare it with an `axis` line first"),
+            ));
+        };
+        if (self.axes[axis].kind == AxisKind::Rotary) != dof.is_rotation() {
+            return Err(line.at(
+                axis_f,
+                "Axis",
+                format!(
+                    "axis `{axis_name}` is {} but direction {} is {}",
+                    if dof.is_rotation() {
+                        "linear"
+                    } else {
+                        "rotary"
+                    },
+                    dof.name(),
+                    if dof.is_rotation() {
+                        "a rotation"
+                    } else {
+                        "a translation"
+                    }
+                ),
+            ));
+        }
+        if komp.text != "-" {
+            return Err(line.at(
+                komp,
+                "KompFile",
+                "a MachAxis row takes no table; put error rows next to it".into(),
+            ));
+        }
+        Ok(Row::Axis {
+            dof,
+            axis,
+            sign: if neg { -1.0 } else { 1.0 },
+        })
+    }
+
+    /// The checked chain: at least one row, and the chain's own checks placed at the row's line
+    /// where they concern one row.
+    fn finish(self) -> Result<KinematicsFile, InputError> {
+        let path = self.path;
+        if self.rows.is_empty() {
+            return Err(InputError::file(
+                path,
+                "no rows; expected `0 Trans …` lines",
+            ));
+        }
+        let row_lines = self.row_lines;
+        let chain = Chain::new(self.axes, self.tables, self.rows).map_err(|e| {
+            use truepos_model::kinematics::ChainError as E;
+            let line = match &e {
+                E::BadReference { row }
+                | E::KindMismatch { row }
+                | E::UnitMismatch { row }
+                | E::ToolNotTranslation { row } => row_lines.get(*row).copied(),
+                _ => None,
+            };
+            match line {
+                Some(l) => InputError::at(path, l, 1, "", e.to_string()),
+                None => InputError::file(path, e.to_string()),
+            }
+        })?;
+        Ok(KinematicsFile {
+            name: self.name,
+            tool_length_mm: self.tool_length_mm,
+            chain,
+            machine_axis: self.machine.map(|_| self.machine_axis),
+        })
+    }
+}
+
+/// The kind and travel an `axis NAME linear|rotary MIN MAX` line declares (MIN < MAX); `None`
+/// for a bare `axis NAME`.
+fn declared_axis(line: &Line<'_>) -> Result<Option<(AxisKind, f64, f64)>, InputError> {
+    let f = &line.f;
+    if f.len() >= 5 {
+        let kind = match f[2].text {
+            "linear" => AxisKind::Linear,
+            "rotary" => AxisKind::Rotary,
+            other => {
+                return Err(line.at(
+                    &f[2],
+                    "axis",
+                    format!("expected linear or rotary, got `{other}`"),
+                ))
+            }
+        };
+        let lo = number(line.path, line.ln, &f[3], "axis travel")?;
+        let hi = number(line.path, line.ln, &f[4], "axis travel")?;
+        if hi <= lo {
+            return Err(line.at(
+                &f[3],
+                "axis travel",
+                format!("expected MIN < MAX, got {lo} {hi}"),
+            ));
+        }
+        Ok(Some((kind, lo, hi)))
+    } else if f.len() == 2 {
+        Ok(None)
+    } else {
+        Err(line.at(
+            &f[0],
+            "axis",
+            "expected `axis NAME` or `axis NAME linear|rotary MIN MAX`".into(),
+        ))
+    }
+}
+
+/// The machine's axis of the name on an `axis` line: its index, kind and travel. It must exist
+/// there, and a kind the line declares must agree with the machine's.
+fn machine_axis(
+    line: &Line<'_>,
+    m: &Machine,
+    declared: Option<(AxisKind, f64, f64)>,
+) -> Result<(usize, (AxisKind, f64, f64)), InputError> {
+    let nf = &line.f[1];
+    let axis_name = nf.text;
+    let Some(idx) = m.axis_index(axis_name) else {
+        let names: Vec<&str> = m.axes.iter().map(|a| a.name.as_str()).collect();
+        return Err(line.at(
+            nf,
+            "axis",
+            format!(
+                "machine `{}` has no axis `{axis_name}`; expected one of {}",
+                m.name,
+                names.join(", ")
+            ),
+        ));
+    };
+    let a = &m.axes[idx];
+    if let Some((kind, _, _)) = declared {
+        if kind != a.kind {
+            return Err(line.at(
+                &line.f[2],
+                "axis",
+                format!(
+                    "axis `{axis_name}` is {:?} in the machine description",
+                    a.kind
+                )
+                .to_lowercase(),
+            ));
+        }
+    }
+    Ok((idx, (a.kind, a.travel_min, a.travel_max)))
+}
+
+/// The `key=value` options of a `table` line, each checked; which are missing is for the
+/// caller to judge.
+struct TableOptions<'l, 'a> {
+    axis: Option<usize>,
+    unit: Option<ErrorUnit>,
+    /// The `file=` field and its value.
+    file: Option<(&'l Field<'a>, &'a str)>,
+    format: &'a str,
+    interp: Interpolation,
+}
+
+/// Reads the options of a `table` line: `axis` names a declared axis, `unit`, `format` and
+/// `interpolation` are known words, and no other key appears.
+fn table_options<'l, 'a>(
+    line: &'l Line<'a>,
+    axes: &[KinAxis],
+) -> Result<TableOptions<'l, 'a>, InputError> {
+    let mut o = TableOptions {
+        axis: None,
+        unit: None,
+        file: None,
+        format: "csv",
+        interp: Interpolation::Linear,
+    };
+    for kv in &line.f[2..] {
+        let Some((k, v)) = kv.text.split_once('=') else {
+            return Err(line.at(
+                kv,
+                "table",
+                format!("expected key=value, got `{}`", kv.text),
+            ));
+        };
+        match k {
             "axis" => {
-                let Some(nf) = f.get(1) else {
-                    return Err(at(
-                        &f[0],
+                let Some(idx) = axes.iter().position(|a| a.name == v) else {
+                    return Err(line.at(
+                        kv,
                         "axis",
-                        "expected `axis NAME [linear|rotary MIN MAX]`".into(),
+                        format!("unknown axis `{v}`; declare it with an `axis` line first"),
                     ));
                 };
-                let axis_name = nf.text;
-                if axes.iter().any(|a| a.name == axis_name) {
-                    return Err(at(nf, "axis", format!("axis `{axis_name}` declared twice")));
-                }
-                let declared = if f.len() >= 5 {
-                    let kind = match f[2].text {
-                        "linear" => AxisKind::Linear,
-                        "rotary" => AxisKind::Rotary,
-                        other => {
-                            return Err(at(
-                                &f[2],
-                                "axis",
-                                format!("expected linear or rotary, got `{other}`"),
-                            ))
-                        }
-                    };
-                    let lo = number(path, ln, &f[3], "axis travel")?;
-                    let hi = number(path, ln, &f[4], "axis travel")?;
-                    if hi <= lo {
-                        return Err(at(
-                            &f[3],
-                            "axis travel",
-                            format!("expected MIN < MAX, got {lo} {hi}"),
-                        ));
-                    }
-                    Some((kind, lo, hi))
-                } else if f.len() == 2 {
-                    None
-                } else {
-                    return Err(at(
-                        &f[0],
-                        "axis",
-                        "expected `axis NAME` or `axis NAME linear|rotary MIN MAX`".into(),
-                    ));
-                };
-                let from_machine = match machine {
-                    Some(m) => {
-                        let Some(idx) = m.axis_index(axis_name) else {
-                            let names: Vec<&str> = m.axes.iter().map(|a| a.name.as_str()).collect();
-                            return Err(at(
-                                nf,
-                                "axis",
-                                format!(
-                                    "machine `{}` has no axis `{axis_name}`; expected one of {}",
-                                    m.name,
-                                    names.join(", ")
-                                ),
-                            ));
-                        };
-                        let a = &m.axes[idx];
-                        if let Some((kind, _, _)) = declared {
-                            if kind != a.kind {
-                                return Err(at(
-                                    &f[2],
-                                    "axis",
-                                    format!(
-                                        "axis `{axis_name}` is {:?} in the machine description",
-                                        a.kind
-                                    )
-                                    .to_lowercase(),
-                                ));
-                            }
-                        }
-                        machine_axis.push(idx);
-                        Some((a.kind, a.travel_min, a.travel_max))
-                    }
-                    None => None,
-                };
-                let Some((kind, lo, hi)) = from_machine.or(declared) else {
-                    return Err(at(
-                        nf,
-                        "axis",
-                        format!("axis `{axis_name}` needs `linear|rotary MIN MAX` when no machine file is given"),
-                    ));
-                };
-                axes.push(KinAxis {
-                    name: axis_name.to_string(),
-                    kind,
-                    travel_min: lo,
-                    travel_max: hi,
-                });
+                o.axis = Some(idx);
             }
-            "table" => {
-                let Some(nf) = f.get(1) else {
-                    return Err(at(
-                        &f[0],
-                        "table",
-                        "expected `table NAME axis=… unit=… file=…`".into(),
-                    ));
-                };
-                let (mut axis, mut unit, mut file, mut format, mut interp) =
-                    (None, None, None, "csv", Interpolation::Linear);
-                for kv in &f[2..] {
-                    let Some((k, v)) = kv.text.split_once('=') else {
-                        return Err(at(
-                            kv,
-                            "table",
-                            format!("expected key=value, got `{}`", kv.text),
-                        ));
-                    };
-                    match k {
-                        "axis" => {
-                            let Some(idx) = axes.iter().position(|a| a.name == v) else {
-                                return Err(at(
-                                    kv,
-                                    "axis",
-                                    format!("unknown axis `{v}`; declare it with an `axis` line first"),
-                                ));
-                            };
-                            axis = Some(idx);
-                        }
-                        "unit" => {
-                            unit = Some(ErrorUnit::parse(v).ok_or_else(|| {
-                                at(kv, "unit", format!("expected um, mm, urad, arcsec or deg, got `{v}`"))
-                            })?)
-                        }
-                        "file" => file = Some((kv, v)),
-                        "format" => {
-                            if !matches!(v, "csv" | "linuxcnc-0" | "linuxcnc-1" | "siemens") {
-                                return Err(at(
-                                    kv,
-                                    "format",
-                                    format!("expected csv, linuxcnc-0, linuxcnc-1 or siemens, got `{v}`"),
-                                ));
-                            }
-                            format = v;
-                        }
-                        "interpolation" => {
-                            interp = match v {
-                                "linear" => Interpolation::Linear,
-                                "monotone" => Interpolation::MonotoneCubic,
-                                _ => {
-                                    return Err(at(
-                                        kv,
-                                        "interpolation",
-                                        format!("expected linear or monotone, got `{v}`"),
-                                    ))
-                                }
-                            }
-                        }
-                        _ => {
-                            return Err(at(
-                                kv,
-                                k,
-                                format!("unknown key `{k}`; expected axis, unit, file, format or interpolation"),
-                            ))
-                        }
-                    }
-                }
-                let (Some(axis), Some(unit), Some((file_field, file))) = (axis, unit, file) else {
-                    return Err(at(nf, "table", "expected axis=…, unit=… and file=…".into()));
-                };
-                if tables.iter().any(|t| t.name == nf.text) {
-                    return Err(at(
-                        nf,
-                        "table",
-                        format!("table `{}` declared twice", nf.text),
-                    ));
-                }
-                let wrap = match axes[axis].kind {
-                    AxisKind::Linear => Wrap::Hold,
-                    AxisKind::Rotary => Wrap::Rotary,
-                };
-                let table_path: PathBuf = dir.join(file);
-                let table_text = read_text(&table_path)
-                    .map_err(|e| at(file_field, "file", format!("table `{}`: {}", nf.text, e)))?;
-                let built = match format {
-                    "csv" => parse_csv(&table_path, &table_text, wrap, interp)?,
-                    "linuxcnc-0" | "linuxcnc-1" => {
-                        let ty = if format == "linuxcnc-0" {
-                            LinuxCncType::Positions
-                        } else {
-                            LinuxCncType::Trims
-                        };
-                        parse_linuxcnc(&table_path, &table_text, ty)?
-                            .to_table(interp)
-                            .map_err(|e| InputError::file(&table_path, e))?
-                    }
-                    _ => {
-                        let mut all = parse_siemens(&table_path, &table_text, None)?;
-                        if all.len() != 1 {
-                            return Err(InputError::file(
-                                &table_path,
-                                format!(
-                                    "{} tables; a kinematics row references exactly one",
-                                    all.len()
-                                ),
-                            ));
-                        }
-                        all.remove(0)
-                            .to_table(interp)
-                            .map_err(|e| InputError::file(&table_path, e))?
-                    }
-                };
-                if built.wrap() != wrap {
-                    return Err(at(
-                        nf,
-                        "table",
-                        "a modulo (rotary) table on a linear axis or the other way round".into(),
-                    ));
-                }
-                if format != "csv" && unit != ErrorUnit::Micrometre {
-                    return Err(at(
-                        nf,
+            "unit" => {
+                o.unit = Some(ErrorUnit::parse(v).ok_or_else(|| {
+                    line.at(
+                        kv,
                         "unit",
-                        "LinuxCNC and Siemens tables hold lengths in mm, read as µm: expected unit=um".into(),
-                    ));
-                }
-                tables.push(ErrorTable {
-                    name: nf.text.to_string(),
-                    axis,
-                    unit,
-                    table: built,
-                });
+                        format!("expected um, mm, urad, arcsec or deg, got `{v}`"),
+                    )
+                })?)
             }
-            nr => {
-                if nr.parse::<usize>().ok() != Some(rows.len()) {
-                    return Err(at(
-                        &f[0],
-                        "Nr",
-                        format!(
-                            "expected row number {} (rows count from 0 without gaps) or a setting, `axis` or `table` line, got `{nr}`",
-                            rows.len()
-                        ),
+            "file" => o.file = Some((kv, v)),
+            "format" => {
+                if !matches!(v, "csv" | "linuxcnc-0" | "linuxcnc-1" | "siemens") {
+                    return Err(line.at(
+                        kv,
+                        "format",
+                        format!("expected csv, linuxcnc-0, linuxcnc-1 or siemens, got `{v}`"),
                     ));
                 }
-                if f.len() != 5 {
-                    return Err(at(
-                        &f[0],
-                        "",
-                        format!(
-                            "expected 5 columns `Nr Key Axis Delta KompFile`, got {}",
-                            f.len()
-                        ),
-                    ));
-                }
-                let (key, axis_f, delta, komp) = (&f[1], &f[2], &f[3], &f[4]);
-                let (neg, letter) = match axis_f.text.strip_prefix('-') {
-                    Some(l) => (true, l),
-                    None => (false, axis_f.text),
-                };
-                let Some(dof) = Dof::parse(letter) else {
-                    return Err(at(
-                        axis_f,
-                        "Axis",
-                        format!("expected X, Y, Z, A, B or C, got `{}`", axis_f.text),
-                    ));
-                };
-                let row = match key.text {
-                    "Trans" => {
-                        if neg {
-                            return Err(at(
-                                axis_f,
-                                "Axis",
-                                "a Trans row takes no sign on its axis; put the sign on Delta"
-                                    .into(),
-                            ));
-                        }
-                        if komp.text != "-" {
-                            let Some(t) = tables.iter().position(|t| t.name == komp.text) else {
-                                return Err(at(
-                                    komp,
-                                    "KompFile",
-                                    format!(
-                                        "unknown table `{}`; declare it with a `table` line first",
-                                        komp.text
-                                    ),
-                                ));
-                            };
-                            let offset = if delta.text == "-" {
-                                0.0
-                            } else {
-                                number(path, ln, delta, "Delta")?
-                            };
-                            if tables[t].unit.is_angle() != dof.is_rotation() {
-                                return Err(at(
-                                    komp,
-                                    "KompFile",
-                                    format!(
-                                        "table `{}` is in {}, which does not fit direction {}",
-                                        komp.text,
-                                        tables[t].unit.name(),
-                                        dof.name()
-                                    ),
-                                ));
-                            }
-                            Row::Error {
-                                dof,
-                                offset,
-                                table: t,
-                            }
-                        } else if let Some((sign, offset)) = tool_expression(delta.text) {
-                            if dof.is_rotation() {
-                                return Err(at(
-                                    delta,
-                                    "Delta",
-                                    "the tool length L can only enter a translation (X, Y, Z)"
-                                        .into(),
-                                ));
-                            }
-                            Row::Tool { dof, sign, offset }
-                        } else {
-                            Row::Fixed {
-                                dof,
-                                value: number(path, ln, delta, "Delta")?,
-                            }
-                        }
-                    }
-                    "MachAxis" => {
-                        let axis_name = if delta.text == "-" {
-                            letter
-                        } else {
-                            delta.text
-                        };
-                        let Some(axis) = axes.iter().position(|a| a.name == axis_name) else {
-                            return Err(at(
-                                if delta.text == "-" { axis_f } else { delta },
-                                "Axis",
-                                format!("unknown machine axis `{axis_name}`; declare it with an `axis` line first"),
-                            ));
-                        };
-                        if (axes[axis].kind == AxisKind::Rotary) != dof.is_rotation() {
-                            return Err(at(
-                                axis_f,
-                                "Axis",
-                                format!(
-                                    "axis `{axis_name}` is {} but direction {} is {}",
-                                    if dof.is_rotation() {
-                                        "linear"
-                                    } else {
-                                        "rotary"
-                                    },
-                                    dof.name(),
-                                    if dof.is_rotation() {
-                                        "a rotation"
-                                    } else {
-                                        "a translation"
-                                    }
-                                ),
-                            ));
-                        }
-                        if komp.text != "-" {
-                            return Err(at(
-                                komp,
-                                "KompFile",
-                                "a MachAxis row takes no table; put error rows next to it".into(),
-                            ));
-                        }
-                        Row::Axis {
-                            dof,
-                            axis,
-                            sign: if neg { -1.0 } else { 1.0 },
-                        }
-                    }
-                    other => {
-                        return Err(at(
-                            key,
-                            "Key",
-                            format!("expected Trans or MachAxis, got `{other}`"),
+                o.format = v;
+            }
+            "interpolation" => {
+                o.interp = match v {
+                    "linear" => Interpolation::Linear,
+                    "monotone" => Interpolation::MonotoneCubic,
+                    _ => {
+                        return Err(line.at(
+                            kv,
+                            "interpolation",
+                            format!("expected linear or monotone, got `{v}`"),
                         ))
                     }
-                };
-                rows.push(row);
-                row_lines.push(ln);
+                }
+            }
+            _ => {
+                return Err(line.at(
+                    kv,
+                    k,
+                    format!(
+                        "unknown key `{k}`; expected axis, unit, file, format or interpolation"
+                    ),
+                ))
             }
         }
     }
-    if rows.is_empty() {
-        return Err(InputError::file(
-            path,
-            "no rows; expected `0 Trans …` lines",
-        ));
-    }
-    let chain = Chain::new(axes, tables, rows).map_err(|e| {
-        use truepos_model::kinematics::ChainError as E;
-        let line = match &e {
-            E::BadReference { row }
-            | E::KindMismatch { row }
-            | E::UnitMismatch { row }
-            | E::ToolNotTranslation { row } => row_lines.get(*row).copied(),
-            _ => None,
-        };
-        match line {
-            Some(l) => InputError::at(path, l, 1, "", e.to_string()),
-            None => InputError::file(path, e.to_string()),
+    Ok(o)
+}
+
+/// The compensation table in `table_text`, read in `format` (a checked `format=` value). A
+/// Siemens file must hold exactly one table, since a row references one.
+fn read_table(
+    table_path: &Path,
+    table_text: &str,
+    format: &str,
+    wrap: Wrap,
+    interp: Interpolation,
+) -> Result<CompTable, InputError> {
+    Ok(match format {
+        "csv" => parse_csv(table_path, table_text, wrap, interp)?,
+        "linuxcnc-0" | "linuxcnc-1" => {
+            let ty = if format == "linuxcnc-0" {
+                LinuxCncType::Positions
+            } else {
+                LinuxCncType::Trims
+            };
+            parse_linuxcnc(table_path, table_text, ty)?
+                .to_table(interp)
+                .map_err(|e| InputError::file(table_path, e))?
         }
-    })?;
-    Ok(KinematicsFile {
-        name,
-        tool_length_mm,
-        chain,
-        machine_axis: machine.map(|_| machine_axis),
+        _ => {
+            let mut all = parse_siemens(table_path, table_text, None)?;
+            if all.len() != 1 {
+                return Err(InputError::file(
+                    table_path,
+                    format!(
+                        "{} tables; a kinematics row references exactly one",
+                        all.len()
+                    ),
+                ));
+            }
+            all.remove(0)
+                .to_table(interp)
+                .map_err(|e| InputError::file(table_path, e))?
+        }
     })
 }
 

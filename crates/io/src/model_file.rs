@@ -344,10 +344,28 @@ pub fn parse_json(path: &Path, text: &str, machine: &Machine) -> Result<Model, I
 
 type BindError = (std::ops::Range<usize>, String, String);
 
+/// What a part's form contributes: its summands and its constants (axis, µm).
+type PartTerms = (Vec<Summand>, Vec<(usize, f64)>);
+
 impl ModelFile {
     /// Checks the file against a machine and builds the model.
     pub fn bind(&self, machine: &Machine) -> Result<Model, BindError> {
-        let err = |s: &Spanned<String>, key: String, msg: String| (s.span(), key, msg);
+        self.check_header(machine)?;
+        // The inputs the model was made for must be the machine's, exactly.
+        self.check_input_axes(machine)?;
+        for (i, d) in self.inputs.differences.iter().enumerate() {
+            check_input_difference(machine, i, d)?;
+        }
+        let mut parts = Vec::new();
+        for (pi, p) in self.part.iter().enumerate() {
+            parts.push(self.bind_part(machine, pi, p)?);
+        }
+        Model::new(self.name.get_ref().clone(), machine, parts)
+            .map_err(|e| (self.name.span(), "part".into(), e.to_string()))
+    }
+
+    /// The file is a truepos model file of the version this build reads, made for this machine.
+    fn check_header(&self, machine: &Machine) -> Result<(), BindError> {
         if self.format.get_ref() != FORMAT {
             return Err((
                 self.format.span(),
@@ -379,8 +397,11 @@ impl ModelFile {
                 ),
             ));
         }
+        Ok(())
+    }
 
-        // The inputs the model was made for must be the machine's, exactly.
+    /// Every input axis exists in the machine with the travel the model was made for.
+    fn check_input_axes(&self, machine: &Machine) -> Result<(), BindError> {
         for (i, a) in self.inputs.axes.iter().enumerate() {
             let key = format!("inputs.axes[{i}]");
             let Some(ax) = machine.axis_index(a.name.get_ref()) else {
@@ -407,258 +428,229 @@ impl ModelFile {
                 ));
             }
         }
-        for (i, d) in self.inputs.differences.iter().enumerate() {
-            let key = format!("inputs.differences[{i}]");
-            let Some(di) = machine.difference_index(d.name.get_ref()) else {
-                return Err(err(
-                    &d.name,
-                    format!("{key}.name"),
-                    format!(
-                        "the model needs temperature difference `{}`, which machine `{}` does not define",
-                        d.name.get_ref(),
-                        machine.name
-                    ),
-                ));
-            };
-            let def = &machine.differences[di];
-            let machine_plus = &machine.temperatures[def.plus].id;
-            let machine_minus = match def.minus {
-                Reference::Sensor(s) => machine.temperatures[s].id.clone(),
-                Reference::Fixed(t) => format!("{t} °C"),
-            };
-            let model_minus = match (&d.minus, &d.minus_fixed) {
-                (Some(m), None) => m.get_ref().clone(),
-                (None, Some(t)) => format!("{} °C", t.get_ref()),
-                _ => {
-                    return Err(err(
-                        &d.name,
-                        key,
-                        "expected exactly one of `minus` (a sensor) or `minus_fixed` (°C)".into(),
-                    ))
-                }
-            };
-            let lag_of = |l: &Option<Spanned<String>>| l.as_ref().map(|s| s.get_ref().clone());
-            let machine_lags = (
-                lag_text(machine, def.plus),
-                match def.minus {
-                    Reference::Sensor(s) => lag_text(machine, s),
-                    Reference::Fixed(_) => None,
-                },
-            );
-            if (lag_of(&d.plus_lag), lag_of(&d.minus_lag)) != machine_lags {
-                let show = |l: &Option<String>| l.clone().unwrap_or_else(|| "measured".into());
-                return Err(err(
-                    &d.name,
-                    format!("{key}.plus_lag"),
-                    format!(
-                        "the model was made for `{}` with channels ({}; {}), but the machine defines them as ({}; {})",
-                        d.name.get_ref(),
-                        show(&lag_of(&d.plus_lag)),
-                        show(&lag_of(&d.minus_lag)),
-                        show(&machine_lags.0),
-                        show(&machine_lags.1),
-                    ),
-                ));
-            }
-            if d.plus.get_ref() != machine_plus || model_minus != machine_minus {
-                return Err(err(
-                    &d.name,
-                    format!("{key}.name"),
-                    format!(
-                        "the model was made for `{}` = {} − {}, but the machine defines it as {} − {}",
-                        d.name.get_ref(),
-                        d.plus.get_ref(),
-                        model_minus,
-                        machine_plus,
-                        machine_minus
-                    ),
-                ));
-            }
-        }
-        let listed_axis = |s: &Spanned<String>, key: String| -> Result<usize, BindError> {
-            if !self
+        Ok(())
+    }
+
+    /// The machine index of an axis a part references; it must be listed in `[[inputs.axes]]`.
+    fn listed_axis(
+        &self,
+        machine: &Machine,
+        s: &Spanned<String>,
+        key: String,
+    ) -> Result<usize, BindError> {
+        if !self
+            .inputs
+            .axes
+            .iter()
+            .any(|a| a.name.get_ref() == s.get_ref())
+        {
+            let listed: Vec<&str> = self
                 .inputs
                 .axes
                 .iter()
-                .any(|a| a.name.get_ref() == s.get_ref())
-            {
-                let listed: Vec<&str> = self
-                    .inputs
-                    .axes
-                    .iter()
-                    .map(|a| a.name.get_ref().as_str())
-                    .collect();
-                return Err(err(
-                    s,
-                    key,
-                    format!(
-                        "axis `{}` is not listed in [[inputs.axes]] (listed: {})",
-                        s.get_ref(),
-                        if listed.is_empty() {
-                            "none".into()
-                        } else {
-                            listed.join(", ")
-                        }
-                    ),
-                ));
-            }
-            Ok(machine.axis_index(s.get_ref()).expect("checked above"))
-        };
-        let listed_difference = |s: &Spanned<String>, key: String| -> Result<usize, BindError> {
-            if !self
+                .map(|a| a.name.get_ref().as_str())
+                .collect();
+            return Err(err(
+                s,
+                key,
+                format!(
+                    "axis `{}` is not listed in [[inputs.axes]] (listed: {})",
+                    s.get_ref(),
+                    if listed.is_empty() {
+                        "none".into()
+                    } else {
+                        listed.join(", ")
+                    }
+                ),
+            ));
+        }
+        Ok(machine.axis_index(s.get_ref()).expect("checked above"))
+    }
+
+    /// The machine index of a temperature difference a part references; it must be listed in
+    /// `[[inputs.differences]]`.
+    fn listed_difference(
+        &self,
+        machine: &Machine,
+        s: &Spanned<String>,
+        key: String,
+    ) -> Result<usize, BindError> {
+        if !self
+            .inputs
+            .differences
+            .iter()
+            .any(|d| d.name.get_ref() == s.get_ref())
+        {
+            let listed: Vec<&str> = self
                 .inputs
                 .differences
                 .iter()
-                .any(|d| d.name.get_ref() == s.get_ref())
-            {
-                let listed: Vec<&str> = self
-                    .inputs
-                    .differences
-                    .iter()
-                    .map(|d| d.name.get_ref().as_str())
-                    .collect();
-                return Err(err(
-                    s,
-                    key,
-                    format!(
-                        "temperature difference `{}` is not listed in [[inputs.differences]] (listed: {})",
-                        s.get_ref(),
-                        if listed.is_empty() { "none".into() } else { listed.join(", ") }
-                    ),
-                ));
-            }
-            Ok(machine
-                .difference_index(s.get_ref())
-                .expect("checked above"))
-        };
+                .map(|d| d.name.get_ref().as_str())
+                .collect();
+            return Err(err(
+                s,
+                key,
+                format!(
+                    "temperature difference `{}` is not listed in [[inputs.differences]] (listed: {})",
+                    s.get_ref(),
+                    if listed.is_empty() { "none".into() } else { listed.join(", ") }
+                ),
+            ));
+        }
+        Ok(machine
+            .difference_index(s.get_ref())
+            .expect("checked above"))
+    }
 
-        let mut parts = Vec::new();
-        for (pi, p) in self.part.iter().enumerate() {
-            let pkey = format!("part[{pi}]");
-            if let Some(first) = self.part[..pi]
-                .iter()
-                .position(|q| q.name.get_ref() == p.name.get_ref())
-            {
-                return Err(err(
-                    &p.name,
-                    format!("{pkey}.name"),
-                    format!(
-                        "duplicate part `{}` (first defined as part[{first}]); names must be unique",
-                        p.name.get_ref()
-                    ),
-                ));
-            }
-            let mut summands = Vec::new();
-            let mut constants_um = Vec::new();
-            let finite = |v: f64, s: &Spanned<String>, key: String| -> Result<f64, BindError> {
-                if v.is_finite() {
-                    Ok(v)
-                } else {
-                    Err(err(s, key, "expected a finite coefficient".into()))
-                }
-            };
-            match p.form {
-                FormEntry::PositionDependent => {
-                    if p.axis.is_some() || !p.terms.is_empty() || p.constant_um.is_some() {
-                        return Err(err(
-                            &p.name,
-                            pkey,
-                            "a position-dependent part takes [[part.term]] and [[part.constant]]; `axis`, `terms` and `constant_um` belong to form = \"regression\"".into(),
-                        ));
-                    }
-                    for (ti, t) in p.term.iter().enumerate() {
-                        let tkey = format!("{pkey}.term[{ti}]");
-                        let axis = listed_axis(&t.axis, format!("{tkey}.axis"))?;
-                        let difference =
-                            listed_difference(&t.difference, format!("{tkey}.difference"))?;
-                        let k0 = finite(t.k0_um_per_k, &t.axis, format!("{tkey}.k0_um_per_k"))?;
-                        let mut position_terms = Vec::new();
-                        for (ji, j) in t.position.iter().enumerate() {
-                            let jkey = format!("{tkey}.position[{ji}]");
-                            let ja = listed_axis(&j.axis, format!("{jkey}.axis"))?;
-                            let factor = match j.factor {
-                                Some(FactorEntry::Ratio) => PositionFactor::Ratio,
-                                Some(FactorEntry::RatioSquared) => PositionFactor::RatioSquared,
-                                Some(FactorEntry::Bed) => PositionFactor::BedFactor,
-                                None => match machine.axes[ja].carriage {
-                                    Carriage::Cantilever => PositionFactor::Ratio,
-                                    Carriage::Bed => PositionFactor::BedFactor,
-                                },
-                            };
-                            let k = finite(j.k_um_per_k, &j.axis, format!("{jkey}.k_um_per_k"))?;
-                            position_terms.push(PositionTerm {
-                                axis: ja,
-                                factor,
-                                k_um_per_k: k,
-                            });
-                        }
-                        let bed_multiplier = match &t.bed_multiplier {
-                            Some(b) => Some(listed_axis(b, format!("{tkey}.bed_multiplier"))?),
-                            None => None,
-                        };
-                        summands.push(Summand {
-                            axis,
-                            difference,
-                            k0_um_per_k: k0,
-                            position_terms,
-                            bed_multiplier,
-                        });
-                    }
-                    for (ci, c) in p.constant.iter().enumerate() {
-                        let ckey = format!("{pkey}.constant[{ci}]");
-                        let axis = listed_axis(&c.axis, format!("{ckey}.axis"))?;
-                        let v = finite(c.value_um, &c.axis, format!("{ckey}.value_um"))?;
-                        constants_um.push((axis, v));
-                    }
-                }
-                FormEntry::Regression => {
-                    if !p.term.is_empty() || !p.constant.is_empty() {
-                        return Err(err(
-                            &p.name,
-                            pkey,
-                            "a regression part takes `axis`, `terms` and `constant_um`; [[part.term]] and [[part.constant]] belong to form = \"position-dependent\"".into(),
-                        ));
-                    }
-                    let Some(axis_name) = &p.axis else {
-                        return Err(err(
-                            &p.name,
-                            format!("{pkey}.axis"),
-                            "a regression part needs `axis`, the direction of the error it describes".into(),
-                        ));
-                    };
-                    let axis = listed_axis(axis_name, format!("{pkey}.axis"))?;
-                    for (ti, t) in p.terms.iter().enumerate() {
-                        let tkey = format!("{pkey}.terms[{ti}]");
-                        let difference =
-                            listed_difference(&t.difference, format!("{tkey}.difference"))?;
-                        let k = finite(t.k_um_per_k, &t.difference, format!("{tkey}.k_um_per_k"))?;
-                        summands.push(Summand {
-                            axis,
-                            difference,
-                            k0_um_per_k: k,
-                            position_terms: Vec::new(),
-                            bed_multiplier: None,
-                        });
-                    }
-                    if let Some(c) = p.constant_um {
-                        constants_um
-                            .push((axis, finite(c, axis_name, format!("{pkey}.constant_um"))?));
-                    }
-                }
-            }
-            parts.push(Part {
-                name: p.name.get_ref().clone(),
-                enabled: p.enabled,
-                form: match p.form {
-                    FormEntry::PositionDependent => PartForm::PositionDependent,
-                    FormEntry::Regression => PartForm::Regression,
+    /// Part `pi`: its name is unique and its entries are those of its form.
+    fn bind_part(&self, machine: &Machine, pi: usize, p: &PartEntry) -> Result<Part, BindError> {
+        let pkey = format!("part[{pi}]");
+        if let Some(first) = self.part[..pi]
+            .iter()
+            .position(|q| q.name.get_ref() == p.name.get_ref())
+        {
+            return Err(err(
+                &p.name,
+                format!("{pkey}.name"),
+                format!(
+                    "duplicate part `{}` (first defined as part[{first}]); names must be unique",
+                    p.name.get_ref()
+                ),
+            ));
+        }
+        let (summands, constants_um) = match p.form {
+            FormEntry::PositionDependent => self.position_dependent(machine, pkey, p)?,
+            FormEntry::Regression => self.regression(machine, pkey, p)?,
+        };
+        Ok(Part {
+            name: p.name.get_ref().clone(),
+            enabled: p.enabled,
+            form: match p.form {
+                FormEntry::PositionDependent => PartForm::PositionDependent,
+                FormEntry::Regression => PartForm::Regression,
+            },
+            summands,
+            constants_um,
+        })
+    }
+
+    /// The summands and constants of a position-dependent part: `[[part.term]]` and
+    /// `[[part.constant]]` only, each referencing listed inputs with finite coefficients.
+    fn position_dependent(
+        &self,
+        machine: &Machine,
+        pkey: String,
+        p: &PartEntry,
+    ) -> Result<PartTerms, BindError> {
+        if p.axis.is_some() || !p.terms.is_empty() || p.constant_um.is_some() {
+            return Err(err(
+                &p.name,
+                pkey,
+                "a position-dependent part takes [[part.term]] and [[part.constant]]; `axis`, `terms` and `constant_um` belong to form = \"regression\"".into(),
+            ));
+        }
+        let mut summands = Vec::new();
+        for (ti, t) in p.term.iter().enumerate() {
+            let tkey = format!("{pkey}.term[{ti}]");
+            summands.push(self.position_dependent_term(machine, tkey, t)?);
+        }
+        let mut constants_um = Vec::new();
+        for (ci, c) in p.constant.iter().enumerate() {
+            let ckey = format!("{pkey}.constant[{ci}]");
+            let axis = self.listed_axis(machine, &c.axis, format!("{ckey}.axis"))?;
+            let v = finite(c.value_um, &c.axis, format!("{ckey}.value_um"))?;
+            constants_um.push((axis, v));
+        }
+        Ok((summands, constants_um))
+    }
+
+    /// One `[[part.term]]`: seed A's summand with its position terms; a position term without a
+    /// factor takes the one its axis's carriage implies.
+    fn position_dependent_term(
+        &self,
+        machine: &Machine,
+        tkey: String,
+        t: &TermEntry,
+    ) -> Result<Summand, BindError> {
+        let axis = self.listed_axis(machine, &t.axis, format!("{tkey}.axis"))?;
+        let difference =
+            self.listed_difference(machine, &t.difference, format!("{tkey}.difference"))?;
+        let k0 = finite(t.k0_um_per_k, &t.axis, format!("{tkey}.k0_um_per_k"))?;
+        let mut position_terms = Vec::new();
+        for (ji, j) in t.position.iter().enumerate() {
+            let jkey = format!("{tkey}.position[{ji}]");
+            let ja = self.listed_axis(machine, &j.axis, format!("{jkey}.axis"))?;
+            let factor = match j.factor {
+                Some(FactorEntry::Ratio) => PositionFactor::Ratio,
+                Some(FactorEntry::RatioSquared) => PositionFactor::RatioSquared,
+                Some(FactorEntry::Bed) => PositionFactor::BedFactor,
+                None => match machine.axes[ja].carriage {
+                    Carriage::Cantilever => PositionFactor::Ratio,
+                    Carriage::Bed => PositionFactor::BedFactor,
                 },
-                summands,
-                constants_um,
+            };
+            let k = finite(j.k_um_per_k, &j.axis, format!("{jkey}.k_um_per_k"))?;
+            position_terms.push(PositionTerm {
+                axis: ja,
+                factor,
+                k_um_per_k: k,
             });
         }
-        Model::new(self.name.get_ref().clone(), machine, parts)
-            .map_err(|e| (self.name.span(), "part".into(), e.to_string()))
+        let bed_multiplier = match &t.bed_multiplier {
+            Some(b) => Some(self.listed_axis(machine, b, format!("{tkey}.bed_multiplier"))?),
+            None => None,
+        };
+        Ok(Summand {
+            axis,
+            difference,
+            k0_um_per_k: k0,
+            position_terms,
+            bed_multiplier,
+        })
+    }
+
+    /// The summands and constant of a regression part: `axis`, `terms` and `constant_um` only,
+    /// all on the one listed axis, with finite coefficients.
+    fn regression(
+        &self,
+        machine: &Machine,
+        pkey: String,
+        p: &PartEntry,
+    ) -> Result<PartTerms, BindError> {
+        if !p.term.is_empty() || !p.constant.is_empty() {
+            return Err(err(
+                &p.name,
+                pkey,
+                "a regression part takes `axis`, `terms` and `constant_um`; [[part.term]] and [[part.constant]] belong to form = \"position-dependent\"".into(),
+            ));
+        }
+        let Some(axis_name) = &p.axis else {
+            return Err(err(
+                &p.name,
+                format!("{pkey}.axis"),
+                "a regression part needs `axis`, the direction of the error it describes".into(),
+            ));
+        };
+        let axis = self.listed_axis(machine, axis_name, format!("{pkey}.axis"))?;
+        let mut summands = Vec::new();
+        for (ti, t) in p.terms.iter().enumerate() {
+            let tkey = format!("{pkey}.terms[{ti}]");
+            let difference =
+                self.listed_difference(machine, &t.difference, format!("{tkey}.difference"))?;
+            let k = finite(t.k_um_per_k, &t.difference, format!("{tkey}.k_um_per_k"))?;
+            summands.push(Summand {
+                axis,
+                difference,
+                k0_um_per_k: k,
+                position_terms: Vec::new(),
+                bed_multiplier: None,
+            });
+        }
+        let mut constants_um = Vec::new();
+        if let Some(c) = p.constant_um {
+            constants_um.push((axis, finite(c, axis_name, format!("{pkey}.constant_um"))?));
+        }
+        Ok((summands, constants_um))
     }
 
     /// Describes a bound model as a file: the inputs are the axes and differences it reads.
@@ -801,6 +793,95 @@ impl ModelFile {
     pub fn to_toml(&self) -> String {
         toml::to_string_pretty(self).unwrap_or_else(|e| format!("# cannot serialise: {e}\n"))
     }
+}
+
+/// An error at the span of `s`.
+fn err(s: &Spanned<String>, key: String, msg: String) -> BindError {
+    (s.span(), key, msg)
+}
+
+/// A coefficient must be finite; an error points at `s`, the entry it belongs to.
+fn finite(v: f64, s: &Spanned<String>, key: String) -> Result<f64, BindError> {
+    if v.is_finite() {
+        Ok(v)
+    } else {
+        Err(err(s, key, "expected a finite coefficient".into()))
+    }
+}
+
+/// Input difference `i` is the machine's: same sensors, same lags, same reference.
+fn check_input_difference(
+    machine: &Machine,
+    i: usize,
+    d: &InputDifference,
+) -> Result<(), BindError> {
+    let key = format!("inputs.differences[{i}]");
+    let Some(di) = machine.difference_index(d.name.get_ref()) else {
+        return Err(err(
+            &d.name,
+            format!("{key}.name"),
+            format!(
+                "the model needs temperature difference `{}`, which machine `{}` does not define",
+                d.name.get_ref(),
+                machine.name
+            ),
+        ));
+    };
+    let def = &machine.differences[di];
+    let machine_plus = &machine.temperatures[def.plus].id;
+    let machine_minus = match def.minus {
+        Reference::Sensor(s) => machine.temperatures[s].id.clone(),
+        Reference::Fixed(t) => format!("{t} °C"),
+    };
+    let model_minus = match (&d.minus, &d.minus_fixed) {
+        (Some(m), None) => m.get_ref().clone(),
+        (None, Some(t)) => format!("{} °C", t.get_ref()),
+        _ => {
+            return Err(err(
+                &d.name,
+                key,
+                "expected exactly one of `minus` (a sensor) or `minus_fixed` (°C)".into(),
+            ))
+        }
+    };
+    let lag_of = |l: &Option<Spanned<String>>| l.as_ref().map(|s| s.get_ref().clone());
+    let machine_lags = (
+        lag_text(machine, def.plus),
+        match def.minus {
+            Reference::Sensor(s) => lag_text(machine, s),
+            Reference::Fixed(_) => None,
+        },
+    );
+    if (lag_of(&d.plus_lag), lag_of(&d.minus_lag)) != machine_lags {
+        let show = |l: &Option<String>| l.clone().unwrap_or_else(|| "measured".into());
+        return Err(err(
+            &d.name,
+            format!("{key}.plus_lag"),
+            format!(
+                "the model was made for `{}` with channels ({}; {}), but the machine defines them as ({}; {})",
+                d.name.get_ref(),
+                show(&lag_of(&d.plus_lag)),
+                show(&lag_of(&d.minus_lag)),
+                show(&machine_lags.0),
+                show(&machine_lags.1),
+            ),
+        ));
+    }
+    if d.plus.get_ref() != machine_plus || model_minus != machine_minus {
+        return Err(err(
+            &d.name,
+            format!("{key}.name"),
+            format!(
+                "the model was made for `{}` = {} − {}, but the machine defines it as {} − {}",
+                d.name.get_ref(),
+                d.plus.get_ref(),
+                model_minus,
+                machine_plus,
+                machine_minus
+            ),
+        ));
+    }
+    Ok(())
 }
 
 /// A regression part has one axis, no position terms, no bed multiplier and at most one constant.
