@@ -1047,7 +1047,14 @@ impl<'a> Checker<'a> {
         };
         let kind = match ft.kind.as_str() {
             "open-circuit" => FaultKind::OpenCircuit {
-                rail_c: ft.rail_c.unwrap_or(850.0),
+                // What an open input reads: a rail far outside any valid range, but a number.
+                rail_c: self.within(
+                    &pf("rail_c"),
+                    ft.rail_c.unwrap_or(850.0),
+                    -1.0e4,
+                    1.0e4,
+                    "an open-circuit reading in °C",
+                )?,
             },
             "stuck" => FaultKind::Stuck,
             "drift" => FaultKind::Drift {

@@ -335,3 +335,18 @@ fn twin_descriptions() {
         "chilled {cool} µm vs {hot} µm"
     );
 }
+
+/// An open-circuit reading that is not a number is refused at its key (it reached the readings
+/// as NaN before).
+#[test]
+fn an_open_circuit_reading_must_be_a_number() {
+    let twin = Twin::reference();
+    let src = format!(
+        "{}\n[[fault]]\nsensor = \"x_table_bottom\"\nkind = \"open-circuit\"\nstart_min = 10\nrail_c = nan\n",
+        Scenario::builtin_toml("spindle-warmup").unwrap()
+    );
+    let e = Scenario::parse(&src, "f.toml", Some(twin.travel_mm))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("rail_c") && e.contains("got NaN"), "{e}");
+}
