@@ -108,61 +108,54 @@ struct Table {
     rows: Vec<(usize, Vec<f64>)>,
 }
 
+/// Reads a point list: `#` comments and blank lines skipped, every cell a finite number (an
+/// error names its line and character column), every row as wide as the header.
 fn read_csv(path: &Path) -> Result<Table, String> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| InputError::file(path, format!("cannot read: {e}")).to_string())?;
-    let mut header: Option<Vec<String>> = None;
-    let mut rows = Vec::new();
-    for (i, raw) in text.lines().enumerate() {
-        let line = raw.split('#').next().unwrap_or("").trim();
-        if line.is_empty() {
-            continue;
-        }
-        let Some(h) = &header else {
-            header = Some(line.split(',').map(|s| s.trim().to_string()).collect());
-            continue;
-        };
-        let mut values = Vec::with_capacity(h.len());
-        let mut col = 1;
-        for field in line.split(',') {
-            let v: f64 = field
-                .trim()
-                .parse()
-                .ok()
-                .filter(|v: &f64| v.is_finite())
-                .ok_or_else(|| {
-                    InputError::at(
-                        path,
-                        i + 1,
-                        col,
-                        h.get(values.len()).cloned().unwrap_or_default(),
-                        format!("expected a finite number, got `{}`", field.trim()),
-                    )
-                    .to_string()
-                })?;
+    use truepos_io::table::{self, Number};
+    let t =
+        table::load_csv(path, table::CsvOptions { comments: true }).map_err(|e| e.to_string())?;
+    if t.columns.is_empty() {
+        return Err(InputError::file(path, "empty file; expected a header and rows").to_string());
+    }
+    let mut rows = Vec::with_capacity(t.rows.len());
+    for (r, row) in t.rows.iter().enumerate() {
+        let mut values = Vec::with_capacity(row.cells.len());
+        for (c, cell) in row.cells.iter().enumerate() {
+            let v = match cell.value.number() {
+                Number::Value(v) if v.is_finite() => v,
+                _ => {
+                    let text = match &cell.value {
+                        table::Value::Text(x) => x.to_string(),
+                        table::Value::Number(v) => v.to_string(),
+                        table::Value::Empty => String::new(),
+                    };
+                    return Err(t
+                        .at_character(r, c, format!("expected a finite number, got `{text}`"))
+                        .to_string());
+                }
+            };
             values.push(v);
-            col += field.chars().count() + 1;
         }
-        if values.len() != h.len() {
+        if values.len() != t.columns.len() {
             return Err(InputError::at(
                 path,
-                i + 1,
+                row.line,
                 1,
                 "",
                 format!(
                     "expected {} values as in the header, got {}",
-                    h.len(),
+                    t.columns.len(),
                     values.len()
                 ),
             )
             .to_string());
         }
-        rows.push((i + 1, values));
+        rows.push((row.line, values));
     }
-    let header = header.ok_or_else(|| {
-        InputError::file(path, "empty file; expected a header and rows").to_string()
-    })?;
-    Ok(Table { header, rows })
+    Ok(Table {
+        header: t.columns,
+        rows,
+    })
 }
 
 /// Column index of each of `names` in the header.

@@ -38,48 +38,37 @@ pub struct Args {
     json: bool,
 }
 
-/// Reads named numeric columns of a CSV (empty cells and unparsable text as NaN is not
+/// Reads named numeric columns of a CSV (an empty cell reads as NaN; unparsable text is not
 /// accepted: a bad cell is an error naming line and column).
 fn read_columns(path: &Path, names: &[String]) -> Result<Vec<Vec<f64>>, String> {
-    let mut rdr = csv::ReaderBuilder::new()
-        .trim(csv::Trim::All)
-        .from_path(path)
-        .map_err(|e| format!("{}: cannot read: {e}", path.display()))?;
-    let header: Vec<String> = rdr
-        .headers()
-        .map_err(|e| format!("{}: {e}", path.display()))?
-        .iter()
-        .map(str::to_string)
-        .collect();
+    use truepos_io::table::{self, Number};
+    let t = table::load_csv(path, table::CsvOptions::default()).map_err(|e| e.to_string())?;
     let cols: Vec<usize> = names
         .iter()
         .map(|n| {
-            header.iter().position(|h| h == n).ok_or_else(|| {
+            t.column(n).ok_or_else(|| {
                 format!(
                     "{}:1:1: `{n}`: missing column; the header has: {}",
                     path.display(),
-                    header.join(", ")
+                    t.columns.join(", ")
                 )
             })
         })
         .collect::<Result<_, _>>()?;
     let mut out = vec![Vec::new(); names.len()];
-    for rec in rdr.records() {
-        let rec = rec.map_err(|e| format!("{}: {e}", path.display()))?;
-        let line = rec.position().map_or(0, |p| p.line());
+    for (r, row) in t.rows.iter().enumerate() {
+        if let Some(e) = t.width_error(r) {
+            return Err(e.to_string());
+        }
         for (k, &c) in cols.iter().enumerate() {
-            let text = rec.get(c).unwrap_or("");
-            let v = if text.is_empty() {
-                f64::NAN
-            } else {
-                text.parse::<f64>().map_err(|_| {
-                    format!(
-                        "{}:{line}:{}: `{}`: expected a number, got `{text}`",
-                        path.display(),
-                        c + 1,
-                        names[k]
-                    )
-                })?
+            let v = match row.cells[c].value.number() {
+                Number::Value(v) => v,
+                Number::Empty => f64::NAN,
+                Number::Text(text) => {
+                    return Err(t
+                        .at(r, c, format!("expected a number, got `{text}`"))
+                        .to_string())
+                }
             };
             out[k].push(v);
         }

@@ -6,6 +6,7 @@ use std::path::Path;
 use truepos_model::{AxisKind, LagFilters, LagSource, Machine};
 
 use crate::error::InputError;
+use crate::table::Number;
 
 /// The cycles of a run, in the machine's channel order.
 #[derive(Debug, Clone, PartialEq)]
@@ -147,30 +148,8 @@ pub fn read_with(
     required_sensors: &[usize],
     positions_needed: Positions,
 ) -> Result<Cycles, InputError> {
-    let mut rdr = csv::ReaderBuilder::new()
-        .trim(csv::Trim::All)
-        .flexible(false)
-        .from_reader(reader);
-    let csv_err = |e: csv::Error| {
-        let line = e.position().map_or(0, |p| p.line() as usize);
-        let message = match e.kind() {
-            csv::ErrorKind::UnequalLengths {
-                expected_len, len, ..
-            } => format!("expected {expected_len} fields as in the header, found {len}"),
-            csv::ErrorKind::Utf8 { .. } => "expected UTF-8 text".to_string(),
-            _ => e.to_string(),
-        };
-        match line {
-            0 => InputError::file(path, message),
-            l => InputError::at(path, l, 1, "", message),
-        }
-    };
-    let header: Vec<String> = rdr
-        .headers()
-        .map_err(csv_err)?
-        .iter()
-        .map(str::to_string)
-        .collect();
+    let table = crate::table::read_csv(path, reader, crate::table::CsvOptions::default())?;
+    let header = &table.columns;
     if header.iter().all(|h| h.is_empty()) {
         return Err(InputError::file(path, "empty file; expected a header row"));
     }
@@ -230,20 +209,19 @@ pub fn read_with(
         positions: Vec::new(),
         operating: Vec::new(),
     };
-    for (row_index, record) in rdr.records().enumerate() {
-        let record = record.map_err(csv_err)?;
-        let line = record.position().map_or(0, |p| p.line());
+    for (row_index, row) in table.rows.iter().enumerate() {
+        if let Some(e) = table.width_error(row_index) {
+            return Err(e);
+        }
+        let line = row.line as u64;
         let cell = |col: usize| -> Result<f64, InputError> {
-            let text = record.get(col).unwrap_or("");
-            text.parse::<f64>().map_err(|_| {
-                InputError::at(
-                    path,
-                    line as usize,
-                    col + 1,
-                    header[col].clone(),
-                    format!("expected a number, got `{text}`"),
-                )
-            })
+            match row.cells[col].value.number() {
+                Number::Value(v) => Ok(v),
+                Number::Text(text) => {
+                    Err(table.at(row_index, col, format!("expected a number, got `{text}`")))
+                }
+                Number::Empty => Err(table.at(row_index, col, "expected a number, got ``")),
+            }
         };
         let time = match time_col {
             Some(c) => {

@@ -33,5 +33,6 @@ pub mod limits;
 pub mod machine_file;
 pub mod model_file;
 pub mod run;
+pub mod table;
 
 pub use error::InputError;

@@ -1,5 +1,6 @@
 //! Recorded runs as tables: CSV files and Excel workbooks (`.xlsx`, `.xlsm`, `.xls`, `.ods`
-//! through calamine; one sheet per run), with columns chosen by name or glob (`t*_c`).
+//! through calamine; one sheet per run), with columns chosen by name or glob (`t*_c`). Files
+//! are read by [`crate::table`], the one reader of tables.
 //!
 //! Cells are kept as read and converted to numbers only for the columns a caller selects, so a
 //! text column nobody asked for does no harm. Every error names the file, the sheet (for
@@ -20,22 +21,10 @@
 
 use std::path::{Path, PathBuf};
 
-use calamine::{open_workbook_auto, Data, Reader};
-
 use crate::error::InputError;
+use crate::table::{self, CsvOptions, Number};
 
-/// One cell as read.
-#[derive(Debug, Clone, PartialEq)]
-pub enum Cell {
-    /// A number.
-    Number(f64),
-    /// Text (a CSV field, or a text cell of a workbook).
-    Text(String),
-    /// Nothing.
-    Empty,
-}
-
-/// One run as a table of named columns.
+/// One run as a table of named columns, read by [`crate::table`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct Table {
     /// The file it came from.
@@ -44,67 +33,41 @@ pub struct Table {
     pub sheet: Option<String>,
     /// Column names (the header row).
     pub columns: Vec<String>,
-    /// Cells per column, data rows only.
-    pub cells: Vec<Vec<Cell>>,
-    /// 1-based line (CSV) or row (sheet) of the header; data row i is at `header_row + 1 + i`.
-    pub header_row: usize,
-    /// 1-based column of the first column (sheets may start to the right).
-    pub first_column: usize,
+    /// The cells as read, with their places.
+    pub table: table::Table,
 }
 
 impl Table {
+    fn new(table: table::Table) -> Self {
+        Self {
+            file: table.file.clone(),
+            sheet: table.sheet.clone(),
+            columns: table.columns.clone(),
+            table,
+        }
+    }
+
     /// "file" or "file, sheet `name`", for messages and run names.
     pub fn name(&self) -> String {
-        match &self.sheet {
-            Some(s) => format!("{}, sheet `{s}`", self.file.display()),
-            None => self.file.display().to_string(),
-        }
+        self.table.name()
     }
 
     /// Number of data rows.
     pub fn rows(&self) -> usize {
-        self.cells.first().map_or(0, Vec::len)
-    }
-
-    fn error(&self, row: Option<usize>, col: usize, message: String) -> InputError {
-        let key = match &self.sheet {
-            Some(s) => format!("sheet `{s}`, column `{}`", self.columns[col]),
-            None => self.columns[col].clone(),
-        };
-        match row {
-            Some(r) => InputError::at(
-                &self.file,
-                self.header_row + 1 + r,
-                self.first_column + col,
-                key,
-                message,
-            ),
-            None => InputError::at(
-                &self.file,
-                self.header_row,
-                self.first_column + col,
-                key,
-                message,
-            ),
-        }
+        self.table.rows.len()
     }
 
     /// The values of column `col` as numbers; an empty or text cell is an error naming its row.
     pub fn numbers(&self, col: usize) -> Result<Vec<f64>, InputError> {
-        self.cells[col]
+        let t = &self.table;
+        t.rows
             .iter()
             .enumerate()
-            .map(|(r, c)| match c {
-                Cell::Number(v) if v.is_finite() => Ok(*v),
-                Cell::Number(v) => {
-                    Err(self.error(Some(r), col, format!("expected a finite number, got {v}")))
-                }
-                Cell::Text(t) => {
-                    Err(self.error(Some(r), col, format!("expected a number, got `{t}`")))
-                }
-                Cell::Empty => {
-                    Err(self.error(Some(r), col, "expected a number, the cell is empty".into()))
-                }
+            .map(|(r, row)| match row.cells[col].value.number() {
+                Number::Value(v) if v.is_finite() => Ok(v),
+                Number::Value(v) => Err(t.at(r, col, format!("expected a finite number, got {v}"))),
+                Number::Text(x) => Err(t.at(r, col, format!("expected a number, got `{x}`"))),
+                Number::Empty => Err(t.at(r, col, "expected a number, the cell is empty")),
             })
             .collect()
     }
@@ -114,8 +77,8 @@ impl Table {
         let t = self.numbers(col)?;
         for r in 1..t.len() {
             if t[r] <= t[r - 1] {
-                return Err(self.error(
-                    Some(r),
+                return Err(self.table.at(
+                    r,
                     col,
                     format!(
                         "time must increase strictly: {} follows {} ({})",
@@ -190,183 +153,52 @@ pub fn glob_match(pattern: &str, name: &str) -> bool {
 
 /// Parses a CSV run (header row of column names, comma-separated).
 pub fn parse_csv(file: &Path, text: &str) -> Result<Table, InputError> {
-    let mut reader = csv::ReaderBuilder::new()
-        .has_headers(true)
-        .trim(csv::Trim::All)
-        .from_reader(text.as_bytes());
-    let headers = reader
-        .headers()
-        .map_err(|e| InputError::file(file, format!("cannot read the header row: {e}")))?
-        .clone();
-    let columns: Vec<String> = headers.iter().map(str::to_string).collect();
-    if columns.is_empty() || columns.iter().all(String::is_empty) {
+    csv_run(table::parse_csv(
+        file,
+        text.as_bytes(),
+        CsvOptions::default(),
+    )?)
+}
+
+/// A run's rules on a CSV table: a header of distinct names, every row as wide, a data row.
+fn csv_run(t: table::Table) -> Result<Table, InputError> {
+    if t.columns.iter().all(String::is_empty) {
         return Err(InputError::file(
-            file,
+            &t.file,
             "the file is empty: expected a header row of column names",
         ));
     }
-    check_unique(file, None, &columns, 1)?;
-    let mut cells = vec![Vec::new(); columns.len()];
-    for (r, record) in reader.records().enumerate() {
-        let record = record.map_err(|e| {
-            let line = e.position().map_or(r + 2, |p| p.line() as usize);
-            InputError::at(
-                file,
-                line,
-                1,
-                "",
-                format!("expected {} fields: {e}", columns.len()),
-            )
-        })?;
-        for (c, field) in record.iter().enumerate() {
-            cells[c].push(if field.is_empty() {
-                Cell::Empty
-            } else {
-                match field.parse::<f64>() {
-                    Ok(v) => Cell::Number(v),
-                    Err(_) => Cell::Text(field.to_string()),
-                }
-            });
-        }
+    t.check_unique_columns()?;
+    if let Some(e) = (0..t.rows.len()).find_map(|r| t.width_error(r)) {
+        return Err(e);
     }
-    if cells[0].is_empty() {
-        return Err(InputError::file(file, "no data rows below the header"));
+    if t.rows.is_empty() {
+        return Err(InputError::file(&t.file, "no data rows below the header"));
     }
-    Ok(Table {
-        file: file.to_path_buf(),
-        sheet: None,
-        columns,
-        cells,
-        header_row: 1,
-        first_column: 1,
-    })
-}
-
-fn check_unique(
-    file: &Path,
-    sheet: Option<&str>,
-    columns: &[String],
-    row: usize,
-) -> Result<(), InputError> {
-    for (c, name) in columns.iter().enumerate() {
-        if columns[..c].contains(name) {
-            let key = match sheet {
-                Some(s) => format!("sheet `{s}`, column `{name}`"),
-                None => name.clone(),
-            };
-            return Err(InputError::at(
-                file,
-                row,
-                c + 1,
-                key,
-                "duplicate column name",
-            ));
-        }
-    }
-    Ok(())
+    Ok(Table::new(t))
 }
 
 /// Reads a workbook: every non-empty sheet (or only `sheet`) is one run; the first non-empty
 /// row of a sheet holds the column names.
 pub fn read_workbook(file: &Path, sheet: Option<&str>) -> Result<Vec<Table>, InputError> {
-    let mut wb = open_workbook_auto(file)
-        .map_err(|e| InputError::file(file, format!("cannot open the workbook: {e}")))?;
-    let names = wb.sheet_names();
-    let wanted: Vec<String> = match sheet {
-        Some(s) if names.iter().any(|n| n == s) => vec![s.to_string()],
-        Some(s) => {
-            return Err(InputError::file(
-                file,
-                format!("no sheet `{s}`; the sheets are: {}", names.join(", ")),
-            ))
-        }
-        None => names.clone(),
-    };
-    let mut out = Vec::new();
-    for name in wanted {
-        let range = wb
-            .worksheet_range(&name)
-            .map_err(|e| InputError::file(file, format!("sheet `{name}`: cannot read it: {e}")))?;
-        let Some((r0, c0)) = range.start() else {
-            if sheet.is_some() {
-                return Err(InputError::file(file, format!("sheet `{name}` is empty")));
-            }
-            continue;
-        };
-        let mut rows = range.rows();
-        let header = rows.next().unwrap_or(&[]);
-        let (header_row, first_column) = (r0 as usize + 1, c0 as usize + 1);
-        let mut columns = Vec::with_capacity(header.len());
-        for (c, cell) in header.iter().enumerate() {
-            match cell {
-                Data::String(s) if !s.trim().is_empty() => columns.push(s.trim().to_string()),
-                other => {
-                    return Err(InputError::at(
-                        file,
-                        header_row,
-                        first_column + c,
-                        format!("sheet `{name}`"),
-                        format!("expected a column name in the header row, got {other:?}"),
-                    ))
-                }
-            }
-        }
-        check_unique(file, Some(&name), &columns, header_row)?;
-        let mut cells = vec![Vec::new(); columns.len()];
-        for row in rows {
-            for (c, col) in cells.iter_mut().enumerate() {
-                col.push(match row.get(c) {
-                    Some(Data::Float(v)) => Cell::Number(*v),
-                    Some(Data::Int(v)) => Cell::Number(*v as f64),
-                    Some(Data::Empty) | None => Cell::Empty,
-                    Some(Data::String(s)) => match s.trim().parse::<f64>() {
-                        Ok(v) => Cell::Number(v),
-                        Err(_) => Cell::Text(s.clone()),
-                    },
-                    Some(other) => Cell::Text(other.to_string()),
-                });
-            }
-        }
-        if cells.first().is_none_or(Vec::is_empty) {
-            if sheet.is_some() {
-                return Err(InputError::file(
-                    file,
-                    format!("sheet `{name}` has a header row but no data rows"),
-                ));
-            }
-            continue;
-        }
-        out.push(Table {
-            file: file.to_path_buf(),
-            sheet: Some(name),
-            columns,
-            cells,
-            header_row,
-            first_column,
-        });
-    }
-    if out.is_empty() {
-        return Err(InputError::file(
-            file,
-            "every sheet of the workbook is empty",
-        ));
-    }
-    Ok(out)
+    table::read_workbook(file, sheet)?
+        .into_iter()
+        .map(|t| {
+            t.check_unique_columns()?;
+            Ok(Table::new(t))
+        })
+        .collect()
 }
 
 /// Reads a run file by its extension: `.csv` (one run) or a workbook (one run per sheet).
 pub fn read(file: &Path, sheet: Option<&str>) -> Result<Vec<Table>, InputError> {
-    let ext = file
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(str::to_ascii_lowercase);
-    match ext.as_deref() {
-        Some("xlsx" | "xlsm" | "xlsb" | "xls" | "ods") => read_workbook(file, sheet),
-        _ => {
-            let text = std::fs::read_to_string(file)
-                .map_err(|e| InputError::file(file, format!("cannot read: {e}")))?;
-            Ok(vec![parse_csv(file, &text)?])
-        }
+    if table::is_workbook(file) {
+        read_workbook(file, sheet)
+    } else {
+        Ok(vec![csv_run(table::load_csv(
+            file,
+            CsvOptions::default(),
+        )?)?])
     }
 }
 
