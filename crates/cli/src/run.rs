@@ -9,12 +9,12 @@ use std::time::{Duration, Instant};
 
 use truepos_io::limits::{check_in, finite_in};
 use truepos_io::{cycles, machine_file};
-use truepos_runtime::log::{self, LogSetup, Logger};
+use truepos_runtime::log;
 use truepos_runtime::model_set::load_entries;
 use truepos_runtime::replay::{state_name, CsvSink, ReplaySource};
 use truepos_runtime::sources::modbus::{ModbusConfig, ModbusSource};
 use truepos_runtime::sources::shdr::{ShdrConfig, ShdrSource};
-use truepos_runtime::{PathState, Service, ServiceConfig, Sink, Source};
+use truepos_runtime::{PathState, Running, Service, ServiceConfig, ServiceHost, Sink, Source};
 
 /// Arguments of `truepos run`.
 #[derive(clap::Args)]
@@ -152,6 +152,10 @@ struct Timing {
     overruns: u64,
     /// Cycles by how late they finished after their deadline: < 0.1, 0.25, 0.5, 1, 2 ms, ≥ 2 ms.
     histogram: [u64; 6],
+    /// Wall time of the run, s.
+    wall_s: f64,
+    /// CPU time of the process over the run in % of one core, if known.
+    cpu_percent: Option<f64>,
 }
 
 /// Upper edges of the lateness histogram in µs.
@@ -182,11 +186,71 @@ impl Timing {
 
 pub fn run(args: RunArgs) -> Result<(), String> {
     let machine = machine_file::load(&args.machine).map_err(|e| e.to_string())?;
-    let m = &machine.machine;
     let entries = load_entries(&args.models, &machine).map_err(|e| e.to_string())?;
     // The service clock's zero, shared with network sources that stamp values themselves.
     let epoch = Instant::now();
-    let mut sources: Vec<Box<dyn Source>> = Vec::new();
+    let (sources, replay_end_s) = open_sources(&args, &machine.machine, epoch)?;
+    let sinks = open_sinks(&args, &machine.machine)?;
+    let config = ServiceConfig {
+        blend_s: args.blend_s,
+        hold_ramp_s: args.hold_ramp_s,
+        log_every_s: args.log_every_s,
+        ..ServiceConfig::default()
+    };
+    let mut host = ServiceHost::new(machine, entries)
+        .sources(sources)
+        .sinks(sinks)
+        .config(config)
+        .log(args.log.clone())
+        .start()
+        .map_err(|e| e.to_string())?;
+    let stop = Arc::new(AtomicBool::new(false));
+    for signal in [signal_hook::consts::SIGTERM, signal_hook::consts::SIGINT] {
+        signal_hook::flag::register(signal, Arc::clone(&stop))
+            .map_err(|e| format!("cannot install the signal handler: {e}"))?;
+    }
+
+    let end_s = args
+        .duration_s
+        .or(replay_end_s.map(|e| e + args.period_ms / 1000.0));
+    let status_line = !args.json && std::io::stderr().is_terminal();
+    let cpu_start = cpu_time_s();
+    let (mut timing, last_status) = cycle_loop(&args, &mut host, epoch, end_s, &stop, status_line);
+    if status_line {
+        eprintln!();
+    }
+    timing.wall_s = epoch.elapsed().as_secs_f64();
+    timing.cpu_percent = match (cpu_start, cpu_time_s()) {
+        (Some(a), Some(b)) if timing.wall_s > 0.0 => Some(100.0 * (b - a) / timing.wall_s),
+        _ => None,
+    };
+    let stopped = host.stop();
+    let failures = run_failures(&stopped.service, stopped.log);
+    summarize(
+        &args,
+        &stopped.service,
+        &mut timing,
+        &failures,
+        &last_status,
+        status_line,
+    );
+    if failures.is_empty() {
+        Ok(())
+    } else {
+        Err(failures.join("; "))
+    }
+}
+
+/// The service's sources, in the order given.
+type Sources = Vec<Box<dyn Source>>;
+
+/// The sources of `--source`, and when the last replay ends (service time, s).
+fn open_sources(
+    args: &RunArgs,
+    m: &truepos_model::Machine,
+    epoch: Instant,
+) -> Result<(Sources, Option<f64>), String> {
+    let mut sources: Sources = Vec::new();
     let mut replay_end_s = None;
     for spec in &args.sources {
         let (kind, rest) = spec.split_once(':').unwrap_or(("", spec));
@@ -226,6 +290,11 @@ pub fn run(args: RunArgs) -> Result<(), String> {
         };
         sources.push(source);
     }
+    Ok((sources, replay_end_s))
+}
+
+/// The sinks of `--sink`.
+fn open_sinks(args: &RunArgs, m: &truepos_model::Machine) -> Result<Vec<Box<dyn Sink>>, String> {
     let axis_names: Vec<String> = m.axes.iter().map(|a| a.name.clone()).collect();
     let mut sinks: Vec<Box<dyn Sink>> = Vec::new();
     for spec in &args.sinks {
@@ -236,55 +305,29 @@ pub fn run(args: RunArgs) -> Result<(), String> {
             .map_err(|e| e.to_string())?;
         sinks.push(Box::new(sink));
     }
-    let model_names: Vec<String> = entries.iter().map(|e| e.name.clone()).collect();
-    let source_names: Vec<String> = sources.iter().map(|s| s.name().to_string()).collect();
-    let sink_names: Vec<String> = sinks.iter().map(|s| s.name().to_string()).collect();
-    let config = ServiceConfig {
-        blend_s: args.blend_s,
-        hold_ramp_s: args.hold_ramp_s,
-        log_every_s: args.log_every_s,
-        ..ServiceConfig::default()
-    };
-    let mut service = Service::new(machine.clone(), entries, sources, sinks, config);
-    let logger = match &args.log {
-        Some(path) => Some(
-            Logger::start(
-                LogSetup {
-                    path,
-                    machine: &machine,
-                    models: model_names.clone(),
-                    sources: source_names,
-                    sinks: sink_names,
-                    paths: service.path_states().len(),
-                    commit_every: Duration::from_millis(250),
-                },
-                service.events(),
-                service.records(),
-            )
-            .map_err(|e| e.to_string())?,
-        ),
-        None => None,
-    };
-    let stop = Arc::new(AtomicBool::new(false));
-    for signal in [signal_hook::consts::SIGTERM, signal_hook::consts::SIGINT] {
-        signal_hook::flag::register(signal, Arc::clone(&stop))
-            .map_err(|e| format!("cannot install the signal handler: {e}"))?;
-    }
+    Ok(sinks)
+}
 
+/// Runs the cycles until `stop`, `end_s`, or the axes become unreachable; returns the timing
+/// figures and the last status line.
+fn cycle_loop(
+    args: &RunArgs,
+    host: &mut Running,
+    start: Instant,
+    end_s: Option<f64>,
+    stop: &AtomicBool,
+    status_line: bool,
+) -> (Timing, String) {
     let period = Duration::from_secs_f64(args.period_ms / 1000.0);
     let period_ns = period.as_nanos() as u64;
-    let end_s = args
-        .duration_s
-        .or(replay_end_s.map(|e| e + args.period_ms / 1000.0));
-    let status_line = !args.json && std::io::stderr().is_terminal();
     let mut timing = Timing {
         samples: Vec::with_capacity(1 << 20),
         late_max_us: 0.0,
         overruns: 0,
         histogram: [0; 6],
+        wall_s: 0.0,
+        cpu_percent: None,
     };
-    let cpu_start = cpu_time_s();
-    let start = epoch;
     // The first deadline after start-up: the time spent loading is not a backlog of cycles.
     let mut k: u64 = if args.fast {
         0
@@ -315,9 +358,9 @@ pub fn run(args: RunArgs) -> Result<(), String> {
             break;
         }
         let t0 = Instant::now();
-        service.cycle(now_s);
+        host.service.cycle(now_s);
         // Nothing computed from here on would reach the axes, nor could it resume bumplessly.
-        if service.axes_unreachable().is_some() {
+        if host.service.axes_unreachable().is_some() {
             break;
         }
         let took = t0.elapsed().as_micros().min(u32::MAX as u128) as u32;
@@ -338,28 +381,38 @@ pub fn run(args: RunArgs) -> Result<(), String> {
         k += 1;
         if now_s >= next_status {
             next_status += 1.0;
-            last_status = status(&service, &model_names, took);
-            last_status += &faults_status(&service, logger.as_ref().map(Logger::health));
+            last_status = status(&host.service, host.model_names(), took);
+            last_status += &faults_status(&host.service, host.log_health());
             if status_line {
                 eprint!("\r{last_status}\x1b[K");
                 let _ = std::io::stderr().flush();
             }
         }
     }
-    if status_line {
-        eprintln!();
-    }
-    let wall_s = start.elapsed().as_secs_f64();
-    let cpu_percent = match (cpu_start, cpu_time_s()) {
-        (Some(a), Some(b)) if wall_s > 0.0 => Some(100.0 * (b - a) / wall_s),
-        _ => None,
-    };
-    let failures = run_failures(&service, logger.map(Logger::stop_with_health));
+    (timing, last_status)
+}
+
+/// The end of a run: JSON (`--json`) or the last status line and the timing figures.
+fn summarize(
+    args: &RunArgs,
+    service: &Service,
+    timing: &mut Timing,
+    failures: &[String],
+    last_status: &str,
+    status_line: bool,
+) {
     let out = *service.output();
+    let (wall_s, cpu_percent) = (timing.wall_s, timing.cpu_percent);
     let p50 = timing.percentile(0.5);
     let p99 = timing.percentile(0.99);
     let max = timing.percentile(1.0);
     if args.json {
+        let axis_names = service
+            .machine()
+            .machine
+            .axes
+            .iter()
+            .map(|a| a.name.clone());
         let v = serde_json::json!({
             "cycles": service.cycles(),
             "service_time_s": out.time_s,
@@ -377,7 +430,7 @@ pub fn run(args: RunArgs) -> Result<(), String> {
                 "over_2ms": timing.histogram[5],
             })) },
             "state": state_name(out.state),
-            "offsets_um": axis_names.iter().zip(out.offsets()).map(|(a, v)| (a.clone(), serde_json::Value::from(*v))).collect::<serde_json::Map<_, _>>(),
+            "offsets_um": axis_names.zip(out.offsets()).map(|(a, v)| (a, serde_json::Value::from(*v))).collect::<serde_json::Map<_, _>>(),
             "log_records_dropped": service.records_dropped(),
             "failures": failures,
         });
@@ -403,11 +456,6 @@ pub fn run(args: RunArgs) -> Result<(), String> {
                 timing.histogram[5]
             );
         }
-    }
-    if failures.is_empty() {
-        Ok(())
-    } else {
-        Err(failures.join("; "))
     }
 }
 

@@ -16,9 +16,9 @@ use truepos_hal::pacer::{keep_off_cpu, realtime_setup, Pacer};
 use truepos_hal::timing::{self, TimingConfig};
 use truepos_hal::{pins, HalSink, HalSource};
 use truepos_io::limits::{finite_in, int_in};
-use truepos_runtime::log::{LogSetup, Logger};
+use truepos_io::machine_file::MachineFile;
 use truepos_runtime::model_set::load_entries;
-use truepos_runtime::{PathState, Service, ServiceConfig, Sink, Source};
+use truepos_runtime::{PathState, Running, Service, ServiceConfig, ServiceHost};
 
 #[derive(Parser)]
 #[command(
@@ -148,18 +148,22 @@ struct CheckArgs {
 /// Histogram bucket edges of the cycle-to-cycle interval, ms.
 const EDGES_MS: [f64; 8] = [0.5, 0.9, 1.1, 1.5, 2.0, 3.0, 5.0, 10.0];
 
-fn run(args: RunArgs) -> Result<(), Box<dyn std::error::Error>> {
-    let machine = truepos_io::machine_file::load(&args.machine)?;
-    let m = &machine.machine;
-    // Seed D: a model without an index in its file serves path 1's axes.
-    let entries = load_entries(&args.models, &machine)?;
-    let model_names: Vec<String> = entries.iter().map(|e| e.name.clone()).collect();
+/// The pins the cycle loop reads and writes itself (the sink writes the offsets).
+struct LoopPins {
+    control: pins::ControlPins,
+    cycle_us: ffi::FloatPin,
+    cycles: ffi::S32Pin,
+    motion_enabled: ffi::BitPin,
+    all_homed: ffi::BitPin,
+    path_models: Vec<ffi::S32Pin>,
+}
 
-    let stop = Arc::new(AtomicBool::new(false));
-    signal_hook::flag::register(signal_hook::consts::SIGTERM, Arc::clone(&stop))?;
-    signal_hook::flag::register(signal_hook::consts::SIGINT, Arc::clone(&stop))?;
-
-    let component = Component::new(&args.name)?;
+/// Creates the component's pins, and the HAL source and sink on them.
+fn create_pins(
+    component: &Component,
+    name: &str,
+    machine: &MachineFile,
+) -> Result<(HalSource, HalSink, LoopPins), Box<dyn std::error::Error>> {
     let paths = machine
         .axis_runtime
         .iter()
@@ -167,60 +171,70 @@ fn run(args: RunArgs) -> Result<(), Box<dyn std::error::Error>> {
         .max()
         .unwrap_or(1)
         .clamp(1, truepos_runtime::service::MAX_PATHS);
-    let all = pins::create(&component, m, paths)?;
-    let control = all.control;
-    let (cycle_us_pin, cycles_pin) = (all.outputs.cycle_us.clone(), all.outputs.cycles.clone());
-    let (motion_enabled, all_homed) = (
-        all.outputs.motion_enabled.clone(),
-        all.outputs.all_homed.clone(),
-    );
-    let path_models = all.outputs.path_models.clone();
-    let source = HalSource::new(&args.name, all.inputs, &machine.axis_runtime);
-    let sink = HalSink::new(&args.name, all.outputs);
-    let (source_name, sink_name) = (source.name().to_string(), sink.name().to_string());
-    control.enable.set(true);
+    let all = pins::create(component, &machine.machine, paths)?;
+    let loop_pins = LoopPins {
+        control: all.control,
+        cycle_us: all.outputs.cycle_us.clone(),
+        cycles: all.outputs.cycles.clone(),
+        motion_enabled: all.outputs.motion_enabled.clone(),
+        all_homed: all.outputs.all_homed.clone(),
+        path_models: all.outputs.path_models.clone(),
+    };
+    let source = HalSource::new(name, all.inputs, &machine.axis_runtime);
+    let sink = HalSink::new(name, all.outputs);
+    Ok((source, sink, loop_pins))
+}
+
+/// Figures of the cycle loop.
+struct LoopStats {
+    /// Monotonic time of the service's zero, ns.
+    start: u64,
+    cycles: u64,
+    skipped: u64,
+    histogram: [u64; EDGES_MS.len() + 1],
+    max_interval_ms: f64,
+    max_work_us: f64,
+    cpu_percent: f64,
+}
+
+fn run(args: RunArgs) -> Result<(), Box<dyn std::error::Error>> {
+    let machine = truepos_io::machine_file::load(&args.machine)?;
+    // Seed D: a model without an index in its file serves path 1's axes.
+    let entries = load_entries(&args.models, &machine)?;
+
+    let stop = Arc::new(AtomicBool::new(false));
+    signal_hook::flag::register(signal_hook::consts::SIGTERM, Arc::clone(&stop))?;
+    signal_hook::flag::register(signal_hook::consts::SIGINT, Arc::clone(&stop))?;
+
+    let component = Component::new(&args.name)?;
+    let (source, sink, loop_pins) = create_pins(&component, &args.name, &machine)?;
+    loop_pins.control.enable.set(true);
     component.ready()?;
 
-    let axes = m.axes.len();
     let config = ServiceConfig {
         blend_s: args.blend_s,
         hold_ramp_s: args.hold_ramp_s,
         ..ServiceConfig::default()
     };
-    let mut service = Service::new(
-        machine.clone(),
-        entries,
-        vec![Box::new(source)],
-        vec![Box::new(sink)],
-        config,
-    );
     // The logger thread inherits the CPUs of this one: keep it off the cycle's CPU.
     if let Some(cpu) = args.cpu {
         if let Err(e) = keep_off_cpu(cpu) {
             eprintln!("truepos-hal: warning: {e}");
         }
     }
-    let logger = match &args.log {
-        Some(path) => Some(Logger::start(
-            LogSetup {
-                path,
-                machine: &machine,
-                models: model_names.clone(),
-                sources: vec![source_name],
-                sinks: vec![sink_name],
-                paths: service.path_states().len(),
-                commit_every: Duration::from_millis(500),
-            },
-            service.events(),
-            service.records(),
-        )?),
-        None => None,
-    };
+    let mut host = ServiceHost::new(machine, entries)
+        .source(Box::new(source))
+        .sink(Box::new(sink))
+        .config(config)
+        .log(args.log.clone())
+        .start()?;
+    let m = &host.service.machine().machine;
     eprintln!(
-        "truepos-hal: component {} ready, {axes} axes, {} temperatures, models {:?}, {} ms",
+        "truepos-hal: component {} ready, {} axes, {} temperatures, models {:?}, {} ms",
         args.name,
+        m.axes.len(),
         m.temperatures.len(),
-        model_names,
+        host.model_names(),
         args.period_ms
     );
     // After the logger has started, so that its thread inherits neither priority nor CPU.
@@ -233,103 +247,119 @@ fn run(args: RunArgs) -> Result<(), Box<dyn std::error::Error>> {
     }
 
     let period_ns = (args.period_ms * 1e6).round() as u64;
+    let s = cycle_loop(&mut host, &loop_pins, period_ns, &stop);
+    // Bumpless stop: blend the offsets to zero before leaving HAL.
+    ramp_to_zero(&mut host.service, s.start, period_ns, args.blend_s);
+    let stopped = host.stop();
+    if let Some((result, _)) = stopped.log {
+        result?;
+    }
+
+    let late = s.histogram[EDGES_MS.iter().position(|&e| e == 2.0).unwrap_or(0) + 1..]
+        .iter()
+        .sum::<u64>();
+    let stats = serde_json::json!({
+        "cycles": s.cycles,
+        "period_ms": args.period_ms,
+        "interval_histogram_ms": {
+            "edges": EDGES_MS,
+            "counts": s.histogram,
+        },
+        "intervals_over_2ms": late,
+        "deadlines_skipped": s.skipped,
+        "max_interval_ms": s.max_interval_ms,
+        "max_work_us": s.max_work_us,
+        "cpu_percent_of_one_core": s.cpu_percent,
+        "events_dropped": stopped.service.events().dropped(),
+    });
+    eprintln!("truepos-hal: stopped after {} cycles: {stats}", s.cycles);
+    if let Some(p) = &args.stats {
+        std::fs::write(p, format!("{stats}\n"))?;
+    }
+    Ok(())
+}
+
+/// Compensates every period until `stop`: reads the control pins, runs the cycle, writes the
+/// loop's own output pins.
+fn cycle_loop(host: &mut Running, pins: &LoopPins, period_ns: u64, stop: &AtomicBool) -> LoopStats {
+    let model_count = host.model_names().len();
+    let service = &mut host.service;
     let cpu_start = ffi::process_cpu_ns();
     let start = ffi::monotonic_ns();
     let mut pacer = Pacer::new(start, period_ns);
     let mut last = start;
-    let mut skipped: u64 = 0;
-    let mut cycles: u64 = 0;
-    let mut histogram = [0u64; EDGES_MS.len() + 1];
-    let mut max_interval_ms = 0.0f64;
-    let mut max_work_us = 0.0f64;
+    let mut s = LoopStats {
+        start,
+        cycles: 0,
+        skipped: 0,
+        histogram: [0u64; EDGES_MS.len() + 1],
+        max_interval_ms: 0.0,
+        max_work_us: 0.0,
+        cpu_percent: 0.0,
+    };
     let mut selected = -1;
     while !stop.load(Ordering::Relaxed) {
         let now = pacer.wait();
-        if cycles > 0 {
+        if s.cycles > 0 {
             let interval_ms = (now - last) as f64 / 1e6;
             let bucket = EDGES_MS.iter().position(|&e| interval_ms < e);
-            histogram[bucket.unwrap_or(EDGES_MS.len())] += 1;
-            max_interval_ms = max_interval_ms.max(interval_ms);
+            s.histogram[bucket.unwrap_or(EDGES_MS.len())] += 1;
+            s.max_interval_ms = s.max_interval_ms.max(interval_ms);
         }
         last = now;
         // LinuxCNC takes offsets only with motion enabled and every joint homed (the sink holds
         // its counts meanwhile); compensation is off until then and blends in afterwards.
-        let ready = motion_enabled.get() && all_homed.get();
-        service.set_enabled(control.enable.get() && ready);
-        let select = control.model_select.get();
+        let ready = pins.motion_enabled.get() && pins.all_homed.get();
+        service.set_enabled(pins.control.enable.get() && ready);
+        let select = pins.control.model_select.get();
         if select != selected {
             selected = select;
-            let preferred = usize::try_from(select)
-                .ok()
-                .filter(|&i| i < model_names.len());
+            let preferred = usize::try_from(select).ok().filter(|&i| i < model_count);
             service.prefer_model(0, preferred);
         }
         // The time of reading, not the deadline: LinuxCNC's positions are those of now.
         service.cycle((now - start) as f64 * 1e-9);
-        for (pin, state) in path_models.iter().zip(service.path_states()) {
+        for (pin, state) in pins.path_models.iter().zip(service.path_states()) {
             pin.set(match state {
                 PathState::Model(i) => i32::try_from(*i).unwrap_or(-1),
                 _ => -1,
             });
         }
-        cycles += 1;
+        s.cycles += 1;
         let after = ffi::monotonic_ns();
         let work_us = (after - now) as f64 / 1e3;
-        max_work_us = max_work_us.max(work_us);
-        cycle_us_pin.set(work_us);
-        cycles_pin.set(cycles as u32 as i32);
+        s.max_work_us = s.max_work_us.max(work_us);
+        pins.cycle_us.set(work_us);
+        pins.cycles.set(s.cycles as u32 as i32);
 
         pacer.advance();
         if after > pacer.deadline_ns() {
             // Behind (the host held the process up): act on the next deadline with current
             // values rather than race through the missed ones.
-            skipped += pacer.skip_to(after);
+            s.skipped += pacer.skip_to(after);
         }
     }
-
     let wall_ns = (ffi::monotonic_ns() - start) as f64;
     // Every thread of the process, the SQLite logger included.
-    let cpu_percent = (ffi::process_cpu_ns() - cpu_start) as f64 / wall_ns.max(1.0) * 100.0;
+    s.cpu_percent = (ffi::process_cpu_ns() - cpu_start) as f64 / wall_ns.max(1.0) * 100.0;
+    s
+}
+
+/// Blends the offsets to zero (compensation off), giving up after the blend time and a second.
+fn ramp_to_zero(service: &mut Service, start: u64, period_ns: u64, blend_s: f64) {
     let period = Duration::from_nanos(period_ns);
-    // Bumpless stop: blend the offsets to zero before leaving HAL.
     service.set_enabled(false);
     let ramp_start = std::time::Instant::now();
     loop {
         let now = ffi::monotonic_ns();
         let out = service.cycle((now - start) as f64 * 1e-9);
         if out.offsets().iter().all(|o| o.abs() < 1e-9)
-            || ramp_start.elapsed() > Duration::from_secs_f64(args.blend_s + 1.0)
+            || ramp_start.elapsed() > Duration::from_secs_f64(blend_s + 1.0)
         {
             break;
         }
         std::thread::sleep(period);
     }
-    if let Some(logger) = logger {
-        logger.stop()?;
-    }
-
-    let late = histogram[EDGES_MS.iter().position(|&e| e == 2.0).unwrap_or(0) + 1..]
-        .iter()
-        .sum::<u64>();
-    let stats = serde_json::json!({
-        "cycles": cycles,
-        "period_ms": args.period_ms,
-        "interval_histogram_ms": {
-            "edges": EDGES_MS,
-            "counts": histogram,
-        },
-        "intervals_over_2ms": late,
-        "deadlines_skipped": skipped,
-        "max_interval_ms": max_interval_ms,
-        "max_work_us": max_work_us,
-        "cpu_percent_of_one_core": cpu_percent,
-        "events_dropped": service.events().dropped(),
-    });
-    eprintln!("truepos-hal: stopped after {cycles} cycles: {stats}");
-    if let Some(p) = &args.stats {
-        std::fs::write(p, format!("{stats}\n"))?;
-    }
-    Ok(())
 }
 
 fn run_check(args: CheckArgs) -> Result<bool, Box<dyn std::error::Error>> {

@@ -10,13 +10,11 @@
 
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::time::Duration;
 
 use serde_json::{json, Value};
-use truepos_runtime::log::{LogSetup, Logger};
 use truepos_runtime::model_set::load_entries;
 use truepos_runtime::replay::ReplaySource;
-use truepos_runtime::{Service, ServiceConfig, Source};
+use truepos_runtime::ServiceHost;
 
 use crate::host::{HostActivity, HostRecord, HostSampler, TICK_MS};
 use crate::pacer::{realtime_setup, Episode, Episodes, Pacer};
@@ -93,15 +91,6 @@ pub fn run(config: &TimingConfig, stop: &AtomicBool) -> Result<Value, String> {
             config.duration_s
         );
     }
-    let model_names: Vec<String> = entries.iter().map(|e| e.name.clone()).collect();
-    let source_name = replay.name().to_string();
-    let mut service = Service::new(
-        machine.clone(),
-        entries,
-        vec![Box::new(replay)],
-        Vec::new(),
-        ServiceConfig::default(),
-    );
     let cpus = std::thread::available_parallelism().map_or(1, |n| n.get());
     // The logger and sampling threads start before the cycle thread takes its CPU and
     // priority, so they inherit neither, and bound to the other CPUs.
@@ -110,25 +99,12 @@ pub fn run(config: &TimingConfig, stop: &AtomicBool) -> Result<Value, String> {
             eprintln!("truepos-hal timing: warning: {e}");
         }
     }
-    let logger = match &config.log {
-        Some(path) => Some(
-            Logger::start(
-                LogSetup {
-                    path,
-                    machine: &machine,
-                    models: model_names,
-                    sources: vec![source_name],
-                    sinks: Vec::new(),
-                    paths: service.path_states().len(),
-                    commit_every: Duration::from_millis(250),
-                },
-                service.events(),
-                service.records(),
-            )
-            .map_err(|e| e.to_string())?,
-        ),
-        None => None,
-    };
+    let mut service_host = ServiceHost::new(machine, entries)
+        .source(Box::new(replay))
+        .log(config.log.clone())
+        .start()
+        .map_err(|e| e.to_string())?;
+    let service = &mut service_host.service;
     let sample_ns = (config.sample_ms * 1e6).round().max(1e5) as u64;
     let sampler = HostSampler::start(sample_ns, config.cpu);
     if let Err(e) = &sampler {
@@ -175,9 +151,11 @@ pub fn run(config: &TimingConfig, stop: &AtomicBool) -> Result<Value, String> {
     let cpu_ns = ffi::process_cpu_ns() - cpu0;
     let ran = pacer.index();
     let host = sampler.map(HostSampler::stop).unwrap_or_default();
-    if let Some(l) = logger {
-        l.stop().map_err(|e| e.to_string())?;
+    let stopped = service_host.stop();
+    if let Some((result, _)) = stopped.log {
+        result.map_err(|e| e.to_string())?;
     }
+    let service = &stopped.service;
 
     let wall_ns = (end_ns - start_ns).max(1) as f64;
     let service_cpu_ns = cpu_ns.saturating_sub(host.sampler_cpu_ns);

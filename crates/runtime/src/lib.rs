@@ -8,6 +8,7 @@
 pub mod envelope;
 pub mod events;
 pub mod frame;
+pub mod host;
 pub mod io_traits;
 pub mod log;
 pub mod model_set;
@@ -18,6 +19,7 @@ pub mod sources;
 pub mod validate;
 
 pub use frame::{Frame, NEVER};
+pub use host::{Running, ServiceHost, Stopped};
 pub use io_traits::{LinkError, SharedChannels, Sink, Source};
 pub use output::{CompensationState, Output};
 pub use service::{PathState, Service, ServiceConfig};

@@ -1,7 +1,8 @@
 //! The log: an embedded SQLite database (WAL mode) of inputs, outputs and events, written by its
 //! own thread from the lock-free queues of the cycle.
 //!
-//! Durability: the logger commits one transaction every `commit_every` (250 ms by default).
+//! Durability: the logger commits one transaction every `commit_every` ([`COMMIT_EVERY`], 250 ms,
+//! for every service the [`crate::host::ServiceHost`] starts).
 //! With WAL and `synchronous = NORMAL`, a committed transaction survives the process being
 //! killed at any moment (only a power loss may take the last commits), and SQLite's journal
 //! keeps the file consistent; so a SIGKILL loses at most the records of the last interval.
@@ -101,6 +102,10 @@ pub const MAX_BACKOFF: Duration = Duration::from_secs(2);
 pub const MAX_PENDING_RECORDS: usize = 1 << 16;
 /// Events the thread keeps while the log fails; more are counted as dropped.
 pub const MAX_PENDING_EVENTS: usize = 1 << 14;
+
+/// The interval between commits of every service's log (ARCHITECTURE.md: a SIGKILL loses at
+/// most this much, and a failing write shows within it).
+pub const COMMIT_EVERY: Duration = Duration::from_millis(250);
 
 /// How the log is doing, for status lines and the end of a run.
 #[derive(Debug, Clone, Default, PartialEq)]

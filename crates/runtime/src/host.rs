@@ -1,0 +1,199 @@
+//! The one way a process hosts the service: `truepos run`, the HAL component and its timing
+//! benchmark all start it here, so they share one set of defaults.
+//!
+//! [`ServiceHost`] takes the machine, the model entries, the sources and sinks, one
+//! [`ServiceConfig`] and an optional log file; [`ServiceHost::start`] builds the [`Service`]
+//! and, with a log file, starts its [`Logger`] (committing every [`log::COMMIT_EVERY`]) and
+//! returns both as a [`Running`] service. [`Running::stop`] is the one way to stop it: the
+//! logger writes what is still queued and stops, and its health over the run comes back with
+//! the service.
+//!
+//! Starting creates only the logger's thread, so a caller that pins CPUs or raises priorities
+//! does so after [`ServiceHost::start`] (the thread inherits neither) or keeps it off the
+//! cycle's CPU before.
+
+use std::path::PathBuf;
+
+use truepos_io::machine_file::MachineFile;
+
+use crate::log::{self, LogError, LogHealth, LogSetup, Logger};
+use crate::model_set::ModelEntry;
+use crate::{Service, ServiceConfig, Sink, Source};
+
+/// What the service is started with; [`ServiceHost::start`] starts it.
+pub struct ServiceHost {
+    machine: MachineFile,
+    models: Vec<ModelEntry>,
+    sources: Vec<Box<dyn Source>>,
+    sinks: Vec<Box<dyn Sink>>,
+    config: ServiceConfig,
+    log: Option<PathBuf>,
+}
+
+impl ServiceHost {
+    /// A machine and its model set (in order of preference), no sources, no sinks, the default
+    /// [`ServiceConfig`] and no log.
+    pub fn new(machine: MachineFile, models: Vec<ModelEntry>) -> Self {
+        Self {
+            machine,
+            models,
+            sources: Vec::new(),
+            sinks: Vec::new(),
+            config: ServiceConfig::default(),
+            log: None,
+        }
+    }
+
+    /// Adds a source (read every cycle in the order added).
+    pub fn source(mut self, source: Box<dyn Source>) -> Self {
+        self.sources.push(source);
+        self
+    }
+
+    /// Adds sources.
+    pub fn sources(mut self, sources: impl IntoIterator<Item = Box<dyn Source>>) -> Self {
+        self.sources.extend(sources);
+        self
+    }
+
+    /// Adds a sink (written every cycle in the order added).
+    pub fn sink(mut self, sink: Box<dyn Sink>) -> Self {
+        self.sinks.push(sink);
+        self
+    }
+
+    /// Adds sinks.
+    pub fn sinks(mut self, sinks: impl IntoIterator<Item = Box<dyn Sink>>) -> Self {
+        self.sinks.extend(sinks);
+        self
+    }
+
+    /// The settings of the cycle (default: [`ServiceConfig::default`]).
+    pub fn config(mut self, config: ServiceConfig) -> Self {
+        self.config = config;
+        self
+    }
+
+    /// The SQLite log, if any (default: none).
+    pub fn log(mut self, path: Option<PathBuf>) -> Self {
+        self.log = path;
+        self
+    }
+
+    /// Builds the service and starts its logger. Fails only if the log cannot be opened or is
+    /// refused ([`Logger::start`]); nothing has run then.
+    pub fn start(self) -> Result<Running, LogError> {
+        let models: Vec<String> = self.models.iter().map(|e| e.name.clone()).collect();
+        let sources: Vec<String> = self.sources.iter().map(|s| s.name().to_string()).collect();
+        let sinks: Vec<String> = self.sinks.iter().map(|s| s.name().to_string()).collect();
+        let service = Service::new(
+            self.machine,
+            self.models,
+            self.sources,
+            self.sinks,
+            self.config,
+        );
+        let logger = match &self.log {
+            Some(path) => Some(Logger::start(
+                LogSetup {
+                    path,
+                    machine: service.machine(),
+                    models: models.clone(),
+                    sources,
+                    sinks,
+                    paths: service.path_states().len(),
+                    commit_every: log::COMMIT_EVERY,
+                },
+                service.events(),
+                service.records(),
+            )?),
+            None => None,
+        };
+        Ok(Running {
+            service,
+            logger,
+            models,
+        })
+    }
+}
+
+/// A started service and its logger; stop it with [`Running::stop`].
+pub struct Running {
+    /// The service: the caller runs its cycles.
+    pub service: Service,
+    logger: Option<Logger>,
+    models: Vec<String>,
+}
+
+impl Running {
+    /// Names of the models of the set, in set order.
+    pub fn model_names(&self) -> &[String] {
+        &self.models
+    }
+
+    /// How the log is doing now (`None`: no log).
+    pub fn log_health(&self) -> Option<LogHealth> {
+        self.logger.as_ref().map(Logger::health)
+    }
+
+    /// Stops the service: the logger writes what is still queued and stops. Returns the service
+    /// (for its figures) and how the log did.
+    pub fn stop(self) -> Stopped {
+        Stopped {
+            service: self.service,
+            log: self.logger.map(Logger::stop_with_health),
+        }
+    }
+}
+
+/// A stopped service.
+pub struct Stopped {
+    /// The service, after its last cycle.
+    pub service: Service,
+    /// The logger's last write (an error if it never took the queue) and its health over the
+    /// run; `None` without a log.
+    pub log: Option<(Result<(), LogError>, LogHealth)>,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::path::Path;
+
+    /// The host names the log's models, sources and sinks after the service's own, logs the
+    /// cycles, and stopping drains the queues and reports a healthy log.
+    #[test]
+    fn a_hosted_service_logs_under_its_own_names_and_stops_cleanly() {
+        let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/vmc3");
+        let machine = truepos_io::machine_file::load(&root.join("machine.toml")).unwrap();
+        let entries = crate::model_set::load_entries(&[root.join("model.toml")], &machine).unwrap();
+        let run = truepos_io::cycles::load(&root.join("run.csv"), &machine.machine, &[]).unwrap();
+        let dir = std::env::temp_dir().join(format!("truepos-host-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let db = dir.join("log.sqlite");
+        let mut running = ServiceHost::new(machine, entries)
+            .source(Box::new(crate::replay::ReplaySource::new(
+                "replay r", run, 1.0,
+            )))
+            .log(Some(db.clone()))
+            .start()
+            .unwrap();
+        assert_eq!(running.model_names().len(), 1);
+        for k in 0..1000 {
+            running.service.cycle(f64::from(k) * 1e-3);
+        }
+        assert_eq!(running.log_health().map(|h| h.failing), Some(None));
+        let stopped = running.stop();
+        let (result, health) = stopped.log.unwrap();
+        assert!(result.is_ok(), "{result:?}");
+        assert_eq!(health.first_failure, None);
+        assert_eq!(stopped.service.cycles(), 1000);
+        let meta = log::read_meta(&db).unwrap().unwrap();
+        assert_eq!(meta["sources"], serde_json::json!(["replay r"]));
+        assert_eq!(meta["sinks"], serde_json::json!([]));
+        let (_, rows) = log::read_cycles(&db, None).unwrap();
+        assert_eq!(rows.len(), 10);
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}
