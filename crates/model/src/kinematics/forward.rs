@@ -46,10 +46,9 @@ const fn turns_bit<const OMEGA: bool>() -> u32 {
 /// direction derivative and angular velocity neither. A linear axis moves the TCP only, so
 /// until an error rotation reads a table of it those two stay zero and are not turned. Only
 /// the walk with angular velocities (`OMEGA`, the trunnion's: its linear axes come first and
-/// are turned by every rotation) separates them: measured with callgrind, the split takes
-/// table-ac 2.5 % fewer instructions per inverse but the heads 0.4–0.9 % more (their
-/// linear axes come after the rotations), so the other walks set only bit j and turn the
-/// direction derivative with the TCP's, as before.
+/// are turned by every rotation) separates them; it pays only there, since the heads' linear
+/// axes come after their rotations, so the other walks set only bit j and turn the direction
+/// derivative with the TCP's.
 #[inline(always)]
 fn turn<const DIR_JAC: bool, const OMEGA: bool>(
     t: &mut Tangents,
@@ -130,9 +129,8 @@ fn err_rotate<const JAC: bool, const ACTUAL: bool, const DIR_JAC: bool, const OM
 
 /// x ← R_k(θ)·x with c = cos θ, s = sin θ (active rotation about coordinate axis k).
 ///
-/// The rotation plane comes from a select on k (no remainders). Measured with callgrind on
-/// the example chains, this takes fewer instructions than one arm per axis that builds the
-/// whole vector anew (4.23 against 4.56 M instructions for the same forward transforms).
+/// The rotation plane comes from a select on k (no remainders), which is cheaper than one arm
+/// per axis that builds the whole vector anew.
 #[inline(always)]
 fn rotate(x: &mut [f64; 3], k: usize, c: f64, s: f64) {
     let (i, j) = match k {
@@ -165,8 +163,8 @@ impl Pd {
         rotate(&mut self.d, k, c, s);
     }
 
-    /// p ← p + v·e_k, one arm per axis with a constant index (measured: fewer instructions
-    /// than `p[k] += v`, whose computed index keeps the pose in memory).
+    /// p ← p + v·e_k, one arm per axis with a constant index: `p[k] += v` with a computed index
+    /// would keep the pose in memory instead of registers.
     #[inline(always)]
     fn translate(&mut self, k: usize, v: f64) {
         match k {
@@ -449,9 +447,8 @@ impl Chain {
     }
 
     /// [`Chain::eval`] for one geometry (`ACTUAL`: through the error tables); `DIR_JAC`: the
-    /// derivatives of the tool direction too; `SLIDES`: the chain has slide steps (a copy
-    /// without their code for the other chains: inlined, it costs the 5-axis walks 2–3 %
-    /// more instructions, measured).
+    /// derivatives of the tool direction too; `SLIDES`: the chain has slide steps (the other
+    /// chains get a copy without their code, which would otherwise slow the 5-axis walks).
     #[inline(always)]
     fn walk<
         const JAC: bool,

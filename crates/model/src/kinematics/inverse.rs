@@ -452,8 +452,8 @@ impl Chain {
         };
         // The start of the chord iterations when the closed form already knows the real pose
         // and its derivatives there (see below).
-        // (The derivatives are written where they stay, in `start_t`: moving 432 bytes into
-        // the option was a `memcpy` call per target. Zeroed only on that path.)
+        // (The derivatives are written where they stay, in `start_t`, rather than moved into
+        // the option. Zeroed only on that path.)
         let mut start: Option<Pose> = None;
         let mut start_t: Option<Tangents> = None;
         let closed = match &self.layout {
@@ -1260,8 +1260,8 @@ fn weighted_jacobian(t: &Tangents, n: usize, w: f64) -> ([[f64; 6]; MAX_AXES], [
     (jac, colscale)
 }
 
-/// [`weighted_jacobian`] written into the caller's arrays (columns from `n` on untouched):
-/// returned by value, the two arrays (504 bytes) were copied by a `memcpy` call per chord.
+/// [`weighted_jacobian`] written into the caller's arrays (columns from `n` on untouched), so
+/// the chord loop does not copy them per iteration.
 fn weighted_jacobian_into(
     t: &Tangents,
     n: usize,
@@ -1311,8 +1311,8 @@ impl Normal {
         n: 0,
     };
 
-    /// Factorises into `self` (written in place: returned by value, the 648-byte factor was
-    /// copied twice by `memcpy` calls); `false` if the matrix is not positive definite. The
+    /// Factorises into `self` (in place, so the factor is not copied on return); `false` if
+    /// the matrix is not positive definite. The
     /// common axis counts get their own copy with `n` a constant, so the small loops unroll
     /// and lose their bounds checks (this runs once per inverse transform).
     fn factor(
