@@ -24,7 +24,10 @@ use std::path::Path;
 use serde::{Deserialize, Serialize};
 use truepos_model::{DynamicModel, FeatureBank, FeatureSpec, Machine};
 
-use crate::error::InputError;
+use crate::error::{json_key_offset, parse_json, read_text, InputError};
+
+/// A problem at a key of the file (`outputs[0].coefficients`): the key and what was expected.
+type Problem = (String, String);
 
 /// What a model input is: a temperature (°C, filtered as the rise since the first cycle) or an
 /// operating-state channel (spindle speed, axis speed; filtered as is).
@@ -149,10 +152,22 @@ impl DynamicModelFile {
 
     /// Builds the real-time model, checking format, version, input order and feature count.
     pub fn to_model(&self) -> Result<DynamicModel, String> {
-        if self.format != FORMAT || self.version != VERSION {
-            return Err(format!(
-                "`format`/`version`: expected \"{FORMAT}\" version {VERSION}, got \"{}\" version {}",
-                self.format, self.version
+        self.check()
+            .map_err(|(key, message)| format!("`{key}`: {message}"))
+    }
+
+    /// [`Self::to_model`], naming the key of the problem.
+    fn check(&self) -> Result<DynamicModel, Problem> {
+        if self.format != FORMAT {
+            return Err((
+                "format".into(),
+                format!("expected \"{FORMAT}\", got \"{}\"", self.format),
+            ));
+        }
+        if self.version != VERSION {
+            return Err((
+                "version".into(),
+                format!("expected {VERSION}, got {}", self.version),
             ));
         }
         let temperatures = self
@@ -160,11 +175,31 @@ impl DynamicModelFile {
             .iter()
             .take_while(|i| i.kind == InputKind::Temperature)
             .count();
-        if self.inputs[temperatures..]
+        if let Some(i) = self.inputs[temperatures..]
             .iter()
-            .any(|i| i.kind != InputKind::Operating)
+            .position(|i| i.kind != InputKind::Operating)
         {
-            return Err("`inputs`: temperatures must come before operating inputs".into());
+            let i = temperatures + i;
+            return Err((
+                format!("inputs[{i}].kind"),
+                format!(
+                    "expected temperatures before operating inputs, got temperature `{}` after operating input `{}`",
+                    self.inputs[i].name,
+                    self.inputs[i - 1].name
+                ),
+            ));
+        }
+        for (key, taus) in [
+            ("temperature_taus_s", &self.temperature_taus_s),
+            ("rate_taus_s", &self.rate_taus_s),
+            ("operating_taus_s", &self.operating_taus_s),
+        ] {
+            if let Some(j) = taus.iter().position(|t| !(t.is_finite() && *t > 0.0)) {
+                return Err((
+                    format!("{key}[{j}]"),
+                    format!("expected a positive time constant in s, got {}", taus[j]),
+                ));
+            }
         }
         let bank = FeatureBank::new(FeatureSpec {
             temperatures,
@@ -176,26 +211,32 @@ impl DynamicModelFile {
             operating_square: self.operating_square,
             rise_while_running: self.rise_while_running,
         })
-        .map_err(|e| format!("time constants: {e}"))?;
+        .map_err(|e| ("temperature_taus_s".to_string(), e.to_string()))?;
         let n = bank.features().len();
         if self.features.len() != n {
-            return Err(format!(
-                "`features`: the spec gives {n} features, the file lists {}",
-                self.features.len()
+            return Err((
+                "features".into(),
+                format!(
+                    "expected {n} names (one per feature the inputs and time constants give), got {}",
+                    self.features.len()
+                ),
             ));
         }
         let mut flat = Vec::new();
         for (k, o) in self.outputs.iter().enumerate() {
             if o.coefficients.len() != n {
-                return Err(format!(
-                    "`outputs[{k}].coefficients`: expected {n} values, got {}",
-                    o.coefficients.len()
+                return Err((
+                    format!("outputs[{k}].coefficients"),
+                    format!(
+                        "expected {n} values (one per feature), got {}",
+                        o.coefficients.len()
+                    ),
                 ));
             }
             flat.extend_from_slice(&o.coefficients);
         }
         let intercepts = self.outputs.iter().map(|o| o.intercept_um).collect();
-        DynamicModel::new(bank, intercepts, flat).map_err(|e| format!("`outputs`: {e}"))
+        DynamicModel::new(bank, intercepts, flat).map_err(|e| ("outputs".into(), e.to_string()))
     }
 
     /// Reads the JSON text; errors name line and column.
@@ -255,15 +296,18 @@ impl BoundDynamicModel {
 impl DynamicModelFile {
     /// The axis an output serves: its `axis`, else an axis named like the output (`Z`, `Z_um`,
     /// `dz_um`, case-insensitive).
-    fn output_axis(&self, k: usize, machine: &Machine) -> Result<Option<usize>, String> {
+    fn output_axis(&self, k: usize, machine: &Machine) -> Result<Option<usize>, Problem> {
         let o = &self.outputs[k];
         if let Some(name) = &o.axis {
             return machine.axis_index(name).map(Some).ok_or_else(|| {
                 let axes: Vec<&str> = machine.axes.iter().map(|a| a.name.as_str()).collect();
-                format!(
-                    "`outputs[{k}].axis`: machine `{}` has no axis `{name}`; expected one of: {}",
-                    machine.name,
-                    axes.join(", ")
+                (
+                    format!("outputs[{k}].axis"),
+                    format!(
+                        "machine `{}` has no axis `{name}`; expected one of: {}",
+                        machine.name,
+                        axes.join(", ")
+                    ),
                 )
             });
         }
@@ -277,46 +321,72 @@ impl DynamicModelFile {
 
     /// Binds the model to a machine: same machine name, every input a channel of the right kind,
     /// every output mapped to a distinct axis or reported unused, at least one output applied.
+    /// Errors name the file and the key; [`parse`] and [`load`] also give line and column.
     pub fn bind(&self, path: &Path, machine: &Machine) -> Result<BoundDynamicModel, InputError> {
-        let fail = |m: String| InputError::file(path, m);
-        let model = self.to_model().map_err(fail)?;
+        self.bind_checked(path, machine)
+            .map_err(|(key, message)| InputError {
+                file: path.to_path_buf(),
+                position: None,
+                key: Some(key).filter(|k| !k.is_empty()),
+                message,
+            })
+    }
+
+    /// [`Self::bind`], naming the key of the problem.
+    fn bind_checked(&self, path: &Path, machine: &Machine) -> Result<BoundDynamicModel, Problem> {
         if self.machine != machine.name {
-            return Err(fail(format!(
-                "`machine`: the model was made for machine `{}`, not `{}`",
-                self.machine, machine.name
-            )));
+            return Err((
+                "machine".into(),
+                format!(
+                    "expected `{}` (the machine it is loaded for), got `{}`",
+                    machine.name, self.machine
+                ),
+            ));
         }
+        let model = self.check()?;
         let mut inputs = Vec::with_capacity(self.inputs.len());
         for (i, input) in self.inputs.iter().enumerate() {
-            let found = match input.kind {
-                InputKind::Temperature => machine
-                    .temperature_index(&input.name)
-                    .map(MachineInput::Temperature),
-                InputKind::Operating => machine
-                    .operating_index(&input.name)
-                    .map(MachineInput::Operating),
+            let (found, kind, names): (_, _, Vec<&str>) = match input.kind {
+                InputKind::Temperature => (
+                    machine
+                        .temperature_index(&input.name)
+                        .map(MachineInput::Temperature),
+                    "temperature channel",
+                    machine.temperatures.iter().map(|t| t.id.as_str()).collect(),
+                ),
+                InputKind::Operating => (
+                    machine
+                        .operating_index(&input.name)
+                        .map(MachineInput::Operating),
+                    "operating channel",
+                    machine.operating.iter().map(|o| o.id.as_str()).collect(),
+                ),
             };
             inputs.push(found.ok_or_else(|| {
-                let kind = match input.kind {
-                    InputKind::Temperature => "temperature channel",
-                    InputKind::Operating => "operating channel",
-                };
-                fail(format!(
-                    "`inputs[{i}]`: the model reads {kind} `{}`, which machine `{}` does not define",
-                    input.name, machine.name
-                ))
+                (
+                    format!("inputs[{i}].name"),
+                    format!(
+                        "machine `{}` has no {kind} `{}`; expected one of: {}",
+                        machine.name,
+                        input.name,
+                        names.join(", ")
+                    ),
+                )
             })?);
         }
         let mut axes = Vec::with_capacity(self.outputs.len());
         let mut unused_outputs = Vec::new();
         for k in 0..self.outputs.len() {
-            let axis = self.output_axis(k, machine).map_err(fail)?;
+            let axis = self.output_axis(k, machine)?;
             if let Some(a) = axis {
                 if let Some(j) = axes.iter().position(|b| *b == Some(a)) {
-                    return Err(fail(format!(
-                        "`outputs[{k}]`: `{}` and `{}` both compensate axis {}; give each output its own `axis`",
-                        self.outputs[j].name, self.outputs[k].name, machine.axes[a].name
-                    )));
+                    return Err((
+                        format!("outputs[{k}]"),
+                        format!(
+                            "`{}` and `{}` both compensate axis {}; give each output its own `axis`",
+                            self.outputs[j].name, self.outputs[k].name, machine.axes[a].name
+                        ),
+                    ));
                 }
             } else {
                 unused_outputs.push(self.outputs[k].name.clone());
@@ -324,11 +394,14 @@ impl DynamicModelFile {
             axes.push(axis);
         }
         if axes.iter().all(Option::is_none) {
-            return Err(fail(format!(
-                "`outputs`: no output names an axis of machine `{}`; give one an `axis` (or fit with `--axis {}=<axis>`)",
-                machine.name,
-                self.outputs.first().map_or("<target>", |o| o.name.as_str())
-            )));
+            return Err((
+                "outputs".into(),
+                format!(
+                    "no output names an axis of machine `{}`; give one an `axis` (or fit with `--axis {}=<axis>`)",
+                    machine.name,
+                    self.outputs.first().map_or("<target>", |o| o.name.as_str())
+                ),
+            ));
         }
         Ok(BoundDynamicModel {
             name: path
@@ -354,11 +427,17 @@ pub fn is_dynamic(text: &str) -> bool {
 
 /// Reads a dynamic model file and binds it to the machine.
 pub fn load(path: &Path, machine: &Machine) -> Result<BoundDynamicModel, InputError> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| InputError::file(path, format!("cannot read: {e}")))?;
-    DynamicModelFile::from_json(&text)
-        .map_err(|e| InputError::file(path, e))?
-        .bind(path, machine)
+    parse(path, &read_text(path)?, machine)
+}
+
+/// Parses a dynamic model file's text (`path` names it in errors) and binds it to the machine.
+/// Every error names the file, line, column and key and what was expected.
+pub fn parse(path: &Path, text: &str, machine: &Machine) -> Result<BoundDynamicModel, InputError> {
+    let file: DynamicModelFile = parse_json(path, text, "")?;
+    file.bind_checked(path, machine).map_err(|(key, message)| {
+        let at = json_key_offset(text, &key);
+        InputError::at_span(path, text, at..at, key, message)
+    })
 }
 
 #[cfg(test)]
@@ -418,7 +497,7 @@ mod tests {
         assert!(bad
             .to_model()
             .unwrap_err()
-            .contains("expected 5 values, got 4"));
+            .contains("expected 5 values (one per feature), got 4"));
         bad.version = 2;
         assert!(bad.to_model().is_err());
         assert!(DynamicModelFile::from_json("{\n\"format\": 3}")

@@ -124,6 +124,167 @@ pub(crate) fn parse_toml<T: serde::de::DeserializeOwned>(
     })
 }
 
+/// Deserialises JSON text, turning syntax and type errors into an [`InputError`] that names the
+/// line, column (in characters) and key path.
+pub(crate) fn parse_json<T: serde::de::DeserializeOwned>(
+    path: &Path,
+    text: &str,
+    key_of_root: &str,
+) -> Result<T, InputError> {
+    let mut de = serde_json::Deserializer::from_str(text);
+    serde_path_to_error::deserialize(&mut de).map_err(|e| {
+        let key = e.path().to_string();
+        let key = if key == "." {
+            key_of_root.to_string()
+        } else {
+            key
+        };
+        let inner = e.into_inner();
+        // serde_json appends " at line L column C" (column in bytes); the position goes in front.
+        let message = inner.to_string();
+        let message = message
+            .rsplit_once(" at line ")
+            .map_or(message.as_str(), |(m, _)| m)
+            .to_string();
+        let line_start = if inner.line() <= 1 {
+            0
+        } else {
+            text.match_indices('\n')
+                .nth(inner.line() - 2)
+                .map_or(text.len(), |(i, _)| i + 1)
+        };
+        let offset = line_start + inner.column().saturating_sub(1);
+        InputError::at_span(path, text, offset..offset, key, message)
+    })
+}
+
+/// The byte offset of the value at `key` (`outputs[0].coefficients`, `""` for the whole
+/// document) in valid JSON text; for a key that is not there, the offset of the deepest part of
+/// it that is (so an error about a missing key points at the object that lacks it).
+pub(crate) fn json_key_offset(text: &str, key: &str) -> usize {
+    let b = text.as_bytes();
+    let mut at = skip_ws(b, 0);
+    for segment in key.split('.').filter(|s| !s.is_empty()) {
+        let (name, indices) = segment
+            .split_once('[')
+            .map_or((segment, ""), |(n, i)| (n, i));
+        if !name.is_empty() {
+            match json_member(b, at, name) {
+                Some(i) => at = i,
+                None => return at,
+            }
+        }
+        for index in indices.split('[') {
+            let Ok(index) = index.trim_end_matches(']').parse::<usize>() else {
+                continue;
+            };
+            match json_element(b, at, index) {
+                Some(i) => at = i,
+                None => return at,
+            }
+        }
+    }
+    at
+}
+
+fn skip_ws(b: &[u8], mut i: usize) -> usize {
+    while i < b.len() && b[i].is_ascii_whitespace() {
+        i += 1;
+    }
+    i
+}
+
+/// The end of the JSON value starting at `i` (after leading whitespace).
+fn skip_value(b: &[u8], i: usize) -> usize {
+    let mut i = skip_ws(b, i);
+    match b.get(i) {
+        Some(b'"') => {
+            i += 1;
+            while i < b.len() && b[i] != b'"' {
+                i += if b[i] == b'\\' { 2 } else { 1 };
+            }
+            (i + 1).min(b.len())
+        }
+        Some(b'{' | b'[') => {
+            let mut depth = 0usize;
+            while i < b.len() {
+                match b[i] {
+                    b'{' | b'[' => depth += 1,
+                    b'}' | b']' => {
+                        depth -= 1;
+                        if depth == 0 {
+                            return i + 1;
+                        }
+                    }
+                    b'"' => {
+                        i = skip_value(b, i);
+                        continue;
+                    }
+                    _ => {}
+                }
+                i += 1;
+            }
+            i
+        }
+        _ => {
+            while i < b.len() && !matches!(b[i], b',' | b']' | b'}') && !b[i].is_ascii_whitespace()
+            {
+                i += 1;
+            }
+            i
+        }
+    }
+}
+
+/// The offset of member `name`'s value in the object at `i`.
+fn json_member(b: &[u8], i: usize, name: &str) -> Option<usize> {
+    let mut i = skip_ws(b, i);
+    if b.get(i) != Some(&b'{') {
+        return None;
+    }
+    i += 1;
+    loop {
+        i = skip_ws(b, i);
+        if b.get(i) != Some(&b'"') {
+            return None;
+        }
+        let end = skip_value(b, i);
+        let key: Option<String> = std::str::from_utf8(&b[i..end])
+            .ok()
+            .and_then(|k| serde_json::from_str(k).ok());
+        i = skip_ws(b, end);
+        if b.get(i) != Some(&b':') {
+            return None;
+        }
+        let value = skip_ws(b, i + 1);
+        if key.as_deref() == Some(name) {
+            return Some(value);
+        }
+        i = skip_ws(b, skip_value(b, value));
+        if b.get(i) != Some(&b',') {
+            return None;
+        }
+        i += 1;
+    }
+}
+
+/// The offset of element `index` of the array at `i`.
+fn json_element(b: &[u8], i: usize, index: usize) -> Option<usize> {
+    let mut i = skip_ws(b, i);
+    if b.get(i) != Some(&b'[') {
+        return None;
+    }
+    i = skip_ws(b, i + 1);
+    for _ in 0..index {
+        i = skip_ws(b, skip_value(b, i));
+        if b.get(i) != Some(&b',') {
+            return None;
+        }
+        i = skip_ws(b, i + 1);
+    }
+    (i < b.len() && b[i] != b']').then_some(i)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -136,5 +297,19 @@ mod tests {
         // `d` is byte 6 (° is two bytes) but the third character of line 2.
         assert_eq!(line_column(text, 6), (2, 3));
         assert_eq!(line_column(text, 100), (3, 1));
+    }
+
+    #[test]
+    fn json_keys_are_found_at_their_values() {
+        let text = "{\"a\": 1,\n \"b\": [{\"c\": \"x]\\\"\"}, {\"c\": [2, 3]}]}";
+        let at = |k: &str| line_column(text, json_key_offset(text, k));
+        assert_eq!(at(""), (1, 1));
+        assert_eq!(at("a"), (1, 7));
+        assert_eq!(at("b"), (2, 7));
+        assert_eq!(at("b[1].c"), (2, 29));
+        assert_eq!(at("b[1].c[1]"), (2, 33));
+        // Missing keys: the deepest part that exists.
+        assert_eq!(at("b[1].d"), (2, 23));
+        assert_eq!(at("b[5]"), (2, 7));
     }
 }
