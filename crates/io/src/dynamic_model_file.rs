@@ -433,7 +433,7 @@ pub fn load(path: &Path, machine: &Machine) -> Result<BoundDynamicModel, InputEr
 /// Parses a dynamic model file's text (`path` names it in errors) and binds it to the machine.
 /// Every error names the file, line, column and key and what was expected.
 pub fn parse(path: &Path, text: &str, machine: &Machine) -> Result<BoundDynamicModel, InputError> {
-    let file: DynamicModelFile = parse_json(path, text, "")?;
+    let file: DynamicModelFile = parse_json(path, text)?;
     file.bind_checked(path, machine).map_err(|(key, message)| {
         let at = json_key_offset(text, &key);
         InputError::at_span(path, text, at..at, key, message)

@@ -129,16 +129,16 @@ pub(crate) fn parse_toml<T: serde::de::DeserializeOwned>(
 pub(crate) fn parse_json<T: serde::de::DeserializeOwned>(
     path: &Path,
     text: &str,
-    key_of_root: &str,
 ) -> Result<T, InputError> {
     let mut de = serde_json::Deserializer::from_str(text);
     serde_path_to_error::deserialize(&mut de).map_err(|e| {
+        // `?` stands for a key a syntax error came before; the key is the part before it.
         let key = e.path().to_string();
-        let key = if key == "." {
-            key_of_root.to_string()
-        } else {
-            key
-        };
+        let key = key.split('?').next().unwrap_or("");
+        let key = key
+            .trim_start_matches('.')
+            .trim_end_matches('.')
+            .to_string();
         let inner = e.into_inner();
         // serde_json appends " at line L column C" (column in bytes); the position goes in front.
         let message = inner.to_string();
@@ -153,7 +153,13 @@ pub(crate) fn parse_json<T: serde::de::DeserializeOwned>(
                 .nth(inner.line() - 2)
                 .map_or(text.len(), |(i, _)| i + 1)
         };
-        let offset = line_start + inner.column().saturating_sub(1);
+        // serde_json places a type error at the end of the value; the value's start is where
+        // a person looks.
+        let offset = if inner.classify() == serde_json::error::Category::Data && !key.is_empty() {
+            json_key_offset(text, &key)
+        } else {
+            line_start + inner.column().saturating_sub(1)
+        };
         InputError::at_span(path, text, offset..offset, key, message)
     })
 }

@@ -3,7 +3,7 @@
 
 use std::path::Path;
 
-use truepos_io::{machine_file, model_file};
+use truepos_io::{dynamic_model_file, machine_file, model_file};
 
 const MACHINE: &str = r#"[machine]
 name = "two-axis"
@@ -467,4 +467,127 @@ fn k11_json_syntax_error() {
     .unwrap_err()
     .to_string();
     assert_eq!(err, "k.json:3:16: key must be a string");
+}
+
+// ---- dynamic model files (JSON) ----
+
+const DYNAMIC: &str = r#"{
+  "format": "truepos-dynamic-model",
+  "version": 1,
+  "machine": "two-axis",
+  "inputs": [
+    {"name": "x_bottom", "kind": "temperature"},
+    {"name": "spindle_rpm", "kind": "operating"}
+  ],
+  "temperature_rise": true,
+  "temperature_taus_s": [900.0],
+  "rate_taus_s": [],
+  "operating_taus_s": [300.0],
+  "operating_square": false,
+  "features": ["rise(x_bottom)", "lp900(x_bottom)", "lp300(spindle_rpm)"],
+  "outputs": [
+    {"name": "dY_um", "intercept_um": 0.5, "coefficients": [1.0, 2.0, 0.001]}
+  ],
+  "provenance": {},
+  "validation": {}
+}
+"#;
+
+fn dynamic_machine() -> truepos_model::Machine {
+    let text =
+        format!("{MACHINE}\n[[operating]]\nid = \"spindle_rpm\"\nkind = \"spindle-speed\"\n");
+    machine_file::parse(Path::new("m.toml"), &text)
+        .unwrap()
+        .machine
+}
+
+fn dynamic_error(text: &str) -> String {
+    dynamic_model_file::parse(Path::new("d.json"), text, &dynamic_machine())
+        .expect_err("the file must be refused")
+        .to_string()
+}
+
+#[test]
+fn the_unedited_dynamic_file_is_accepted() {
+    let bound =
+        dynamic_model_file::parse(Path::new("d.json"), DYNAMIC, &dynamic_machine()).unwrap();
+    assert_eq!(bound.axes, vec![Some(1)]);
+    assert_eq!(bound.model.bank().features().len(), 3);
+}
+
+#[test]
+fn d01_json_syntax_error() {
+    let text = edit(DYNAMIC, "\"version\": 1,", "\"version\": 1");
+    assert_eq!(dynamic_error(&text), "d.json:4:3: expected `,` or `}`");
+}
+
+#[test]
+fn d02_other_machine() {
+    let text = edit(DYNAMIC, "\"two-axis\"", "\"three-axis\"");
+    assert_eq!(
+        dynamic_error(&text),
+        "d.json:4:14: `machine`: expected `two-axis` (the machine it is loaded for), got `three-axis`"
+    );
+}
+
+#[test]
+fn d03_unknown_sensor() {
+    let text = edit(DYNAMIC, "{\"name\": \"x_bottom\"", "{\"name\": \"x_botom\"");
+    assert_eq!(
+        dynamic_error(&text),
+        "d.json:6:14: `inputs[0].name`: machine `two-axis` has no temperature channel `x_botom`; expected one of: x_bottom, x_top"
+    );
+}
+
+#[test]
+fn d04_bad_time_constant() {
+    let text = edit(DYNAMIC, "[300.0]", "[-300.0]");
+    assert_eq!(
+        dynamic_error(&text),
+        "d.json:12:24: `operating_taus_s[0]`: expected a positive time constant in s, got -300"
+    );
+}
+
+#[test]
+fn d05_wrong_number_of_coefficients() {
+    let text = edit(DYNAMIC, "[1.0, 2.0, 0.001]", "[1.0, 2.0]");
+    assert_eq!(
+        dynamic_error(&text),
+        "d.json:16:60: `outputs[0].coefficients`: expected 3 values (one per feature), got 2"
+    );
+}
+
+#[test]
+fn d06_wrong_type() {
+    let text = edit(
+        DYNAMIC,
+        "\"intercept_um\": 0.5",
+        "\"intercept_um\": \"0.5\"",
+    );
+    assert_eq!(
+        dynamic_error(&text),
+        "d.json:16:39: `outputs[0].intercept_um`: invalid type: string \"0.5\", expected f64"
+    );
+}
+
+#[test]
+fn d07_unknown_axis() {
+    let text = edit(
+        DYNAMIC,
+        "\"intercept_um\"",
+        "\"axis\": \"W\", \"intercept_um\"",
+    );
+    assert_eq!(
+        dynamic_error(&text),
+        "d.json:16:31: `outputs[0].axis`: machine `two-axis` has no axis `W`; expected one of: X, Y"
+    );
+}
+
+#[test]
+fn d08_wrong_version() {
+    let text = edit(DYNAMIC, "\"version\": 1,", "\"version\": 2,");
+    assert_eq!(
+        dynamic_error(&text),
+        "d.json:3:14: `version`: expected 1, got 2"
+    );
 }

@@ -5,10 +5,29 @@
 use std::path::Path;
 
 use proptest::prelude::*;
-use truepos_io::{cycles, machine_file, model_file};
+use truepos_io::{cycles, dynamic_model_file, machine_file, model_file};
 
 const MACHINE: &str = include_str!("../../../examples/cross-slide/machine.toml");
 const MODEL: &str = include_str!("../../../examples/cross-slide/model.toml");
+/// A dynamic model for the cross-slide example's machine (its name, a sensor and an axis are
+/// filled in by `dynamic()`).
+const DYNAMIC: &str = r#"{
+  "format": "truepos-dynamic-model",
+  "version": 1,
+  "machine": "MACHINE",
+  "inputs": [{"name": "SENSOR", "kind": "temperature"}],
+  "temperature_rise": true,
+  "temperature_taus_s": [900.0, 3600.0],
+  "rate_taus_s": [1800.0],
+  "operating_taus_s": [],
+  "operating_square": false,
+  "rise_while_running": false,
+  "features": ["rise", "lp900", "lp3600", "rate1800"],
+  "outputs": [{"name": "out", "axis": "AXIS", "intercept_um": 0.5, "coefficients": [1.0, 2.0, 3.0, 4.0]}],
+  "axis_index": [101],
+  "provenance": {"runs": ["a.csv"]},
+  "validation": {"rms_um": 1.5}
+}"#;
 const RUN: &str = include_str!("../../../examples/cross-slide/run.csv");
 
 fn mutate(text: &str, at: usize, with: char, delete: bool) -> String {
@@ -28,6 +47,19 @@ fn machine() -> truepos_model::Machine {
         .machine
 }
 
+fn dynamic(m: &truepos_model::Machine) -> String {
+    DYNAMIC
+        .replace("MACHINE", &m.name)
+        .replace("SENSOR", &m.temperatures[0].id)
+        .replace("AXIS", &m.axes[0].name)
+}
+
+#[test]
+fn the_dynamic_fixture_is_valid() {
+    let m = machine();
+    dynamic_model_file::parse(Path::new("d.json"), &dynamic(&m), &m).unwrap();
+}
+
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(1000))]
 
@@ -44,6 +76,21 @@ proptest! {
     }
 
     #[test]
+    fn dynamic_model_parser_never_panics_and_names_the_file(at in 0..10_000usize, with in any::<char>(), delete in any::<bool>()) {
+        let m = machine();
+        let text = mutate(&dynamic(&m), at, with, delete);
+        if let Err(e) = dynamic_model_file::parse(Path::new("d.json"), &text, &m) {
+            let e = e.to_string();
+            prop_assert!(e.starts_with("d.json:"), "{}", e);
+            // Every error of a file that could be read has a line and column.
+            let mut parts = e.splitn(4, ':');
+            parts.next();
+            prop_assert!(parts.next().is_some_and(|l| l.parse::<usize>().is_ok()), "{}", e);
+            prop_assert!(parts.next().is_some_and(|c| c.parse::<usize>().is_ok()), "{}", e);
+        }
+    }
+
+    #[test]
     fn run_reader_never_panics(at in 0..10_000usize, with in any::<char>(), delete in any::<bool>()) {
         let m = machine();
         let text = mutate(RUN, at, with, delete);
@@ -56,6 +103,7 @@ proptest! {
         let _ = machine_file::parse(Path::new("m.toml"), &text);
         let _ = model_file::parse(Path::new("k.toml"), &text, &m);
         let _ = model_file::parse_json(Path::new("k.json"), &text, &m);
+        let _ = dynamic_model_file::parse(Path::new("d.json"), &text, &m);
         let _ = cycles::read(Path::new("run.csv"), text.as_bytes(), &m, &[]);
     }
 }
