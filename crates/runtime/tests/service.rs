@@ -655,7 +655,9 @@ fn a_dynamic_model_file_runs_in_the_service() {
         .unwrap_err()
         .to_string();
     assert!(
-        refused.contains("other.json") && refused.contains("made for machine `lathe`"),
+        refused.contains("other.json:2:")
+            && refused.contains("`machine`: expected `vmc-3axis`")
+            && refused.contains("got `lathe`"),
         "{refused}"
     );
 
