@@ -112,9 +112,9 @@ fn eval_reports_a_model_for_another_machine() {
 }
 
 #[test]
-fn lag_reproduces_seed_a_timing_argument() {
+fn update_period_reproduces_seed_a_timing_argument() {
     let (ok, stdout, stderr) = truepos(&[
-        "lag",
+        "update-period",
         "--feed-m-min",
         "100",
         "--period-ms",
