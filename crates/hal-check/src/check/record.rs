@@ -13,7 +13,6 @@
 //! [`motion_columns`] is that layout, which the parser follows, with the component's pin names
 //! from [`truepos_hal::pins`]; a test holds `tests/linuxcnc/vmc3.hal.in`'s recorder to it.
 
-use std::fmt;
 use std::path::Path;
 
 use truepos_hal::pins::{self, axis_prefix, path_model_pin, status_code};
@@ -199,7 +198,8 @@ fn sample_of(row: &[f64], axes: usize, temperatures_c: Vec<f64>) -> Sample {
 }
 
 /// A malformed sampler file.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{file}:{line}: {message}")]
 pub struct SampleError {
     /// The file.
     pub file: String,
@@ -208,14 +208,6 @@ pub struct SampleError {
     /// What was expected.
     pub message: String,
 }
-
-impl fmt::Display for SampleError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "{}:{}: {}", self.file, self.line, self.message)
-    }
-}
-
-impl std::error::Error for SampleError {}
 
 fn parse_lines(
     file: &str,
