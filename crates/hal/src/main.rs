@@ -10,9 +10,9 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use clap::{Parser, Subcommand};
-use truepos_hal::ffi::{self, Component};
+use truepos_hal::ffi::{self, Component, HalError};
 use truepos_hal::pacer::{keep_off_cpu, realtime_setup, Pacer};
-use truepos_hal::{pins, HalSink, HalSource};
+use truepos_hal::{pins, Error, HalSink, HalSource};
 use truepos_io::limits::{finite_in, int_in};
 use truepos_io::machine_file::MachineFile;
 use truepos_runtime::model_set::load_entries;
@@ -90,7 +90,7 @@ fn create_pins(
     component: &Component,
     name: &str,
     machine: &MachineFile,
-) -> Result<(HalSource, HalSink, LoopPins), Box<dyn std::error::Error>> {
+) -> Result<(HalSource, HalSink, LoopPins), HalError> {
     let paths = machine
         .axis_runtime
         .iter()
@@ -124,14 +124,16 @@ struct LoopStats {
     cpu_percent: f64,
 }
 
-fn run(args: RunArgs) -> Result<(), Box<dyn std::error::Error>> {
+fn run(args: RunArgs) -> Result<(), Error> {
     let machine = truepos_io::machine_file::load(&args.machine)?;
     // Seed D: a model without an index in its file serves path 1's axes.
     let entries = load_entries(&args.models, &machine)?;
 
     let stop = Arc::new(AtomicBool::new(false));
-    signal_hook::flag::register(signal_hook::consts::SIGTERM, Arc::clone(&stop))?;
-    signal_hook::flag::register(signal_hook::consts::SIGINT, Arc::clone(&stop))?;
+    signal_hook::flag::register(signal_hook::consts::SIGTERM, Arc::clone(&stop))
+        .map_err(Error::Signal)?;
+    signal_hook::flag::register(signal_hook::consts::SIGINT, Arc::clone(&stop))
+        .map_err(Error::Signal)?;
 
     let component = Component::new(&args.name)?;
     let (source, sink, loop_pins) = create_pins(&component, &args.name, &machine)?;
@@ -201,7 +203,7 @@ fn run(args: RunArgs) -> Result<(), Box<dyn std::error::Error>> {
     });
     eprintln!("truepos-hal: stopped after {} cycles: {stats}", s.cycles);
     if let Some(p) = &args.stats {
-        std::fs::write(p, format!("{stats}\n"))?;
+        std::fs::write(p, format!("{stats}\n")).map_err(Error::Stats)?;
     }
     Ok(())
 }

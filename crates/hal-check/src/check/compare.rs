@@ -77,13 +77,13 @@ pub(super) fn compare_cycles(
             }
         }
         walk.since_change += 1;
-        if s.status == 2 {
+        if s.holding() {
             report.holding_samples += 1;
         }
         for a in 0..axes {
             report.max_offset_um = report.max_offset_um.max(s.applied_mm[a].abs() * 1000.0);
         }
-        if s.status != 1 || walk.since_change <= settle {
+        if !s.active() || walk.since_change <= settle {
             continue;
         }
         walk.compare(&judge, report, prev, s, moving);

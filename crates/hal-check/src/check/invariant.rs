@@ -138,7 +138,7 @@ pub fn output_invariant(
                 };
             }
         }
-        if s.status == 2 {
+        if s.holding() {
             // The held value ramps to zero; one period more, for the two clocks.
             let left = (1.0 - (since_change_s + config.period_s) / config.hold_ramp_s).max(0.0);
             for a in (0..axes).filter(|&a| s.axis_paths.get(a) == Some(&1)) {

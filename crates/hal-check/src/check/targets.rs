@@ -75,7 +75,7 @@ pub fn targets_um(
 ) -> Vec<Option<f64>> {
     let axes = machine.axes.len();
     let in_path = |a: usize| s.axis_paths.get(a) == Some(&1);
-    if s.status != 1 {
+    if !s.active() {
         return vec![Some(0.0); axes];
     }
     let evaluated = expected_model(models, limits, &s.axis_paths, s.select)

@@ -24,6 +24,8 @@ use host::{HostActivity, HostRecord, HostSampler, TICK_MS};
 use truepos_hal::pacer::{realtime_setup, Pacer};
 use truepos_hal::{ffi, pacer};
 
+use crate::Error;
+
 /// What to run.
 #[derive(Debug, Clone)]
 pub struct TimingConfig {
@@ -73,20 +75,17 @@ struct Attributed {
 }
 
 /// Runs the benchmark; `stop` ends it early. Returns the JSON summary.
-pub fn run(config: &TimingConfig, stop: &AtomicBool) -> Result<Value, String> {
+pub fn run(config: &TimingConfig, stop: &AtomicBool) -> Result<Value, Error> {
     if !(config.period_ms > 0.0 && config.period_ms <= 1000.0) {
-        return Err(format!(
-            "period {} ms must lie in (0, 1000]",
-            config.period_ms
-        ));
+        return Err(Error::Period(config.period_ms));
     }
     if !(config.duration_s > 0.0 && config.duration_s.is_finite()) {
-        return Err(format!("duration {} s must be > 0", config.duration_s));
+        return Err(Error::Duration(config.duration_s));
     }
-    let machine = truepos_io::machine_file::load(&config.machine).map_err(|e| e.to_string())?;
+    let machine = truepos_io::machine_file::load(&config.machine)?;
     let m = &machine.machine;
-    let entries = load_entries(&config.models, &machine).map_err(|e| e.to_string())?;
-    let cycles = truepos_io::cycles::load(&config.run, m, &[]).map_err(|e| e.to_string())?;
+    let entries = load_entries(&config.models, &machine)?;
+    let cycles = truepos_io::cycles::load(&config.run, m, &[])?;
     let replay = ReplaySource::new(format!("replay {}", config.run.display()), cycles, 1.0);
     if replay.duration_s() < config.duration_s {
         eprintln!(
@@ -106,8 +105,7 @@ pub fn run(config: &TimingConfig, stop: &AtomicBool) -> Result<Value, String> {
     let mut service_host = ServiceHost::new(machine, entries)
         .source(Box::new(replay))
         .log(config.log.clone())
-        .start()
-        .map_err(|e| e.to_string())?;
+        .start()?;
     let service = &mut service_host.service;
     let sample_ns = (config.sample_ms * 1e6).round().max(1e5) as u64;
     let sampler = HostSampler::start(sample_ns, config.cpu);
@@ -157,7 +155,7 @@ pub fn run(config: &TimingConfig, stop: &AtomicBool) -> Result<Value, String> {
     let host = sampler.map(HostSampler::stop).unwrap_or_default();
     let stopped = service_host.stop();
     if let Some((result, _)) = stopped.log {
-        result.map_err(|e| e.to_string())?;
+        result?;
     }
     let service = &stopped.service;
 
