@@ -26,9 +26,9 @@
 use std::fmt;
 use std::path::Path;
 
-use truepos_io::machine_file::AxisRuntime;
 use truepos_model::{CycleInput, Machine, Model};
 use truepos_runtime::model_set::{index_of, ModelEntry};
+use truepos_runtime::AxisConfig;
 
 /// One servo cycle as the samplers recorded it.
 #[derive(Debug, Clone, PartialEq)]
@@ -366,7 +366,7 @@ fn position_span_um(model: &Model, machine: &Machine, s: &Sample, operating: &[f
 /// first; `None` if none matches.
 pub fn expected_model(
     models: &[ModelEntry],
-    limits: &[AxisRuntime],
+    limits: &[AxisConfig],
     axis_paths: &[i32],
     select: i32,
 ) -> Option<usize> {
@@ -438,7 +438,7 @@ fn servo_intervals_s(samples: &[Sample], period_s: f64) -> Vec<f64> {
 fn targets_um(
     machine: &Machine,
     models: &[ModelEntry],
-    limits: &[AxisRuntime],
+    limits: &[AxisConfig],
     s: &Sample,
     operating: &[f64],
 ) -> Vec<Option<f64>> {
@@ -489,7 +489,7 @@ fn targets_um(
 pub fn output_invariant(
     machine: &Machine,
     models: &[ModelEntry],
-    limits: &[AxisRuntime],
+    limits: &[AxisConfig],
     samples: &[Sample],
     config: &CheckConfig,
 ) -> InvariantReport {
@@ -599,7 +599,7 @@ pub fn output_invariant(
 /// Adds the failures of the output invariant to the report.
 fn invariant_failures(
     machine: &Machine,
-    limits: &[AxisRuntime],
+    limits: &[AxisConfig],
     config: &CheckConfig,
     report: &mut CheckReport,
 ) {
@@ -650,7 +650,7 @@ const AFTER_STEP_CYCLES: usize = 20;
 pub fn check(
     machine: &Machine,
     models: &[ModelEntry],
-    limits: &[AxisRuntime],
+    limits: &[AxisConfig],
     samples: &[Sample],
     config: &CheckConfig,
 ) -> CheckReport {
@@ -952,9 +952,9 @@ mod tests {
         (machine, model)
     }
 
-    fn limits(rate: f64) -> Vec<AxisRuntime> {
+    fn limits(rate: f64) -> Vec<AxisConfig> {
         (1..=2)
-            .map(|n| AxisRuntime {
+            .map(|n| AxisConfig {
                 max_offset_um: 100.0,
                 max_rate_um_per_s: rate,
                 path: 1,

@@ -16,9 +16,8 @@ use truepos_hal::pacer::{keep_off_cpu, realtime_setup, Pacer};
 use truepos_hal::timing::{self, TimingConfig};
 use truepos_hal::{pins, HalSink, HalSource};
 use truepos_io::limits::{finite_in, int_in};
-use truepos_io::machine_file::MachineFile;
 use truepos_runtime::model_set::load_entries;
-use truepos_runtime::{PathState, Running, Service, ServiceConfig, ServiceHost};
+use truepos_runtime::{MachineConfig, PathState, Running, Service, ServiceConfig, ServiceHost};
 
 #[derive(Parser)]
 #[command(
@@ -162,10 +161,10 @@ struct LoopPins {
 fn create_pins(
     component: &Component,
     name: &str,
-    machine: &MachineFile,
+    machine: &MachineConfig,
 ) -> Result<(HalSource, HalSink, LoopPins), Box<dyn std::error::Error>> {
     let paths = machine
-        .axis_runtime
+        .axes
         .iter()
         .map(|a| a.path as usize)
         .max()
@@ -180,7 +179,7 @@ fn create_pins(
         all_homed: all.outputs.all_homed.clone(),
         path_models: all.outputs.path_models.clone(),
     };
-    let source = HalSource::new(name, all.inputs, &machine.axis_runtime);
+    let source = HalSource::new(name, all.inputs, &machine.axes);
     let sink = HalSink::new(name, all.outputs);
     Ok((source, sink, loop_pins))
 }
@@ -372,13 +371,7 @@ fn run_check(args: CheckArgs) -> Result<bool, Box<dyn std::error::Error>> {
         hold_ramp_s: args.hold_ramp_s,
         ..CheckConfig::default()
     };
-    let mut report = check(
-        &machine.machine,
-        &models,
-        &machine.axis_runtime,
-        &samples,
-        &config,
-    );
+    let mut report = check(&machine.machine, &models, &machine.axes, &samples, &config);
     if !args.expect_events.is_empty() {
         let Some(log) = &args.log else {
             return Err("--expect-event needs --log".into());

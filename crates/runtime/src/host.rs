@@ -14,15 +14,14 @@
 
 use std::path::PathBuf;
 
-use truepos_io::machine_file::MachineFile;
-
+use crate::config::MachineConfig;
 use crate::log::{self, LogError, LogHealth, LogSetup, Logger};
 use crate::model_set::ModelEntry;
 use crate::{Service, ServiceConfig, Sink, Source};
 
 /// What the service is started with; [`ServiceHost::start`] starts it.
 pub struct ServiceHost {
-    machine: MachineFile,
+    machine: MachineConfig,
     models: Vec<ModelEntry>,
     sources: Vec<Box<dyn Source>>,
     sinks: Vec<Box<dyn Sink>>,
@@ -33,7 +32,7 @@ pub struct ServiceHost {
 impl ServiceHost {
     /// A machine and its model set (in order of preference), no sources, no sinks, the default
     /// [`ServiceConfig`] and no log.
-    pub fn new(machine: MachineFile, models: Vec<ModelEntry>) -> Self {
+    pub fn new(machine: MachineConfig, models: Vec<ModelEntry>) -> Self {
         Self {
             machine,
             models,
@@ -168,6 +167,12 @@ mod tests {
         let machine = truepos_io::machine_file::load(&root.join("machine.toml")).unwrap();
         let entries = crate::model_set::load_entries(&[root.join("model.toml")], &machine).unwrap();
         let run = truepos_io::cycles::load(&root.join("run.csv"), &machine.machine, &[]).unwrap();
+        let run = crate::replay::Recording {
+            time_s: run.time_s,
+            temperatures_c: run.temperatures_c,
+            positions: run.positions,
+            operating: run.operating,
+        };
         let dir = std::env::temp_dir().join(format!("truepos-host-{}", std::process::id()));
         let _ = std::fs::remove_dir_all(&dir);
         std::fs::create_dir_all(&dir).unwrap();

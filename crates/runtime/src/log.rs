@@ -28,9 +28,8 @@ use std::time::{Duration, Instant};
 
 use crossbeam_queue::ArrayQueue;
 use rusqlite::{params_from_iter, Connection};
-use truepos_io::cycles::position_column;
-use truepos_io::machine_file::MachineFile;
 
+use crate::config::MachineConfig;
 use crate::events::{Event, EventKind, EventQueue};
 use crate::replay::state_name;
 use crate::service::{CycleRecord, MAX_LOG_OPERATING, MAX_LOG_TEMPERATURES, MAX_PATHS};
@@ -70,11 +69,11 @@ struct Names {
 }
 
 /// The columns of the `cycles` table, in order.
-fn cycle_columns(machine: &MachineFile, paths: usize) -> Vec<String> {
+fn cycle_columns(machine: &MachineConfig, paths: usize) -> Vec<String> {
     let m = &machine.machine;
     let mut cols = vec!["time_s".to_string(), "state".to_string()];
     cols.extend((1..=paths).map(|p| format!("model_path{p}")));
-    cols.extend((0..m.axes.len()).map(|a| position_column(m, a)));
+    cols.extend(m.axes.iter().map(|a| a.position_column()));
     cols.extend(
         m.temperatures
             .iter()
@@ -192,7 +191,7 @@ pub struct LogSetup<'a> {
     /// Database file (created if missing; an existing log is appended to).
     pub path: &'a Path,
     /// The machine.
-    pub machine: &'a MachineFile,
+    pub machine: &'a MachineConfig,
     /// Names of the models of the set, in set order.
     pub models: Vec<String>,
     /// Names of the sources, in service order.
