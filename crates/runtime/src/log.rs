@@ -804,6 +804,37 @@ mod tests {
     use crate::output::CompensationState;
     use truepos_model::MAX_AXES;
 
+    /// A one-axis machine without sensors: the log's layout is all this test needs of it.
+    fn machine() -> MachineConfig {
+        use crate::config::{AxisConfig, DEFAULT_MAX_OFFSET_UM, DEFAULT_MAX_RATE_UM_PER_S};
+        use truepos_model::{Axis, AxisKind, Carriage, Machine};
+        MachineConfig {
+            machine: Machine {
+                name: "one-axis".into(),
+                axes: vec![Axis {
+                    name: "X".into(),
+                    kind: AxisKind::Linear,
+                    travel_min: 0.0,
+                    travel_max: 500.0,
+                    carried_by: None,
+                    carriage: Carriage::Cantilever,
+                }],
+                temperatures: vec![],
+                differences: vec![],
+                operating: vec![],
+            },
+            description: String::new(),
+            operating_units: vec![],
+            axes: vec![AxisConfig {
+                max_offset_um: DEFAULT_MAX_OFFSET_UM,
+                max_rate_um_per_s: DEFAULT_MAX_RATE_UM_PER_S,
+                path: 1,
+                number: 1,
+            }],
+            sensor_checks: vec![],
+        }
+    }
+
     fn record(time_s: f64) -> CycleRecord {
         CycleRecord {
             time_s,
@@ -825,10 +856,7 @@ mod tests {
         let _ = std::fs::remove_dir_all(&dir);
         std::fs::create_dir_all(&dir).unwrap();
         let db = dir.join("log.sqlite");
-        let machine = truepos_io::machine_file::load(
-            &Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/vmc3/machine.toml"),
-        )
-        .unwrap();
+        let machine = machine();
         let setup = LogSetup {
             path: &db,
             machine: &machine,
