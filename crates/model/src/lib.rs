@@ -62,6 +62,7 @@ extern crate alloc;
 #[cfg(feature = "std")]
 extern crate std;
 
+pub mod compensation;
 pub mod dynamic;
 pub mod evaluate;
 pub mod kinematics;
@@ -73,6 +74,7 @@ pub mod rls;
 pub mod table;
 pub mod timing;
 
+pub use compensation::{BindError, BoundDynamicModel, Channels, CompensationModel, MachineInput};
 pub use dynamic::{DynamicError, DynamicModel, Feature, FeatureBank, FeatureKind, FeatureSpec};
 pub use evaluate::{Correction, CycleInput, EvalError, TRAVEL_TOLERANCE};
 pub use lag::{Lag, LagFilters, LagSource};
