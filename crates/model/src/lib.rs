@@ -63,6 +63,7 @@ extern crate alloc;
 extern crate std;
 
 pub mod compensation;
+pub mod config;
 pub mod dynamic;
 pub mod evaluate;
 pub mod kinematics;

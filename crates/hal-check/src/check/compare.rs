@@ -3,9 +3,9 @@
 //! say when the component and the servo thread were not in step, the offset rate over a
 //! window, and how LinuxCNC's joints followed the commands.
 
-use truepos_io::machine_file::AxisRuntime;
 use truepos_model::{Machine, Model};
 use truepos_runtime::model_set::ModelEntry;
+use truepos_runtime::AxisConfig;
 
 use super::record::Sample;
 use super::replay::Replay;
@@ -25,7 +25,7 @@ struct Judge<'a> {
     models: &'a [ModelEntry],
     /// What every model gave on every recorded cycle.
     replay: &'a Replay,
-    limits: &'a [AxisRuntime],
+    limits: &'a [AxisConfig],
     config: &'a CheckConfig,
     /// Operating values: the recording has none, so the model reads zeros.
     operating: Vec<f64>,
@@ -55,7 +55,7 @@ pub(super) fn compare_cycles(
     machine: &Machine,
     models: &[ModelEntry],
     replay: &Replay,
-    limits: &[AxisRuntime],
+    limits: &[AxisConfig],
     samples: &[Sample],
     config: &CheckConfig,
     report: &mut CheckReport,
@@ -84,13 +84,13 @@ pub(super) fn compare_cycles(
             }
         }
         walk.since_change += 1;
-        if s.status == 2 {
+        if s.holding() {
             report.holding_samples += 1;
         }
         for a in 0..axes {
             report.max_offset_um = report.max_offset_um.max(s.applied_mm[a].abs() * 1000.0);
         }
-        if s.status != 1 || walk.since_change <= settle {
+        if !s.active() || walk.since_change <= settle {
             continue;
         }
         walk.compare(&judge, report, (k, s), prev, moving);
