@@ -52,12 +52,13 @@ fi
 echo "== compare what LinuxCNC applied with the models; the events in the log"
 fail=0
 CHECK=(--machine examples/vmc3/machine.toml --model examples/vmc3/model.toml
-       --model tests/linuxcnc/model_b.toml --model tests/linuxcnc/model_c.toml
+       --model tests/linuxcnc/model_b.toml --model tests/linuxcnc/model_c.toml --model tests/linuxcnc/model_d.json
        --motion "$OUT/motion.txt" --temperatures "$OUT/temperatures.txt" --log "$OUT/truepos.sqlite"
        --expect-event "sensor-fault:x_slide_bottom" --expect-event "sensor-recovered:x_slide_bottom"
        --expect-event "sensor-fault:x_slide_top" --expect-event "sensor-recovered:x_slide_top"
        --expect-event "holding:path 1" --expect-event "model-selected:path 1:vmc3-e2e-alternative"
-       --expect-event "axis-switch" --expect-event "model-selected:path 1:vmc3-e2e-xy")
+       --expect-event "axis-switch" --expect-event "model-selected:path 1:vmc3-e2e-xy"
+       --expect-event "model-selected:path 1:model_d")
 truepos-hal-check check "${CHECK[@]}" || fail=1
 truepos-hal-check check --json "${CHECK[@]}" > "$OUT/check.json" || true
 

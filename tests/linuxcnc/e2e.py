@@ -6,7 +6,9 @@ component plays examples/vmc3/run.csv (time-compressed) into the truepos.temp.* 
 it injects a sensor fault (x_slide_bottom reads 200 degC, outside its valid range, for 4 s), a
 model switch (truepos.model-select 0 -> 1) and an axis switch (Z leaves path 1 for 8 s:
 truepos.axis.z.path 1 -> 0 -> 1, so seed D's rule selects model_c.toml, which serves X and Y alone,
-and back). Two faults are injected in the servo thread (vmc3.hal.in: a `streamer` fed by
+and back), and at last Y leaves path 1 (truepos.axis.y.path 1 -> 0), whose index 101, 103 only
+model_d.json has, a fitted dynamic model (`truepos fit`'s file) on sensors no fault touches,
+which the check steps through the recorded cycles. Two faults are injected in the servo thread (vmc3.hal.in: a `streamer` fed by
 halstreamer drives two `mux2`): x_slide_top reads NaN on every third servo cycle for 2 s (an
 intermittent fault) and y_slide_bottom alternates between two adjacent 0.1 K levels on every
 servo cycle for 4 s (a quantisation flicker). Two halsampler processes record every servo cycle
@@ -194,6 +196,11 @@ try:
         (40.0, "switch to model 1", lambda: halcmd("sets", "tp-select", "1")),
         (46.0, "Z leaves path 1", lambda: halcmd("sets", "tp-z-path", "0")),
         (54.0, "Z back in path 1", lambda: halcmd("sets", "tp-z-path", "1")),
+        # Y leaves path 1 for good: its index becomes 101, 103, which only model_d.json has, a
+        # fitted dynamic model (`truepos fit`'s file) whose filters have run since the component
+        # started; the check replays them through the recorded cycles. (With the X-Y-Z index it
+        # would stand in for the first model whenever a slide sensor faults.)
+        (60.0, "Y leaves path 1: the fitted dynamic model", lambda: halcmd("sets", "tp-y-path", "0")),
     ]
     wait("program start", lambda: s.interp_state != linuxcnc.INTERP_IDLE, 5.0)
     while True:

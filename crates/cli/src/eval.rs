@@ -56,7 +56,7 @@ pub fn run(args: Args) -> Result<(), String> {
         ))))
     };
     let io_err = |e: csv::Error| format!("{}: cannot write: {e}", args.out.display());
-    let n_axes = model.axis_count(&machine);
+    let n_axes = model.axis_count();
     if let Some(w) = writer.as_mut() {
         let mut header = vec!["time_s".to_string()];
         for a in &machine.axes[..n_axes] {

@@ -1,53 +1,40 @@
-//! One model on a recorded run, row by row, whatever its form: seed A/C's model file evaluated
-//! afresh each row, or a fitted dynamic model stepped through the rows in order (as the control
-//! steps it every cycle). Shared by `truepos eval` and `truepos report`.
+//! What is CLI-specific about running a model on a recorded run (`truepos eval`, `truepos
+//! report`): loading through the one door (`truepos_io::compensation`), reading the run with the
+//! columns the model needs, stepping the model through the rows in order with the time between
+//! them (as the control steps it every cycle), and naming channels in errors.
 
-use truepos_io::cycles;
-use truepos_io::dynamic_model_file::{self, BoundDynamicModel, MachineInput};
-use truepos_io::model_file;
-use truepos_model::{CycleInput, Machine, Model, MAX_AXES};
+use truepos_io::{compensation, cycles};
+use truepos_model::{CompensationModel, CycleInput, Machine, MAX_AXES};
 
-/// What evaluates a row: a static model, or a dynamic one stepped through the rows in order.
-pub enum Evaluator {
-    /// Seed A/C's form.
-    Static(Box<Model>),
-    /// A fitted dynamic model and its stepping state.
-    Dynamic {
-        /// The model bound to the machine.
-        bound: Box<BoundDynamicModel>,
-        /// Input buffer.
-        input: Vec<f64>,
-        /// Time of the last good step.
-        last_s: Option<f64>,
-    },
+/// A model and the time of its last good step on a run.
+pub struct Evaluator {
+    model: CompensationModel,
+    last_s: Option<f64>,
 }
 
 impl Evaluator {
     /// Reads a model file of either form, bound to the machine.
     pub fn load(path: &std::path::Path, machine: &Machine) -> Result<Self, String> {
-        let text = std::fs::read_to_string(path).unwrap_or_default();
-        if dynamic_model_file::is_dynamic(&text) {
-            let bound = dynamic_model_file::load(path, machine).map_err(|e| e.to_string())?;
-            for name in &bound.unused_outputs {
+        let loaded = compensation::load(path, machine).map_err(|e| e.to_string())?;
+        if let Some(d) = loaded.model.as_dynamic() {
+            for name in d.unused_outputs() {
                 eprintln!("note: output `{name}` of the model names no axis and is not applied");
             }
-            return Ok(Self::Dynamic {
-                input: vec![0.0; bound.inputs.len()],
-                bound: Box::new(bound),
-                last_s: None,
-            });
         }
-        Ok(Self::Static(Box::new(
-            model_file::load(path, machine).map_err(|e| e.to_string())?,
-        )))
+        Ok(Self {
+            model: loaded.model,
+            last_s: None,
+        })
+    }
+
+    /// The model.
+    pub fn model(&self) -> &CompensationModel {
+        &self.model
     }
 
     /// The model's name.
     pub fn name(&self) -> &str {
-        match self {
-            Self::Static(m) => m.name(),
-            Self::Dynamic { bound, .. } => &bound.name,
-        }
+        self.model.name()
     }
 
     /// Reads a run for it: the sensors it reads must be there, the axis positions only if it
@@ -57,79 +44,41 @@ impl Evaluator {
         path: &std::path::Path,
         machine: &Machine,
     ) -> Result<cycles::Cycles, String> {
-        let positions = match self {
-            Self::Static(_) => cycles::Positions::Required,
-            Self::Dynamic { .. } => cycles::Positions::Optional,
+        let positions = if self.model.reads_positions() {
+            cycles::Positions::Required
+        } else {
+            cycles::Positions::Optional
         };
-        cycles::load_with(path, machine, &self.used_sensors(), positions).map_err(|e| e.to_string())
-    }
-
-    /// Temperature channels it reads.
-    pub fn used_sensors(&self) -> Vec<usize> {
-        match self {
-            Self::Static(m) => m.used_sensors().to_vec(),
-            Self::Dynamic { bound, .. } => bound.temperature_channels(),
-        }
+        cycles::load_with(path, machine, self.model.used_sensors(), positions)
+            .map_err(|e| e.to_string())
     }
 
     /// Axes it gives an error for.
-    pub fn axis_count(&self, machine: &Machine) -> usize {
-        match self {
-            Self::Static(m) => m.axis_count(),
-            Self::Dynamic { .. } => machine.axes.len(),
-        }
+    pub fn axis_count(&self) -> usize {
+        self.model.axis_count()
     }
 
-    /// The predicted error of every axis at row `i` (rows must come in order).
+    /// The predicted error of every axis at row `i` (rows must come in order): one step of the
+    /// model over the time since its last good row.
     pub fn error_um(
         &mut self,
         cycles: &cycles::Cycles,
         i: usize,
         machine: &Machine,
     ) -> Result<[f64; MAX_AXES], String> {
-        match self {
-            Self::Static(model) => {
-                let input = CycleInput {
-                    temperatures_c: &cycles.temperatures_c[i],
-                    positions: &cycles.positions[i],
-                    operating: &cycles.operating[i],
-                };
-                let c = model.evaluate(&input).map_err(|e| describe(&e, machine))?;
-                let mut out = [0.0; MAX_AXES];
-                out[..c.axis_count()].copy_from_slice(&c.error_um()[..c.axis_count()]);
-                Ok(out)
-            }
-            Self::Dynamic {
-                bound,
-                input,
-                last_s,
-            } => {
-                for (slot, m) in input.iter_mut().zip(&bound.inputs) {
-                    *slot = match *m {
-                        MachineInput::Temperature(c) => cycles.temperatures_c[i][c],
-                        MachineInput::Operating(c) => cycles.operating[i][c],
-                    };
-                }
-                if let Some(k) = input.iter().position(|v| !v.is_finite()) {
-                    let name = match bound.inputs[k] {
-                        MachineInput::Temperature(c) => &machine.temperatures[c].id,
-                        MachineInput::Operating(c) => &machine.operating[c].id,
-                    };
-                    return Err(format!("input `{name}` is not a number"));
-                }
-                let t = cycles.time_s[i];
-                let dt = last_s.map_or(0.0, |l| t - l);
-                let out = bound.model.step(dt, input).map_err(|e| e.to_string())?;
-                *last_s = Some(t);
-                let mut errors = [0.0; MAX_AXES];
-                for (e, axis) in out.iter().zip(&bound.axes) {
-                    if let Some(a) = axis.filter(|&a| a < MAX_AXES) {
-                        errors[a] = *e;
-                    }
-                }
-                Ok(errors)
-            }
-        }
+        let input = CycleInput {
+            temperatures_c: &cycles.temperatures_c[i],
+            positions: &cycles.positions[i],
+            operating: &cycles.operating[i],
+        };
+        let t = cycles.time_s[i];
+        let dt = self.last_s.map_or(0.0, |l| t - l);
+        let error_um = self
+            .model
+            .step(dt, &input)
+            .map_err(|e| describe(&e, machine))?;
+        self.last_s = Some(t);
+        Ok(error_um)
     }
 }
 
@@ -165,6 +114,13 @@ fn describe(e: &truepos_model::EvalError, machine: &Machine) -> String {
                 axis(a)
             )
         }
-        E::InputLength { .. } => e.to_string(),
+        E::NonFiniteOperating { channel } => format!(
+            "operating input `{}` is not a number",
+            machine
+                .operating
+                .get(channel)
+                .map_or("?", |o| o.id.as_str())
+        ),
+        E::InputLength { .. } | E::Filter(_) => e.to_string(),
     }
 }

@@ -5,7 +5,7 @@
 use std::path::{Path, PathBuf};
 
 use truepos_io::machine_file;
-use truepos_model::{Model, PartForm};
+use truepos_model::{CompensationModel, Model, PartForm};
 
 use crate::evaluator::Evaluator;
 use truepos_report::{channel_metrics, write_report, Channel, Coefficient, ReportData};
@@ -78,27 +78,27 @@ fn read_columns(path: &Path, names: &[String]) -> Result<Vec<Vec<f64>>, String> 
 
 /// A dynamic model's coefficients: per applied output, the intercept and every non-zero feature.
 fn dynamic_coefficients(
-    bound: &truepos_io::dynamic_model_file::BoundDynamicModel,
+    bound: &truepos_model::BoundDynamicModel,
     machine: &truepos_model::Machine,
 ) -> Vec<Coefficient> {
-    use truepos_io::dynamic_model_file::MachineInput;
-    let features = bound.model.bank().features();
+    use truepos_model::MachineInput;
+    let features = bound.model().bank().features();
     let n = features.len();
-    let input_name = |k: usize| match bound.inputs[k] {
+    let input_name = |k: usize| match bound.inputs()[k] {
         MachineInput::Temperature(c) => machine.temperatures[c].id.as_str(),
         MachineInput::Operating(c) => machine.operating[c].id.as_str(),
     };
     let mut out = Vec::new();
-    for (k, axis) in bound.axes.iter().enumerate() {
+    for (k, axis) in bound.axes().iter().enumerate() {
         let Some(a) = axis else { continue };
         let channel = machine.axes[*a].name.clone();
         out.push(Coefficient {
             channel: channel.clone(),
             feature: "intercept (µm)".into(),
-            value: bound.model.intercepts()[k],
+            value: bound.model().intercepts()[k],
         });
         for (j, f) in features.iter().enumerate() {
-            let value = bound.model.coefficients()[k * n + j];
+            let value = bound.model().coefficients()[k * n + j];
             if value != 0.0 {
                 out.push(Coefficient {
                     channel: channel.clone(),
@@ -252,9 +252,9 @@ pub fn run(args: Args) -> Result<(), String> {
         test_from,
         channels,
         temperatures,
-        coefficients: match &model {
-            Evaluator::Static(m) => coefficients(m, &machine),
-            Evaluator::Dynamic { bound, .. } => dynamic_coefficients(bound, &machine),
+        coefficients: match model.model() {
+            CompensationModel::Static(m) => coefficients(m, &machine),
+            CompensationModel::Dynamic(d) => dynamic_coefficients(d, &machine),
         },
         protocol,
     };

@@ -15,14 +15,17 @@
 //! output called `Z`, `Z_um` or `dz_um` serves axis Z), and the file may carry seed D's
 //! axis-combination index (`"axis_index": [101, 102, 103]`).
 //!
-//! `truepos fit` writes this file; `truepos run` and the LinuxCNC component load it beside the
-//! static model files ([`crate::model_file`]) through [`load`], bound to the machine: every
-//! input must be one of its channels, every mapped output one of its axes.
+//! `truepos fit` writes this file; every user (`truepos run`, `eval`, `report`, the LinuxCNC
+//! component) loads it beside the static model files ([`crate::model_file`]) through
+//! [`crate::compensation::load`], bound to the machine as a [`truepos_model::BoundDynamicModel`]:
+//! every input must be one of its channels, every mapped output one of its axes.
 
 use std::path::Path;
 
 use serde::{Deserialize, Serialize};
-use truepos_model::{DynamicModel, FeatureBank, FeatureSpec, Machine};
+use truepos_model::{
+    BoundDynamicModel, Channels, DynamicModel, FeatureBank, FeatureSpec, Machine, MachineInput,
+};
 
 use crate::error::{json_key_offset, parse_json, read_text, InputError};
 
@@ -150,10 +153,11 @@ impl DynamicModelFile {
         }
     }
 
-    /// Builds the real-time model, checking format, version, input order and feature count.
-    pub fn to_model(&self) -> Result<DynamicModel, String> {
+    /// Builds the real-time model, checking format, version, input order and feature count;
+    /// an error names `path` and the key of the problem.
+    pub fn to_model(&self, path: &Path) -> Result<DynamicModel, InputError> {
         self.check()
-            .map_err(|(key, message)| format!("`{key}`: {message}"))
+            .map_err(|(key, message)| keyed(path, key, message))
     }
 
     /// [`Self::to_model`], naming the key of the problem.
@@ -239,57 +243,14 @@ impl DynamicModelFile {
         DynamicModel::new(bank, intercepts, flat).map_err(|e| ("outputs".into(), e.to_string()))
     }
 
-    /// Reads the JSON text; errors name line and column.
-    pub fn from_json(text: &str) -> Result<Self, String> {
-        serde_json::from_str(text).map_err(|e| format!("{}:{}: {e}", e.line(), e.column()))
+    /// Reads the JSON text (`path` names it in errors); errors name line, column and key.
+    pub fn from_json(path: &Path, text: &str) -> Result<Self, InputError> {
+        parse_json(path, text)
     }
 
     /// Pretty JSON.
     pub fn to_json(&self) -> String {
         serde_json::to_string_pretty(self).unwrap_or_else(|e| format!("{{\"error\": \"{e}\"}}"))
-    }
-}
-
-/// Where a model input comes from on the machine.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum MachineInput {
-    /// A temperature channel (index into `Machine::temperatures`).
-    Temperature(usize),
-    /// An operating channel (index into `Machine::operating`).
-    Operating(usize),
-}
-
-/// A dynamic model bound to a machine, ready for the runtime.
-#[derive(Debug, Clone)]
-pub struct BoundDynamicModel {
-    /// Name for events and status (the file's stem).
-    pub name: String,
-    /// The real-time model.
-    pub model: DynamicModel,
-    /// The machine channel of every model input, in the model's order.
-    pub inputs: Vec<MachineInput>,
-    /// Per output: the machine axis it compensates, `None` for an output no axis takes.
-    pub axes: Vec<Option<usize>>,
-    /// Names of the outputs no axis takes (reported, never applied).
-    pub unused_outputs: Vec<String>,
-    /// Seed D's index from the file, if any.
-    pub axis_index: Option<Vec<u32>>,
-}
-
-impl BoundDynamicModel {
-    /// The temperature channels it reads, sorted, each once (its sensors, for validation).
-    pub fn temperature_channels(&self) -> Vec<usize> {
-        let mut c: Vec<usize> = self
-            .inputs
-            .iter()
-            .filter_map(|i| match i {
-                MachineInput::Temperature(c) => Some(*c),
-                MachineInput::Operating(_) => None,
-            })
-            .collect();
-        c.sort_unstable();
-        c.dedup();
-        c
     }
 }
 
@@ -324,12 +285,7 @@ impl DynamicModelFile {
     /// Errors name the file and the key; [`parse`] and [`load`] also give line and column.
     pub fn bind(&self, path: &Path, machine: &Machine) -> Result<BoundDynamicModel, InputError> {
         self.bind_checked(path, machine)
-            .map_err(|(key, message)| InputError {
-                file: path.to_path_buf(),
-                position: None,
-                key: Some(key).filter(|k| !k.is_empty()),
-                message,
-            })
+            .map_err(|(key, message)| keyed(path, key, message))
     }
 
     /// [`Self::bind`], naming the key of the problem.
@@ -403,16 +359,18 @@ impl DynamicModelFile {
                 ),
             ));
         }
-        Ok(BoundDynamicModel {
-            name: path
-                .file_stem()
-                .map_or_else(|| "dynamic".into(), |s| s.to_string_lossy().into_owned()),
-            model,
-            inputs,
-            axes,
-            unused_outputs,
-            axis_index: self.axis_index.clone(),
-        })
+        let name = path
+            .file_stem()
+            .map_or_else(|| "dynamic".into(), |s| s.to_string_lossy().into_owned());
+        let channels = Channels {
+            temperatures: machine.temperatures.len(),
+            operating: machine.operating.len(),
+            axes: machine.axes.len(),
+        };
+        // Everything the core checks was checked above with names; what is left is an axis
+        // beyond the core's MAX_AXES.
+        BoundDynamicModel::new(name, model, inputs, axes, unused_outputs, channels)
+            .map_err(|e| ("outputs".to_string(), e.to_string()))
     }
 }
 
@@ -433,11 +391,31 @@ pub fn load(path: &Path, machine: &Machine) -> Result<BoundDynamicModel, InputEr
 /// Parses a dynamic model file's text (`path` names it in errors) and binds it to the machine.
 /// Every error names the file, line, column and key and what was expected.
 pub fn parse(path: &Path, text: &str, machine: &Machine) -> Result<BoundDynamicModel, InputError> {
+    parse_entry(path, text, machine).map(|(bound, _)| bound)
+}
+
+/// [`parse`], with seed D's axis-combination index the file carries, if any.
+pub fn parse_entry(
+    path: &Path,
+    text: &str,
+    machine: &Machine,
+) -> Result<(BoundDynamicModel, Option<Vec<u32>>), InputError> {
     let file: DynamicModelFile = parse_json(path, text)?;
-    file.bind_checked(path, machine).map_err(|(key, message)| {
+    let bound = file.bind_checked(path, machine).map_err(|(key, message)| {
         let at = json_key_offset(text, &key);
         InputError::at_span(path, text, at..at, key, message)
-    })
+    })?;
+    Ok((bound, file.axis_index))
+}
+
+/// An error at a key of the file, without a position (the text is not at hand).
+fn keyed(path: &Path, key: String, message: String) -> InputError {
+    InputError {
+        file: path.to_path_buf(),
+        position: None,
+        key: Some(key).filter(|k| !k.is_empty()),
+        message,
+    }
 }
 
 #[cfg(test)]
@@ -490,18 +468,21 @@ mod tests {
                 "rise(t5_c)·running(spindle_rpm)"
             ]
         );
-        let back = DynamicModelFile::from_json(&file.to_json()).unwrap();
-        assert_eq!(back.to_model().unwrap(), model);
+        let path = Path::new("d.json");
+        let back = DynamicModelFile::from_json(path, &file.to_json()).unwrap();
+        assert_eq!(back.to_model(path).unwrap(), model);
         let mut bad = back.clone();
         bad.outputs[0].coefficients.pop();
         assert!(bad
-            .to_model()
+            .to_model(path)
             .unwrap_err()
+            .to_string()
             .contains("expected 5 values (one per feature), got 4"));
         bad.version = 2;
-        assert!(bad.to_model().is_err());
-        assert!(DynamicModelFile::from_json("{\n\"format\": 3}")
+        assert!(bad.to_model(path).is_err());
+        assert!(DynamicModelFile::from_json(path, "{\n\"format\": 3}")
             .unwrap_err()
-            .starts_with("2:"));
+            .to_string()
+            .starts_with("d.json:2:"));
     }
 }

@@ -25,6 +25,7 @@
 #![warn(missing_docs)]
 
 pub mod comp_table;
+pub mod compensation;
 pub mod cycles;
 pub mod dynamic_model_file;
 pub mod error;

@@ -269,24 +269,29 @@ pub struct LoadedModel {
 
 /// Reads a model file like [`load`] and keeps its axis-combination index.
 pub fn load_entry(path: &Path, machine: &Machine) -> Result<LoadedModel, InputError> {
-    let text = read_text(path)?;
+    parse_entry(path, &read_text(path)?, machine)
+}
+
+/// Parses a model file's text like [`load`] (`.json` as JSON, anything else as TOML; `path`
+/// names it in errors) and keeps its axis-combination index.
+pub fn parse_entry(path: &Path, text: &str, machine: &Machine) -> Result<LoadedModel, InputError> {
     let is_json = path
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("json"));
     let axis_index = if is_json {
-        serde_json::from_str::<serde_json::Value>(&text)
+        serde_json::from_str::<serde_json::Value>(text)
             .ok()
             .and_then(|v| v.get("axis_index").cloned())
             .and_then(|v| serde_json::from_value(v).ok())
     } else {
-        parse_toml::<ModelFile>(path, &text)
+        parse_toml::<ModelFile>(path, text)
             .ok()
             .and_then(|f| f.axis_index)
     };
     let model = if is_json {
-        parse_json(path, &text, machine)?
+        parse_json(path, text, machine)?
     } else {
-        parse(path, &text, machine)?
+        parse(path, text, machine)?
     };
     Ok(LoadedModel { model, axis_index })
 }

@@ -511,8 +511,8 @@ fn dynamic_error(text: &str) -> String {
 fn the_unedited_dynamic_file_is_accepted() {
     let bound =
         dynamic_model_file::parse(Path::new("d.json"), DYNAMIC, &dynamic_machine()).unwrap();
-    assert_eq!(bound.axes, vec![Some(1)]);
-    assert_eq!(bound.model.bank().features().len(), 3);
+    assert_eq!(bound.axes(), vec![Some(1)]);
+    assert_eq!(bound.model().bank().features().len(), 3);
 }
 
 #[test]

@@ -2,6 +2,7 @@
 
 use core::fmt;
 
+use crate::dynamic::DynamicError;
 use crate::machine::{Reference, MAX_AXES};
 use crate::model::{g_index, Model, PositionFactor, FACTORS, MAX_MODEL_DIFFERENCES};
 
@@ -63,6 +64,14 @@ pub enum EvalError {
         /// Axis index.
         axis: usize,
     },
+    /// An operating input a dynamic model reads is NaN or infinite.
+    NonFiniteOperating {
+        /// Operating channel index.
+        channel: usize,
+    },
+    /// A dynamic model's filters refused the step (a time step that is not > 0, an output that
+    /// came out non-finite).
+    Filter(DynamicError),
 }
 
 impl fmt::Display for EvalError {
@@ -92,6 +101,10 @@ impl fmt::Display for EvalError {
             Self::NonFiniteResult { axis } => {
                 write!(f, "the correction of axis #{axis} is not a finite number")
             }
+            Self::NonFiniteOperating { channel } => {
+                write!(f, "operating channel #{channel} is not a finite number")
+            }
+            Self::Filter(e) => write!(f, "dynamic model: {e}"),
         }
     }
 }

@@ -62,6 +62,7 @@ extern crate alloc;
 #[cfg(feature = "std")]
 extern crate std;
 
+pub mod compensation;
 pub mod config;
 pub mod dynamic;
 pub mod evaluate;
@@ -74,6 +75,7 @@ pub mod rls;
 pub mod table;
 pub mod timing;
 
+pub use compensation::{BindError, BoundDynamicModel, Channels, CompensationModel, MachineInput};
 pub use dynamic::{DynamicError, DynamicModel, Feature, FeatureBank, FeatureKind, FeatureSpec};
 pub use evaluate::{Correction, CycleInput, EvalError, TRAVEL_TOLERANCE};
 pub use lag::{Lag, LagFilters, LagSource};

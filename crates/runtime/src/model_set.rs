@@ -2,38 +2,16 @@
 //! B = (b1, b2, b3), b_i = 100·path + axis number; the service builds the target index D of each
 //! path from the control's axis configuration and sets the matching model for that path.
 
-use truepos_io::dynamic_model_file::{self, BoundDynamicModel, MachineInput};
-use truepos_model::{CycleInput, Model, MAX_AXES};
+use truepos_model::{CompensationModel, CycleInput, DynamicError, EvalError, MAX_AXES};
 
 /// Slots of an axis-combination index (seed D uses three).
 pub const INDEX_SLOTS: usize = 3;
 
-/// A model the service runs: seed A/C's form (evaluated afresh every cycle) or a fitted dynamic
-/// model (its filters advance every cycle, whether or not it is the one in effect, so that a
-/// switch to it finds its filters current).
-// Built once at load time and kept in one Vec: the variants' sizes cost nothing on the cycle,
-// a Box would cost an indirection on it.
-#[allow(clippy::large_enum_variant)]
-#[derive(Debug, Clone)]
-pub enum RuntimeModel {
-    /// A model of seed A's general form / seed C's regression (`truepos-model` file).
-    Static(Model),
-    /// A fitted dynamic model (`truepos-dynamic-model` file).
-    Dynamic(DynamicEntry),
-}
-
-impl From<Model> for RuntimeModel {
-    fn from(m: Model) -> Self {
-        Self::Static(m)
-    }
-}
-
-/// A dynamic model with its input buffer and its last output.
-#[derive(Debug, Clone)]
-pub struct DynamicEntry {
-    bound: BoundDynamicModel,
-    sensors: Vec<usize>,
-    input: Vec<f64>,
+/// What the runtime keeps of a model that keeps state (a fitted dynamic model): its filters
+/// advance every cycle, whether or not it is the one in effect, so that a switch to it finds
+/// them current; its output is that of its last good step.
+#[derive(Debug, Clone, Copy)]
+struct Stepped {
     /// Predicted error per machine axis after the last good step (µm).
     error_um: [f64; MAX_AXES],
     /// Whether the last step succeeded (every input good and finite).
@@ -42,128 +20,12 @@ pub struct DynamicEntry {
     last_s: f64,
 }
 
-impl DynamicEntry {
-    /// Wraps a bound model.
-    pub fn new(bound: BoundDynamicModel) -> Self {
-        let sensors = bound.temperature_channels();
-        Self {
-            input: vec![0.0; bound.inputs.len()],
-            sensors,
-            error_um: [0.0; MAX_AXES],
-            valid: false,
-            last_s: f64::NAN,
-            bound,
-        }
-    }
-
-    /// The bound model.
-    pub fn bound(&self) -> &BoundDynamicModel {
-        &self.bound
-    }
-
-    /// Advances the filters to service time `now_s` with this cycle's values. A cycle with a
-    /// bad or non-finite input leaves the filters untouched and the model invalid until the
-    /// next good cycle (whose step then spans the gap). Allocates nothing.
-    pub fn step(
-        &mut self,
-        now_s: f64,
-        temperatures_c: &[f64],
-        operating: &[f64],
-        good: impl Fn(usize) -> bool,
-    ) {
-        let mut ok = true;
-        for (slot, input) in self.input.iter_mut().zip(&self.bound.inputs) {
-            *slot = match *input {
-                MachineInput::Temperature(c) if good(c) => {
-                    temperatures_c.get(c).copied().unwrap_or(f64::NAN)
-                }
-                MachineInput::Temperature(_) => f64::NAN,
-                MachineInput::Operating(c) => operating.get(c).copied().unwrap_or(f64::NAN),
-            };
-            ok &= slot.is_finite();
-        }
-        if !ok {
-            self.valid = false;
-            return;
-        }
-        let dt = if self.last_s.is_finite() {
-            now_s - self.last_s
-        } else {
-            0.0
-        };
-        if self.last_s.is_finite() && dt <= 0.0 {
-            // Two cycles at one instant: nothing to advance.
-            return;
-        }
-        match self.bound.model.step(dt, &self.input) {
-            Ok(out) => {
-                self.error_um = [0.0; MAX_AXES];
-                for (e, axis) in out.iter().zip(&self.bound.axes) {
-                    if let Some(a) = axis.filter(|&a| a < MAX_AXES) {
-                        self.error_um[a] = *e;
-                    }
-                }
-                self.valid = true;
-                self.last_s = now_s;
-            }
-            Err(_) => self.valid = false,
-        }
-    }
-}
-
-impl RuntimeModel {
-    /// The temperature channels it reads (lagged channels count as what they are).
-    pub fn used_sensors(&self) -> &[usize] {
-        match self {
-            Self::Static(m) => m.used_sensors(),
-            Self::Dynamic(d) => &d.sensors,
-        }
-    }
-
-    /// The static model, if it is one.
-    pub fn as_static(&self) -> Option<&Model> {
-        match self {
-            Self::Static(m) => Some(m),
-            Self::Dynamic(_) => None,
-        }
-    }
-
-    /// Advances a dynamic model's filters (nothing for a static model).
-    pub fn step(
-        &mut self,
-        now_s: f64,
-        temperatures_c: &[f64],
-        operating: &[f64],
-        good: impl Fn(usize) -> bool,
-    ) {
-        if let Self::Dynamic(d) = self {
-            d.step(now_s, temperatures_c, operating, good);
-        }
-    }
-
-    /// Writes the compensation (−error, µm) of every machine axis into `out` and returns
-    /// whether this cycle gives a valid output (`false`: an input is bad or out of range).
-    /// Allocates nothing.
-    pub fn compensation(&self, input: &CycleInput<'_>, out: &mut [f64; MAX_AXES]) -> bool {
-        match self {
-            Self::Static(m) => match m.evaluate(input) {
-                Ok(c) => {
-                    for (a, f) in out.iter_mut().enumerate().take(c.axis_count()) {
-                        *f = c.compensation_um(a);
-                    }
-                    true
-                }
-                Err(_) => false,
-            },
-            Self::Dynamic(d) if d.valid => {
-                for (f, e) in out.iter_mut().zip(&d.error_um) {
-                    *f = -e;
-                }
-                true
-            }
-            Self::Dynamic(_) => false,
-        }
-    }
+impl Stepped {
+    const NEW: Self = Self {
+        error_um: [0.0; MAX_AXES],
+        valid: false,
+        last_s: f64::NAN,
+    };
 }
 
 /// A model with the axis combination it serves.
@@ -172,7 +34,7 @@ pub struct ModelEntry {
     /// Name for events and status.
     pub name: String,
     /// The model.
-    pub model: RuntimeModel,
+    pub model: CompensationModel,
     /// Its index B, 0 in unused slots.
     pub index: [u32; INDEX_SLOTS],
 }
@@ -205,26 +67,14 @@ pub fn load_entries(
     paths
         .iter()
         .map(|path| {
-            let text = std::fs::read_to_string(path).unwrap_or_default();
-            if dynamic_model_file::is_dynamic(&text) {
-                let bound = dynamic_model_file::load(path, &machine.machine)?;
-                return Ok(ModelEntry {
-                    name: bound.name.clone(),
-                    index: bound
-                        .axis_index
-                        .as_ref()
-                        .map_or(default_index, |b| index_of(b.iter().copied())),
-                    model: RuntimeModel::Dynamic(DynamicEntry::new(bound)),
-                });
-            }
-            let loaded = truepos_io::model_file::load_entry(path, &machine.machine)?;
+            let loaded = truepos_io::compensation::load(path, &machine.machine)?;
             Ok(ModelEntry {
                 name: loaded.model.name().to_string(),
                 index: loaded
                     .axis_index
                     .as_ref()
                     .map_or(default_index, |b| index_of(b.iter().copied())),
-                model: RuntimeModel::Static(loaded.model),
+                model: loaded.model,
             })
         })
         .collect()
@@ -234,6 +84,11 @@ pub fn load_entries(
 #[derive(Debug, Clone)]
 pub struct ModelSet {
     entries: Vec<ModelEntry>,
+    /// Per entry: the runtime's state of a model that keeps state (unused for the others).
+    stepped: Vec<Stepped>,
+    /// This cycle's temperatures with every channel the validator refused as NaN, for the
+    /// models that keep state (capacity reserved at construction).
+    masked: Vec<f64>,
     /// Per path: the target index D and the matching models in set order (preferred first).
     targets: Vec<[u32; INDEX_SLOTS]>,
     candidates: Vec<Vec<usize>>,
@@ -243,7 +98,15 @@ impl ModelSet {
     /// A set of models; `paths` is the largest number of paths the control may have.
     pub fn new(entries: Vec<ModelEntry>, paths: usize) -> Self {
         let n = entries.len();
+        let channels = entries
+            .iter()
+            .filter_map(|e| e.model.as_dynamic())
+            .map(|d| d.channels().temperatures)
+            .max()
+            .unwrap_or(0);
         Self {
+            stepped: vec![Stepped::NEW; n],
+            masked: Vec::with_capacity(channels),
             entries,
             targets: vec![[0; INDEX_SLOTS]; paths],
             // Capacity for every model, so that re-selecting never allocates.
@@ -261,7 +124,10 @@ impl ModelSet {
         self.entries.get_mut(i)
     }
 
-    /// Advances every dynamic model's filters (see [`RuntimeModel::step`]). Allocates nothing.
+    /// Advances the filters of every model that keeps state to service time `now_s`, from this
+    /// cycle's values of the channels `good` accepts. A cycle with a bad or non-finite input
+    /// leaves a model's filters untouched and the model invalid until its next good cycle (whose
+    /// step then spans the gap); two cycles at one instant advance nothing. Allocates nothing.
     pub fn step_all(
         &mut self,
         now_s: f64,
@@ -269,9 +135,75 @@ impl ModelSet {
         operating: &[f64],
         good: impl Fn(usize) -> bool + Copy,
     ) {
-        for e in &mut self.entries {
-            e.model.step(now_s, temperatures_c, operating, good);
+        if !self.entries.iter().any(|e| e.model.keeps_state()) {
+            return;
         }
+        self.masked.clear();
+        self.masked
+            .extend(
+                temperatures_c
+                    .iter()
+                    .enumerate()
+                    .map(|(c, &v)| if good(c) { v } else { f64::NAN }),
+            );
+        let input = CycleInput {
+            temperatures_c: &self.masked,
+            // Positions are read only by models that keep no state.
+            positions: &[],
+            operating,
+        };
+        for (e, st) in self.entries.iter_mut().zip(&mut self.stepped) {
+            if !e.model.keeps_state() {
+                continue;
+            }
+            let dt = if st.last_s.is_finite() {
+                now_s - st.last_s
+            } else {
+                0.0
+            };
+            match e.model.step(dt, &input) {
+                Ok(error_um) => {
+                    st.error_um = error_um;
+                    st.valid = true;
+                    st.last_s = now_s;
+                }
+                // Two cycles at one instant: nothing to advance.
+                Err(EvalError::Filter(DynamicError::BadTimeStep)) if dt <= 0.0 => {}
+                Err(_) => st.valid = false,
+            }
+        }
+    }
+
+    /// Writes the compensation (−error, µm) of every machine axis by model `i` into `out` and
+    /// returns whether this cycle gives a valid output (`false`: an input is bad or out of
+    /// range). A model that keeps state gives the output of its last step ([`Self::step_all`]);
+    /// the others are evaluated on `input`. Allocates nothing.
+    pub fn compensation(
+        &mut self,
+        i: usize,
+        input: &CycleInput<'_>,
+        out: &mut [f64; MAX_AXES],
+    ) -> bool {
+        let (Some(e), Some(st)) = (self.entries.get_mut(i), self.stepped.get(i)) else {
+            return false;
+        };
+        let error_um = if e.model.keeps_state() {
+            if !st.valid {
+                return false;
+            }
+            st.error_um
+        } else {
+            // A model without state ignores the time step.
+            match e.model.step(0.0, input) {
+                Ok(error_um) => error_um,
+                Err(_) => return false,
+            }
+        };
+        for (f, e) in out.iter_mut().zip(&error_um) {
+            // 0 − e rather than −e: a zero error gives +0, not −0.
+            *f = 0.0 - e;
+        }
+        true
     }
 
     /// Number of paths.
@@ -319,7 +251,7 @@ impl ModelSet {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use truepos_model::{Axis, AxisKind, Carriage, Machine};
+    use truepos_model::{Axis, AxisKind, Carriage, Machine, Model};
 
     fn model() -> Model {
         let axis = |n: &str| Axis {

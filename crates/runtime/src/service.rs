@@ -521,7 +521,7 @@ impl Service {
     /// The state path `p` takes this cycle, with the model's compensation in `fresh` when it is
     /// a model: a model that fails on this cycle's values (a position outside travel, a value
     /// that is not finite) is treated like a bad sensor.
-    fn evaluate_path(&self, p: usize, fresh: &mut [f64; MAX_AXES]) -> PathState {
+    fn evaluate_path(&mut self, p: usize, fresh: &mut [f64; MAX_AXES]) -> PathState {
         let wanted = self.wanted_state(p);
         let PathState::Model(m) = wanted else {
             return wanted;
@@ -531,7 +531,7 @@ impl Service {
             positions: &self.frame.positions,
             operating: &self.frame.operating,
         };
-        let ok = self.set.entries()[m].model.compensation(&input, fresh)
+        let ok = self.set.compensation(m, &input, fresh)
             && (0..self.output.axes)
                 .filter(|&a| self.axis_path[a] == Some(p))
                 .all(|a| fresh[a].is_finite());

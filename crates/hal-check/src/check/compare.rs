@@ -3,11 +3,12 @@
 //! say when the component and the servo thread were not in step, the offset rate over a
 //! window, and how LinuxCNC's joints followed the commands.
 
-use truepos_model::{CycleInput, Machine, Model};
+use truepos_model::{Machine, Model};
 use truepos_runtime::model_set::ModelEntry;
 use truepos_runtime::AxisConfig;
 
 use super::record::Sample;
+use super::replay::Replay;
 use super::report::CheckReport;
 use super::targets::{expected_model, position_span_um};
 use super::CheckConfig;
@@ -22,6 +23,8 @@ const AFTER_STEP_CYCLES: usize = 20;
 struct Judge<'a> {
     machine: &'a Machine,
     models: &'a [ModelEntry],
+    /// What every model gave on every recorded cycle.
+    replay: &'a Replay,
     limits: &'a [AxisConfig],
     config: &'a CheckConfig,
     /// Operating values: the recording has none, so the model reads zeros.
@@ -34,6 +37,8 @@ struct Walk {
     since_change: usize,
     /// Moving cycles so far in which the offsets sent did not change.
     gap: usize,
+    /// Cycles so far, moving or not, in which the offsets sent did not change.
+    sent_still: usize,
     /// Cycles left of the catching up after a gap.
     after_gap: usize,
     /// Cycles left after a step of a model input.
@@ -49,6 +54,7 @@ struct Walk {
 pub(super) fn compare_cycles(
     machine: &Machine,
     models: &[ModelEntry],
+    replay: &Replay,
     limits: &[AxisConfig],
     samples: &[Sample],
     config: &CheckConfig,
@@ -58,6 +64,7 @@ pub(super) fn compare_cycles(
     let judge = Judge {
         machine,
         models,
+        replay,
         limits,
         config,
         operating: vec![0.0; machine.operating.len()],
@@ -86,7 +93,7 @@ pub(super) fn compare_cycles(
         if !s.active() || walk.since_change <= settle {
             continue;
         }
-        walk.compare(&judge, report, prev, s, moving);
+        walk.compare(&judge, report, (k, s), prev, moving);
     }
     let (delay, mismatch) = joint_delay(samples, axes);
     report.joint_delay_cycles = delay;
@@ -120,6 +127,11 @@ impl Walk {
             0
         };
         report.longest_update_gap_cycles = report.longest_update_gap_cycles.max(self.gap);
+        self.sent_still = if s.sent_um == p.sent_um {
+            self.sent_still + 1
+        } else {
+            0
+        };
         // In a gap of more than 2 cycles, and 20 cycles after it (LinuxCNC's external-offset
         // planner catches up under its acceleration limit: 5 µm at 300 mm/s² take 6 ms), the
         // offset lags for want of updates, not by the update rate.
@@ -150,13 +162,14 @@ impl Walk {
         moving
     }
 
-    /// Compares a settled, active cycle with the model seed D's rule selects.
+    /// Compares a settled, active cycle, the `k`th recorded, with the model seed D's rule
+    /// selects, as replayed on the recorded cycles.
     fn compare(
         &mut self,
         judge: &Judge,
         report: &mut CheckReport,
+        (k, s): (usize, &Sample),
         prev: Option<&Sample>,
-        s: &Sample,
         moving: bool,
     ) {
         let axes = judge.machine.axes.len();
@@ -164,9 +177,7 @@ impl Walk {
         if expected.and_then(|i| i32::try_from(i).ok()) != Some(s.model) {
             report.wrong_model_cycles += 1;
         }
-        // A fitted dynamic model's output depends on its filters' history, which the check
-        // cannot replay from the samples: only models of seed A's form are compared.
-        let Some(model) = expected.and_then(|i| judge.models[i].model.as_static()) else {
+        let Some(i) = expected else {
             return;
         };
         let in_path = |a: usize| s.axis_paths.get(a) == Some(&1);
@@ -175,23 +186,21 @@ impl Walk {
                 .max_parked_offset_um
                 .max(s.applied_mm[a].abs() * 1000.0);
         }
-        let Ok(correction) = model.evaluate(&CycleInput {
-            temperatures_c: &s.temperatures_c,
-            positions: &s.nominal,
-            operating: &judge.operating,
-        }) else {
+        let Some(error_um) = judge.replay.error_um(i, k) else {
+            return;
+        };
+        report.compared += 1;
+        let Some(model) = judge.models[i].model.as_static() else {
+            self.compare_dynamic(judge, report, i, (k, s));
             return;
         };
         let span = position_span_um(model, judge.machine, s, &judge.operating);
-        report.compared += 1;
         let temperature_step = self.temperature_step(model, prev, s);
         let in_step = !(moving && (self.gap > 2 || self.after_gap > 0)) && !temperature_step;
         report.in_step_moving_cycles += usize::from(moving && in_step);
         for (a, &span_a) in span.iter().enumerate().filter(|(a, _)| in_path(*a)) {
-            let diff = s.applied_mm[a] * 1000.0 - correction.compensation_um(a);
-            self.sum_sq += diff * diff;
-            self.diffs += 1;
-            report.max_diff_um = report.max_diff_um.max(diff.abs());
+            let diff = s.applied_mm[a] * 1000.0 - (0.0 - error_um[a]);
+            self.add_diff(report, diff);
             if span_a >= judge.config.min_span_um && !temperature_step {
                 let fraction = diff.abs() / span_a;
                 report.max_lag_fraction_all = report.max_lag_fraction_all.max(fraction);
@@ -199,6 +208,41 @@ impl Walk {
                     report.max_lag_fraction = report.max_lag_fraction.max(fraction);
                 }
             }
+        }
+    }
+
+    fn add_diff(&mut self, report: &mut CheckReport, diff: f64) {
+        self.sum_sq += diff * diff;
+        self.diffs += 1;
+        report.max_diff_um = report.max_diff_um.max(diff.abs());
+    }
+
+    /// Compares a cycle with a fitted dynamic model `i`, replayed through the recorded cycles.
+    /// It has no position-dependent terms, so no lag fraction: the applied offset must lie
+    /// within the model's compensation over the cycles it may stem from — the same window as
+    /// the output invariant's (LinuxCNC's pipeline, and the cycles the offset sent stood still)
+    /// — but for `max_dynamic_excess_um` (see [`CheckConfig`]).
+    fn compare_dynamic(
+        &mut self,
+        judge: &Judge,
+        report: &mut CheckReport,
+        i: usize,
+        (k, s): (usize, &Sample),
+    ) {
+        report.dynamic_compared += 1;
+        let window = judge.config.invariant_window_cycles + self.sent_still.min(1000);
+        for a in (0..s.applied_mm.len()).filter(|&a| s.axis_paths.get(a) == Some(&1)) {
+            let v = s.applied_mm[a] * 1000.0;
+            let (lo, hi) = (k.saturating_sub(window)..=k)
+                .filter_map(|j| judge.replay.error_um(i, j))
+                .map(|e| 0.0 - e[a])
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), c| {
+                    (lo.min(c), hi.max(c))
+                });
+            let now = judge.replay.error_um(i, k).map_or(f64::NAN, |e| 0.0 - e[a]);
+            self.add_diff(report, v - now);
+            let excess = (lo - v).max(v - hi).max(0.0);
+            report.max_dynamic_excess_um = report.max_dynamic_excess_um.max(excess);
         }
     }
 

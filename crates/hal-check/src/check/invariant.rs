@@ -6,6 +6,7 @@ use truepos_runtime::model_set::ModelEntry;
 use truepos_runtime::AxisConfig;
 
 use super::record::Sample;
+use super::replay::{servo_intervals_s, Replay};
 use super::report::CheckReport;
 use super::targets::targets_um;
 use super::CheckConfig;
@@ -31,32 +32,6 @@ pub struct InvariantReport {
     /// Cycles (any axis) where the model could not be evaluated on the recorded temperatures
     /// (an injected NaN) and the previous target was kept.
     pub target_kept_cycles: usize,
-}
-
-/// The real length of every servo cycle, s: `motion.servo.last-period` scaled so that its
-/// median is the nominal period (its clock's rate is unknown); the nominal period where the
-/// column reads nothing usable.
-fn servo_intervals_s(samples: &[Sample], period_s: f64) -> Vec<f64> {
-    let mut clocks: Vec<f64> = samples
-        .iter()
-        .map(|s| s.servo_clocks)
-        .filter(|c| c.is_finite() && *c > 0.0)
-        .collect();
-    if clocks.is_empty() {
-        return vec![period_s; samples.len()];
-    }
-    clocks.sort_by(f64::total_cmp);
-    let median = clocks[clocks.len() / 2];
-    samples
-        .iter()
-        .map(|s| {
-            if s.servo_clocks.is_finite() && s.servo_clocks > 0.0 {
-                s.servo_clocks / median * period_s
-            } else {
-                period_s
-            }
-        })
-        .collect()
 }
 
 /// Judges the output invariant on the applied offsets (`axis.L.eoffset`), every cycle and axis:
@@ -86,8 +61,20 @@ pub fn output_invariant(
     samples: &[Sample],
     config: &CheckConfig,
 ) -> InvariantReport {
+    let replay = Replay::new(machine, models, samples, config.period_s);
+    output_invariant_with(machine, models, &replay, limits, samples, config)
+}
+
+/// [`output_invariant`] on the models' values already replayed.
+pub(super) fn output_invariant_with(
+    machine: &Machine,
+    models: &[ModelEntry],
+    replay: &Replay,
+    limits: &[AxisConfig],
+    samples: &[Sample],
+    config: &CheckConfig,
+) -> InvariantReport {
     let axes = machine.axes.len();
-    let operating = vec![0.0; machine.operating.len()];
     let count = RESOLUTION_UM;
     let intervals = servo_intervals_s(samples, config.period_s);
     let mut r = InvariantReport {
@@ -115,7 +102,7 @@ pub fn output_invariant(
                 || p.select != s.select
                 || p.axis_paths != s.axis_paths
         });
-        let targets = targets_um(machine, models, limits, s, &operating);
+        let targets = targets_um(machine, models, replay, limits, s, k);
         r.target_kept_cycles += usize::from(targets.iter().any(Option::is_none));
         for a in 0..axes {
             if let Some(t) = targets[a] {

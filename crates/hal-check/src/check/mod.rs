@@ -19,6 +19,7 @@ pub mod compare;
 pub mod events;
 pub mod invariant;
 pub mod record;
+pub mod replay;
 pub mod report;
 pub mod targets;
 
@@ -35,6 +36,7 @@ use truepos_runtime::AxisConfig;
 use invariant::invariant_failures;
 pub use invariant::{output_invariant, InvariantReport};
 pub use record::{load_samples, parse_samples, Sample, SampleError};
+pub use replay::Replay;
 pub use report::CheckReport;
 pub use targets::expected_model;
 
@@ -73,6 +75,15 @@ pub struct CheckConfig {
     pub max_bracket_excess_um: f64,
     /// The component's `--hold-ramp-s`: a held offset ramps to zero over it, s.
     pub hold_ramp_s: f64,
+    /// Largest distance, µm, of an offset applied while a fitted dynamic model was in effect
+    /// from that model's compensation over the cycles the offset may stem from (the window of
+    /// the output invariant). The check steps the model through the recorded servo cycles by
+    /// their real length; the component steps it every one of its own cycles on its own clock,
+    /// from temperatures it read at most a cycle apart from the sampler. The filters' time
+    /// constants (fitted: 900 s and more) make the two clocks' difference negligible (0.1 %
+    /// of a 1 ms step moves a 900 s filter by 10⁻⁹ of its distance from the input); what remains
+    /// is the quantisation of the offset, two counts (0.02 µm) — 0.05 µm leaves room for both.
+    pub max_dynamic_excess_um: f64,
 }
 
 impl Default for CheckConfig {
@@ -88,6 +99,7 @@ impl Default for CheckConfig {
             pipeline_cycles: 3,
             max_bracket_excess_um: 0.5,
             hold_ramp_s: 60.0,
+            max_dynamic_excess_um: 0.05,
         }
     }
 }
@@ -123,11 +135,31 @@ pub fn check(
         axis_switches: 0,
         wrong_model_cycles: 0,
         max_parked_offset_um: 0.0,
-        invariant: output_invariant(machine, models, limits, samples, config),
+        dynamic_compared: 0,
+        max_dynamic_excess_um: 0.0,
+        invariant: InvariantReport::default(),
         failures: Vec::new(),
     };
-    compare::compare_cycles(machine, models, limits, samples, config, &mut report);
+    let replay = Replay::new(machine, models, samples, config.period_s);
+    report.invariant =
+        invariant::output_invariant_with(machine, models, &replay, limits, samples, config);
+    compare::compare_cycles(
+        machine,
+        models,
+        &replay,
+        limits,
+        samples,
+        config,
+        &mut report,
+    );
     judge(machine, limits, config, &mut report);
+    if models.iter().any(|m| m.model.keeps_state()) && report.dynamic_compared == 0 {
+        report.failures.push(
+            "the set holds a fitted dynamic model, but no settled, active cycle used it: the \
+             run did not check it"
+                .into(),
+        );
+    }
     report
 }
 
@@ -165,6 +197,13 @@ fn judge(machine: &Machine, limits: &[AxisConfig], config: &CheckConfig, report:
             "lag error {:.3} % of the position-dependent span is not below {:.3} %",
             report.max_lag_fraction * 100.0,
             config.max_lag_fraction * 100.0
+        ));
+    }
+    if report.max_dynamic_excess_um > config.max_dynamic_excess_um {
+        report.failures.push(format!(
+            "the applied offset left the fitted dynamic model's compensation by {:.4} µm \
+             (allowed {} µm)",
+            report.max_dynamic_excess_um, config.max_dynamic_excess_um
         ));
     }
     if report.in_step_moving_cycles < config.min_in_step_moving_cycles {

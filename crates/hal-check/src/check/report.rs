@@ -50,6 +50,12 @@ pub struct CheckReport {
     /// Settled, active cycles in which the component used another model than seed D's rule
     /// selects.
     pub wrong_model_cycles: usize,
+    /// Settled, active cycles compared with a fitted dynamic model (stepped through the
+    /// recorded cycles), among `compared`.
+    pub dynamic_compared: usize,
+    /// Largest distance of an applied offset from the dynamic model's compensation over the
+    /// cycles it may stem from, µm (see `CheckConfig::max_dynamic_excess_um`).
+    pub max_dynamic_excess_um: f64,
     /// Largest |applied offset| on an axis in no path (settled cycles), µm.
     pub max_parked_offset_um: f64,
     /// The output invariant on the applied offsets, every cycle.
@@ -87,6 +93,8 @@ impl CheckReport {
             "axis_switches": self.axis_switches,
             "wrong_model_cycles": self.wrong_model_cycles,
             "max_parked_offset_um": self.max_parked_offset_um,
+            "dynamic_compared": self.dynamic_compared,
+            "max_dynamic_excess_um": self.max_dynamic_excess_um,
             "invariant": {
                 "nonfinite_cycles": self.invariant.nonfinite_cycles,
                 "max_abs_um": self.invariant.max_abs_um,
@@ -138,6 +146,10 @@ impl CheckReport {
             self.gap_fraction * 100.0,
             self.longest_update_gap_cycles,
             self.in_step_moving_cycles
+        );
+        out += &format!(
+            "fitted dynamic model (stepped through the recorded cycles): {} cycles compared; applied outside its compensation over the pipeline window by at most {:.4} µm (limit {} µm)\n",
+            self.dynamic_compared, self.max_dynamic_excess_um, config.max_dynamic_excess_um
         );
         let inv = &self.invariant;
         let round = |v: &[f64], k: f64| v.iter().map(|x| (x * k).round() / k).collect::<Vec<_>>();

@@ -6,6 +6,7 @@ use truepos_runtime::model_set::{index_of, ModelEntry};
 use truepos_runtime::AxisConfig;
 
 use super::record::Sample;
+use super::replay::Replay;
 
 /// Span over the travel of each axis' compensation when one axis moves end to end (the others
 /// where they are): the size of the position-dependent terms at these temperatures, µm.
@@ -62,36 +63,31 @@ pub fn expected_model(
         .or_else(|| (0..models.len()).find(matches))
 }
 
-/// Each axis' target in cycle `s` (µm): the model seed D's rule selects, at the cycle's recorded
-/// temperatures and nominal positions, for an active axis in path 1; zero for an axis in no
-/// path and for a component disabled or without a model (and for a hold, whose ramp
-/// [`output_invariant`] works out). `None` where the model cannot be evaluated.
+/// Each axis' target in cycle `s`, the `k`th recorded (µm): the compensation of the model seed
+/// D's rule selects, as replayed on the recorded cycles (at the cycle's temperatures and nominal
+/// positions, a dynamic model with its history), for an active axis in path 1; zero for an axis
+/// in no path and for a component disabled or without a model (and for a hold, whose ramp
+/// [`super::output_invariant`] works out). `None` where the model gave nothing.
 pub fn targets_um(
     machine: &Machine,
     models: &[ModelEntry],
+    replay: &Replay,
     limits: &[AxisConfig],
     s: &Sample,
-    operating: &[f64],
+    k: usize,
 ) -> Vec<Option<f64>> {
     let axes = machine.axes.len();
     let in_path = |a: usize| s.axis_paths.get(a) == Some(&1);
     if !s.active() {
         return vec![Some(0.0); axes];
     }
-    let evaluated = expected_model(models, limits, &s.axis_paths, s.select)
-        .and_then(|i| models[i].model.as_static())
-        .and_then(|m| {
-            m.evaluate(&CycleInput {
-                temperatures_c: &s.temperatures_c,
-                positions: &s.nominal,
-                operating,
-            })
-            .ok()
-        });
+    let error_um =
+        expected_model(models, limits, &s.axis_paths, s.select).and_then(|i| replay.error_um(i, k));
     (0..axes)
-        .map(|a| match (&evaluated, in_path(a)) {
+        .map(|a| match (error_um, in_path(a)) {
             (_, false) => Some(0.0),
-            (Some(c), true) => Some(c.compensation_um(a)),
+            // 0 − e: the compensation, +0 for a zero error.
+            (Some(e), true) => Some(0.0 - e[a]),
             (None, true) => None,
         })
         .collect()

@@ -389,3 +389,136 @@ fn the_step_allowance_follows_the_real_time() {
     let r = output_invariant(&machine, &models, &limits, &held, &config);
     assert_eq!(r.nonfinite_cycles, 1);
 }
+
+/// A fitted dynamic model on the example machine: Y error = 1 + 2·rise(x_bottom) +
+/// 3·lp100(rise(x_bottom)) µm.
+fn dynamic_entry(machine: &Machine) -> ModelEntry {
+    use truepos_model::{
+        BoundDynamicModel, Channels, DynamicModel, FeatureBank, FeatureSpec, MachineInput,
+    };
+    let bank = FeatureBank::new(FeatureSpec {
+        temperatures: 1,
+        operating: 0,
+        temperature_rise: true,
+        temperature_taus_s: vec![100.0],
+        rate_taus_s: vec![],
+        operating_taus_s: vec![],
+        operating_square: false,
+        rise_while_running: false,
+    })
+    .unwrap();
+    let model = DynamicModel::new(bank, vec![1.0], vec![2.0, 3.0]).unwrap();
+    let bound = BoundDynamicModel::new(
+        "fitted".into(),
+        model,
+        vec![MachineInput::Temperature(0)],
+        vec![Some(1)],
+        vec![],
+        Channels {
+            temperatures: machine.temperatures.len(),
+            operating: 0,
+            axes: machine.axes.len(),
+        },
+    )
+    .unwrap();
+    ModelEntry {
+        name: "fitted".into(),
+        model: bound.into(),
+        index: [101, 102, 0],
+    }
+}
+
+/// x_bottom warms by 1 K over 6 s of 1 ms servo cycles; LinuxCNC applies what the component
+/// sent two cycles before, in counts of 0.01 µm. `extra_um` is added to what is applied.
+fn warming(extra_um: f64) -> Vec<Sample> {
+    let mut reference = truepos_model::DynamicModel::new(
+        truepos_model::FeatureBank::new(truepos_model::FeatureSpec {
+            temperatures: 1,
+            operating: 0,
+            temperature_rise: true,
+            temperature_taus_s: vec![100.0],
+            rate_taus_s: vec![],
+            operating_taus_s: vec![],
+            operating_square: false,
+            rise_while_running: false,
+        })
+        .unwrap(),
+        vec![1.0],
+        vec![2.0, 3.0],
+    )
+    .unwrap();
+    let n = 6000;
+    let temperature = |k: usize| 25.0 + k as f64 / n as f64;
+    let compensation: Vec<f64> = (0..n)
+        .map(|k| {
+            let dt = if k == 0 { 0.0 } else { 0.001 };
+            let e = reference.step(dt, &[temperature(k)]).unwrap()[0];
+            ((0.0 - e) * 100.0).round() / 100.0
+        })
+        .collect();
+    (0..n)
+        .map(|k| {
+            let applied = compensation[k.saturating_sub(2)] + extra_um;
+            Sample {
+                nominal: vec![250.0, 100.0],
+                applied_mm: vec![0.0, applied / 1000.0],
+                joint: vec![250.0, 100.0 + applied / 1000.0],
+                sent_um: vec![0.0, compensation[k.saturating_sub(1)]],
+                status: 1,
+                select: 0,
+                model: 0,
+                axis_paths: vec![1, 1],
+                servo_clocks: 1000.0,
+                temperatures_c: vec![temperature(k), 20.0],
+            }
+        })
+        .collect()
+}
+
+/// The check steps a fitted dynamic model through the recorded cycles and holds the applied
+/// offset to it (no lag fraction: it has no position-dependent terms); an offset 0.2 µm off
+/// fails, and a set whose dynamic model no cycle used fails too.
+#[test]
+fn a_fitted_dynamic_model_is_stepped_through_the_recording() {
+    let (machine, model) = example();
+    let models = [dynamic_entry(&machine)];
+    let config = CheckConfig {
+        min_in_step_moving_cycles: 0,
+        ..CheckConfig::default()
+    };
+    let r = check(&machine, &models, &limits(50.0), &warming(0.0), &config);
+    assert_eq!(r.dynamic_compared, 3000, "{r:?}");
+    assert_eq!(r.compared, 3000);
+    assert!(
+        r.max_dynamic_excess_um < 0.011,
+        "{}",
+        r.max_dynamic_excess_um
+    );
+    assert!(
+        r.max_diff_um > 0.0 && r.max_diff_um < 0.05,
+        "{}",
+        r.max_diff_um
+    );
+    assert!(r.passed(), "{:?}", r.failures);
+    let off = check(&machine, &models, &limits(50.0), &warming(0.2), &config);
+    assert!((off.max_dynamic_excess_um - 0.2).abs() < 0.011, "{off:?}");
+    assert!(
+        off.failures
+            .iter()
+            .any(|f| f.contains("fitted dynamic model's compensation")),
+        "{:?}",
+        off.failures
+    );
+    // The same recording against a set whose first model is static: the dynamic one never runs.
+    let both = [entry(&model), dynamic_entry(&machine)];
+    let unused = check(&machine, &both, &limits(50.0), &warming(0.0), &config);
+    assert_eq!(unused.dynamic_compared, 0);
+    assert!(
+        unused
+            .failures
+            .iter()
+            .any(|f| f.contains("no settled, active cycle used it")),
+        "{:?}",
+        unused.failures
+    );
+}

@@ -1,0 +1,120 @@
+//! The one loader of a compensation model file, whatever its form: reads the file once,
+//! recognises a fitted dynamic model (JSON with `"format": "truepos-dynamic-model"`,
+//! [`crate::dynamic_model_file`]) or a model of seed A/C's form (TOML, or JSON by extension,
+//! [`crate::model_file`]), and returns it bound to the machine as the core's
+//! [`CompensationModel`], with the axis-combination index (seed D) the file gives. Every user —
+//! `truepos run`, `eval`, `report`, the LinuxCNC component and its check — loads models here.
+
+use std::path::Path;
+
+use truepos_model::{CompensationModel, Machine};
+
+use crate::dynamic_model_file;
+use crate::error::{read_text, InputError};
+use crate::model_file;
+
+/// A model file bound to a machine.
+#[derive(Debug, Clone)]
+pub struct Loaded {
+    /// The model.
+    pub model: CompensationModel,
+    /// Seed D's axis-combination index from the file, if it has one.
+    pub axis_index: Option<Vec<u32>>,
+}
+
+/// Reads a model file of either form and binds it to the machine. A file that cannot be read is
+/// an error naming it; every other error names file, line, column and key.
+pub fn load(path: &Path, machine: &Machine) -> Result<Loaded, InputError> {
+    parse(path, &read_text(path)?, machine)
+}
+
+/// [`load`] on a file's text; `path` names it in errors and, by its extension, tells JSON from
+/// TOML for a model of seed A/C's form.
+pub fn parse(path: &Path, text: &str, machine: &Machine) -> Result<Loaded, InputError> {
+    if is_dynamic(path, text) {
+        let (bound, axis_index) = dynamic_model_file::parse_entry(path, text, machine)?;
+        return Ok(Loaded {
+            model: bound.into(),
+            axis_index,
+        });
+    }
+    let loaded = model_file::parse_entry(path, text, machine)?;
+    Ok(Loaded {
+        model: loaded.model.into(),
+        axis_index: loaded.axis_index,
+    })
+}
+
+/// Whether the text is a dynamic model file: JSON whose `format` says so, or — so that a broken
+/// one gets the dynamic parser's error, not the static one's — a `.json` file naming that format.
+fn is_dynamic(path: &Path, text: &str) -> bool {
+    let json = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("json"));
+    dynamic_model_file::is_dynamic(text)
+        || (json && text.contains(&format!("\"{}\"", dynamic_model_file::FORMAT)))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn machine() -> Machine {
+        let text = "[machine]\nname = \"m\"\n[[axis]]\nname = \"Z\"\nkind = \"linear\"\ntravel = [0.0, 100.0]\n[[temperature]]\nid = \"t\"\nvalid_range = [0.0, 80.0]\n";
+        crate::machine_file::parse(Path::new("m.toml"), text)
+            .unwrap()
+            .machine
+    }
+
+    const DYNAMIC: &str = r#"{
+  "format": "truepos-dynamic-model", "version": 1, "machine": "m",
+  "inputs": [{"name": "t", "kind": "temperature"}],
+  "temperature_rise": true, "temperature_taus_s": [], "rate_taus_s": [],
+  "operating_taus_s": [], "operating_square": false,
+  "features": ["rise(t)"],
+  "outputs": [{"name": "dz_um", "intercept_um": 0.5, "coefficients": [2.0]}],
+  "axis_index": [101],
+  "provenance": {}, "validation": {}
+}"#;
+
+    #[test]
+    fn both_forms_come_through_one_door() {
+        let m = machine();
+        let d = parse(Path::new("d.json"), DYNAMIC, &m).unwrap();
+        assert!(d.model.keeps_state());
+        assert_eq!(d.model.name(), "d");
+        assert_eq!(d.axis_index, Some(vec![101]));
+        let s = parse(
+            Path::new("s.toml"),
+            "format = \"truepos-model\"\nversion = 1\nname = \"s\"\nmachine = \"m\"\naxis_index = [101]\n[inputs]\naxes = [{ name = \"Z\", travel = [0.0, 100.0] }]\n",
+            &m,
+        )
+        .unwrap();
+        assert!(!s.model.keeps_state());
+        assert_eq!(s.model.name(), "s");
+        assert_eq!(s.axis_index, Some(vec![101]));
+    }
+
+    #[test]
+    fn errors_name_the_file() {
+        let m = machine();
+        let missing = load(Path::new("/nonexistent/x.toml"), &m).unwrap_err();
+        assert!(
+            missing
+                .to_string()
+                .starts_with("/nonexistent/x.toml: cannot read"),
+            "{missing}"
+        );
+        // A broken dynamic file gets the dynamic parser's error, at line and column.
+        let broken = DYNAMIC.replace("\"version\": 1,", "\"version\": 1");
+        let e = parse(Path::new("d.json"), &broken, &m)
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with("d.json:2:"), "{e}");
+        let other = DYNAMIC.replace("\"machine\": \"m\"", "\"machine\": \"lathe\"");
+        let e = parse(Path::new("d.json"), &other, &m)
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with("d.json:2:") && e.contains("`machine`"), "{e}");
+    }
+}
