@@ -7,10 +7,10 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
+use truepos_io::compensation::load_set;
 use truepos_io::limits::{check_in, finite_in};
 use truepos_io::{cycles, machine_file};
 use truepos_runtime::log;
-use truepos_runtime::model_set::load_entries;
 use truepos_runtime::replay::{state_name, CsvSink, Recording, ReplaySource};
 use truepos_runtime::sources::modbus::{ModbusConfig, ModbusSource};
 use truepos_runtime::sources::shdr::{ShdrConfig, ShdrSource};
@@ -185,7 +185,7 @@ impl Timing {
 
 pub fn run(args: RunArgs) -> Result<(), String> {
     let machine = machine_file::load(&args.machine).map_err(|e| e.to_string())?;
-    let entries = load_entries(&args.models, &machine).map_err(|e| e.to_string())?;
+    let entries = load_set(&args.models, &machine).map_err(|e| e.to_string())?;
     // The service clock's zero, shared with network sources that stamp values themselves.
     let epoch = Instant::now();
     let (sources, replay_end_s) = open_sources(&args, &machine.machine, epoch)?;

@@ -13,8 +13,8 @@ use clap::{Parser, Subcommand};
 use truepos_hal_check::check::{check, events, load_samples, CheckConfig};
 use truepos_hal_check::timing::{self, TimingConfig};
 use truepos_hal_check::Error;
+use truepos_io::compensation::load_set;
 use truepos_io::limits::{finite_in, int_in};
-use truepos_runtime::model_set::load_entries;
 
 #[derive(Parser)]
 #[command(
@@ -105,7 +105,7 @@ struct TimingArgs {
 fn run_check(args: CheckArgs) -> Result<bool, Error> {
     let machine = truepos_io::machine_file::load(&args.machine)?;
     // With their axis-combination indices: the check applies seed D's rule itself.
-    let models = load_entries(&args.models, &machine)?;
+    let models = load_set(&args.models, &machine)?;
     let samples = load_samples(&args.motion, &args.temperatures, &machine.machine)?;
     let config = CheckConfig {
         period_s: args.period_ms / 1000.0,

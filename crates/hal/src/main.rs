@@ -13,8 +13,8 @@ use clap::{Parser, Subcommand};
 use truepos_hal::ffi::{self, Component, HalError};
 use truepos_hal::pacer::{keep_off_cpu, realtime_setup, Pacer};
 use truepos_hal::{pins, Error, HalSink, HalSource};
+use truepos_io::compensation::load_set;
 use truepos_io::limits::{finite_in, int_in};
-use truepos_runtime::model_set::load_entries;
 use truepos_runtime::{MachineConfig, PathState, Running, Service, ServiceConfig, ServiceHost};
 
 #[derive(Parser)]
@@ -126,7 +126,7 @@ struct LoopStats {
 fn run(args: RunArgs) -> Result<(), Error> {
     let machine = truepos_io::machine_file::load(&args.machine)?;
     // Seed D: a model without an index in its file serves path 1's axes.
-    let entries = load_entries(&args.models, &machine)?;
+    let entries = load_set(&args.models, &machine)?;
 
     let stop = Arc::new(AtomicBool::new(false));
     signal_hook::flag::register(signal_hook::consts::SIGTERM, Arc::clone(&stop))

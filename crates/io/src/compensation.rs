@@ -5,9 +5,11 @@
 //! [`CompensationModel`], with the axis-combination index (seed D) the file gives. Every user —
 //! `truepos run`, `eval`, `report`, the LinuxCNC component and its check — loads models here.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use truepos_model::{CompensationModel, Machine};
+use truepos_runtime::config::MachineConfig;
+use truepos_runtime::model_set::{index_of, ModelEntry};
 
 use crate::dynamic_model_file;
 use crate::error::{read_text, InputError};
@@ -26,6 +28,33 @@ pub struct Loaded {
 /// an error naming it; every other error names file, line, column and key.
 pub fn load(path: &Path, machine: &Machine) -> Result<Loaded, InputError> {
     parse(path, &read_text(path)?, machine)
+}
+
+/// Loads the model files of a set for the service, in order of preference, bound to the
+/// machine. A model whose file carries no axis-combination index serves path 1's axes (seed D's
+/// index of the axes whose `path` is 1, by their codes).
+pub fn load_set(paths: &[PathBuf], machine: &MachineConfig) -> Result<Vec<ModelEntry>, InputError> {
+    let default_index = index_of(
+        machine
+            .axes
+            .iter()
+            .filter(|a| a.path == 1)
+            .map(|a| a.code()),
+    );
+    paths
+        .iter()
+        .map(|path| {
+            let loaded = load(path, &machine.machine)?;
+            Ok(ModelEntry {
+                name: loaded.model.name().to_string(),
+                index: loaded
+                    .axis_index
+                    .as_ref()
+                    .map_or(default_index, |b| index_of(b.iter().copied())),
+                model: loaded.model,
+            })
+        })
+        .collect()
 }
 
 /// [`load`] on a file's text; `path` names it in errors and, by its extension, tells JSON from

@@ -63,7 +63,6 @@ extern crate alloc;
 extern crate std;
 
 pub mod compensation;
-pub mod config;
 pub mod dynamic;
 pub mod evaluate;
 pub mod kinematics;

@@ -49,37 +49,6 @@ pub fn index_of(codes: impl IntoIterator<Item = u32>) -> [u32; INDEX_SLOTS] {
     index
 }
 
-/// Loads the model files of a set, in order of preference, bound to the machine: static model
-/// files (TOML/JSON) and fitted dynamic model files (JSON, recognised by their `format`). A model whose
-/// file carries no axis-combination index serves path 1's axes (seed D's index of the axes
-/// whose `path` is 1, by their codes).
-pub fn load_entries(
-    paths: &[std::path::PathBuf],
-    machine: &crate::config::MachineConfig,
-) -> Result<Vec<ModelEntry>, truepos_io::InputError> {
-    let default_index = index_of(
-        machine
-            .axes
-            .iter()
-            .filter(|a| a.path == 1)
-            .map(|a| a.code()),
-    );
-    paths
-        .iter()
-        .map(|path| {
-            let loaded = truepos_io::compensation::load(path, &machine.machine)?;
-            Ok(ModelEntry {
-                name: loaded.model.name().to_string(),
-                index: loaded
-                    .axis_index
-                    .as_ref()
-                    .map_or(default_index, |b| index_of(b.iter().copied())),
-                model: loaded.model,
-            })
-        })
-        .collect()
-}
-
 /// The models and, per path, which of them match its current axis combination.
 #[derive(Debug, Clone)]
 pub struct ModelSet {

@@ -3,7 +3,7 @@
 use std::path::Path;
 
 use truepos_runtime::replay::{Recording, ReplaySource};
-use truepos_runtime::{log, model_set, ServiceHost};
+use truepos_runtime::{log, ServiceHost};
 
 /// The host names the log's models, sources and sinks after the service's own, logs the
 /// cycles, and stopping drains the queues and reports a healthy log.
@@ -11,7 +11,7 @@ use truepos_runtime::{log, model_set, ServiceHost};
 fn a_hosted_service_logs_under_its_own_names_and_stops_cleanly() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/vmc3");
     let machine = truepos_io::machine_file::load(&root.join("machine.toml")).unwrap();
-    let entries = model_set::load_entries(&[root.join("model.toml")], &machine).unwrap();
+    let entries = truepos_io::compensation::load_set(&[root.join("model.toml")], &machine).unwrap();
     let run = truepos_io::cycles::load(&root.join("run.csv"), &machine.machine, &[]).unwrap();
     let run = Recording {
         time_s: run.time_s,

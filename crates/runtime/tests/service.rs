@@ -8,7 +8,7 @@ use truepos_io::{cycles, machine_file, model_file};
 use truepos_model::CycleInput;
 use truepos_runtime::events::EventKind;
 use truepos_runtime::log::{self, LogSetup, Logger};
-use truepos_runtime::model_set::{self, ModelEntry};
+use truepos_runtime::model_set::ModelEntry;
 use truepos_runtime::replay::{Recording, ReplaySource};
 use truepos_runtime::*;
 
@@ -653,7 +653,8 @@ fn a_dynamic_model_file_runs_in_the_service() {
     std::fs::create_dir_all(&dir).unwrap();
     let path = dir.join("spindle.dynamic.json");
     std::fs::write(&path, json).unwrap();
-    let entries = model_set::load_entries(std::slice::from_ref(&path), &machine).unwrap();
+    let entries =
+        truepos_io::compensation::load_set(std::slice::from_ref(&path), &machine).unwrap();
     assert_eq!(entries[0].name, "spindle.dynamic");
     assert_eq!(entries[0].model.used_sensors(), &[front]);
     // Bound to the machine: another machine name is refused with the file named.
@@ -661,7 +662,7 @@ fn a_dynamic_model_file_runs_in_the_service() {
         .unwrap()
         .replace("vmc-3axis", "lathe");
     std::fs::write(dir.join("other.json"), other).unwrap();
-    let refused = model_set::load_entries(&[dir.join("other.json")], &machine)
+    let refused = truepos_io::compensation::load_set(&[dir.join("other.json")], &machine)
         .unwrap_err()
         .to_string();
     assert!(

@@ -15,7 +15,7 @@ use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use serde_json::{json, Value};
-use truepos_runtime::model_set::load_entries;
+use truepos_io::compensation::load_set;
 use truepos_runtime::replay::{Recording, ReplaySource};
 use truepos_runtime::ServiceHost;
 
@@ -84,7 +84,7 @@ pub fn run(config: &TimingConfig, stop: &AtomicBool) -> Result<Value, Error> {
     }
     let machine = truepos_io::machine_file::load(&config.machine)?;
     let m = &machine.machine;
-    let entries = load_entries(&config.models, &machine)?;
+    let entries = load_set(&config.models, &machine)?;
     let cycles = truepos_io::cycles::load(&config.run, m, &[])?;
     let run = Recording {
         time_s: cycles.time_s,
