@@ -21,8 +21,9 @@
 //!   whose reading and writing live in `truepos_io::dynamic_model_file`, so that the runtime
 //!   reads it without the solvers.
 //! - [`position_model`]: the position-dependent thermal model's families (seed A) fitted from
-//!   observations, with ridge and inputs chosen by blocked cross-validation; [`reidentify`]:
-//!   its parameters re-estimated on line from probe measurements (seed C).
+//!   observations, the ridge chosen by blocked cross-validation, and family and input set
+//!   chosen the same way (`choose`, what `truepos demo` runs); [`reidentify`]: its parameters
+//!   re-estimated on line from probe measurements (seed C).
 //!
 //! ## Example
 //! A structure whose growth lags the spindle speed by a first-order lag of 1800 s: the
