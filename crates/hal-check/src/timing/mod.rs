@@ -1,12 +1,15 @@
-//! The timing benchmark (`truepos-hal timing`): the runtime's service at a fixed period on the
-//! component's own pacing ([`crate::pacer`]), replaying a recorded run and logging to SQLite,
-//! with the host's steal time sampled beside it ([`crate::host`]). It needs no LinuxCNC.
+//! The timing benchmark (`truepos-hal-check timing`): the runtime's service at a fixed period on
+//! the component's own pacing ([`truepos_hal::pacer`]), replaying a recorded run and logging to
+//! SQLite, with the host's steal time sampled beside it ([`host`]). It needs no LinuxCNC.
 //!
 //! A cycle is *late* when it finishes more than `late_ms` after its deadline. Late cycles whose
 //! windows overlap form one stall (*episode*); an episode *coincides with steal* when the
 //! watched CPU's steal counter advanced between the samples around it (widened by the
 //! counter's 10 ms resolution plus one sampling interval). The bar is judged on the late
 //! cycles not explained so; every figure is reported.
+
+pub mod episodes;
+pub mod host;
 
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -16,9 +19,12 @@ use truepos_runtime::model_set::load_entries;
 use truepos_runtime::replay::ReplaySource;
 use truepos_runtime::ServiceHost;
 
-use crate::host::{HostActivity, HostRecord, HostSampler, TICK_MS};
-use crate::pacer::{realtime_setup, Episode, Episodes, Pacer};
-use crate::{ffi, pacer};
+use episodes::{Episode, Episodes};
+use host::{HostActivity, HostRecord, HostSampler, TICK_MS};
+use truepos_hal::pacer::{realtime_setup, Pacer};
+use truepos_hal::{ffi, pacer};
+
+use crate::Error;
 
 /// What to run.
 #[derive(Debug, Clone)]
@@ -69,24 +75,21 @@ struct Attributed {
 }
 
 /// Runs the benchmark; `stop` ends it early. Returns the JSON summary.
-pub fn run(config: &TimingConfig, stop: &AtomicBool) -> Result<Value, String> {
+pub fn run(config: &TimingConfig, stop: &AtomicBool) -> Result<Value, Error> {
     if !(config.period_ms > 0.0 && config.period_ms <= 1000.0) {
-        return Err(format!(
-            "period {} ms must lie in (0, 1000]",
-            config.period_ms
-        ));
+        return Err(Error::Period(config.period_ms));
     }
     if !(config.duration_s > 0.0 && config.duration_s.is_finite()) {
-        return Err(format!("duration {} s must be > 0", config.duration_s));
+        return Err(Error::Duration(config.duration_s));
     }
-    let machine = truepos_io::machine_file::load(&config.machine).map_err(|e| e.to_string())?;
+    let machine = truepos_io::machine_file::load(&config.machine)?;
     let m = &machine.machine;
-    let entries = load_entries(&config.models, &machine).map_err(|e| e.to_string())?;
-    let cycles = truepos_io::cycles::load(&config.run, m, &[]).map_err(|e| e.to_string())?;
+    let entries = load_entries(&config.models, &machine)?;
+    let cycles = truepos_io::cycles::load(&config.run, m, &[])?;
     let replay = ReplaySource::new(format!("replay {}", config.run.display()), cycles, 1.0);
     if replay.duration_s() < config.duration_s {
         eprintln!(
-            "truepos-hal timing: the run lasts {:.0} s, less than {} s; its last values stay",
+            "truepos-hal-check timing: the run lasts {:.0} s, less than {} s; its last values stay",
             replay.duration_s(),
             config.duration_s
         );
@@ -96,23 +99,22 @@ pub fn run(config: &TimingConfig, stop: &AtomicBool) -> Result<Value, String> {
     // priority, so they inherit neither, and bound to the other CPUs.
     if let Some(cpu) = config.cpu {
         if let Err(e) = pacer::keep_off_cpu(cpu) {
-            eprintln!("truepos-hal timing: warning: {e}");
+            eprintln!("truepos-hal-check timing: warning: {e}");
         }
     }
     let mut service_host = ServiceHost::new(machine, entries)
         .source(Box::new(replay))
         .log(config.log.clone())
-        .start()
-        .map_err(|e| e.to_string())?;
+        .start()?;
     let service = &mut service_host.service;
     let sample_ns = (config.sample_ms * 1e6).round().max(1e5) as u64;
     let sampler = HostSampler::start(sample_ns, config.cpu);
     if let Err(e) = &sampler {
-        eprintln!("truepos-hal timing: warning: no host sampling: {e}");
+        eprintln!("truepos-hal-check timing: warning: no host sampling: {e}");
     }
     let setup = realtime_setup(config.rt_priority, config.cpu);
     for e in &setup.errors {
-        eprintln!("truepos-hal timing: warning: {e}");
+        eprintln!("truepos-hal-check timing: warning: {e}");
     }
 
     let period_ns = (config.period_ms * 1e6).round() as u64;
@@ -153,7 +155,7 @@ pub fn run(config: &TimingConfig, stop: &AtomicBool) -> Result<Value, String> {
     let host = sampler.map(HostSampler::stop).unwrap_or_default();
     let stopped = service_host.stop();
     if let Some((result, _)) = stopped.log {
-        result.map_err(|e| e.to_string())?;
+        result?;
     }
     let service = &stopped.service;
 
