@@ -341,3 +341,92 @@ pub fn choose(
         .next()
         .ok_or(ChooseError::NoCandidate)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn twin_machine() -> Machine {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../examples/twin/machine.toml");
+        truepos_io::machine_file::load(&path).unwrap().machine
+    }
+
+    #[test]
+    fn input_sets_grow_and_the_choice_finds_the_position_dependent_truth() {
+        let machine = twin_machine();
+        let sets = input_sets(&machine);
+        assert_eq!(sets[0].label, "measured sensors");
+        for w in sets.windows(2) {
+            assert!(w[0].differences.len() < w[1].differences.len());
+        }
+        // The truth: the all-axes form on the measured sensors, with made-up coefficients.
+        let truth = structure(
+            "truth",
+            &machine,
+            Family::AllAxes,
+            &sets[0].differences,
+            &[0, 1, 2],
+            true,
+        )
+        .unwrap();
+        let theta: Vec<f64> = (0..truth.parameter_count())
+            .map(|i| ((i * 7919) % 13) as f64 / 13.0 - 0.5)
+            .collect();
+        let truth = truth.with_parameters(&machine, &theta).unwrap();
+        let mut rng = 12345u64;
+        let mut draw = || {
+            rng = rng
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (rng >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let rows: Vec<(Vec<f64>, Vec<f64>)> = (0..300)
+            .map(|_| {
+                let temps = (0..machine.temperatures.len())
+                    .map(|_| 18.0 + 8.0 * draw())
+                    .collect();
+                let pos = machine
+                    .axes
+                    .iter()
+                    .map(|a| a.travel_min + (a.travel_max - a.travel_min) * draw())
+                    .collect();
+                (temps, pos)
+            })
+            .collect();
+        let op = vec![0.0; machine.operating.len()];
+        fn input<'a>(r: &'a (Vec<f64>, Vec<f64>), op: &'a [f64]) -> CycleInput<'a> {
+            CycleInput {
+                temperatures_c: &r.0,
+                positions: &r.1,
+                operating: op,
+            }
+        }
+        let mut obs = Vec::new();
+        for r in &rows {
+            let e = truth.evaluate(&input(r, &op)).unwrap();
+            for a in 0..3 {
+                obs.push(Observation {
+                    input: input(r, &op),
+                    axis: a,
+                    error_um: e.error_um()[a],
+                });
+            }
+        }
+        let mut tried = 0;
+        let families = [Family::PositionIndependent, Family::AllAxes];
+        let best = choose(
+            "m",
+            &machine,
+            &families,
+            &sets[..1],
+            &[0, 1, 2],
+            &obs,
+            &mut |_| tried += 1,
+        )
+        .unwrap();
+        assert_eq!(tried, 2);
+        assert_eq!(best.family, Family::AllAxes);
+        assert!(best.cv_rmse_um < 1e-3, "{}", best.cv_rmse_um);
+    }
+}
