@@ -112,13 +112,7 @@ fn run_check(args: CheckArgs) -> Result<bool, Error> {
         hold_ramp_s: args.hold_ramp_s,
         ..CheckConfig::default()
     };
-    let mut report = check(
-        &machine.machine,
-        &models,
-        &machine.axis_runtime,
-        &samples,
-        &config,
-    );
+    let mut report = check(&machine.machine, &models, &machine.axes, &samples, &config);
     if !args.expect_events.is_empty() {
         let Some(log) = &args.log else {
             return Err(Error::ExpectEventWithoutLog);

@@ -14,9 +14,8 @@ use truepos_hal::ffi::{self, Component, HalError};
 use truepos_hal::pacer::{keep_off_cpu, realtime_setup, Pacer};
 use truepos_hal::{pins, Error, HalSink, HalSource};
 use truepos_io::limits::{finite_in, int_in};
-use truepos_io::machine_file::MachineFile;
 use truepos_runtime::model_set::load_entries;
-use truepos_runtime::{PathState, Running, Service, ServiceConfig, ServiceHost};
+use truepos_runtime::{MachineConfig, PathState, Running, Service, ServiceConfig, ServiceHost};
 
 #[derive(Parser)]
 #[command(
@@ -89,10 +88,10 @@ struct LoopPins {
 fn create_pins(
     component: &Component,
     name: &str,
-    machine: &MachineFile,
+    machine: &MachineConfig,
 ) -> Result<(HalSource, HalSink, LoopPins), HalError> {
     let paths = machine
-        .axis_runtime
+        .axes
         .iter()
         .map(|a| a.path as usize)
         .max()
@@ -107,7 +106,7 @@ fn create_pins(
         all_homed: all.outputs.all_homed.clone(),
         path_models: all.outputs.path_models.clone(),
     };
-    let source = HalSource::new(name, all.inputs, &machine.axis_runtime);
+    let source = HalSource::new(name, all.inputs, &machine.axes);
     let sink = HalSink::new(name, all.outputs);
     Ok((source, sink, loop_pins))
 }

@@ -16,7 +16,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use serde_json::{json, Value};
 use truepos_runtime::model_set::load_entries;
-use truepos_runtime::replay::ReplaySource;
+use truepos_runtime::replay::{Recording, ReplaySource};
 use truepos_runtime::ServiceHost;
 
 use episodes::{Episode, Episodes};
@@ -86,7 +86,13 @@ pub fn run(config: &TimingConfig, stop: &AtomicBool) -> Result<Value, Error> {
     let m = &machine.machine;
     let entries = load_entries(&config.models, &machine)?;
     let cycles = truepos_io::cycles::load(&config.run, m, &[])?;
-    let replay = ReplaySource::new(format!("replay {}", config.run.display()), cycles, 1.0);
+    let run = Recording {
+        time_s: cycles.time_s,
+        temperatures_c: cycles.temperatures_c,
+        positions: cycles.positions,
+        operating: cycles.operating,
+    };
+    let replay = ReplaySource::new(format!("replay {}", config.run.display()), run, 1.0);
     if replay.duration_s() < config.duration_s {
         eprintln!(
             "truepos-hal-check timing: the run lasts {:.0} s, less than {} s; its last values stay",
