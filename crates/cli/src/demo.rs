@@ -7,7 +7,7 @@
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 
-use truepos_fit::position_model::{fit_structure, structure, Family, Fitted, Observation};
+use truepos_fit::position_model::{choose, input_sets, Candidate, Family, Fitted, Observation};
 use truepos_io::{machine_file, model_file::ModelFile};
 use truepos_model::{CycleInput, Machine, Model};
 use truepos_report::{write_report, Channel, Coefficient, ReportData};
@@ -180,68 +180,16 @@ fn path_rmse(d: &Day, model: Option<&Model>) -> [f64; 3] {
     se.map(|s| (s / n.max(1) as f64).sqrt())
 }
 
-/// Candidate input sets of a machine: differences of measured channels only; with the lags of
-/// temperature sensors; with the lags of operating state as well.
-fn input_sets(machine: &Machine) -> Vec<(&'static str, Vec<usize>)> {
-    use truepos_model::{LagSource, Reference};
-    // 0 measured, 1 lag of a sensor, 2 lag of operating state; a difference is the most
-    // derived of its channels.
-    let level = |c: usize| match machine.temperatures[c].lag.map(|l| l.source) {
-        None => 0,
-        Some(LagSource::Temperature(_)) => 1,
-        Some(LagSource::Operating { .. }) => 2,
-    };
-    let of = |d: &truepos_model::TemperatureDifference| match d.minus {
-        Reference::Sensor(m) => level(d.plus).max(level(m)),
-        Reference::Fixed(_) => level(d.plus),
-    };
-    let upto = |max: u8| -> Vec<usize> {
-        (0..machine.differences.len())
-            .filter(|&i| of(&machine.differences[i]) <= max)
-            .collect()
-    };
-    let mut sets = vec![("measured sensors", upto(0))];
-    for (max, label) in [
-        (1, "+ lagged sensors"),
-        (2, "+ lagged sensors + spindle load"),
-    ] {
-        let s = upto(max);
-        if s.len() > sets.last().map_or(0, |l| l.1.len()) {
-            sets.push((label, s));
-        }
-    }
-    sets
-}
-
-fn fit(
-    machine: &Machine,
-    train: &Day,
-    family: Family,
-    differences: &[usize],
-) -> Result<Fitted, String> {
-    let s = structure(
-        &format!(
-            "twin-{}",
-            match family {
-                Family::PositionIndependent => "prior-art",
-                _ => "position-dependent",
-            }
-        ),
-        machine,
-        family,
-        differences,
-        &[0, 1, 2],
-        true,
-    )
-    .map_err(|e| e.to_string())?;
-    // What a machine builder measures: the error at the tool's path, and the touch-probe grid
-    // of the scenario (seed C's on-line procedure), each with the temperatures of that instant.
-    let probes: Vec<(usize, [f64; 3], [f64; 3])> = train
+/// What a machine builder measures on the training day: the error at the tool's path, and the
+/// touch-probe grid of the scenario (seed C's on-line procedure), each with the temperatures of
+/// that instant.
+fn observations(train: &Day) -> Vec<Observation<'_>> {
+    let probes: Vec<(usize, &[f64; 3], [f64; 3])> = train
         .run
         .rows
         .iter()
         .enumerate()
-        .filter_map(|(i, r)| r.probe.as_ref().map(|p| (i, p.position_mm, p.measured_um)))
+        .filter_map(|(i, r)| r.probe.as_ref().map(|p| (i, &p.position_mm, p.measured_um)))
         .collect();
     let mut obs = Vec::new();
     let mut next_probe = 0;
@@ -254,8 +202,8 @@ fn fit(
             });
         }
         while next_probe < probes.len() && probes[next_probe].0 == i {
-            let (_, pos, measured) = &probes[next_probe];
-            for (a, &e) in measured.iter().enumerate() {
+            let (_, pos, measured) = probes[next_probe];
+            for (a, e) in measured.into_iter().enumerate() {
                 obs.push(Observation {
                     input: CycleInput {
                         temperatures_c: &train.temps[i],
@@ -269,7 +217,51 @@ fn fit(
             next_probe += 1;
         }
     }
-    fit_structure(&s, machine, obs).map_err(|e| e.to_string())
+    obs
+}
+
+/// The prior art and the position-dependent model, each chosen on the training day only.
+/// Inputs: the measured sensors' differences; with the lagged channels; with the spindle-load
+/// channels too. Families: linear position terms (embodiment 5) or with squares too
+/// (example 2); the prior art is chosen among the input sets the same way.
+fn fit_both(
+    machine: &Machine,
+    train: &Day,
+    say: &dyn Fn(&str),
+) -> Result<(Candidate, Candidate), String> {
+    let sets = input_sets(machine);
+    let obs = observations(train);
+    let mut tried = |c: &Candidate| {
+        say(&format!(
+            "  {}, inputs {}: cross-validated RMSE {:.2} µm (ridge {:e})",
+            c.family.name(),
+            c.inputs,
+            c.cv_rmse_um,
+            c.fitted.ridge
+        ))
+    };
+    let xyz = [0, 1, 2];
+    let prior = choose(
+        "twin-prior-art",
+        machine,
+        &[Family::PositionIndependent],
+        &sets,
+        &xyz,
+        &obs,
+        &mut tried,
+    )
+    .map_err(|e| e.to_string())?;
+    let posdep = choose(
+        "twin-position-dependent",
+        machine,
+        &[Family::AllAxes, Family::AllAxesSquared],
+        &sets,
+        &xyz,
+        &obs,
+        &mut tried,
+    )
+    .map_err(|e| e.to_string())?;
+    Ok((prior, posdep))
 }
 
 fn save(
@@ -296,6 +288,36 @@ fn save(
         .map_err(|e| format!("{}: cannot write: {e}", path.display()))
 }
 
+/// The test day's figures: uncompensated, prior art, position-dependent.
+struct Results {
+    none: Figures,
+    prior: Figures,
+    posdep: Figures,
+    /// Every how many rows of the test day the working volume is checked.
+    stride: usize,
+}
+
+impl Results {
+    fn new(twin: &Twin, test: &Day, prior: &Model, posdep: &Model, grid: usize) -> Self {
+        let stride = (test.run.rows.len() / 200).max(1);
+        let fig = |m: Option<&Model>| Figures {
+            path_rmse_um: path_rmse(test, m),
+            volume_max_um: volume_max(twin, test, m, grid, stride),
+        };
+        Self {
+            none: fig(None),
+            prior: fig(Some(prior)),
+            posdep: fig(Some(posdep)),
+            stride,
+        }
+    }
+
+    /// The fraction of the uncompensated working-volume maximum a model removes.
+    fn reduction(&self, f: &Figures) -> f64 {
+        1.0 - f.volume_max_um / self.none.volume_max_um
+    }
+}
+
 pub fn run(args: Args) -> Result<(), String> {
     let machine = machine_file::parse(Path::new("examples/twin/machine.toml"), TWIN_MACHINE)
         .map_err(|e| e.to_string())?
@@ -315,69 +337,51 @@ pub fn run(args: Args) -> Result<(), String> {
     say(&format!("twin: simulating the test day `{}` …", args.test));
     let test = day(&twin, &machine, &args.test, 2)?;
     say("fit: prior-art and position-dependent models on the training day only …");
-    // Which inputs and which family: chosen by the cross-validated error inside the training
-    // day only. Inputs: the measured sensors' differences; with the lagged channels (the
-    // structure behind a sensor); with the spindle-load channels too (what the control knows
-    // before a sensor does). Families: linear position terms (embodiment 5) or with squares
-    // too (example 2); the prior art is chosen among the input sets the same way.
-    let sets = input_sets(&machine);
-    let best = |families: &[Family]| -> Result<(Family, &'static str, Fitted), String> {
-        let mut fitted = Vec::new();
-        for &f in families {
-            for (label, differences) in &sets {
-                let m = fit(&machine, &train, f, differences)?;
-                let cv = m
-                    .cv_rmse_um
-                    .iter()
-                    .map(|c| c.1)
-                    .fold(f64::INFINITY, f64::min);
-                say(&format!(
-                    "  {}, inputs {label}: cross-validated RMSE {cv:.2} µm (ridge {:e})",
-                    f.name(),
-                    m.ridge
-                ));
-                fitted.push((cv, f, *label, m));
-            }
-        }
-        fitted.sort_by(|a, b| a.0.total_cmp(&b.0));
-        let (_, f, label, m) = fitted.swap_remove(0);
-        Ok((f, label, m))
-    };
-    let (_, prior_inputs, prior) = best(&[Family::PositionIndependent])?;
-    let (family, posdep_inputs, posdep) = best(&[Family::AllAxes, Family::AllAxesSquared])?;
+    let (prior, posdep) = fit_both(&machine, &train, &say)?;
 
     std::fs::create_dir_all(&args.out)
         .map_err(|e| format!("{}: cannot create: {e}", args.out.display()))?;
     save(
-        &prior,
+        &prior.fitted,
         &machine,
         &args.out.join("prior-art.model.toml"),
         Family::PositionIndependent,
         &args.train,
     )?;
     save(
-        &posdep,
+        &posdep.fitted,
         &machine,
         &args.out.join("position-dependent.model.toml"),
-        family,
+        posdep.family,
         &args.train,
     )?;
 
     say("evaluate: test day, at the tool's path and over the working volume …");
-    let stride = (test.run.rows.len() / 200).max(1);
-    let none = Figures {
-        path_rmse_um: path_rmse(&test, None),
-        volume_max_um: volume_max(&twin, &test, None, args.grid, stride),
-    };
-    let fig = |m: &Model| Figures {
-        path_rmse_um: path_rmse(&test, Some(m)),
-        volume_max_um: volume_max(&twin, &test, Some(m), args.grid, stride),
-    };
-    let prior_fig = fig(&prior.model);
-    let posdep_fig = fig(&posdep.model);
-    let reduction = |f: &Figures| 1.0 - f.volume_max_um / none.volume_max_um;
+    let results = Results::new(
+        &twin,
+        &test,
+        &prior.fitted.model,
+        &posdep.fitted.model,
+        args.grid,
+    );
+    let html = report(&args, &machine, &test, &posdep, results.stride)?;
+    if args.json {
+        print_json(&args, &results, &prior, &posdep, &html);
+    } else {
+        print_table(&args, &results, &prior, &posdep, &html);
+    }
+    Ok(())
+}
 
-    // The report: the position-dependent model on the test day at the tool's path.
+/// The report: the position-dependent model on the test day at the tool's path.
+fn report(
+    args: &Args,
+    machine: &Machine,
+    test: &Day,
+    posdep: &Candidate,
+    stride: usize,
+) -> Result<PathBuf, String> {
+    let (family, posdep) = (posdep.family, &posdep.fitted);
     let mut channels = Vec::new();
     for (a, name) in ["dx", "dy", "dz"].iter().enumerate() {
         let measured: Vec<f64> = test.run.rows.iter().map(|r| r.error_um[a]).collect();
@@ -385,7 +389,7 @@ pub fn run(args: Args) -> Result<(), String> {
             .map(|i| {
                 posdep
                     .model
-                    .evaluate(&input(&test, i))
+                    .evaluate(&input(test, i))
                     .map_or(f64::NAN, |c| c.error_um()[a])
             })
             .collect();
@@ -397,7 +401,7 @@ pub fn run(args: Args) -> Result<(), String> {
         });
     }
     let params = posdep.model.parameters();
-    let names = coefficient_names(&posdep.model, &machine);
+    let names = coefficient_names(&posdep.model, machine);
     let data = ReportData {
         title: "truepos demo: position-dependent model of the twin, on a test day it never saw".into(),
         time_s: test.run.rows.iter().map(|r| r.time_s).collect(),
@@ -425,53 +429,56 @@ pub fn run(args: Args) -> Result<(), String> {
             ("working volume".into(), format!("{0}×{0}×{0} grid over the travel, every {stride}-th sample of the test day", args.grid)),
         ],
     };
-    let html = write_report(&args.out.join("report"), &data).map_err(|e| e.to_string())?;
+    write_report(&args.out.join("report"), &data).map_err(|e| e.to_string())
+}
 
-    if args.json {
-        let v = serde_json::json!({
-            "train": args.train, "test": args.test,
-            "uncompensated": none,
-            "prior_art": { "inputs": prior_inputs, "figures": prior_fig, "volume_reduction": reduction(&prior_fig), "ridge": prior.ridge },
-            "position_dependent": { "family": family.name(), "inputs": posdep_inputs, "figures": posdep_fig, "volume_reduction": reduction(&posdep_fig), "ridge": posdep.ridge },
-            "report": html.display().to_string(),
-        });
-        println!("{v}");
-    } else {
+fn print_json(args: &Args, r: &Results, prior: &Candidate, posdep: &Candidate, html: &Path) {
+    let v = serde_json::json!({
+        "train": args.train, "test": args.test,
+        "uncompensated": r.none,
+        "prior_art": { "inputs": prior.inputs, "figures": r.prior, "volume_reduction": r.reduction(&r.prior), "ridge": prior.fitted.ridge },
+        "position_dependent": { "family": posdep.family.name(), "inputs": posdep.inputs, "figures": r.posdep, "volume_reduction": r.reduction(&r.posdep), "ridge": posdep.fitted.ridge },
+        "report": html.display().to_string(),
+    });
+    println!("{v}");
+}
+
+fn print_table(args: &Args, r: &Results, prior: &Candidate, posdep: &Candidate, html: &Path) {
+    println!(
+        "test day `{}` (never seen by the fit), errors of the tool relative to the workpiece:",
+        args.test
+    );
+    println!(
+        "{:<34} {:>9} {:>9} {:>9} {:>14} {:>10}",
+        "", "RMS dx", "RMS dy", "RMS dz", "max |e| volume", "reduction"
+    );
+    for (name, f) in [
+        ("uncompensated", &r.none),
+        ("prior art (position-independent)", &r.prior),
+        ("position-dependent (seed A)", &r.posdep),
+    ] {
         println!(
-            "test day `{}` (never seen by the fit), errors of the tool relative to the workpiece:",
-            args.test
+            "{:<34} {:>6.2} µm {:>6.2} µm {:>6.2} µm {:>11.2} µm {:>9.0} %",
+            name,
+            f.path_rmse_um[0],
+            f.path_rmse_um[1],
+            f.path_rmse_um[2],
+            f.volume_max_um,
+            100.0 * r.reduction(f)
         );
-        println!(
-            "{:<34} {:>9} {:>9} {:>9} {:>14} {:>10}",
-            "", "RMS dx", "RMS dy", "RMS dz", "max |e| volume", "reduction"
-        );
-        for (name, f) in [
-            ("uncompensated", &none),
-            ("prior art (position-independent)", &prior_fig),
-            ("position-dependent (seed A)", &posdep_fig),
-        ] {
-            println!(
-                "{:<34} {:>6.2} µm {:>6.2} µm {:>6.2} µm {:>11.2} µm {:>9.0} %",
-                name,
-                f.path_rmse_um[0],
-                f.path_rmse_um[1],
-                f.path_rmse_um[2],
-                f.volume_max_um,
-                100.0 * reduction(f)
-            );
-        }
-        println!(
-            "chosen by cross-validation on the training day: prior art with {prior_inputs}; {} with {posdep_inputs}",
-            family.name()
-        );
-        println!(
-            "models: {}/prior-art.model.toml, {}/position-dependent.model.toml",
-            args.out.display(),
-            args.out.display()
-        );
-        println!("report: {}", html.display());
     }
-    Ok(())
+    println!(
+        "chosen by cross-validation on the training day: prior art with {}; {} with {}",
+        prior.inputs,
+        posdep.family.name(),
+        posdep.inputs
+    );
+    println!(
+        "models: {}/prior-art.model.toml, {}/position-dependent.model.toml",
+        args.out.display(),
+        args.out.display()
+    );
+    println!("report: {}", html.display());
 }
 
 /// (channel, feature) of each parameter, in parameter order.

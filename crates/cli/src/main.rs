@@ -28,11 +28,13 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// The main job on built-in defaults: twin training and test days, fit, before/after, report.
+    /// The main job on built-in defaults: the position-dependent thermal model and the prior art
+    /// fitted on one day of the thermal twin, compared on another, with a report.
     Demo(demo::Args),
     /// Evaluate a compensation model on a recorded run (CSV of cycles) and write per-axis offsets.
     Eval(eval::Args),
-    /// Learn a dynamic compensation model from recorded runs (CSV/XLSX) and validate it honestly.
+    /// Learn a dynamic compensation model (filtered temperatures and spindle speed, or the
+    /// reference-sensor regression) from recorded runs (CSV/XLSX) and validate it honestly.
     Fit(Box<fit::Args>),
     /// Kinematics table with error tables: forward/inverse transforms, G-code rewrite.
     Kin(kin::Args),

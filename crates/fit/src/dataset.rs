@@ -1,9 +1,14 @@
 //! Recorded runs in memory: time, inputs (what the control knows: temperatures, operating state)
-//! and targets (measured errors, which a model must never read).
+//! and targets (measured errors, which a model must never read); built from run tables read by
+//! `truepos_io::run` and the columns a person names ([`Columns`], [`Dataset::from_tables`]).
 
+use std::convert::Infallible;
 use std::fmt;
+use std::str::FromStr;
 
 pub use truepos_io::dynamic_model_file::InputKind;
+use truepos_io::run::{glob_match, Table};
+use truepos_io::InputError;
 
 /// One recorded run.
 #[derive(Debug, Clone, PartialEq)]
@@ -19,6 +24,25 @@ pub struct Run {
 }
 
 impl Run {
+    /// The columns named `inputs` and `targets` of a table, and its time column.
+    fn from_table(
+        t: &Table,
+        time: &str,
+        inputs: &[String],
+        targets: &[String],
+    ) -> Result<Run, InputError> {
+        let col = |name: &str| t.select(&[name]).map(|v| v[0]);
+        let numbers = |names: &[String]| -> Result<Vec<Vec<f64>>, InputError> {
+            names.iter().map(|n| t.numbers(col(n)?)).collect()
+        };
+        Ok(Run {
+            name: t.name(),
+            time_s: t.time(col(time)?)?,
+            inputs: numbers(inputs)?,
+            targets: numbers(targets)?,
+        })
+    }
+
     /// Number of samples.
     pub fn len(&self) -> usize {
         self.time_s.len()
@@ -66,6 +90,20 @@ pub enum DatasetError {
     },
     /// No runs, inputs or targets.
     Empty,
+    /// A run table does not have a named column, or a cell is not a number.
+    Input(InputError),
+    /// A column chosen both as an input and as a target.
+    InputIsTarget {
+        /// Column name.
+        column: String,
+    },
+    /// A name that should be a temperature input of the dataset is not one.
+    NotATemperature {
+        /// The name given.
+        name: String,
+        /// The temperature inputs there are.
+        temperatures: Vec<String>,
+    },
 }
 
 impl fmt::Display for DatasetError {
@@ -88,11 +126,70 @@ impl fmt::Display for DatasetError {
                 )
             }
             Self::Empty => write!(f, "the dataset needs at least one run, input and target"),
+            Self::Input(e) => write!(f, "{e}"),
+            Self::InputIsTarget { column } => write!(
+                f,
+                "column `{column}` is both an input and a target: a model must never read the measured error"
+            ),
+            Self::NotATemperature { name, temperatures } => write!(
+                f,
+                "`{name}`: not a temperature input; the temperature inputs are {}",
+                temperatures.join(", ")
+            ),
         }
     }
 }
 
 impl std::error::Error for DatasetError {}
+
+impl From<InputError> for DatasetError {
+    fn from(e: InputError) -> Self {
+        Self::Input(e)
+    }
+}
+
+/// Column names or globs (`*` any run of characters, `?` one character), comma-separated:
+/// `t*_c,spindle_rpm`. Empty items are dropped.
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
+pub struct Patterns(pub Vec<String>);
+
+impl Patterns {
+    fn as_strs(&self) -> Vec<&str> {
+        self.0.iter().map(String::as_str).collect()
+    }
+
+    /// Whether any pattern matches `name`.
+    pub fn matches(&self, name: &str) -> bool {
+        self.0.iter().any(|p| glob_match(p, name))
+    }
+}
+
+impl FromStr for Patterns {
+    type Err = Infallible;
+
+    fn from_str(s: &str) -> Result<Self, Infallible> {
+        Ok(Self(
+            s.split(',')
+                .map(str::trim)
+                .filter(|p| !p.is_empty())
+                .map(String::from)
+                .collect(),
+        ))
+    }
+}
+
+/// Which columns of the run tables a dataset reads.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Columns {
+    /// The time column, in seconds.
+    pub time: String,
+    /// Input columns: what the control knows.
+    pub inputs: Patterns,
+    /// Target columns: measured errors in µm.
+    pub targets: Patterns,
+    /// Which inputs are operating state (filtered as is, and squared) rather than temperatures.
+    pub operating: Patterns,
+}
 
 /// Several runs with the same inputs and targets: fitted together, validated apart.
 #[derive(Debug, Clone, PartialEq)]
@@ -108,6 +205,62 @@ pub struct Dataset {
 }
 
 impl Dataset {
+    /// The dataset of several runs with the same columns: inputs and targets are chosen on the
+    /// first table (in pattern order, each column once) and read by name from every table, so
+    /// a run without one of them is refused naming it. Checked ([`Dataset::check`]).
+    pub fn from_tables(tables: &[Table], columns: &Columns) -> Result<Dataset, DatasetError> {
+        let first = tables.first().ok_or(DatasetError::Empty)?;
+        let names = |patterns: &Patterns| -> Result<Vec<String>, InputError> {
+            let cols = first.select(&patterns.as_strs())?;
+            Ok(cols.iter().map(|&c| first.columns[c].clone()).collect())
+        };
+        let input_names = names(&columns.inputs)?;
+        let target_names = names(&columns.targets)?;
+        if let Some(both) = input_names.iter().find(|n| target_names.contains(n)) {
+            return Err(DatasetError::InputIsTarget {
+                column: both.clone(),
+            });
+        }
+        let input_kinds = input_names
+            .iter()
+            .map(|n| {
+                if columns.operating.matches(n) {
+                    InputKind::Operating
+                } else {
+                    InputKind::Temperature
+                }
+            })
+            .collect();
+        let runs = tables
+            .iter()
+            .map(|t| Run::from_table(t, &columns.time, &input_names, &target_names))
+            .collect::<Result<_, _>>()?;
+        let ds = Dataset {
+            input_names,
+            input_kinds,
+            target_names,
+            runs,
+        };
+        ds.check()?;
+        Ok(ds)
+    }
+
+    /// The index of the temperature input `name` (e.g. the reference sensor of the
+    /// reference-sensor regression).
+    pub fn temperature_input(&self, name: &str) -> Result<usize, DatasetError> {
+        let temperatures = || {
+            (0..self.input_names.len()).filter(|&i| self.input_kinds[i] == InputKind::Temperature)
+        };
+        temperatures()
+            .find(|&i| self.input_names[i] == name)
+            .ok_or_else(|| DatasetError::NotATemperature {
+                name: name.to_string(),
+                temperatures: temperatures()
+                    .map(|i| self.input_names[i].clone())
+                    .collect(),
+            })
+    }
+
     /// Checks lengths, time order and finiteness.
     pub fn check(&self) -> Result<(), DatasetError> {
         if self.runs.is_empty() || self.input_names.is_empty() || self.target_names.is_empty() {
@@ -200,5 +353,65 @@ mod tests {
         let mut d = ds();
         d.runs[0].targets[0].pop();
         assert!(matches!(d.check(), Err(DatasetError::Length { .. })));
+    }
+
+    fn table(text: &str) -> Table {
+        truepos_io::run::parse_csv(std::path::Path::new("day.csv"), text).unwrap()
+    }
+
+    fn columns(inputs: &str, targets: &str) -> Columns {
+        Columns {
+            time: "time_s".into(),
+            inputs: inputs.parse().unwrap(),
+            targets: targets.parse().unwrap(),
+            operating: "*rpm*".parse().unwrap(),
+        }
+    }
+
+    #[test]
+    fn a_dataset_is_built_from_tables_and_column_globs() {
+        let t = table("time_s,t1_c,t2_c,spindle_rpm,dz_um\n0,20,21,0,1\n10,21,22,3000,2\n");
+        let ds =
+            Dataset::from_tables(&[t.clone(), t], &columns("t*_c, spindle_rpm", "*_um")).unwrap();
+        assert_eq!(ds.input_names, ["t1_c", "t2_c", "spindle_rpm"]);
+        assert_eq!(
+            ds.input_kinds,
+            [
+                InputKind::Temperature,
+                InputKind::Temperature,
+                InputKind::Operating
+            ]
+        );
+        assert_eq!(ds.target_names, ["dz_um"]);
+        assert_eq!(ds.runs.len(), 2);
+        assert_eq!(ds.runs[1].inputs[2], [0.0, 3000.0]);
+        assert_eq!(ds.temperature_input("t2_c"), Ok(1));
+        assert_eq!(
+            ds.temperature_input("spindle_rpm").unwrap_err().to_string(),
+            "`spindle_rpm`: not a temperature input; the temperature inputs are t1_c, t2_c"
+        );
+    }
+
+    #[test]
+    fn a_target_read_as_an_input_or_a_missing_column_is_refused() {
+        let t = table("time_s,t1_c,dz_um\n0,20,1\n10,21,2\n");
+        let e = Dataset::from_tables(std::slice::from_ref(&t), &columns("t1_c,dz_um", "dz_um"))
+            .unwrap_err();
+        assert_eq!(
+            e,
+            DatasetError::InputIsTarget {
+                column: "dz_um".into()
+            }
+        );
+        let e =
+            Dataset::from_tables(std::slice::from_ref(&t), &columns("t9_c", "dz_um")).unwrap_err();
+        assert!(e.to_string().contains("no column matches `t9_c`"), "{e}");
+        let other = table("time_s,t1_c\n0,20\n");
+        let e = Dataset::from_tables(&[t, other], &columns("t1_c", "dz_um")).unwrap_err();
+        assert!(e.to_string().contains("no column matches `dz_um`"), "{e}");
+        assert_eq!(
+            Dataset::from_tables(&[], &columns("t1_c", "dz_um")),
+            Err(DatasetError::Empty)
+        );
     }
 }

@@ -2,6 +2,9 @@
 //! crate's own [`FeatureBank`] so that the features fitted offline are exactly those the control
 //! computes online.
 
+use std::fmt;
+use std::str::FromStr;
+
 use faer::Mat;
 use truepos_model::{Feature, FeatureBank, FeatureKind, FeatureSpec};
 
@@ -168,7 +171,7 @@ impl Family {
         }
     }
 
-    /// Parses [`Family::name`].
+    /// The family of a [`Family::name`]; [`Family::from_str`] for what a person types.
     pub fn parse(s: &str) -> Option<Self> {
         Self::ALL.into_iter().find(|f| f.name() == s)
     }
@@ -190,6 +193,25 @@ impl Family {
                 matches!(self, Self::DynamicRunning | Self::DynamicRatesRunning)
             }
         }
+    }
+}
+
+impl FromStr for Family {
+    type Err = String;
+
+    /// A [`Family::name`]; the error lists them all.
+    fn from_str(s: &str) -> Result<Self, String> {
+        Self::parse(s.trim()).ok_or_else(|| {
+            let names: Vec<&str> = Self::ALL.iter().map(|f| f.name()).collect();
+            let (last, rest) = names.split_last().unwrap_or((&"", &[]));
+            format!("expected {} or {last}, got `{s}`", rest.join(", "))
+        })
+    }
+}
+
+impl fmt::Display for Family {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
     }
 }
 

@@ -3,7 +3,10 @@
 //! From recorded runs (time, temperatures, operating state, measured errors) to a model the
 //! control can run, validated honestly:
 //!
-//! - [`dataset`]: runs in memory; targets are taken relative to each run's first sample.
+//! - [`dataset`]: runs in memory, built from run tables and column globs
+//!   ([`dataset::Dataset::from_tables`]); targets are taken relative to each run's first sample.
+//! - [`settings`]: what the selection may choose from and how — family, ridge, inner CV, rule,
+//!   sensors, reference sensor — as typed values whose `FromStr` says what it expects.
 //! - [`features`]: candidate regressors — temperature rises, their first-order low-pass filters
 //!   and filtered rates of change, filtered spindle speed and its square — computed by the
 //!   real-time crate's own [`truepos_model::FeatureBank`], so offline and online features agree.
@@ -12,9 +15,15 @@
 //! - [`train`]: family, sensors and ridge chosen by blocked time-series cross-validation inside
 //!   the training rows only; export to a [`truepos_model::DynamicModel`].
 //! - [`validate`]: chronological split, leave one run out, blocked k-fold; RMSE, max |e|,
-//!   peak-to-peak and reduction versus uncompensated, per target channel.
-//! - the dynamic model file (`format = "truepos-dynamic-model"`, JSON) lives in
-//!   `truepos_io::dynamic_model_file`, so that the runtime reads it without the solvers.
+//!   peak-to-peak and reduction versus uncompensated, per target channel; [`validate::fit`]
+//!   runs features and validation in one call.
+//! - [`export`]: the fit as a dynamic model file (`format = "truepos-dynamic-model"`, JSON),
+//!   whose reading and writing live in `truepos_io::dynamic_model_file`, so that the runtime
+//!   reads it without the solvers.
+//! - [`position_model`]: the position-dependent thermal model's families (seed A) fitted from
+//!   observations, the ridge chosen by blocked cross-validation, and family and input set
+//!   chosen the same way (`choose`, what `truepos demo` runs); [`reidentify`]: its parameters
+//!   re-estimated on line from probe measurements (seed C).
 //!
 //! ## Example
 //! A structure whose growth lags the spindle speed by a first-order lag of 1800 s: the
@@ -23,7 +32,7 @@
 //! ```
 //! use truepos_fit::dataset::{Dataset, InputKind, Run};
 //! use truepos_fit::features::candidates;
-//! use truepos_fit::train::Settings;
+//! use truepos_fit::settings::Settings;
 //! use truepos_fit::validate::{validate, Split};
 //!
 //! let (mut t, mut rpm, mut temp, mut growth) = (vec![], vec![], vec![], vec![]);
@@ -43,7 +52,7 @@
 //! ds.check().unwrap();
 //! let settings = Settings::default();
 //! let cand = candidates(&ds, &settings.taus).unwrap();
-//! let split = Split::parse("chrono:0.6").unwrap();
+//! let split: Split = "chrono:0.6".parse().unwrap();
 //! let (v, _model, _pred) = validate(&ds, &cand, split, &settings, &mut |_, _| {}).unwrap();
 //! assert!(v.metrics[0].rmse_um < 0.05 * v.metrics[0].uncompensated_rmse_um);
 //! ```
@@ -51,9 +60,11 @@
 #![warn(missing_docs)]
 
 pub mod dataset;
+pub mod export;
 pub mod features;
 pub mod least_squares;
 pub mod position_model;
 pub mod reidentify;
+pub mod settings;
 pub mod train;
 pub mod validate;

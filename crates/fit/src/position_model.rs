@@ -7,9 +7,11 @@
 //! control evaluates. The ridge weight is chosen by blocked time-series cross-validation inside
 //! the observations given (the training part), never on data the caller holds out.
 
+use std::fmt;
+
 use truepos_model::{
-    Carriage, CycleInput, Machine, Model, ModelError, Part, PartForm, PositionFactor, PositionTerm,
-    Summand,
+    Carriage, CycleInput, LagSource, Machine, Model, ModelError, Part, PartForm, PositionFactor,
+    PositionTerm, Reference, Summand, TemperatureDifference,
 };
 
 use crate::least_squares::{Accumulator, Solution, SolveError, SolveOptions};
@@ -214,4 +216,217 @@ pub fn fit_structure<'a>(
         observations: rows.len(),
         skipped,
     })
+}
+
+/// A candidate set of inputs: which of the machine's temperature differences a model reads.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct InputSet {
+    /// What the set holds, for reports.
+    pub label: &'static str,
+    /// Indices into the machine's differences.
+    pub differences: Vec<usize>,
+}
+
+/// Candidate input sets of a machine, each larger than the one before: differences of measured
+/// channels only; with the lags of temperature sensors (the structure behind a sensor); with
+/// the lags of operating state as well (what the control knows before a sensor does).
+pub fn input_sets(machine: &Machine) -> Vec<InputSet> {
+    // 0 measured, 1 lag of a sensor, 2 lag of operating state; a difference is the most
+    // derived of its channels.
+    let level = |c: usize| match machine.temperatures[c].lag.map(|l| l.source) {
+        None => 0,
+        Some(LagSource::Temperature(_)) => 1,
+        Some(LagSource::Operating { .. }) => 2,
+    };
+    let of = |d: &TemperatureDifference| match d.minus {
+        Reference::Sensor(m) => level(d.plus).max(level(m)),
+        Reference::Fixed(_) => level(d.plus),
+    };
+    let upto = |max: u8| -> Vec<usize> {
+        (0..machine.differences.len())
+            .filter(|&i| of(&machine.differences[i]) <= max)
+            .collect()
+    };
+    let mut sets = vec![InputSet {
+        label: "measured sensors",
+        differences: upto(0),
+    }];
+    for (max, label) in [
+        (1, "+ lagged sensors"),
+        (2, "+ lagged sensors + spindle load"),
+    ] {
+        let differences = upto(max);
+        if differences.len() > sets.last().map_or(0, |l| l.differences.len()) {
+            sets.push(InputSet { label, differences });
+        }
+    }
+    sets
+}
+
+/// One candidate of [`choose`]: a family on an input set, fitted.
+#[derive(Debug, Clone)]
+pub struct Candidate {
+    /// The family.
+    pub family: Family,
+    /// The input set's label.
+    pub inputs: &'static str,
+    /// The lowest cross-validated RMSE over the ridge grid, µm.
+    pub cv_rmse_um: f64,
+    /// The fitted model.
+    pub fitted: Fitted,
+}
+
+/// Why no model could be chosen.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ChooseError {
+    /// A structure could not be built on the machine.
+    Model(ModelError),
+    /// A fit failed.
+    Solve(SolveError),
+    /// No family or no input set was given.
+    NoCandidate,
+}
+
+impl fmt::Display for ChooseError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::Model(e) => write!(f, "{e}"),
+            Self::Solve(e) => write!(f, "{e}"),
+            Self::NoCandidate => write!(f, "no family or no input set to choose from"),
+        }
+    }
+}
+
+impl std::error::Error for ChooseError {}
+
+/// Fits every family on every input set (`name`d models of every target axis, with a constant)
+/// and returns the one with the lowest cross-validated RMSE, the first of equals in the order
+/// given: the choice is made inside the observations (the training part) only. `tried` sees
+/// every candidate as it is fitted.
+pub fn choose(
+    name: &str,
+    machine: &Machine,
+    families: &[Family],
+    sets: &[InputSet],
+    targets: &[usize],
+    observations: &[Observation<'_>],
+    tried: &mut dyn FnMut(&Candidate),
+) -> Result<Candidate, ChooseError> {
+    let mut candidates = Vec::new();
+    for &family in families {
+        for set in sets {
+            let s = structure(name, machine, family, &set.differences, targets, true)
+                .map_err(ChooseError::Model)?;
+            let fitted = fit_structure(&s, machine, observations.iter().copied())
+                .map_err(ChooseError::Solve)?;
+            let cv_rmse_um = fitted
+                .cv_rmse_um
+                .iter()
+                .map(|c| c.1)
+                .fold(f64::INFINITY, f64::min);
+            let candidate = Candidate {
+                family,
+                inputs: set.label,
+                cv_rmse_um,
+                fitted,
+            };
+            tried(&candidate);
+            candidates.push(candidate);
+        }
+    }
+    // A stable sort: among equal scores the first given (the simpler) wins.
+    candidates.sort_by(|a, b| a.cv_rmse_um.total_cmp(&b.cv_rmse_um));
+    candidates
+        .into_iter()
+        .next()
+        .ok_or(ChooseError::NoCandidate)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn twin_machine() -> Machine {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../examples/twin/machine.toml");
+        truepos_io::machine_file::load(&path).unwrap().machine
+    }
+
+    #[test]
+    fn input_sets_grow_and_the_choice_finds_the_position_dependent_truth() {
+        let machine = twin_machine();
+        let sets = input_sets(&machine);
+        assert_eq!(sets[0].label, "measured sensors");
+        for w in sets.windows(2) {
+            assert!(w[0].differences.len() < w[1].differences.len());
+        }
+        // The truth: the all-axes form on the measured sensors, with made-up coefficients.
+        let truth = structure(
+            "truth",
+            &machine,
+            Family::AllAxes,
+            &sets[0].differences,
+            &[0, 1, 2],
+            true,
+        )
+        .unwrap();
+        let theta: Vec<f64> = (0..truth.parameter_count())
+            .map(|i| ((i * 7919) % 13) as f64 / 13.0 - 0.5)
+            .collect();
+        let truth = truth.with_parameters(&machine, &theta).unwrap();
+        let mut rng = 12345u64;
+        let mut draw = || {
+            rng = rng
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (rng >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let rows: Vec<(Vec<f64>, Vec<f64>)> = (0..300)
+            .map(|_| {
+                let temps = (0..machine.temperatures.len())
+                    .map(|_| 18.0 + 8.0 * draw())
+                    .collect();
+                let pos = machine
+                    .axes
+                    .iter()
+                    .map(|a| a.travel_min + (a.travel_max - a.travel_min) * draw())
+                    .collect();
+                (temps, pos)
+            })
+            .collect();
+        let op = vec![0.0; machine.operating.len()];
+        fn input<'a>(r: &'a (Vec<f64>, Vec<f64>), op: &'a [f64]) -> CycleInput<'a> {
+            CycleInput {
+                temperatures_c: &r.0,
+                positions: &r.1,
+                operating: op,
+            }
+        }
+        let mut obs = Vec::new();
+        for r in &rows {
+            let e = truth.evaluate(&input(r, &op)).unwrap();
+            for a in 0..3 {
+                obs.push(Observation {
+                    input: input(r, &op),
+                    axis: a,
+                    error_um: e.error_um()[a],
+                });
+            }
+        }
+        let mut tried = 0;
+        let families = [Family::PositionIndependent, Family::AllAxes];
+        let best = choose(
+            "m",
+            &machine,
+            &families,
+            &sets[..1],
+            &[0, 1, 2],
+            &obs,
+            &mut |_| tried += 1,
+        )
+        .unwrap();
+        assert_eq!(tried, 2);
+        assert_eq!(best.family, Family::AllAxes);
+        assert!(best.cv_rmse_um < 1e-3, "{}", best.cv_rmse_um);
+    }
 }

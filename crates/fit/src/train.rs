@@ -15,124 +15,9 @@ use faer::Mat;
 use truepos_model::{DynamicModel, FeatureBank, FeatureKind};
 
 use crate::dataset::{Dataset, InputKind};
-use crate::features::{bank_for, Candidates, Family, TimeConstants};
+use crate::features::{bank_for, Candidates, Family};
 use crate::least_squares::{Accumulator, SolveOptions};
-
-/// What the automatic selection may choose from; fix anything by giving one choice.
-#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct Settings {
-    /// Candidate time constants.
-    pub taus: TimeConstants,
-    /// Candidate families.
-    pub families: Vec<Family>,
-    /// Candidate ridge parameters (relative, on unit-norm columns).
-    pub ridges: Vec<f64>,
-    /// Blocks of the inner cross-validation.
-    pub folds: usize,
-    /// Which blocks train the model that predicts a held-out block.
-    #[serde(default)]
-    pub inner: InnerCv,
-    /// How the CV scores pick the settings.
-    pub rule: Rule,
-    /// Run with at most this many temperature sensors (chosen by correlation ranking and greedy
-    /// forward selection); `None` = all.
-    pub max_sensors: Option<usize>,
-    /// Seed C's reference sensor (dataset input index): with it, [`Family::SeedC`] is a
-    /// candidate and the reference is always among the sensors.
-    #[serde(default)]
-    pub reference: Option<usize>,
-}
-
-impl Default for Settings {
-    fn default() -> Self {
-        Self {
-            taus: TimeConstants::default(),
-            families: Family::ALL.to_vec(),
-            ridges: vec![0.0, 1e-6, 1e-5, 1e-4, 1e-3, 3e-3, 1e-2, 3e-2, 0.1, 0.3, 1.0],
-            folds: 8,
-            inner: InnerCv::Blocked,
-            rule: Rule::OneStandardError,
-            max_sensors: None,
-            reference: None,
-        }
-    }
-}
-
-/// Which blocks of the training rows fit the model that predicts a held-out block.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum InnerCv {
-    /// Every other block, before and after it (k-fold on contiguous blocks). The default: every
-    /// fold trains on nearly all rows, so the per-fold errors are comparable and the
-    /// one-standard-error rule is meaningful.
-    #[default]
-    Blocked,
-    /// Only the blocks before it (rolling origin); the first [`ROLLING_FIRST_HELD_OUT`] blocks
-    /// only train. Scores the model as it is used, forward in time; but the early folds train on
-    /// little data, their large errors widen the standard error, and the one-standard-error rule
-    /// then leans towards heavy ridge (docs/fitting.md has both on FL_THERMAL).
-    Rolling,
-}
-
-/// Index of the first block a rolling-origin CV predicts: two blocks at least train every fold,
-/// so that no score comes from a model fitted on a single stretch of operation.
-pub const ROLLING_FIRST_HELD_OUT: usize = 2;
-
-impl InnerCv {
-    /// Parses `blocked` or `rolling`.
-    pub fn parse(s: &str) -> Option<Self> {
-        match s {
-            "blocked" => Some(Self::Blocked),
-            "rolling" => Some(Self::Rolling),
-            _ => None,
-        }
-    }
-
-    /// Whether block `g` trains the model that predicts held-out block `f`.
-    fn trains(self, g: usize, f: usize) -> bool {
-        match self {
-            Self::Blocked => g != f,
-            Self::Rolling => g < f,
-        }
-    }
-
-    /// Whether block `f` is scored at all.
-    fn holds_out(self, f: usize) -> bool {
-        match self {
-            Self::Blocked => true,
-            Self::Rolling => f >= ROLLING_FIRST_HELD_OUT,
-        }
-    }
-}
-
-impl Settings {
-    /// The selection protocol in words, for reports and `--json`.
-    pub fn describe_selection(&self) -> String {
-        let cv = match self.inner {
-            InnerCv::Blocked => format!("blocked {}-fold CV (contiguous blocks)", self.folds),
-            InnerCv::Rolling => format!(
-                "rolling-origin CV ({} contiguous blocks, each from block {} on predicted by a model fitted on the blocks before it)",
-                self.folds,
-                ROLLING_FIRST_HELD_OUT + 1
-            ),
-        };
-        let rule = match self.rule {
-            Rule::MinimumCv => "lowest CV error",
-            Rule::OneStandardError => "one-standard-error rule",
-        };
-        format!("{cv}, {rule}")
-    }
-}
-
-/// How the inner cross-validation scores choose among candidates.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum Rule {
-    /// The candidate with the lowest CV RMSE.
-    MinimumCv,
-    /// The most regularised candidate of the best family within one standard error of the best.
-    OneStandardError,
-}
+use crate::settings::{InnerCv, Rule, Settings, ROLLING_FIRST_HELD_OUT};
 
 /// What was chosen for one target.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -650,7 +535,7 @@ fn greedy_sensors(p: &Problem<'_>, settings: &Settings, max: usize) -> Vec<usize
 mod tests {
     use super::*;
     use crate::dataset::Run;
-    use crate::features::candidates;
+    use crate::features::{candidates, TimeConstants};
     use crate::validate::predict;
 
     /// Two runs of a machine whose growth lags the spindle and one of two sensors.

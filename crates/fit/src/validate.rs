@@ -6,10 +6,12 @@
 //! stepped through each run from its start, exactly as the control would run it.
 
 use std::fmt;
+use std::str::FromStr;
 
 use crate::dataset::Dataset;
-use crate::features::Candidates;
-use crate::train::{train, Choice, Settings, Trained};
+use crate::features::{candidates, Candidates};
+use crate::settings::Settings;
+use crate::train::{train, Choice, Trained};
 
 /// How rows are split into training and test parts.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -30,13 +32,15 @@ pub enum Split {
     },
 }
 
-impl Split {
-    /// Parses `chrono:0.6`, `runs` or `kfold:5`.
-    pub fn parse(s: &str) -> Result<Self, String> {
+impl FromStr for Split {
+    type Err = String;
+
+    /// `chrono:0.6`, `runs` or `kfold:5`.
+    fn from_str(s: &str) -> Result<Self, String> {
         let bad = || {
-            format!("split `{s}`: expected chrono:<fraction 0…1>, runs (leave one run out) or kfold:<k ≥ 2>")
+            format!("expected chrono:<fraction 0…1>, runs (leave one run out) or kfold:<k ≥ 2>, got `{s}`")
         };
-        match s.split_once(':') {
+        match s.trim().split_once(':') {
             Some(("chrono", f)) => match f.parse::<f64>() {
                 Ok(f) if f > 0.0 && f < 1.0 => Ok(Self::Chronological { train_fraction: f }),
                 _ => Err(bad()),
@@ -45,11 +49,13 @@ impl Split {
                 Ok(k) if k >= 2 => Ok(Self::BlockedKFold { k }),
                 _ => Err(bad()),
             },
-            None if s == "runs" => Ok(Self::LeaveOneRunOut),
+            None if s.trim() == "runs" => Ok(Self::LeaveOneRunOut),
             _ => Err(bad()),
         }
     }
+}
 
+impl Split {
     /// (train rows, test rows) per outer fold, as (run, row) pairs in time order.
     #[allow(clippy::type_complexity)]
     pub fn folds(
@@ -274,4 +280,32 @@ pub fn validate(
         trained,
         pred,
     ))
+}
+
+/// A fit from a dataset: the validation figures, the model fitted on the (last) training part
+/// and its predictions over every run.
+#[derive(Debug, Clone)]
+pub struct Outcome {
+    /// Figures pooled over the outer folds.
+    pub validation: Validation,
+    /// The model of the last outer fold's training part (for `chrono`, the only one).
+    pub trained: Trained,
+    /// Its predictions over whole runs.
+    pub predictions: Predictions,
+}
+
+/// Candidate features of the dataset, then [`validate`]: what `truepos fit` runs.
+pub fn fit(
+    dataset: &Dataset,
+    split: Split,
+    settings: &Settings,
+    progress: &mut dyn FnMut(usize, usize),
+) -> Result<Outcome, String> {
+    let cand = candidates(dataset, &settings.taus).map_err(|e| e.to_string())?;
+    let (validation, trained, predictions) = validate(dataset, &cand, split, settings, progress)?;
+    Ok(Outcome {
+        validation,
+        trained,
+        predictions,
+    })
 }

@@ -36,7 +36,8 @@ use serde::Deserialize;
 
 use crate::beam::Material;
 use crate::machine::{DriveHeat, SpindleHeat};
-use crate::scenario::{toml_error, Checker, ScenarioError, Seg};
+use crate::scenario::checker::{toml_error, Checker, Seg};
+use crate::scenario::ScenarioError;
 
 /// Material and casting of one part.
 #[derive(Debug, Clone, Copy, PartialEq)]

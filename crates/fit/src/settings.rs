@@ -1,0 +1,238 @@
+//! What a fit may choose from and how it chooses — family, ridge, inner cross-validation,
+//! selection rule, sensors, reference sensor — as typed values. Each value a person types has a
+//! [`FromStr`] whose error says what was expected, so the command line (as clap value parsers),
+//! scripts and tests read them the same way; lists are comma-separated ([`Families`],
+//! [`Ridges`]). The outer validation protocol is [`crate::validate::Split`].
+
+use std::fmt;
+use std::str::FromStr;
+
+use crate::features::{Family, TimeConstants};
+
+/// What the automatic selection may choose from; fix anything by giving one choice.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Settings {
+    /// Candidate time constants.
+    pub taus: TimeConstants,
+    /// Candidate families.
+    pub families: Vec<Family>,
+    /// Candidate ridge parameters (relative, on unit-norm columns).
+    pub ridges: Vec<f64>,
+    /// Blocks of the inner cross-validation.
+    pub folds: usize,
+    /// Which blocks train the model that predicts a held-out block.
+    #[serde(default)]
+    pub inner: InnerCv,
+    /// How the CV scores pick the settings.
+    pub rule: Rule,
+    /// Run with at most this many temperature sensors (chosen by correlation ranking and greedy
+    /// forward selection); `None` = all.
+    pub max_sensors: Option<usize>,
+    /// Seed C's reference sensor (dataset input index): with it, [`Family::SeedC`] is a
+    /// candidate and the reference is always among the sensors.
+    #[serde(default)]
+    pub reference: Option<usize>,
+}
+
+impl Default for Settings {
+    fn default() -> Self {
+        Self {
+            taus: TimeConstants::default(),
+            families: Family::ALL.to_vec(),
+            ridges: vec![0.0, 1e-6, 1e-5, 1e-4, 1e-3, 3e-3, 1e-2, 3e-2, 0.1, 0.3, 1.0],
+            folds: 8,
+            inner: InnerCv::Blocked,
+            rule: Rule::OneStandardError,
+            max_sensors: None,
+            reference: None,
+        }
+    }
+}
+
+/// Which blocks of the training rows fit the model that predicts a held-out block.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum InnerCv {
+    /// Every other block, before and after it (k-fold on contiguous blocks). The default: every
+    /// fold trains on nearly all rows, so the per-fold errors are comparable and the
+    /// one-standard-error rule is meaningful.
+    #[default]
+    Blocked,
+    /// Only the blocks before it (rolling origin); the first [`ROLLING_FIRST_HELD_OUT`] blocks
+    /// only train. Scores the model as it is used, forward in time; but the early folds train on
+    /// little data, their large errors widen the standard error, and the one-standard-error rule
+    /// then leans towards heavy ridge (docs/fitting.md has both on FL_THERMAL).
+    Rolling,
+}
+
+/// Index of the first block a rolling-origin CV predicts: two blocks at least train every fold,
+/// so that no score comes from a model fitted on a single stretch of operation.
+pub const ROLLING_FIRST_HELD_OUT: usize = 2;
+
+impl InnerCv {
+    /// Whether block `g` trains the model that predicts held-out block `f`.
+    pub(crate) fn trains(self, g: usize, f: usize) -> bool {
+        match self {
+            Self::Blocked => g != f,
+            Self::Rolling => g < f,
+        }
+    }
+
+    /// Whether block `f` is scored at all.
+    pub(crate) fn holds_out(self, f: usize) -> bool {
+        match self {
+            Self::Blocked => true,
+            Self::Rolling => f >= ROLLING_FIRST_HELD_OUT,
+        }
+    }
+}
+
+impl Settings {
+    /// The selection protocol in words, for reports and `--json`.
+    pub fn describe_selection(&self) -> String {
+        let cv = match self.inner {
+            InnerCv::Blocked => format!("blocked {}-fold CV (contiguous blocks)", self.folds),
+            InnerCv::Rolling => format!(
+                "rolling-origin CV ({} contiguous blocks, each from block {} on predicted by a model fitted on the blocks before it)",
+                self.folds,
+                ROLLING_FIRST_HELD_OUT + 1
+            ),
+        };
+        let rule = match self.rule {
+            Rule::MinimumCv => "lowest CV error",
+            Rule::OneStandardError => "one-standard-error rule",
+        };
+        format!("{cv}, {rule}")
+    }
+}
+
+/// How the inner cross-validation scores choose among candidates.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Rule {
+    /// The candidate with the lowest CV RMSE.
+    MinimumCv,
+    /// The most regularised candidate of the best family within one standard error of the best.
+    OneStandardError,
+}
+
+impl FromStr for InnerCv {
+    type Err = String;
+
+    /// `blocked` or `rolling`.
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s.trim() {
+            "blocked" => Ok(Self::Blocked),
+            "rolling" => Ok(Self::Rolling),
+            _ => Err(format!("expected blocked or rolling, got `{s}`")),
+        }
+    }
+}
+
+impl FromStr for Rule {
+    type Err = String;
+
+    /// `1se` ([`Rule::OneStandardError`]) or `min` ([`Rule::MinimumCv`]).
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s.trim() {
+            "1se" => Ok(Self::OneStandardError),
+            "min" => Ok(Self::MinimumCv),
+            _ => Err(format!("expected 1se or min, got `{s}`")),
+        }
+    }
+}
+
+/// The items of a comma-separated list, trimmed, empty items dropped (`dynamic, static,`).
+fn items(s: &str) -> impl Iterator<Item = &str> {
+    s.split(',').map(str::trim).filter(|p| !p.is_empty())
+}
+
+/// Candidate families, comma-separated: `dynamic` fixes the family, `static,dynamic` lets the
+/// selection choose between two.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Families(pub Vec<Family>);
+
+impl FromStr for Families {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, String> {
+        items(s).map(str::parse).collect::<Result<_, _>>().map(Self)
+    }
+}
+
+/// The largest ridge parameter a person may give: relative to unit-norm columns, 10¹² already
+/// shrinks every coefficient to nothing.
+pub const MAX_RIDGE: f64 = 1e12;
+
+/// Candidate ridge parameters, comma-separated, each finite in [0, [`MAX_RIDGE`]].
+#[derive(Debug, Clone, PartialEq)]
+pub struct Ridges(pub Vec<f64>);
+
+impl FromStr for Ridges {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, String> {
+        items(s)
+            .map(truepos_io::limits::finite_in(0.0, MAX_RIDGE))
+            .collect::<Result<_, _>>()
+            .map(Self)
+    }
+}
+
+impl fmt::Display for Rule {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            Self::OneStandardError => "1se",
+            Self::MinimumCv => "min",
+        })
+    }
+}
+
+impl fmt::Display for InnerCv {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            Self::Blocked => "blocked",
+            Self::Rolling => "rolling",
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn typed_settings_parse_and_say_what_they_expect() {
+        for rule in [Rule::OneStandardError, Rule::MinimumCv] {
+            assert_eq!(rule.to_string().parse::<Rule>(), Ok(rule));
+        }
+        for inner in [InnerCv::Blocked, InnerCv::Rolling] {
+            assert_eq!(inner.to_string().parse::<InnerCv>(), Ok(inner));
+        }
+        assert_eq!(
+            "median".parse::<Rule>().unwrap_err(),
+            "expected 1se or min, got `median`"
+        );
+        assert!("random"
+            .parse::<InnerCv>()
+            .unwrap_err()
+            .contains("blocked or rolling"));
+        assert_eq!(
+            "dynamic, static,".parse::<Families>(),
+            Ok(Families(vec![Family::Dynamic, Family::Static]))
+        );
+        assert!("dynamic,warm"
+            .parse::<Families>()
+            .unwrap_err()
+            .ends_with("got `warm`"));
+        assert_eq!("0, 1e-3".parse::<Ridges>(), Ok(Ridges(vec![0.0, 1e-3])));
+        for bad in ["-1", "1e13", "nan", "x"] {
+            assert!(
+                bad.parse::<Ridges>()
+                    .unwrap_err()
+                    .contains("[0, 1000000000000]"),
+                "{bad}"
+            );
+        }
+    }
+}
