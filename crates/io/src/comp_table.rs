@@ -26,7 +26,7 @@ use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::Path;
 
-use truepos_model::table::{CompTable, Interpolation, Wrap};
+use truepos_kinematics::table::{CompTable, Interpolation, Wrap};
 
 use crate::error::InputError;
 
@@ -79,8 +79,12 @@ fn fields(line: &str, sep: Option<char>) -> Vec<(usize, &str)> {
     out
 }
 
-fn table_error(path: &Path, lines: &[usize], e: truepos_model::table::TableError) -> InputError {
-    use truepos_model::table::TableError as E;
+fn table_error(
+    path: &Path,
+    lines: &[usize],
+    e: truepos_kinematics::table::TableError,
+) -> InputError {
+    use truepos_kinematics::table::TableError as E;
     let line = match e {
         E::NonFinite { index } | E::NotIncreasing { index } => lines.get(index).copied(),
         E::JointMismatch { .. } | E::SpanTooLarge { .. } => lines.last().copied(),

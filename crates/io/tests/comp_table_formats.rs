@@ -5,7 +5,7 @@ use std::path::Path;
 
 use proptest::prelude::*;
 use truepos_io::comp_table::*;
-use truepos_model::table::{CompTable, Direction, Interpolation, Wrap};
+use truepos_kinematics::table::{CompTable, Direction, Interpolation, Wrap};
 
 fn p() -> &'static Path {
     Path::new("t.comp")

@@ -64,13 +64,11 @@ extern crate std;
 
 pub mod dynamic;
 pub mod evaluate;
-pub mod kinematics;
 pub mod lag;
 pub mod machine;
 pub mod model;
 pub mod parameters;
 pub mod rls;
-pub mod table;
 pub mod timing;
 
 pub use dynamic::{DynamicError, DynamicModel, Feature, FeatureBank, FeatureKind, FeatureSpec};

@@ -20,9 +20,13 @@
 
 #![allow(clippy::needless_range_loop)] // index-heavy small matrix maths reads clearer with indices
 
-use super::forward::Tangents;
-use super::{Chain, Directions, Geometry, KinAxis, KinError, Layout, Pose, Step, DEG};
-use crate::machine::MAX_AXES;
+use truepos_model::{AxisKind, MAX_AXES};
+
+use crate::chain::{Chain, Directions, ErrRef, Geometry, Layout, Pose, Step};
+use crate::description::KinAxis;
+use crate::error::KinError;
+use crate::forward::Tangents;
+use crate::{sincos, DEG};
 
 /// The inverse transform stops when the TCP is this close to the target (0.5 nm, half the
 /// 1 nm the issue asks for).
@@ -163,7 +167,7 @@ pub(crate) fn analyse(axes: &[KinAxis], steps: &[Step]) -> Layout {
         match *step {
             Step::ErrTranslate { e, .. } | Step::ErrRotate { e, .. } => {
                 let axis = &axes[usize::from(e.axis)];
-                if axis.kind != crate::machine::AxisKind::Rotary || e.forward != e.reverse {
+                if axis.kind != AxisKind::Rotary || e.forward != e.reverse {
                     real_linear = false;
                 }
             }
@@ -193,7 +197,7 @@ pub(crate) fn analyse(axes: &[KinAxis], steps: &[Step]) -> Layout {
                 ..
             } => rotate_m(&mut m, k, nominal_c, nominal_s),
             Step::ErrRotate { k, e } => {
-                let (s, c) = super::sincos(e.offset);
+                let (s, c) = sincos(e.offset);
                 rotate_m(&mut m, k, c, s);
             }
             Step::AxisTranslate { axis, .. } => {
@@ -938,12 +942,12 @@ impl Chain {
                 }
                 Step::ErrRotate { k, e } => {
                     // Translation rows are skipped here, so every row locates its position.
-                    let e = super::ErrRef {
+                    let e = ErrRef {
                         relocate: true,
                         ..e
                     };
                     let (angle, _) = self.error_value::<false>(&e, &mut at, &q[..n], dirs);
-                    let (s, c) = super::sincos(angle);
+                    let (s, c) = sincos(angle);
                     rotate_m(&mut m, k, c, s);
                 }
                 Step::AxisRotate { k, .. } => {
@@ -1533,7 +1537,6 @@ fn directions_from(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::machine::AxisKind;
 
     #[test]
     fn subproblem_two_recovers_known_angles() {

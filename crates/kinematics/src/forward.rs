@@ -2,9 +2,12 @@
 //! coordinates, nominal or through the error tables, optionally with the exact Jacobian
 //! (forward-mode differentiation through every row, including the slopes of the tables).
 
-use super::{Chain, Directions, ErrRef, Geometry, KinError, Pose, Step, DEG};
-use crate::machine::{AxisKind, MAX_AXES};
+use truepos_model::{AxisKind, MAX_AXES};
+
+use crate::chain::{Chain, Directions, ErrRef, Geometry, Pose, Slide, Step};
+use crate::error::KinError;
 use crate::table::Location;
+use crate::{sincos, DEG};
 
 /// Derivatives of the TCP (`dp`) and the tool direction (`dd`) with respect to each axis, per
 /// mm for linear axes and per radian for rotary ones.
@@ -387,7 +390,7 @@ impl Chain {
                 Step::AxisRotate { .. } => return None,
                 Step::ErrRotate { k, e } => {
                     let (angle, slope) = self.error_value::<true>(&e, &mut at, q, dirs);
-                    let (s, c) = super::sincos(angle);
+                    let (s, c) = sincos(angle);
                     x.rotate(k, c, s);
                     x.add_cross(k, 1 + usize::from(e.axis), slope * e.per_unit);
                 }
@@ -411,7 +414,7 @@ impl Chain {
                     }
                     for k in 0..3 {
                         if sl.present >> (3 + k) & 1 == 1 {
-                            let (s, c) = super::sincos(v[3 + k]);
+                            let (s, c) = sincos(v[3 + k]);
                             x.rotate(k, c, s);
                             x.add_cross(k, lane, slope[3 + k] * sl.per_unit);
                         }
@@ -547,7 +550,7 @@ impl Chain {
                     }
                 }
                 Step::AxisRotate { k, axis, sign } => {
-                    let (s, c) = super::sincos(sign * q[axis] * DEG);
+                    let (s, c) = sincos(sign * q[axis] * DEG);
                     x.rotate(k, c, s);
                     if JAC {
                         if let Some(t) = tangents.as_deref_mut() {
@@ -571,7 +574,7 @@ impl Chain {
                     } else {
                         (e.offset, 0.0)
                     };
-                    let (s, c) = super::sincos(angle);
+                    let (s, c) = sincos(angle);
                     let axis = usize::from(e.axis);
                     err_rotate::<JAC, ACTUAL, DIR_JAC, OMEGA>(
                         &mut x,
@@ -605,7 +608,7 @@ impl Chain {
         }
     }
 
-    /// The rows of a slide (see [`super::Slide`]) applied to the pose and the derivatives, in
+    /// The rows of a slide (see [`Slide`]) applied to the pose and the derivatives, in
     /// the order and with the operations of the separate rows. `FULL`: every slot is present.
     #[allow(clippy::type_complexity)]
     #[inline(always)]
@@ -617,7 +620,7 @@ impl Chain {
         const FULL: bool,
     >(
         &self,
-        sl: &super::Slide,
+        sl: &Slide,
         q: &[f64],
         dirs: Directions,
         (x, active, at): (&mut Pd, &mut u32, &mut Location),
@@ -666,7 +669,7 @@ impl Chain {
         }
         for k in 0..3 {
             if present(3 + k) {
-                let (s, c) = super::sincos(v[3 + k]);
+                let (s, c) = sincos(v[3 + k]);
                 err_rotate::<JAC, ACTUAL, DIR_JAC, OMEGA>(
                     x,
                     tangents.as_deref_mut(),
@@ -721,8 +724,8 @@ impl Chain {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::kinematics::{Dof, ErrorTable, ErrorUnit, KinAxis, Row};
     use crate::table::{CompTable, Interpolation, Wrap};
+    use crate::{Dof, ErrorTable, ErrorUnit, KinAxis, Row};
     use alloc::vec;
     use alloc::vec::Vec;
 

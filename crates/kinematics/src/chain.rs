@@ -1,361 +1,17 @@
-//! The kinematics table of seed B: a machine's geometry as a chain of fixed transformations and
-//! machine axes read from the tool centre point (TCP) towards the workpiece, with **error
-//! transformations** whose values come from axis-specific compensation tables
-//! ([`crate::table::CompTable`]) interpolated at the current axis position.
-//!
-//! # Convention
-//! Frame 0 has its origin at the TCP and its +Z axis along the tool, pointing from the tip into
-//! the spindle (the `I J K` direction of 5-axis programs). Each [`Row`] maps coordinates of the
-//! frame on its tool side (i) into the frame on its workpiece side (i + 1):
-//!
-//! * a translation along X/Y/Z by v: x_{i+1} = x_i + v·e_k;
-//! * a rotation about X/Y/Z (A/B/C) by θ (right-hand rule): x_{i+1} = R_k(θ)·x_i.
-//!
-//! The pose of the tool in workpiece coordinates is P = M_{n−1}⋯M_1·M_0: the TCP is P·0 and the
-//! tool direction R_P·e_z. The gauge point of the spindle lies L above the tip, so the tool
-//! length row is written `Trans Z -L` (coordinates of the tip frame moved by −L·e_z). A
-//! machine axis that moves the workpiece instead of the tool (a table axis) appears with the
-//! opposite sign (`MachAxis -X`): moving the table by +q moves the tool by −q relative to it.
-//!
-//! Seed B's head (rows 0–6, Fig. 2c) reads: `Trans Z -L` · `Trans X F_A_X(A)` ·
-//! `Trans B F_A_B(A)` · `MachAxis A` · `Trans X L'` · `Trans Y L''` · `MachAxis C`, followed
-//! here by the linear axes that carry the head.
-//!
-//! Lengths are mm and angles degrees at this interface; inside, rotations are radians.
-//! Evaluation ([`Chain::forward`], [`Chain::inverse`]) allocates nothing, does no I/O and
-//! returns a [`KinError`] instead of panicking or producing NaN.
+//! The checked, compiled chain ([`Chain`]): every row turned into a step that a transform
+//! evaluates without lookups by name or unit, error rows' tables folded into one flat array of
+//! cubics, the error rows of a slide merged, and the structure the inverse transform uses
+//! found once.
 
-use alloc::string::String;
 use alloc::vec::Vec;
-use core::f64::consts::PI;
-use core::fmt;
 
-use crate::evaluate::Correction;
-use crate::machine::{AxisKind, MAX_AXES};
-use crate::table::{CompTable, Direction};
+use truepos_model::{AxisKind, MAX_AXES};
 
-mod forward;
-mod inverse;
-
-pub use inverse::InverseReport;
-
-const DEG: f64 = PI / 180.0;
-
-/// A direction of a kinematics row: translation along X, Y, Z or rotation about them (A, B, C).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Dof {
-    /// Translation along X.
-    X,
-    /// Translation along Y.
-    Y,
-    /// Translation along Z.
-    Z,
-    /// Rotation about X.
-    A,
-    /// Rotation about Y.
-    B,
-    /// Rotation about Z.
-    C,
-}
-
-impl Dof {
-    /// The letter used in kinematics files.
-    pub fn name(self) -> &'static str {
-        ["X", "Y", "Z", "A", "B", "C"][self.index6()]
-    }
-
-    /// Parses `X` … `C`.
-    pub fn parse(s: &str) -> Option<Self> {
-        Some(match s {
-            "X" => Self::X,
-            "Y" => Self::Y,
-            "Z" => Self::Z,
-            "A" => Self::A,
-            "B" => Self::B,
-            "C" => Self::C,
-            _ => return None,
-        })
-    }
-
-    /// True for A, B, C.
-    pub fn is_rotation(self) -> bool {
-        matches!(self, Self::A | Self::B | Self::C)
-    }
-
-    /// Coordinate index 0, 1, 2 of the direction (X/A → 0, Y/B → 1, Z/C → 2).
-    pub fn coordinate(self) -> usize {
-        self.index6() % 3
-    }
-
-    fn index6(self) -> usize {
-        self as usize
-    }
-}
-
-/// Unit of the values of an error table.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum ErrorUnit {
-    /// Micrometres (translation rows).
-    Micrometre,
-    /// Millimetres (translation rows).
-    Millimetre,
-    /// Microradians (rotation rows).
-    Microradian,
-    /// Arc seconds (rotation rows).
-    ArcSecond,
-    /// Degrees (rotation rows).
-    Degree,
-}
-
-impl ErrorUnit {
-    /// Parses `um`, `mm`, `urad`, `arcsec`, `deg`.
-    pub fn parse(s: &str) -> Option<Self> {
-        Some(match s {
-            "um" | "µm" => Self::Micrometre,
-            "mm" => Self::Millimetre,
-            "urad" | "µrad" => Self::Microradian,
-            "arcsec" => Self::ArcSecond,
-            "deg" => Self::Degree,
-            _ => return None,
-        })
-    }
-
-    /// The name used in kinematics files.
-    pub fn name(self) -> &'static str {
-        match self {
-            Self::Micrometre => "um",
-            Self::Millimetre => "mm",
-            Self::Microradian => "urad",
-            Self::ArcSecond => "arcsec",
-            Self::Degree => "deg",
-        }
-    }
-
-    /// True for angle units.
-    pub fn is_angle(self) -> bool {
-        matches!(self, Self::Microradian | Self::ArcSecond | Self::Degree)
-    }
-
-    /// Factor to mm (lengths) or radians (angles).
-    pub fn scale(self) -> f64 {
-        match self {
-            Self::Micrometre => 1e-3,
-            Self::Millimetre => 1.0,
-            Self::Microradian => 1e-6,
-            Self::ArcSecond => PI / (180.0 * 3600.0),
-            Self::Degree => DEG,
-        }
-    }
-}
-
-/// A machine axis of the chain, in set-point order.
-#[derive(Debug, Clone, PartialEq)]
-pub struct KinAxis {
-    /// Name as the control knows it.
-    pub name: String,
-    /// Linear (mm) or rotary (degrees).
-    pub kind: AxisKind,
-    /// Lower end of travel.
-    pub travel_min: f64,
-    /// Upper end of travel.
-    pub travel_max: f64,
-}
-
-/// An axis-specific compensation table referenced by error rows.
-#[derive(Debug, Clone, PartialEq)]
-pub struct ErrorTable {
-    /// Name the rows refer to (`F_A_X`).
-    pub name: String,
-    /// Index of the axis (in [`Chain::axes`]) whose position reads the table.
-    pub axis: usize,
-    /// Unit of the table's values.
-    pub unit: ErrorUnit,
-    /// The table.
-    pub table: CompTable,
-}
-
-/// One row of the kinematics table.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Row {
-    /// `Trans`: a fixed transformation (mm or degrees).
-    Fixed {
-        /// Direction.
-        dof: Dof,
-        /// Length or angle.
-        value: f64,
-    },
-    /// `Trans` by `sign · tool length + offset` (mm): the active tool's length enters here.
-    Tool {
-        /// Direction (X, Y or Z).
-        dof: Dof,
-        /// +1 or −1.
-        sign: f64,
-        /// Fixed part in mm.
-        offset: f64,
-    },
-    /// `Trans` with a compensation table: the nominal value `offset` (mm or degrees) plus the
-    /// error read from table `table` at the position of its axis.
-    Error {
-        /// Direction.
-        dof: Dof,
-        /// Nominal part (mm or degrees).
-        offset: f64,
-        /// Index into the chain's tables.
-        table: usize,
-    },
-    /// `MachAxis`: the set-point of machine axis `axis`, times `sign`.
-    Axis {
-        /// Direction.
-        dof: Dof,
-        /// Index into the chain's axes.
-        axis: usize,
-        /// +1 (the axis moves the tool) or −1 (the axis moves the workpiece).
-        sign: f64,
-    },
-}
-
-/// Why a chain cannot be built.
-#[derive(Debug, Clone, PartialEq)]
-pub enum ChainError {
-    /// The chain has no axes, or more than [`MAX_AXES`].
-    AxisCount(usize),
-    /// Row `row` refers to a table or axis that does not exist.
-    BadReference {
-        /// Row number.
-        row: usize,
-    },
-    /// Row `row` drives an axis whose kind does not fit the row direction (a rotary axis in a
-    /// translation row or the other way round).
-    KindMismatch {
-        /// Row number.
-        row: usize,
-    },
-    /// Row `row` uses a table whose unit does not fit its direction (µm in a rotation row).
-    UnitMismatch {
-        /// Row number.
-        row: usize,
-    },
-    /// Axis `axis` appears in no row or in more than one.
-    AxisUse {
-        /// Axis name.
-        axis: String,
-        /// Number of rows that drive it.
-        rows: usize,
-    },
-    /// A value or travel is not finite, a travel is empty, or a sign is not ±1.
-    BadValue {
-        /// Where.
-        what: String,
-    },
-    /// A table reads the position of an axis that does not exist.
-    BadTableAxis {
-        /// Table name.
-        table: String,
-    },
-    /// A tool row is not a translation.
-    ToolNotTranslation {
-        /// Row number.
-        row: usize,
-    },
-}
-
-impl fmt::Display for ChainError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            Self::AxisCount(n) => write!(f, "{n} axes; expected 1 to {MAX_AXES}"),
-            Self::BadReference { row } => write!(f, "row {row} refers to an unknown table or axis"),
-            Self::KindMismatch { row } => write!(
-                f,
-                "row {row}: a linear axis must be X, Y or Z and a rotary axis A, B or C"
-            ),
-            Self::UnitMismatch { row } => write!(
-                f,
-                "row {row}: the table's unit does not fit the direction (lengths for X/Y/Z, angles for A/B/C)"
-            ),
-            Self::AxisUse { axis, rows } => write!(
-                f,
-                "axis `{axis}` is driven by {rows} MachAxis rows; expected exactly one"
-            ),
-            Self::BadValue { what } => write!(f, "{what}: not a usable value"),
-            Self::BadTableAxis { table } => {
-                write!(f, "table `{table}` reads an axis that is not in the chain")
-            }
-            Self::ToolNotTranslation { row } => {
-                write!(f, "row {row}: the tool length can only enter a translation (X, Y, Z)")
-            }
-        }
-    }
-}
-
-impl core::error::Error for ChainError {}
-
-/// Why a transform produced no result. `Copy`, so reporting it needs no allocation.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum KinError {
-    /// The slice of axis positions does not have one value per axis.
-    AxisCount {
-        /// Values expected.
-        expected: usize,
-        /// Values given.
-        got: usize,
-    },
-    /// An input (position, direction, tool length, set-point) is NaN or infinite.
-    NonFinite,
-    /// The tool direction has zero length.
-    ZeroDirection,
-    /// No axis positions give this tool direction (outside the reach of the rotary axes).
-    UnreachableDirection,
-    /// Every solution puts this axis outside its travel.
-    OutsideTravel {
-        /// Axis index.
-        axis: usize,
-        /// The nearest set-point found.
-        value: f64,
-    },
-    /// The linear axes cannot move the TCP in every direction at this pose.
-    Singular,
-    /// Newton did not meet the tolerances.
-    NotConverged {
-        /// Remaining TCP deviation in mm.
-        position_mm: f64,
-        /// Remaining tool direction deviation in rad.
-        direction_rad: f64,
-    },
-}
-
-impl fmt::Display for KinError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match *self {
-            Self::AxisCount { expected, got } => {
-                write!(f, "expected {expected} axis positions, got {got}")
-            }
-            Self::NonFinite => write!(f, "an input is not a finite number"),
-            Self::ZeroDirection => write!(f, "the tool direction has zero length"),
-            Self::UnreachableDirection => {
-                write!(
-                    f,
-                    "no position of the rotary axes gives this tool direction"
-                )
-            }
-            Self::OutsideTravel { axis, value } => {
-                write!(
-                    f,
-                    "axis #{axis} would have to move to {value}, outside its travel"
-                )
-            }
-            Self::Singular => write!(f, "the axes cannot move the tool in every direction here"),
-            Self::NotConverged {
-                position_mm,
-                direction_rad,
-            } => write!(
-                f,
-                "did not converge: {position_mm:e} mm and {direction_rad:e} rad left"
-            ),
-        }
-    }
-}
-
-impl core::error::Error for KinError {}
+use crate::description::{ErrorTable, KinAxis, Row};
+use crate::error::ChainError;
+use crate::inverse;
+use crate::table::{CompTable, Direction, Wrap};
+use crate::{sincos, DEG};
 
 /// Tool position and direction in workpiece coordinates.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -514,21 +170,21 @@ pub(crate) enum Layout {
 /// A checked kinematics table, ready for per-point transforms.
 #[derive(Debug, Clone)]
 pub struct Chain {
-    axes: Vec<KinAxis>,
-    tables: Vec<ErrorTable>,
-    rows: Vec<Row>,
-    steps: Vec<Step>,
+    pub(crate) axes: Vec<KinAxis>,
+    pub(crate) tables: Vec<ErrorTable>,
+    pub(crate) rows: Vec<Row>,
+    pub(crate) steps: Vec<Step>,
     // The cubics of every error row's table, one block per row and column, scaled to mm or
     // radians with the row's nominal part added to the constant term: a lookup is one index
     // into this array (no table, unit or offset indirection per row).
-    cubics: Vec<[f64; 4]>,
+    pub(crate) cubics: Vec<[f64; 4]>,
     // Slides of a chain without rotary axes (see [`Slide`]) and their cubics.
-    slides: Vec<Slide>,
-    slide_cubics: Vec<[[f64; 6]; 4]>,
-    layout: Layout,
+    pub(crate) slides: Vec<Slide>,
+    pub(crate) slide_cubics: Vec<[[f64; 6]; 4]>,
+    pub(crate) layout: Layout,
     // Bit j: axis j is rotary and every table it reads repeats every 360°, so whole turns of
     // it change nothing (found once here rather than per inverse transform).
-    periodic: u16,
+    pub(crate) periodic: u16,
 }
 
 impl Chain {
@@ -728,7 +384,7 @@ impl Chain {
             let wraps = tables
                 .iter()
                 .filter(|t| t.axis == j)
-                .all(|t| t.table.wrap() == crate::table::Wrap::Rotary);
+                .all(|t| t.table.wrap() == Wrap::Rotary);
             if a.kind == AxisKind::Rotary && wraps {
                 periodic |= 1 << j;
             }
@@ -806,7 +462,7 @@ impl Chain {
         }
     }
 
-    fn rotary_count(&self) -> usize {
+    pub(crate) fn rotary_count(&self) -> usize {
         self.axes
             .iter()
             .filter(|a| a.kind == AxisKind::Rotary)
@@ -910,42 +566,4 @@ fn constant_value(table: &CompTable) -> Option<f64> {
         .flat_map(|&d| table.cubics(d))
         .all(|c| *c == [v, 0.0, 0.0, 0.0]);
     constant.then_some(v)
-}
-
-/// Superimposes the per-axis compensation of a thermal model (seed A's "other parts": a
-/// [`Correction`] in machine axis order) on set-points from the kinematics: for each chain axis
-/// j, `machine_axis[j]` names its machine axis; linear axes get compensation µm / 1000 mm,
-/// rotary axes read the model's value as µrad and get it in degrees.
-///
-/// The result is the set-point the drive receives: geometric compensation (through the chain)
-/// plus thermal compensation (−predicted error).
-pub fn superimpose(
-    chain: &Chain,
-    setpoints: &mut [f64],
-    correction: &Correction,
-    machine_axis: &[usize],
-) {
-    for ((q, axis), &m) in setpoints.iter_mut().zip(chain.axes()).zip(machine_axis) {
-        let c = correction.compensation_um(m);
-        *q += match axis.kind {
-            AxisKind::Linear => c * 1e-3,
-            AxisKind::Rotary => c * 1e-6 / DEG,
-        };
-    }
-}
-
-/// sin and cos, exact to double precision; the series for tiny error angles is faster than
-/// libm and returns (0, 1) exactly at 0, so a zero error rotation is an exact identity.
-#[inline]
-pub(crate) fn sincos(x: f64) -> (f64, f64) {
-    if libm::fabs(x) < 1e-3 {
-        // Taylor series; the first terms left out are x⁷/5040 (relative 2e-22 of sin x) and
-        // x⁶/720 < 1.4e-21: both below the double epsilon 2.2e-16.
-        let x2 = x * x;
-        let sin = x * (1.0 - x2 * (1.0 / 6.0) * (1.0 - x2 * (1.0 / 20.0)));
-        let cos = 1.0 - x2 * 0.5 * (1.0 - x2 * (1.0 / 12.0));
-        (sin, cos)
-    } else {
-        libm::sincos(x)
-    }
 }
