@@ -7,7 +7,7 @@ use alloc::vec::Vec;
 
 use truepos_model::{AxisKind, MAX_AXES};
 
-use crate::description::{ErrorTable, KinAxis, Row};
+use crate::description::{Dof, ErrorTable, KinAxis, Row};
 use crate::error::ChainError;
 use crate::inverse;
 use crate::table::{CompTable, Direction, Wrap};
@@ -218,8 +218,8 @@ impl Chain {
         let mut uses = alloc::vec![0usize; axes.len()];
         let mut steps = Vec::with_capacity(rows.len());
         let mut cubics: Vec<[f64; 4]> = Vec::new();
-        // The table of the previous error row (see `Step::ErrRotate::relocate`).
-        let mut last_table: Option<&ErrorTable> = None;
+        // The table of the previous error row (see `ErrRef::relocate`).
+        let mut last: Option<&ErrorTable> = None;
         for (i, row) in rows.iter().enumerate() {
             let bad = |what: &str| ChainError::BadValue {
                 what: alloc::format!("row {i}: {what}"),
@@ -256,87 +256,15 @@ impl Chain {
                         offset,
                     }
                 }
-                Row::Error { dof, offset, table } => {
-                    let t = tables
-                        .get(table)
-                        .ok_or(ChainError::BadReference { row: i })?;
-                    if t.unit.is_angle() != dof.is_rotation() {
-                        return Err(ChainError::UnitMismatch { row: i });
-                    }
-                    if !offset.is_finite() {
-                        return Err(bad("value"));
-                    }
-                    let (k, scale) = (dof.coordinate(), t.unit.scale());
-                    let offset = if dof.is_rotation() {
-                        offset * DEG
-                    } else {
-                        offset
-                    };
-                    if let Some(v) = constant_value(&t.table) {
-                        // Leaves `last_table` alone: the next row may share the location
-                        // found before this one, which this row does not touch.
-                        let value = offset + scale * v;
-                        steps.push(if dof.is_rotation() {
-                            let (s, c) = sincos(value);
-                            let (nominal_s, nominal_c) = sincos(offset);
-                            Step::ConstErrRotate {
-                                k,
-                                c,
-                                s,
-                                nominal_c,
-                                nominal_s,
-                            }
-                        } else {
-                            Step::ConstErrTranslate {
-                                k,
-                                v: value,
-                                nominal: offset,
-                            }
-                        });
-                        continue;
-                    }
-                    let relocate = last_table.is_none_or(|o: &ErrorTable| {
-                        o.axis != t.axis || !o.table.same_support(&t.table)
-                    });
-                    last_table = Some(t);
-                    // This row's value is offset + scale · table: fold both into the cubics.
-                    let mut block = |direction: Direction| -> Result<u32, ChainError> {
-                        let start = u32::try_from(cubics.len()).map_err(|_| bad("tables"))?;
-                        cubics.extend(t.table.cubics(direction).iter().map(|c| {
-                            [
-                                offset + scale * c[0],
-                                scale * c[1],
-                                scale * c[2],
-                                scale * c[3],
-                            ]
-                        }));
-                        Ok(start)
-                    };
-                    let forward = block(Direction::Forward)?;
-                    let reverse = if t.table.reverse().is_some() {
-                        block(Direction::Reverse)?
-                    } else {
-                        forward
-                    };
-                    let e = ErrRef {
-                        offset,
-                        per_unit: match axes[t.axis].kind {
-                            AxisKind::Linear => 1.0,
-                            AxisKind::Rotary => 1.0 / DEG,
-                        },
-                        forward,
-                        reverse,
-                        // MAX_AXES (9) axes and far fewer than 65536 tables in any file.
-                        table: u16::try_from(table).map_err(|_| bad("table index"))?,
-                        axis: u8::try_from(t.axis).map_err(|_| bad("axis index"))?,
-                        relocate,
-                    };
-                    if dof.is_rotation() {
-                        Step::ErrRotate { k, e }
-                    } else {
-                        Step::ErrTranslate { k, e }
-                    }
-                }
+                Row::Error { dof, offset, table } => error_step(
+                    i,
+                    dof,
+                    offset,
+                    table,
+                    (&axes, &tables),
+                    &mut last,
+                    &mut cubics,
+                )?,
                 Row::Axis { dof, axis, sign } => {
                     let a = axes.get(axis).ok_or(ChainError::BadReference { row: i })?;
                     if (a.kind == AxisKind::Rotary) != dof.is_rotation() {
@@ -468,6 +396,100 @@ impl Chain {
             .filter(|a| a.kind == AxisKind::Rotary)
             .count()
     }
+}
+
+/// The step of error row `i` (see [`Row::Error`]): a fixed step for a constant table, else a
+/// reference to the table's cubics, appended to `cubics` with the row's unit and nominal part
+/// folded in. `last` is the table of the previous error row that located its position.
+fn error_step<'a>(
+    i: usize,
+    dof: Dof,
+    offset: f64,
+    table: usize,
+    (axes, tables): (&[KinAxis], &'a [ErrorTable]),
+    last: &mut Option<&'a ErrorTable>,
+    cubics: &mut Vec<[f64; 4]>,
+) -> Result<Step, ChainError> {
+    let bad = |what: &str| ChainError::BadValue {
+        what: alloc::format!("row {i}: {what}"),
+    };
+    let t = tables
+        .get(table)
+        .ok_or(ChainError::BadReference { row: i })?;
+    if t.unit.is_angle() != dof.is_rotation() {
+        return Err(ChainError::UnitMismatch { row: i });
+    }
+    if !offset.is_finite() {
+        return Err(bad("value"));
+    }
+    let (k, scale) = (dof.coordinate(), t.unit.scale());
+    let offset = if dof.is_rotation() {
+        offset * DEG
+    } else {
+        offset
+    };
+    if let Some(v) = constant_value(&t.table) {
+        // Leaves `last` alone: the next row may share the location found before this one,
+        // which this row does not touch.
+        let value = offset + scale * v;
+        return Ok(if dof.is_rotation() {
+            let (s, c) = sincos(value);
+            let (nominal_s, nominal_c) = sincos(offset);
+            Step::ConstErrRotate {
+                k,
+                c,
+                s,
+                nominal_c,
+                nominal_s,
+            }
+        } else {
+            Step::ConstErrTranslate {
+                k,
+                v: value,
+                nominal: offset,
+            }
+        });
+    }
+    let relocate =
+        last.is_none_or(|o: &ErrorTable| o.axis != t.axis || !o.table.same_support(&t.table));
+    *last = Some(t);
+    // This row's value is offset + scale · table: fold both into the cubics.
+    let mut block = |direction: Direction| -> Result<u32, ChainError> {
+        let start = u32::try_from(cubics.len()).map_err(|_| bad("tables"))?;
+        cubics.extend(t.table.cubics(direction).iter().map(|c| {
+            [
+                offset + scale * c[0],
+                scale * c[1],
+                scale * c[2],
+                scale * c[3],
+            ]
+        }));
+        Ok(start)
+    };
+    let forward = block(Direction::Forward)?;
+    let reverse = if t.table.reverse().is_some() {
+        block(Direction::Reverse)?
+    } else {
+        forward
+    };
+    let e = ErrRef {
+        offset,
+        per_unit: match axes[t.axis].kind {
+            AxisKind::Linear => 1.0,
+            AxisKind::Rotary => 1.0 / DEG,
+        },
+        forward,
+        reverse,
+        // MAX_AXES (9) axes and far fewer than 65536 tables in any file.
+        table: u16::try_from(table).map_err(|_| bad("table index"))?,
+        axis: u8::try_from(t.axis).map_err(|_| bad("axis index"))?,
+        relocate,
+    };
+    Ok(if dof.is_rotation() {
+        Step::ErrRotate { k, e }
+    } else {
+        Step::ErrTranslate { k, e }
+    })
 }
 
 /// Slot of an error row in a [`Slide`] (0–2 translations, 3–5 rotations) and its [`ErrRef`].

@@ -135,7 +135,7 @@ pub struct KinAxis {
 pub struct ErrorTable {
     /// Name the rows refer to (`F_A_X`).
     pub name: String,
-    /// Index of the axis (in [`Chain::axes`]) whose position reads the table.
+    /// Index of the axis (in [`crate::Chain::axes`]) whose position reads the table.
     pub axis: usize,
     /// Unit of the table's values.
     pub unit: ErrorUnit,

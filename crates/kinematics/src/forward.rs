@@ -130,6 +130,31 @@ fn err_rotate<const JAC: bool, const ACTUAL: bool, const DIR_JAC: bool, const OM
     }
 }
 
+/// Zeroes the derivatives (with `JAC`) and the angular velocities (with `OMEGA`) of the first
+/// `n` axes, the ones a walk adds to.
+#[inline(always)]
+fn clear<const JAC: bool, const OMEGA: bool>(
+    n: usize,
+    tangents: Option<&mut Tangents>,
+    omega: Option<&mut AngularVelocity>,
+) {
+    if OMEGA {
+        if let Some(w) = omega {
+            for wj in w.iter_mut().take(n) {
+                *wj = [0.0; 3];
+            }
+        }
+    }
+    if JAC {
+        if let Some(t) = tangents {
+            for j in 0..n {
+                t.dp[j] = [0.0; 3];
+                t.dd[j] = [0.0; 3];
+            }
+        }
+    }
+}
+
 /// x ← R_k(θ)·x with c = cos θ, s = sin θ (active rotation about coordinate axis k).
 ///
 /// The rotation plane comes from a select on k (no remainders), which is cheaper than one arm
@@ -467,23 +492,12 @@ impl Chain {
         mut tangents: Option<&mut Tangents>,
         mut omega: Option<&mut AngularVelocity>,
     ) -> Pose {
-        let n = self.axes.len();
-        if OMEGA {
-            if let Some(w) = omega.as_deref_mut() {
-                for wj in w.iter_mut().take(n) {
-                    *wj = [0.0; 3];
-                }
-            }
-        }
+        clear::<JAC, OMEGA>(
+            self.axes.len(),
+            tangents.as_deref_mut(),
+            omega.as_deref_mut(),
+        );
         let mut x = Pd::START;
-        if JAC {
-            if let Some(t) = tangents.as_deref_mut() {
-                for j in 0..n {
-                    t.dp[j] = [0.0; 3];
-                    t.dd[j] = [0.0; 3];
-                }
-            }
-        }
         // Bit j set: the tangents of axis j are no longer zero (the layout of [`turn`]).
         let mut active: u32 = 0;
         // Where the axis position of the last error row fell in its table: rows reading tables
