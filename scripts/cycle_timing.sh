@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The runtime's timing benchmark: the service at 1 kHz for DURATION_S seconds (default 600 =
 # 10 minutes) on the example machine, replaying the example run and logging to SQLite, paced the
-# way the LinuxCNC component paces its cycle (`truepos-hal timing`: clock_nanosleep on absolute
+# way the LinuxCNC component paces its cycle (`truepos-hal-check timing`: clock_nanosleep on absolute
 # CLOCK_MONOTONIC deadlines, SCHED_FIFO 50, mlockall, bound to the last CPU, no timer slack).
 # Beside it a thread samples the hypervisor's steal time (/proc/stat) and the CPU pressure
 # (/proc/pressure/cpu) every 5 ms, so every cycle that finished more than 2 ms late is set
@@ -17,9 +17,9 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 duration=${DURATION_S:-600}
-cargo build --release -q -p truepos-hal
+cargo build --release -q -p truepos-hal-check
 target=$(cargo metadata --format-version 1 --no-deps | python3 -c 'import json,sys; print(json.load(sys.stdin)["target_directory"])')
 dir=$(mktemp -d)
 trap 'rm -rf "$dir"' EXIT
-"$target/release/truepos-hal" timing --duration-s "$duration" --log "$dir/timing.sqlite" \
+"$target/release/truepos-hal-check" timing --duration-s "$duration" --log "$dir/timing.sqlite" \
     | tee "$target/cycle-timing.json"

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # End-to-end test of truepos on a real LinuxCNC 2.9 (simulated machine, no hardware):
 # runs tests/linuxcnc/vmc3.ini headless, whose display is tests/linuxcnc/e2e.py, with the truepos
-# HAL component compensating through external offsets; then `truepos-hal check` compares what
+# HAL component compensating through external offsets; then `truepos-hal-check check` compares what
 # LinuxCNC applied with the model and the envelope. Exits non-zero on any failure; never skips.
 # Usage: bash scripts/linuxcnc_e2e.sh [output dir]   (default: target/linuxcnc-e2e)
 set -euo pipefail
@@ -10,8 +10,8 @@ cd "$REPO"
 OUT="${1:-$REPO/target/linuxcnc-e2e}"
 
 bash scripts/install_linuxcnc.sh
-echo "== build truepos-hal (release)"
-cargo build --release -p truepos-hal
+echo "== build truepos-hal and its judge truepos-hal-check (release)"
+cargo build --release -p truepos-hal -p truepos-hal-check
 BIN="$(cargo metadata --format-version 1 --no-deps | /usr/bin/python3 -c 'import json,sys; print(json.load(sys.stdin)["target_directory"])')/release"
 # Debian's python modules live in the system interpreter; truepos-hal must be on PATH for loadusr.
 export PATH="$BIN:/usr/bin:/bin:/usr/sbin:/sbin:$PATH"
@@ -58,8 +58,8 @@ CHECK=(--machine examples/vmc3/machine.toml --model examples/vmc3/model.toml
        --expect-event "sensor-fault:x_slide_top" --expect-event "sensor-recovered:x_slide_top"
        --expect-event "holding:path 1" --expect-event "model-selected:path 1:vmc3-e2e-alternative"
        --expect-event "axis-switch" --expect-event "model-selected:path 1:vmc3-e2e-xy")
-truepos-hal check "${CHECK[@]}" || fail=1
-truepos-hal check --json "${CHECK[@]}" > "$OUT/check.json" || true
+truepos-hal-check check "${CHECK[@]}" || fail=1
+truepos-hal-check check --json "${CHECK[@]}" > "$OUT/check.json" || true
 
 echo "== component timing"
 cat "$OUT/stats.json" || { echo "FAIL: truepos-hal wrote no stats (did it get SIGTERM?)"; fail=1; }

@@ -10,7 +10,7 @@ and back). Two faults are injected in the servo thread (vmc3.hal.in: a `streamer
 halstreamer drives two `mux2`): x_slide_top reads NaN on every third servo cycle for 2 s (an
 intermittent fault) and y_slide_bottom alternates between two adjacent 0.1 K levels on every
 servo cycle for 4 s (a quantisation flicker). Two halsampler processes record every servo cycle
-into OUT/motion.txt and OUT/temperatures.txt for `truepos-hal check`. Exits non-zero on any
+into OUT/motion.txt and OUT/temperatures.txt for `truepos-hal-check check`. Exits non-zero on any
 failure; LinuxCNC then shuts down (and sends SIGTERM to truepos-hal).
 """
 import configparser

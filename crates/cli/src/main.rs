@@ -12,10 +12,10 @@ mod eval;
 mod evaluator;
 mod fit;
 mod kin;
-mod lag;
 mod report;
 mod run;
 mod sim;
+mod update_period;
 
 /// truepos keeps the tool tip of a CNC machine tool where the program says it is, while the
 /// machine warms up, bends and carries geometric errors.
@@ -34,10 +34,12 @@ enum Command {
     Eval(eval::Args),
     /// Learn a dynamic compensation model from recorded runs (CSV/XLSX) and validate it honestly.
     Fit(Box<fit::Args>),
-    /// Seed B's kinematics table: forward/inverse transforms with error tables, G-code rewrite.
+    /// Kinematics table with error tables: forward/inverse transforms, G-code rewrite.
     Kin(kin::Args),
-    /// Seed A's timing argument: worst-case error of position-dependent terms updated every T ms.
-    Lag(lag::Args),
+    /// How often position-dependent terms must be updated: their worst-case error when the axis
+    /// moves at full feed and the terms are updated every T ms (seed A's timing argument).
+    #[command(alias = "lag")]
+    UpdatePeriod(update_period::Args),
     /// Write an HTML report of a model on a run with measured errors (figures, coefficients).
     Report(report::Args),
     /// Show the event log of a running or finished service, or export its cycles as a run CSV.
@@ -72,7 +74,7 @@ fn main() -> ExitCode {
         Command::Eval(args) => eval::run(args),
         Command::Fit(args) => fit::run(*args),
         Command::Kin(args) => kin::run(args),
-        Command::Lag(args) => lag::run(args),
+        Command::UpdatePeriod(args) => update_period::run(args),
         Command::Report(args) => report::run(args),
         Command::Log(args) => run::show_log(args),
         Command::Run(args) => run::run(args),

@@ -1,9 +1,9 @@
 //! `truepos sim`: run the thermal twin on a scenario and write the run as CSV.
 
 use std::io::IsTerminal;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
-use truepos_sim::{Scenario, Twin, TwinParams, AXES, BUILTIN};
+use truepos_sim::{Scenario, SimRun, Summary, Twin, TwinParams, AXES, BUILTIN};
 
 /// Rounds to 3 decimals for printing (µm, °C, mm).
 fn r3(v: f64) -> f64 {
@@ -53,7 +53,26 @@ pub fn run(args: Args) -> Result<(), String> {
         print!("{text}");
         return Ok(());
     }
-    let twin = match &args.twin {
+    let twin = load_twin(&args)?;
+    let scenario = load_scenario(&args, &twin)?;
+    let run = simulate(&twin, &scenario, args.seed)?;
+    let out = args
+        .out
+        .clone()
+        .unwrap_or_else(|| PathBuf::from(format!("sim-{}.csv", scenario.name)));
+    write_run(&run, &out, args.nodes)?;
+    let s = run.summary();
+    if args.json {
+        println!("{}", summary_json(&run, &s, &out));
+    } else if out.as_os_str() != "-" {
+        print_summary(&run, &s, &out);
+    }
+    Ok(())
+}
+
+/// The reference machine, or the twin description `--twin` names.
+fn load_twin(args: &Args) -> Result<Twin, String> {
+    Ok(match &args.twin {
         None => Twin::reference(),
         Some(path) => {
             let text = std::fs::read_to_string(path)
@@ -62,7 +81,11 @@ pub fn run(args: Args) -> Result<(), String> {
                 TwinParams::parse(&text, &path.display().to_string()).map_err(|e| e.to_string())?;
             Twin::from_params(&params)
         }
-    };
+    })
+}
+
+/// The built-in scenario or scenario file `--scenario` names, with `--sample-s` applied.
+fn load_scenario(args: &Args, twin: &Twin) -> Result<Scenario, String> {
     let mut scenario = match Scenario::builtin(&args.scenario) {
         Some(s) => s,
         None => {
@@ -91,6 +114,11 @@ pub fn run(args: Args) -> Result<(), String> {
             .check_size()
             .map_err(|e| format!("--sample-s {s}: {e}"))?;
     }
+    Ok(scenario)
+}
+
+/// Runs the twin, with a progress bar on a terminal (not under CI).
+fn simulate(twin: &Twin, scenario: &Scenario, seed: u64) -> Result<SimRun, String> {
     let show_bar = std::io::stderr().is_terminal() && std::env::var_os("CI").is_none();
     let bar = show_bar.then(|| {
         let b = indicatif::ProgressBar::new(1000);
@@ -103,7 +131,7 @@ pub fn run(args: Args) -> Result<(), String> {
         b
     });
     let run = twin
-        .run_with_progress(&scenario, args.seed, &mut |f| {
+        .run_with_progress(scenario, seed, &mut |f| {
             if let Some(b) = &bar {
                 b.set_position((f * 1000.0) as u64);
             }
@@ -112,126 +140,131 @@ pub fn run(args: Args) -> Result<(), String> {
     if let Some(b) = &bar {
         b.finish_and_clear();
     }
-    let out = args
-        .out
-        .unwrap_or_else(|| PathBuf::from(format!("sim-{}.csv", scenario.name)));
+    Ok(run)
+}
+
+/// Writes the run's CSV to `out` (`-`: standard output).
+fn write_run(run: &SimRun, out: &Path, nodes: bool) -> Result<(), String> {
     if out.as_os_str() == "-" {
-        run.write_csv(std::io::stdout().lock(), args.nodes)
+        run.write_csv(std::io::stdout().lock(), nodes)
             .map_err(|e| format!("writing CSV: {e}"))?;
     } else {
-        let f = std::fs::File::create(&out).map_err(|e| format!("{}: {e}", out.display()))?;
-        run.write_csv(std::io::BufWriter::new(f), args.nodes)
+        let f = std::fs::File::create(out).map_err(|e| format!("{}: {e}", out.display()))?;
+        run.write_csv(std::io::BufWriter::new(f), nodes)
             .map_err(|e| format!("{}: {e}", out.display()))?;
     }
-    let s = run.summary();
-    if args.json {
-        let dirs = ["dx_um", "dy_um", "dz_um"];
-        let peak: serde_json::Map<String, serde_json::Value> = dirs
-            .iter()
-            .zip(&s.peak_error)
-            .map(|(d, (v, t, p))| {
-                let pos: serde_json::Map<String, serde_json::Value> = AXES
-                    .iter()
-                    .zip(p)
-                    .map(|(a, v)| (format!("{a}_mm"), serde_json::json!(r3(*v))))
-                    .collect();
-                (
-                    d.to_string(),
-                    serde_json::json!({ "value_um": r3(*v), "time_s": t, "position": pos }),
-                )
-            })
-            .collect();
-        let pos_json = |p: &[f64; 3]| -> serde_json::Value {
-            AXES.iter()
+    Ok(())
+}
+
+/// The summary as JSON (`--json`).
+fn summary_json(run: &SimRun, s: &Summary, out: &Path) -> serde_json::Value {
+    let dirs = ["dx_um", "dy_um", "dz_um"];
+    let peak: serde_json::Map<String, serde_json::Value> = dirs
+        .iter()
+        .zip(&s.peak_error)
+        .map(|(d, (v, t, p))| {
+            let pos: serde_json::Map<String, serde_json::Value> = AXES
+                .iter()
                 .zip(p)
                 .map(|(a, v)| (format!("{a}_mm"), serde_json::json!(r3(*v))))
-                .collect::<serde_json::Map<_, _>>()
-                .into()
-        };
-        let t63: serde_json::Map<String, serde_json::Value> = dirs
-            .iter()
-            .zip(&s.t63_s)
-            .map(|(d, t)| (d.to_string(), serde_json::json!(t)))
-            .collect();
-        let spread: serde_json::Map<String, serde_json::Value> = dirs
-            .iter()
-            .zip(&s.probe_spread)
-            .map(|(d, sp)| {
-                let v = match sp {
-                    Some((t, (lo, plo), (hi, phi))) => serde_json::json!({
-                        "time_s": t,
-                        "min": { "value_um": r3(*lo), "position": pos_json(plo) },
-                        "max": { "value_um": r3(*hi), "position": pos_json(phi) },
-                        "spread_um": r3(hi - lo),
-                    }),
-                    None => serde_json::Value::Null,
-                };
-                (d.to_string(), v)
-            })
-            .collect();
-        let temps: serde_json::Map<String, serde_json::Value> = s
-            .peak_sensor_c
-            .iter()
-            .map(|(id, v)| (id.clone(), serde_json::json!(r3(*v))))
-            .collect();
-        let v = serde_json::json!({
-            "machine": run.machine,
-            "scenario": run.scenario,
-            "seed": run.seed,
-            "csv": if out.as_os_str() == "-" { serde_json::Value::Null } else { serde_json::json!(out.display().to_string()) },
-            "duration_s": s.duration_s,
-            "rows": s.rows,
-            "probe_points": s.probe_points,
-            "thermal_nodes": s.nodes,
-            "peak_error": peak,
-            "t63_s": t63,
-            "probe_spread": spread,
-            "peak_sensor_c": temps,
-            "peak_node": { "name": s.peak_node.0, "temperature_c": r3(s.peak_node.1) },
-        });
-        println!("{v}");
-    } else if out.as_os_str() != "-" {
+                .collect();
+            (
+                d.to_string(),
+                serde_json::json!({ "value_um": r3(*v), "time_s": t, "position": pos }),
+            )
+        })
+        .collect();
+    let pos_json = |p: &[f64; 3]| -> serde_json::Value {
+        AXES.iter()
+            .zip(p)
+            .map(|(a, v)| (format!("{a}_mm"), serde_json::json!(r3(*v))))
+            .collect::<serde_json::Map<_, _>>()
+            .into()
+    };
+    let t63: serde_json::Map<String, serde_json::Value> = dirs
+        .iter()
+        .zip(&s.t63_s)
+        .map(|(d, t)| (d.to_string(), serde_json::json!(t)))
+        .collect();
+    let spread: serde_json::Map<String, serde_json::Value> = dirs
+        .iter()
+        .zip(&s.probe_spread)
+        .map(|(d, sp)| {
+            let v = match sp {
+                Some((t, (lo, plo), (hi, phi))) => serde_json::json!({
+                    "time_s": t,
+                    "min": { "value_um": r3(*lo), "position": pos_json(plo) },
+                    "max": { "value_um": r3(*hi), "position": pos_json(phi) },
+                    "spread_um": r3(hi - lo),
+                }),
+                None => serde_json::Value::Null,
+            };
+            (d.to_string(), v)
+        })
+        .collect();
+    let temps: serde_json::Map<String, serde_json::Value> = s
+        .peak_sensor_c
+        .iter()
+        .map(|(id, v)| (id.clone(), serde_json::json!(r3(*v))))
+        .collect();
+    serde_json::json!({
+        "machine": run.machine,
+        "scenario": run.scenario,
+        "seed": run.seed,
+        "csv": if out.as_os_str() == "-" { serde_json::Value::Null } else { serde_json::json!(out.display().to_string()) },
+        "duration_s": s.duration_s,
+        "rows": s.rows,
+        "probe_points": s.probe_points,
+        "thermal_nodes": s.nodes,
+        "peak_error": peak,
+        "t63_s": t63,
+        "probe_spread": spread,
+        "peak_sensor_c": temps,
+        "peak_node": { "name": s.peak_node.0, "temperature_c": r3(s.peak_node.1) },
+    })
+}
+
+/// The summary for a person.
+fn print_summary(run: &SimRun, s: &Summary, out: &Path) {
+    println!(
+        "{} on {}: {} h, {} rows, {} probe points, {} thermal nodes → {}",
+        run.scenario,
+        run.machine,
+        fmt_h(s.duration_s),
+        s.rows,
+        s.probe_points,
+        s.nodes,
+        out.display()
+    );
+    for (d, (v, t, p)) in ["dx", "dy", "dz"].iter().zip(&s.peak_error) {
         println!(
-            "{} on {}: {} h, {} rows, {} probe points, {} thermal nodes → {}",
-            run.scenario,
-            run.machine,
-            fmt_h(s.duration_s),
-            s.rows,
-            s.probe_points,
-            s.nodes,
-            out.display()
+            "  peak {d} {v:+8.1} µm at {:.2} h, X {:.0} Y {:.0} Z {:.0} mm",
+            t / 3600.0,
+            p[0],
+            p[1],
+            p[2]
         );
-        for (d, (v, t, p)) in ["dx", "dy", "dz"].iter().zip(&s.peak_error) {
-            println!(
-                "  peak {d} {v:+8.1} µm at {:.2} h, X {:.0} Y {:.0} Z {:.0} mm",
-                t / 3600.0,
-                p[0],
-                p[1],
-                p[2]
-            );
-        }
-        for (d, t) in ["dx", "dy", "dz"].iter().zip(&s.t63_s) {
-            if let Some((ts, (lo, plo), (hi, phi))) =
-                s.probe_spread[["dx", "dy", "dz"].iter().position(|x| x == d).unwrap_or(0)]
-            {
-                println!(
-                    "  {d}: 63 % of its peak after {:.2} h; largest spread over one probing cycle (at {:.2} h): {lo:+.1} µm at X {:.0} Y {:.0} Z {:.0} → {hi:+.1} µm at X {:.0} Y {:.0} Z {:.0}",
-                    t / 3600.0,
-                    ts / 3600.0,
-                    plo[0], plo[1], plo[2], phi[0], phi[1], phi[2]
-                );
-            } else {
-                println!("  {d}: 63 % of its peak after {:.2} h", t / 3600.0);
-            }
-        }
-        let hottest: Vec<String> = s
-            .peak_sensor_c
-            .iter()
-            .map(|(id, v)| format!("{id} {v:.1}"))
-            .collect();
-        println!("  peak sensor readings (°C): {}", hottest.join(", "));
     }
-    Ok(())
+    for (d, t) in ["dx", "dy", "dz"].iter().zip(&s.t63_s) {
+        if let Some((ts, (lo, plo), (hi, phi))) =
+            s.probe_spread[["dx", "dy", "dz"].iter().position(|x| x == d).unwrap_or(0)]
+        {
+            println!(
+                "  {d}: 63 % of its peak after {:.2} h; largest spread over one probing cycle (at {:.2} h): {lo:+.1} µm at X {:.0} Y {:.0} Z {:.0} → {hi:+.1} µm at X {:.0} Y {:.0} Z {:.0}",
+                t / 3600.0,
+                ts / 3600.0,
+                plo[0], plo[1], plo[2], phi[0], phi[1], phi[2]
+            );
+        } else {
+            println!("  {d}: 63 % of its peak after {:.2} h", t / 3600.0);
+        }
+    }
+    let hottest: Vec<String> = s
+        .peak_sensor_c
+        .iter()
+        .map(|(id, v)| format!("{id} {v:.1}"))
+        .collect();
+    println!("  peak sensor readings (°C): {}", hottest.join(", "));
 }
 
 fn fmt_h(s: f64) -> String {

@@ -1,14 +1,10 @@
 //! `truepos demo` end to end: the twin's training and test days, both fits, the before/after
 //! figures, the model files and the report.
 
-use std::path::{Path, PathBuf};
 use std::process::Command;
 
-fn repo(path: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../..")
-        .join(path)
-}
+mod support;
+use support::repo;
 
 #[test]
 fn demo_fits_on_one_day_and_improves_the_other() {

@@ -1,26 +1,7 @@
 //! `truepos eval` reproduces seed A's golden cases from files, end to end through the binary.
 
-use std::path::{Path, PathBuf};
-use std::process::Command;
-
-fn repo(path: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../..")
-        .join(path)
-}
-
-fn truepos(args: &[&str]) -> (bool, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_truepos"))
-        .args(args)
-        .current_dir(repo(""))
-        .output()
-        .unwrap();
-    (
-        out.status.success(),
-        String::from_utf8(out.stdout).unwrap(),
-        String::from_utf8(out.stderr).unwrap(),
-    )
-}
+mod support;
+use support::run as truepos;
 
 /// The cross-slide example: embodiment 6 on X, seed C's form on Z (see the model file).
 ///   ΔA_X = ΔT_bed·[2 + 4·KFA_Z − 2·r_X]·KFA_Z,  ΔA_Z = 1.5·(T_spindle − T_ambient)
@@ -131,9 +112,9 @@ fn eval_reports_a_model_for_another_machine() {
 }
 
 #[test]
-fn lag_reproduces_seed_a_timing_argument() {
+fn update_period_reproduces_seed_a_timing_argument() {
     let (ok, stdout, stderr) = truepos(&[
-        "lag",
+        "update-period",
         "--feed-m-min",
         "100",
         "--period-ms",

@@ -6,45 +6,19 @@
 //! frame (translation along X/Y/Z, right-hand rotation about X/Y/Z = A/B/C), a `MachAxis -A`
 //! row rotates by −A.
 
-use std::path::{Path, PathBuf};
-use std::process::Command;
+use std::path::Path;
 
-fn repo(path: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../..")
-        .join(path)
-}
+mod support;
+use support::{repo, run as truepos, scratch};
 
 fn ktab(machine: &str) -> String {
     format!("examples/kinematics/{machine}/kinematics.ktab")
-}
-
-/// A fresh directory per test: tests run in parallel and must not see each other's files.
-fn temp_dir(test: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("truepos-kin-cli-{}-{test}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
 }
 
 fn write(dir: &Path, name: &str, text: &str) -> String {
     let p = dir.join(name);
     std::fs::write(&p, text).unwrap();
     p.to_str().unwrap().to_string()
-}
-
-/// Runs the binary from the repository root: (success, stdout, stderr).
-fn truepos(args: &[&str]) -> (bool, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_truepos"))
-        .args(args)
-        .current_dir(repo(""))
-        .output()
-        .unwrap();
-    (
-        out.status.success(),
-        String::from_utf8(out.stdout).unwrap(),
-        String::from_utf8(out.stderr).unwrap(),
-    )
 }
 
 /// A numeric CSV as printed by `kin fwd|inv`: header and rows (a trailing `status` column of
@@ -135,7 +109,7 @@ const HEAD_AC_POSES: [[f64; 6]; 3] = [
 
 #[test]
 fn fwd_nominal_head_ac_matches_hand_computed_poses() {
-    let d = temp_dir("fwd_head_ac");
+    let d = scratch("fwd_head_ac");
     let input = write(&d, "axes.csv", HEAD_AC_AXES);
     let (header, rows) = fwd("head-ac", &input, true);
     assert_eq!(header, ["X", "Y", "Z", "I", "J", "K"]);
@@ -152,7 +126,7 @@ fn fwd_nominal_head_ac_matches_hand_computed_poses() {
 ///   X5 Y−7 Z11:   the spindle axes add to the tool point before any rotation → (5, −6.97, −279).
 #[test]
 fn fwd_nominal_table_ac_matches_hand_computed_poses() {
-    let d = temp_dir("fwd_table_ac");
+    let d = scratch("fwd_table_ac");
     let input = write(
         &d,
         "axes.csv",
@@ -173,7 +147,7 @@ fn fwd_nominal_table_ac_matches_hand_computed_poses() {
 /// the columns may come in any order (named by the header).
 #[test]
 fn fwd_vmc_21_nominal_exact_and_errors_small() {
-    let d = temp_dir("fwd_vmc");
+    let d = scratch("fwd_vmc");
     let input = write(&d, "axes.csv", "Z,X,Y\n0,0,0\n250,400,300\n500,800,600\n");
     let (_, nominal) = fwd("vmc-21", &input, true);
     let want = vec![
@@ -196,7 +170,7 @@ fn fwd_vmc_21_nominal_exact_and_errors_small() {
 /// reached (|A| ≤ 110°): the row says so, the error names file and line, the exit is nonzero.
 #[test]
 fn inv_nominal_head_ac_returns_hand_computed_axes_and_reports_unreachable() {
-    let d = temp_dir("inv_head_ac");
+    let d = scratch("inv_head_ac");
     let mut poses = String::from("X,Y,Z,I,J,K\n");
     for p in HEAD_AC_POSES {
         let f: Vec<String> = p.iter().map(f64::to_string).collect();
@@ -278,7 +252,7 @@ fn path(machine: &str) -> String {
 }
 
 fn round_trip(machine: &str, header: &str) {
-    let d = temp_dir(&format!("round_trip_{machine}"));
+    let d = scratch(&format!("round_trip_{machine}"));
     let axes = write(
         &d,
         "axes.csv",
@@ -329,7 +303,7 @@ fn inv_of_fwd_is_identity_vmc_21() {
 #[test]
 fn fwd_of_inv_reaches_the_pose_on_example_samples() {
     for machine in ["head-ac", "table-ac", "head-bc"] {
-        let d = temp_dir(&format!("fwd_inv_{machine}"));
+        let d = scratch(&format!("fwd_inv_{machine}"));
         let all = std::fs::read_to_string(repo(&format!("examples/kinematics/{machine}/axes.csv")))
             .unwrap();
         let some: Vec<&str> = all.lines().take(60).collect();
@@ -347,7 +321,7 @@ fn fwd_of_inv_reaches_the_pose_on_example_samples() {
 /// Malformed point lists: every error names file, line and column, and the exit is nonzero.
 #[test]
 fn malformed_csv_gives_located_errors() {
-    let d = temp_dir("malformed");
+    let d = scratch("malformed");
     let k = ktab("head-ac");
     let cases = [
         // (file content, expected part of the message)
@@ -387,7 +361,7 @@ fn malformed_csv_gives_located_errors() {
 /// other lines pass unchanged, and every unsupported word is reported with its line.
 #[test]
 fn gcode_keeps_comments_and_line_numbers_and_reports_unsupported_words() {
-    let d = temp_dir("gcode");
+    let d = scratch("gcode");
     let program = "\
 %
 (a test program)
@@ -443,7 +417,7 @@ N70 M30
 /// the programmed ones by µm / µrad-sized amounts, not by nothing.
 #[test]
 fn gcode_compensation_lands_the_real_tool_on_the_nominal_pose() {
-    let d = temp_dir("gcode_comp");
+    let d = scratch("gcode_comp");
     let program =
         "N1 G1 X10 Y20 Z30 A15 C30\nN2 X-40 A-35.5 C-100 (tilted)\nN3 Y55 Z-12 A60 C250\n";
     let input = write(&d, "prog.nc", program);

@@ -1,13 +1,9 @@
 //! `truepos report` writes an HTML report whose figures of merit are computed by hand here.
 
-use std::path::{Path, PathBuf};
 use std::process::Command;
 
-fn repo(path: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../..")
-        .join(path)
-}
+mod support;
+use support::repo;
 
 /// The cross-slide example run with measured errors added: measured X = predicted X + 1 µm on
 /// every row (predicted 4.5, 0, 9, 12, 8 → measured 5.5, 1, 10, 13, 9). Held out from

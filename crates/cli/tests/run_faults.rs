@@ -1,29 +1,10 @@
 //! `truepos run` and `truepos status` under faults of the log, the sinks and the sensors
 //! (issue 11): each failure is an event and a state, and the run ends non-zero naming it.
 
-use std::path::{Path, PathBuf};
-use std::process::Command;
-
 use truepos_runtime::log;
 
-fn repo(path: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../..")
-        .join(path)
-}
-
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("truepos-faults-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
-
-fn truepos() -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_truepos"));
-    c.current_dir(repo(""));
-    c
-}
+mod support;
+use support::{command as truepos, scratch};
 
 /// Finding: `truepos run --sink csv:/dev/full` exited 0 with no message, and wrote 143 000
 /// `sink-failed` events into the log. Now: one event with the reason, the state shows it, and

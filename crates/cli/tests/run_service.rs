@@ -1,30 +1,14 @@
 //! `truepos run` as a process: a replay through the service into the log, the inspection
 //! commands, and the log surviving SIGKILL at any moment.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
+use std::path::Path;
+use std::process::Stdio;
 use std::time::{Duration, Instant};
 
 use truepos_runtime::log;
 
-fn repo(path: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../..")
-        .join(path)
-}
-
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("truepos-run-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
-
-fn truepos() -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_truepos"));
-    c.current_dir(repo(""));
-    c
-}
+mod support;
+use support::{command as truepos, repo, scratch};
 
 #[test]
 fn fast_replay_logs_cycles_and_events_and_exports_a_run() {

@@ -12,9 +12,10 @@
 //! - [`source::HalSource`] / [`sink::HalSink`]: the component as the runtime's
 //!   [`Source`](truepos_runtime::Source) and [`Sink`](truepos_runtime::Sink).
 //! - [`eoffset`]: offsets in µm ↔ LinuxCNC counts.
-//! - [`check`]: the analysis of the end-to-end test: what LinuxCNC applied against the model.
-//! - [`pacer`]: the periodic cycle (absolute deadlines, `SCHED_FIFO`, locked memory, one CPU);
-//!   [`host`]: the hypervisor's steal time beside it; [`timing`]: the benchmark of both.
+//! - [`pacer`]: the periodic cycle (absolute deadlines, `SCHED_FIFO`, locked memory, one CPU).
+//!
+//! The judge of the LinuxCNC end-to-end test and the timing benchmark of the cycle are
+//! development tools, not part of the component: `truepos-hal-check` (`crates/hal-check`).
 //!
 //! Sign: the model predicts the error (actual − nominal); the offset sent is −error.
 //!
@@ -33,16 +34,13 @@
 #![deny(unsafe_code)]
 #![warn(missing_docs)]
 
-pub mod check;
 pub mod eoffset;
 #[allow(unsafe_code)]
 pub mod ffi;
-pub mod host;
 pub mod pacer;
 pub mod pins;
 pub mod sink;
 pub mod source;
-pub mod timing;
 
 pub use sink::HalSink;
 pub use source::HalSource;

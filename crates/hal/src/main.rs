@@ -1,7 +1,7 @@
 #![forbid(unsafe_code)]
-//! `truepos-hal`: the `truepos` userspace HAL component (`loadusr -W truepos-hal run …`) and
-//! the end-to-end check of what LinuxCNC applied (`truepos-hal check …`), and the timing
-//! benchmark of its cycle (`truepos-hal timing …`, no LinuxCNC needed).
+//! `truepos-hal`: the `truepos` userspace HAL component (`loadusr -W truepos-hal run …`). Its
+//! development tools — the judge of the LinuxCNC end-to-end test and the timing benchmark of
+//! the cycle — are `truepos-hal-check` (`crates/hal-check`), not shipped with it.
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -10,10 +10,8 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use clap::{Parser, Subcommand};
-use truepos_hal::check::{check, load_samples, CheckConfig};
 use truepos_hal::ffi::{self, Component};
 use truepos_hal::pacer::{keep_off_cpu, realtime_setup, Pacer};
-use truepos_hal::timing::{self, TimingConfig};
 use truepos_hal::{pins, HalSink, HalSource};
 use truepos_io::limits::{finite_in, int_in};
 use truepos_io::machine_file::MachineFile;
@@ -35,45 +33,6 @@ struct Cli {
 enum Command {
     /// Create the HAL component and compensate every cycle until SIGTERM (for `loadusr -W`).
     Run(RunArgs),
-    /// Compare what LinuxCNC applied (halsampler files) with the models and the envelope.
-    Check(CheckArgs),
-    /// The cycle's timing without LinuxCNC: the service at a fixed period on the component's
-    /// pacing, replaying a run, with the host's steal time sampled beside it; prints JSON.
-    Timing(TimingArgs),
-}
-
-#[derive(clap::Args)]
-struct TimingArgs {
-    /// Machine description (TOML).
-    #[arg(long, default_value = "examples/vmc3/machine.toml")]
-    machine: PathBuf,
-    /// Model file; repeat for a set.
-    #[arg(long = "model", default_value = "examples/vmc3/model.toml")]
-    models: Vec<PathBuf>,
-    /// Recorded run replayed in real time as the source.
-    #[arg(long, default_value = "examples/vmc3/run.csv")]
-    run: PathBuf,
-    /// SQLite log of the service (as in production); none if not given.
-    #[arg(long)]
-    log: Option<PathBuf>,
-    /// Length of the run in s, 0.001–86 400.
-    #[arg(long, default_value_t = 600.0, value_parser = finite_in(0.001, 86_400.0))]
-    duration_s: f64,
-    /// Cycle period in ms, 0.1–1000.
-    #[arg(long, default_value_t = 1.0, value_parser = finite_in(0.1, 1000.0))]
-    period_ms: f64,
-    /// SCHED_FIFO priority of the cycle, 0–99 (0: normal scheduling).
-    #[arg(long, default_value_t = 50, value_parser = int_in(0i32, 99))]
-    rt_priority: i32,
-    /// CPU to bind the cycle to, 0–1023 (default: the last one).
-    #[arg(long, value_parser = int_in(0usize, 1023))]
-    cpu: Option<usize>,
-    /// Interval of the steal-time sampling in ms, 0.1–60 000.
-    #[arg(long, default_value_t = 5.0, value_parser = finite_in(0.1, 60_000.0))]
-    sample_ms: f64,
-    /// A cycle finishing more than this after its deadline is late (ms), 0.01–60 000.
-    #[arg(long, default_value_t = 2.0, value_parser = finite_in(0.01, 60_000.0))]
-    late_ms: f64,
 }
 
 #[derive(clap::Args)]
@@ -111,38 +70,6 @@ struct RunArgs {
     /// thread unless that is bound elsewhere).
     #[arg(long, value_parser = int_in(0usize, 1023))]
     cpu: Option<usize>,
-}
-
-#[derive(clap::Args)]
-struct CheckArgs {
-    /// Machine description (TOML).
-    #[arg(long)]
-    machine: PathBuf,
-    /// The model files, in the order given to `run`.
-    #[arg(long = "model", required = true)]
-    models: Vec<PathBuf>,
-    /// `halsampler -t` output of the motion sampler.
-    #[arg(long)]
-    motion: PathBuf,
-    /// `halsampler -t` output of the temperature sampler.
-    #[arg(long)]
-    temperatures: PathBuf,
-    /// Servo period in ms, 0.1–1000.
-    #[arg(long, default_value_t = 1.0, value_parser = finite_in(0.1, 1000.0))]
-    period_ms: f64,
-    /// The component's `--hold-ramp-s` (a held offset ramps to zero over it), s.
-    #[arg(long, default_value_t = 60.0)]
-    hold_ramp_s: f64,
-    /// The component's SQLite log, for `--expect-event`.
-    #[arg(long)]
-    log: Option<PathBuf>,
-    /// An event the log must hold: `kind`, `kind:subject` or `kind:subject:text in the detail`
-    /// (e.g. `sensor-fault:x_slide_bottom`, `model-selected:path 1:vmc3-e2e-alternative`).
-    #[arg(long = "expect-event")]
-    expect_events: Vec<String>,
-    /// Print the figures as JSON.
-    #[arg(long)]
-    json: bool,
 }
 
 /// Histogram bucket edges of the cycle-to-cycle interval, ms.
@@ -362,171 +289,10 @@ fn ramp_to_zero(service: &mut Service, start: u64, period_ns: u64, blend_s: f64)
     }
 }
 
-fn run_check(args: CheckArgs) -> Result<bool, Box<dyn std::error::Error>> {
-    let machine = truepos_io::machine_file::load(&args.machine)?;
-    // With their axis-combination indices: the check applies seed D's rule itself.
-    let models = load_entries(&args.models, &machine)?;
-    let samples = load_samples(&args.motion, &args.temperatures, &machine.machine)?;
-    let config = CheckConfig {
-        period_s: args.period_ms / 1000.0,
-        hold_ramp_s: args.hold_ramp_s,
-        ..CheckConfig::default()
-    };
-    let mut report = check(
-        &machine.machine,
-        &models,
-        &machine.axis_runtime,
-        &samples,
-        &config,
-    );
-    if !args.expect_events.is_empty() {
-        let Some(log) = &args.log else {
-            return Err("--expect-event needs --log".into());
-        };
-        let events = truepos_runtime::log::read_events(log)?;
-        if !args.json {
-            for e in &events {
-                println!(
-                    "event {:10.3} s  {:18} {:22} {}",
-                    e.time_s, e.kind, e.subject, e.detail
-                );
-            }
-        }
-        for want in &args.expect_events {
-            let mut parts = want.splitn(3, ':');
-            let kind = parts.next().unwrap_or_default();
-            let subject = parts.next();
-            let detail = parts.next();
-            let found = events.iter().any(|e| {
-                e.kind == kind
-                    && subject.is_none_or(|s| e.subject == s)
-                    && detail.is_none_or(|d| e.detail.contains(d))
-            });
-            if !found {
-                report
-                    .failures
-                    .push(format!("the log {} holds no event {want}", log.display()));
-            }
-        }
-    }
-    if args.json {
-        println!("{}", serde_json::to_string_pretty(&report.to_json())?);
-    } else {
-        println!(
-            "{} servo cycles, {} compared with the model; joint = nominal + eoffset within {:.2e} mm",
-            report.samples, report.compared, report.joint_mismatch_mm
-        );
-        println!(
-            "applied − model: max {:.4} µm, rms {:.4} µm; lag error {:.4} % of the position-dependent span at 1 kHz updates (limit {} %), {:.4} % including update gaps",
-            report.max_diff_um,
-            report.rms_diff_um,
-            report.max_lag_fraction * 100.0,
-            config.max_lag_fraction * 100.0,
-            report.max_lag_fraction_all * 100.0
-        );
-        println!(
-            "largest offset {:.2} µm; fastest axis {:.0} mm/min; offset rate per axis {:?} µm/s (envelope {:?})",
-            report.max_offset_um,
-            report.max_feed_mm_per_min,
-            report
-                .max_rate_um_per_s
-                .iter()
-                .map(|r| (r * 100.0).round() / 100.0)
-                .collect::<Vec<_>>(),
-            report.rate_limit_um_per_s
-        );
-        println!(
-            "{} cycles holding after a sensor fault, {} model switch(es), {} axis switch(es) ({} settled cycles on another model than seed D selects, {:.3} µm largest offset on an axis in no path); update gaps: {:.3} % of moving cycles, longest {} servo cycles; {} moving cycles in step",
-            report.holding_samples,
-            report.model_switches,
-            report.axis_switches,
-            report.wrong_model_cycles,
-            report.max_parked_offset_um,
-            report.gap_fraction * 100.0,
-            report.longest_update_gap_cycles,
-            report.in_step_moving_cycles
-        );
-        let inv = &report.invariant;
-        let round = |v: &[f64], k: f64| v.iter().map(|x| (x * k).round() / k).collect::<Vec<_>>();
-        println!(
-            "output invariant on the applied offsets, per axis: largest |offset| {:?} µm; largest step {:?} µm, {:?} of the envelope's rate over the real time; outside the bracket (from, target) by at most {:?} µm (limit {} µm); {} non-finite; {} changes of state; {} cycles kept the previous target",
-            round(&inv.max_abs_um, 1000.0),
-            round(&inv.max_step_um, 1000.0),
-            round(&inv.max_step_ratio, 1000.0),
-            round(&inv.max_bracket_excess_um, 1000.0),
-            config.max_bracket_excess_um,
-            inv.nonfinite_cycles,
-            inv.state_changes,
-            inv.target_kept_cycles
-        );
-        for f in &report.failures {
-            println!("FAIL: {f}");
-        }
-        println!("{}", if report.passed() { "PASS" } else { "FAIL" });
-    }
-    Ok(report.passed())
-}
-
-fn run_timing(args: TimingArgs) -> Result<bool, Box<dyn std::error::Error>> {
-    let stop = Arc::new(AtomicBool::new(false));
-    signal_hook::flag::register(signal_hook::consts::SIGTERM, Arc::clone(&stop))?;
-    signal_hook::flag::register(signal_hook::consts::SIGINT, Arc::clone(&stop))?;
-    // The last CPU: the kernel and most other work start on the first.
-    let cpu = args.cpu.or_else(|| {
-        std::thread::available_parallelism()
-            .ok()
-            .map(|n| n.get() - 1)
-    });
-    let config = TimingConfig {
-        machine: args.machine,
-        models: args.models,
-        run: args.run,
-        log: args.log,
-        duration_s: args.duration_s,
-        period_ms: args.period_ms,
-        rt_priority: args.rt_priority,
-        cpu,
-        sample_ms: args.sample_ms,
-        late_ms: args.late_ms,
-    };
-    eprintln!(
-        "truepos-hal timing: {} s at {} ms, SCHED_FIFO {}, CPU {:?}",
-        config.duration_s, config.period_ms, config.rt_priority, config.cpu
-    );
-    let s = timing::run(&config, &stop)?;
-    println!("{}", serde_json::to_string_pretty(&s)?);
-    let late = &s["late_cycles"];
-    eprintln!(
-        "truepos-hal timing: {} cycles; work p50 {} µs, p99 {} µs; CPU {:.2} % of one core; steal {:.2} % of the cycle's CPU",
-        s["cycles"],
-        s["cycle_work_us"]["p50"],
-        s["cycle_work_us"]["p99"],
-        s["cpu_percent_of_one_core"].as_f64().unwrap_or(f64::NAN),
-        s["host"]["steal_percent_watched_cpu"].as_f64().unwrap_or(f64::NAN),
-    );
-    eprintln!(
-        "truepos-hal timing: late by > {} ms: {} cycles in {} stalls; {} coincide with steal, {} not explained by steal (worst {} ms); a window sees steal by chance {:.1} %",
-        late["bar_ms"],
-        late["total"],
-        late["episodes"],
-        late["coinciding_with_steal"],
-        late["not_explained_by_steal"],
-        late["worst_not_explained_ms"],
-        late["chance_a_window_sees_steal"].as_f64().unwrap_or(0.0) * 100.0,
-    );
-    Ok(true)
-}
-
 fn main() -> ExitCode {
-    let cli = Cli::parse();
-    let result = match cli.command {
-        Command::Run(args) => run(args).map(|()| true),
-        Command::Check(args) => run_check(args),
-        Command::Timing(args) => run_timing(args),
-    };
-    match result {
-        Ok(true) => ExitCode::SUCCESS,
-        Ok(false) => ExitCode::FAILURE,
+    let Command::Run(args) = Cli::parse().command;
+    match run(args) {
+        Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("truepos-hal: error: {e}");
             ExitCode::FAILURE

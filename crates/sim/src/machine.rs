@@ -246,117 +246,25 @@ impl Twin {
 
     /// The reference topology with the given physical parameters (see [`TwinParams`]).
     pub fn from_params(p: &TwinParams) -> Self {
-        let beam = |name: &str,
-                    e_len,
-                    e_h,
-                    e_w,
-                    dims: [f64; 3],
-                    segments,
-                    material,
-                    [fill, web]: [f64; 2],
-                    support,
-                    datum_mm| Beam {
-            name: name.into(),
-            e_len,
-            e_h,
-            e_w,
-            length_mm: dims[0],
-            height_mm: dims[1],
-            width_mm: dims[2],
-            segments,
-            material,
-            fill,
-            web,
-            support,
-            datum_mm,
-            support_offset_mm: 0.0,
-            first_node: 0,
-        };
-        let (x, y, z) = ([1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]);
-        let front = [0.0, -1.0, 0.0];
-        let mut bed = beam(
-            "bed",
-            y,
-            z,
-            x,
-            [1200.0, 300.0, 800.0],
-            4,
-            p.bed.material,
-            [p.bed.fill, p.bed.web],
-            Support::TwoPoint {
-                a_mm: 150.0,
-                b_mm: 1050.0,
-            },
-            600.0,
-        );
-        let mut column = beam(
-            "column",
-            z,
-            front,
-            x,
-            [1600.0, 400.0, 500.0],
-            6,
-            p.column.material,
-            [p.column.fill, p.column.web],
-            Support::Clamped { at_mm: 0.0 },
-            0.0,
-        );
-        let mut saddle = beam(
-            "saddle",
-            x,
-            z,
-            y,
-            [1000.0, 150.0, 450.0],
-            3,
-            p.saddle.material,
-            [p.saddle.fill, p.saddle.web],
-            Support::TwoPoint {
-                a_mm: 250.0,
-                b_mm: 750.0,
-            },
-            500.0,
-        );
-        let mut table = beam(
-            "table",
-            x,
-            z,
-            y,
-            [1000.0, 120.0, 450.0],
-            4,
-            p.table.material,
-            [p.table.fill, p.table.web],
-            Support::TwoPoint {
-                a_mm: 400.0,
-                b_mm: 600.0,
-            },
-            500.0,
-        );
-        let mut head = beam(
-            "head",
-            z,
-            front,
-            x,
-            [600.0, 350.0, 300.0],
-            3,
-            p.head.material,
-            [p.head.fill, p.head.web],
-            Support::Clamped { at_mm: 300.0 },
-            300.0,
-        );
-
-        // Bed, saddle and table rest on their bottom faces; the head is held at its rear face.
-        bed.support_offset_mm = -bed.height_mm / 2.0;
-        saddle.support_offset_mm = -saddle.height_mm / 2.0;
-        table.support_offset_mm = -table.height_mm / 2.0;
-        head.support_offset_mm = -head.height_mm / 2.0;
+        let mut parts = Parts::reference(p);
         // Convection and radiation lumped: 9 W/(m²·K); exposed shares [−h, +h, −w, +w, ends].
         let h_conv = p.convection_w_m2k;
         let mut net = Network::default();
-        bed.add_to(&mut net, h_conv, [0.1, 0.5, 1.0, 1.0, 1.0]);
-        column.add_to(&mut net, h_conv, [1.0, 0.6, 1.0, 1.0, 0.5]);
-        saddle.add_to(&mut net, h_conv, [0.2, 0.4, 1.0, 1.0, 1.0]);
-        table.add_to(&mut net, h_conv, [0.3, 1.0, 1.0, 1.0, 1.0]);
-        head.add_to(&mut net, h_conv, [0.2, 1.0, 1.0, 1.0, 1.0]);
+        parts
+            .bed
+            .add_to(&mut net, h_conv, [0.1, 0.5, 1.0, 1.0, 1.0]);
+        parts
+            .column
+            .add_to(&mut net, h_conv, [1.0, 0.6, 1.0, 1.0, 0.5]);
+        parts
+            .saddle
+            .add_to(&mut net, h_conv, [0.2, 0.4, 1.0, 1.0, 1.0]);
+        parts
+            .table
+            .add_to(&mut net, h_conv, [0.3, 1.0, 1.0, 1.0, 1.0]);
+        parts
+            .head
+            .add_to(&mut net, h_conv, [0.2, 1.0, 1.0, 1.0, 1.0]);
         let steel = 7850.0 * 470.0; // J/(m³·K)
         let spindle = SpindleNodes {
             front: net.add_node("spindle.front_bearing", 12.0 * 470.0, 1.5),
@@ -364,165 +272,15 @@ impl Twin {
             shaft: net.add_node("spindle.shaft", 0.0011 * steel, 1.5),
             motor: net.add_node("spindle.motor", 30.0 * 470.0, 3.0),
         };
-        // Joints between parts (W/K).
-        joint(
-            &mut net,
-            &face(&column, 0..1, None),
-            &face(&bed, 3..4, Some(true)),
-            p.joints.column_bed,
-        );
-        joint(
-            &mut net,
-            &face(&saddle, 0..3, Some(false)),
-            &face(&bed, 0..4, Some(true)),
-            p.joints.saddle_bed,
-        );
-        joint(
-            &mut net,
-            &face(&table, 0..4, Some(false)),
-            &face(&saddle, 0..3, Some(true)),
-            p.joints.table_saddle,
-        );
-        joint(
-            &mut net,
-            &face(&head, 0..3, Some(false)),
-            &face(&column, 0..6, Some(true)),
-            p.joints.head_column,
-        );
-        joint(
-            &mut net,
-            &[spindle.front],
-            &face(&head, 0..1, Some(true)),
-            p.joints.spindle_front_head,
-        );
-        joint(
-            &mut net,
-            &[spindle.rear],
-            &face(&head, 1..2, Some(true)),
-            p.joints.spindle_rear_head,
-        );
-        // The motor's terminal box and cable side sit on the head's +x side.
-        net.link(
-            spindle.motor,
-            head.node(2, true, true),
-            0.7 * p.joints.spindle_motor_head,
-        );
-        net.link(
-            spindle.motor,
-            head.node(2, true, false),
-            0.3 * p.joints.spindle_motor_head,
-        );
-        net.link(spindle.shaft, spindle.front, 4.0);
-        net.link(spindle.shaft, spindle.rear, 3.0);
-        net.link(spindle.shaft, spindle.motor, 2.0);
-
-        let nodes = |b: &Beam, seg: usize, h: Option<bool>| Spot::Nodes(face(b, seg..seg + 1, h));
-        let bore = 120.0;
-        let s = |id: &str, location: &str, spot: Spot, tau_s: f64| SensorSpec {
-            id: id.into(),
-            location: location.into(),
-            spot,
-            tau_s,
-        };
-        let sensors = vec![
-            s(
-                "ambient",
-                "air beside the machine, 1.5 m above the floor",
-                Spot::Ambient,
-                120.0,
-            ),
-            s(
-                "bed_top",
-                "bed, top face between the Y guides, centre",
-                nodes(&bed, 1, Some(true)),
-                bore,
-            ),
-            s(
-                "bed_bottom",
-                "bed, bottom flange, centre",
-                nodes(&bed, 1, Some(false)),
-                bore,
-            ),
-            s(
-                "column_front",
-                "column, front face between the Z guides, mid height",
-                nodes(&column, 2, Some(true)),
-                bore,
-            ),
-            s(
-                "column_rear",
-                "column, rear face, mid height",
-                nodes(&column, 2, Some(false)),
-                bore,
-            ),
-            s(
-                "column_top",
-                "column, top under the Z motor",
-                nodes(&column, 5, None),
-                bore,
-            ),
-            s(
-                "y_saddle_top",
-                "Y saddle, top under the X guides, centre",
-                nodes(&saddle, 1, Some(true)),
-                bore,
-            ),
-            s(
-                "y_saddle_bottom",
-                "Y saddle, underside near the Y ball-screw nut",
-                nodes(&saddle, 1, Some(false)),
-                bore,
-            ),
-            s(
-                "x_table_top",
-                "X table, top face edge, centre",
-                nodes(&table, 2, Some(true)),
-                bore,
-            ),
-            s(
-                "x_table_bottom",
-                "X table, underside near the X ball-screw nut",
-                nodes(&table, 2, Some(false)),
-                bore,
-            ),
-            s(
-                "z_head_front",
-                "spindle head, front face, mid height",
-                nodes(&head, 1, Some(true)),
-                bore,
-            ),
-            s(
-                "z_head_rear",
-                "spindle head, rear face near the Z guide carriages",
-                nodes(&head, 1, Some(false)),
-                bore,
-            ),
-            s(
-                "spindle_front",
-                "spindle housing at the front bearing set",
-                Spot::Nodes(vec![spindle.front]),
-                90.0,
-            ),
-            s(
-                "spindle_rear",
-                "spindle housing at the rear bearing",
-                Spot::Nodes(vec![spindle.rear]),
-                90.0,
-            ),
-            s(
-                "spindle_motor",
-                "spindle motor stator housing",
-                Spot::Nodes(vec![spindle.motor]),
-                90.0,
-            ),
-            s("coolant", "coolant return line", Spot::Coolant, 30.0),
-        ];
-        let mut sensors = sensors;
-        for sensor in &mut sensors {
-            if let Some(tau) = p.sensor_tau_s.get(&sensor.id) {
-                sensor.tau_s = *tau;
-            }
-        }
+        parts.join(&mut net, &spindle, p);
+        let sensors = parts.sensor_specs(&spindle, p);
+        let Parts {
+            bed,
+            column,
+            saddle,
+            table,
+            head,
+        } = parts;
         Twin {
             name: p.name.clone(),
             network: net,
@@ -667,6 +425,297 @@ impl Twin {
     /// Ground-truth tool-tip error (dx, dy, dz in µm) at axis positions `pos` (X, Y, Z in mm).
     pub fn error_um(&self, temps_c: &[f64], pos_mm: [f64; 3]) -> [f64; 3] {
         self.deformation(temps_c).error_um(pos_mm)
+    }
+}
+
+/// The five structural parts of the reference machine, before they are put into a network.
+struct Parts {
+    bed: Beam,
+    column: Beam,
+    saddle: Beam,
+    table: Beam,
+    head: Beam,
+}
+
+impl Parts {
+    /// The parts' geometry, supports and materials.
+    fn reference(p: &TwinParams) -> Self {
+        let beam = |name: &str,
+                    e_len,
+                    e_h,
+                    e_w,
+                    dims: [f64; 3],
+                    segments,
+                    material,
+                    [fill, web]: [f64; 2],
+                    support,
+                    datum_mm| Beam {
+            name: name.into(),
+            e_len,
+            e_h,
+            e_w,
+            length_mm: dims[0],
+            height_mm: dims[1],
+            width_mm: dims[2],
+            segments,
+            material,
+            fill,
+            web,
+            support,
+            datum_mm,
+            support_offset_mm: 0.0,
+            first_node: 0,
+        };
+        let (x, y, z) = ([1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]);
+        let front = [0.0, -1.0, 0.0];
+        let mut bed = beam(
+            "bed",
+            y,
+            z,
+            x,
+            [1200.0, 300.0, 800.0],
+            4,
+            p.bed.material,
+            [p.bed.fill, p.bed.web],
+            Support::TwoPoint {
+                a_mm: 150.0,
+                b_mm: 1050.0,
+            },
+            600.0,
+        );
+        let column = beam(
+            "column",
+            z,
+            front,
+            x,
+            [1600.0, 400.0, 500.0],
+            6,
+            p.column.material,
+            [p.column.fill, p.column.web],
+            Support::Clamped { at_mm: 0.0 },
+            0.0,
+        );
+        let mut saddle = beam(
+            "saddle",
+            x,
+            z,
+            y,
+            [1000.0, 150.0, 450.0],
+            3,
+            p.saddle.material,
+            [p.saddle.fill, p.saddle.web],
+            Support::TwoPoint {
+                a_mm: 250.0,
+                b_mm: 750.0,
+            },
+            500.0,
+        );
+        let mut table = beam(
+            "table",
+            x,
+            z,
+            y,
+            [1000.0, 120.0, 450.0],
+            4,
+            p.table.material,
+            [p.table.fill, p.table.web],
+            Support::TwoPoint {
+                a_mm: 400.0,
+                b_mm: 600.0,
+            },
+            500.0,
+        );
+        let mut head = beam(
+            "head",
+            z,
+            front,
+            x,
+            [600.0, 350.0, 300.0],
+            3,
+            p.head.material,
+            [p.head.fill, p.head.web],
+            Support::Clamped { at_mm: 300.0 },
+            300.0,
+        );
+
+        // Bed, saddle and table rest on their bottom faces; the head is held at its rear face.
+        bed.support_offset_mm = -bed.height_mm / 2.0;
+        saddle.support_offset_mm = -saddle.height_mm / 2.0;
+        table.support_offset_mm = -table.height_mm / 2.0;
+        head.support_offset_mm = -head.height_mm / 2.0;
+        Parts {
+            bed,
+            column,
+            saddle,
+            table,
+            head,
+        }
+    }
+
+    /// The thermal joints between the parts and the spindle's nodes (W/K).
+    fn join(&self, net: &mut Network, spindle: &SpindleNodes, p: &TwinParams) {
+        // Joints between parts (W/K).
+        joint(
+            net,
+            &face(&self.column, 0..1, None),
+            &face(&self.bed, 3..4, Some(true)),
+            p.joints.column_bed,
+        );
+        joint(
+            net,
+            &face(&self.saddle, 0..3, Some(false)),
+            &face(&self.bed, 0..4, Some(true)),
+            p.joints.saddle_bed,
+        );
+        joint(
+            net,
+            &face(&self.table, 0..4, Some(false)),
+            &face(&self.saddle, 0..3, Some(true)),
+            p.joints.table_saddle,
+        );
+        joint(
+            net,
+            &face(&self.head, 0..3, Some(false)),
+            &face(&self.column, 0..6, Some(true)),
+            p.joints.head_column,
+        );
+        joint(
+            net,
+            &[spindle.front],
+            &face(&self.head, 0..1, Some(true)),
+            p.joints.spindle_front_head,
+        );
+        joint(
+            net,
+            &[spindle.rear],
+            &face(&self.head, 1..2, Some(true)),
+            p.joints.spindle_rear_head,
+        );
+        // The motor's terminal box and cable side sit on the head's +x side.
+        net.link(
+            spindle.motor,
+            self.head.node(2, true, true),
+            0.7 * p.joints.spindle_motor_head,
+        );
+        net.link(
+            spindle.motor,
+            self.head.node(2, true, false),
+            0.3 * p.joints.spindle_motor_head,
+        );
+        net.link(spindle.shaft, spindle.front, 4.0);
+        net.link(spindle.shaft, spindle.rear, 3.0);
+        net.link(spindle.shaft, spindle.motor, 2.0);
+    }
+
+    /// The sensors: where each sits and its own time constant.
+    fn sensor_specs(&self, spindle: &SpindleNodes, p: &TwinParams) -> Vec<SensorSpec> {
+        let nodes = |b: &Beam, seg: usize, h: Option<bool>| Spot::Nodes(face(b, seg..seg + 1, h));
+        let bore = 120.0;
+        let s = |id: &str, location: &str, spot: Spot, tau_s: f64| SensorSpec {
+            id: id.into(),
+            location: location.into(),
+            spot,
+            tau_s,
+        };
+        let mut sensors = vec![
+            s(
+                "ambient",
+                "air beside the machine, 1.5 m above the floor",
+                Spot::Ambient,
+                120.0,
+            ),
+            s(
+                "bed_top",
+                "bed, top face between the Y guides, centre",
+                nodes(&self.bed, 1, Some(true)),
+                bore,
+            ),
+            s(
+                "bed_bottom",
+                "bed, bottom flange, centre",
+                nodes(&self.bed, 1, Some(false)),
+                bore,
+            ),
+            s(
+                "column_front",
+                "column, front face between the Z guides, mid height",
+                nodes(&self.column, 2, Some(true)),
+                bore,
+            ),
+            s(
+                "column_rear",
+                "column, rear face, mid height",
+                nodes(&self.column, 2, Some(false)),
+                bore,
+            ),
+            s(
+                "column_top",
+                "column, top under the Z motor",
+                nodes(&self.column, 5, None),
+                bore,
+            ),
+            s(
+                "y_saddle_top",
+                "Y saddle, top under the X guides, centre",
+                nodes(&self.saddle, 1, Some(true)),
+                bore,
+            ),
+            s(
+                "y_saddle_bottom",
+                "Y saddle, underside near the Y ball-screw nut",
+                nodes(&self.saddle, 1, Some(false)),
+                bore,
+            ),
+            s(
+                "x_table_top",
+                "X table, top face edge, centre",
+                nodes(&self.table, 2, Some(true)),
+                bore,
+            ),
+            s(
+                "x_table_bottom",
+                "X table, underside near the X ball-screw nut",
+                nodes(&self.table, 2, Some(false)),
+                bore,
+            ),
+            s(
+                "z_head_front",
+                "spindle head, front face, mid height",
+                nodes(&self.head, 1, Some(true)),
+                bore,
+            ),
+            s(
+                "z_head_rear",
+                "spindle head, rear face near the Z guide carriages",
+                nodes(&self.head, 1, Some(false)),
+                bore,
+            ),
+            s(
+                "spindle_front",
+                "spindle housing at the front bearing set",
+                Spot::Nodes(vec![spindle.front]),
+                90.0,
+            ),
+            s(
+                "spindle_rear",
+                "spindle housing at the rear bearing",
+                Spot::Nodes(vec![spindle.rear]),
+                90.0,
+            ),
+            s(
+                "spindle_motor",
+                "spindle motor stator housing",
+                Spot::Nodes(vec![spindle.motor]),
+                90.0,
+            ),
+            s("coolant", "coolant return line", Spot::Coolant, 30.0),
+        ];
+        for sensor in &mut sensors {
+            if let Some(tau) = p.sensor_tau_s.get(&sensor.id) {
+                sensor.tau_s = *tau;
+            }
+        }
+        sensors
     }
 }
 

@@ -231,7 +231,7 @@ impl TwinParams {
     pub fn parse(src: &str, file: &str) -> Result<TwinParams, ScenarioError> {
         use Seg::Key as K;
         let raw: FileRoot = toml::from_str(src).map_err(|e| toml_error(src, file, &e))?;
-        let ck = Checker::new(src, file);
+        let ck = &Checker::new(src, file);
         let t = raw.twin;
         let mut p = TwinParams::default();
         if let Some(n) = t.name {
@@ -240,19 +240,8 @@ impl TwinParams {
             }
             p.name = n;
         }
-        let set = |v: Option<f64>,
-                   path: &[Seg],
-                   lo: f64,
-                   hi: f64,
-                   what: &str,
-                   into: &mut f64|
-         -> Result<(), ScenarioError> {
-            if let Some(v) = v {
-                *into = ck.within(path, v, lo, hi, what)?;
-            }
-            Ok(())
-        };
         set(
+            ck,
             t.convection_w_m2k,
             &[K("twin"), K("convection_w_m2k")],
             0.0,
@@ -261,6 +250,7 @@ impl TwinParams {
             &mut p.convection_w_m2k,
         )?;
         set(
+            ck,
             t.reference_temperature_c,
             &[K("twin"), K("reference_temperature_c")],
             -20.0,
@@ -268,204 +258,298 @@ impl TwinParams {
             "a temperature in °C",
             &mut p.reference_temperature_c,
         )?;
-        for (name, part, target) in [
-            ("bed", t.bed, &mut p.bed),
-            ("column", t.column, &mut p.column),
-            ("saddle", t.saddle, &mut p.saddle),
-            ("table", t.table, &mut p.table),
-            ("head", t.head, &mut p.head),
-        ] {
-            let Some(f) = part else { continue };
-            let path = |k| [K("twin"), K(name), K(k)];
-            set(
-                f.alpha_per_k,
-                &path("alpha_per_k"),
-                -1e-4,
-                1e-4,
-                "an expansion coefficient in 1/K",
-                &mut target.material.alpha_per_k,
-            )?;
-            set(
-                f.density_kg_m3,
-                &path("density_kg_m3"),
-                100.0,
-                30_000.0,
-                "a density in kg/m³",
-                &mut target.material.density_kg_m3,
-            )?;
-            set(
-                f.specific_heat_j_kg_k,
-                &path("specific_heat_j_kg_k"),
-                50.0,
-                5000.0,
-                "a specific heat in J/(kg·K)",
-                &mut target.material.specific_heat_j_kg_k,
-            )?;
-            set(
-                f.conductivity_w_m_k,
-                &path("conductivity_w_m_k"),
-                0.01,
-                1000.0,
-                "a conductivity in W/(m·K)",
-                &mut target.material.conductivity_w_m_k,
-            )?;
-            set(
-                f.fill,
-                &path("fill"),
-                0.01,
-                1.0,
-                "a share",
-                &mut target.fill,
-            )?;
-            set(f.web, &path("web"), 0.001, 1.0, "a share", &mut target.web)?;
-        }
-        let map_into = |m: Option<BTreeMap<String, f64>>,
-                        table: &str,
-                        fields: &mut [(&str, &mut f64, f64, f64, &str)]|
-         -> Result<(), ScenarioError> {
-            for (k, v) in m.unwrap_or_default() {
-                let path = [K("twin"), K(table), K(k.as_str())];
-                match fields.iter_mut().find(|f| f.0 == k) {
-                    Some(f) => *f.1 = ck.within(&path, v, f.2, f.3, f.4)?,
-                    None => {
-                        let names: Vec<&str> = fields.iter().map(|f| f.0).collect();
-                        return Err(ck.err(&path, format!("one of the keys {}", names.join(", "))));
-                    }
-                }
-            }
-            Ok(())
-        };
-        let j = &mut p.joints;
-        map_into(
-            t.joints,
-            "joints",
-            &mut [
-                (
-                    "column_bed",
-                    &mut j.column_bed,
-                    0.0,
-                    1e5,
-                    "a conductance in W/K",
-                ),
-                (
-                    "saddle_bed",
-                    &mut j.saddle_bed,
-                    0.0,
-                    1e5,
-                    "a conductance in W/K",
-                ),
-                (
-                    "table_saddle",
-                    &mut j.table_saddle,
-                    0.0,
-                    1e5,
-                    "a conductance in W/K",
-                ),
-                (
-                    "head_column",
-                    &mut j.head_column,
-                    0.0,
-                    1e5,
-                    "a conductance in W/K",
-                ),
-                (
-                    "spindle_front_head",
-                    &mut j.spindle_front_head,
-                    0.0,
-                    1e5,
-                    "a conductance in W/K",
-                ),
-                (
-                    "spindle_rear_head",
-                    &mut j.spindle_rear_head,
-                    0.0,
-                    1e5,
-                    "a conductance in W/K",
-                ),
-                (
-                    "spindle_motor_head",
-                    &mut j.spindle_motor_head,
-                    0.0,
-                    1e5,
-                    "a conductance in W/K",
-                ),
+        read_parts(
+            ck,
+            [
+                ("bed", t.bed, &mut p.bed),
+                ("column", t.column, &mut p.column),
+                ("saddle", t.saddle, &mut p.saddle),
+                ("table", t.table, &mut p.table),
+                ("head", t.head, &mut p.head),
             ],
         )?;
-        let s = &mut p.spindle;
-        map_into(
-            t.spindle,
-            "spindle",
-            &mut [
-                ("front_a", &mut s.front_a, 0.0, 1e4, "W per 1000/min"),
-                ("front_b", &mut s.front_b, 0.0, 1e4, "W per (1000/min)²"),
-                (
-                    "rear_share",
-                    &mut s.rear_share,
-                    0.0,
-                    10.0,
-                    "a share of the front bearing's losses",
-                ),
-                ("motor_a", &mut s.motor_a, 0.0, 1e4, "W per 1000/min"),
-                ("motor_b", &mut s.motor_b, 0.0, 1e4, "W per (1000/min)²"),
-                (
-                    "rotor_share",
-                    &mut s.rotor_share,
-                    0.0,
-                    1.0,
-                    "a share between 0 and 1",
-                ),
-            ],
-        )?;
-        let c = &mut p.coolant;
-        map_into(
-            t.coolant,
-            "coolant",
-            &mut [
-                ("w_per_k", &mut c.w_per_k, 0.0, 1e4, "a conductance in W/K"),
-                (
-                    "rise_k",
-                    &mut c.rise_k,
-                    -20.0,
-                    20.0,
-                    "a temperature rise in K",
-                ),
-                ("tau_s", &mut c.tau_s, 1.0, 1e6, "a time constant in s"),
-            ],
-        )?;
-        for (axis, fields) in t.drive.unwrap_or_default() {
-            let Some(a) = ["X", "Y", "Z"].iter().position(|n| *n == axis) else {
-                return Err(ck.err(
-                    &[K("twin"), K("drive"), K(axis.as_str())],
-                    "one of the axes X, Y, Z",
-                ));
-            };
-            let d = &mut p.drives[a];
-            for (k, v) in fields {
-                let path = [K("twin"), K("drive"), K(axis.as_str()), K(k.as_str())];
-                let (slot, what) = match k.as_str() {
-                    "p0_w" => (&mut d.p0_w, "a power in W"),
-                    "c1_w_per_m_min" => (&mut d.c1_w_per_m_min, "W per m/min"),
-                    "c2_w_per_m_min2" => (&mut d.c2_w_per_m_min2, "W per (m/min)²"),
-                    _ => {
-                        return Err(ck.err(
-                            &path,
-                            "one of the keys p0_w, c1_w_per_m_min, c2_w_per_m_min2",
-                        ))
-                    }
-                };
-                *slot = ck.within(&path, v, 0.0, 1e4, what)?;
-            }
-        }
-        for (id, v) in t.sensor_tau_s.unwrap_or_default() {
-            let path = [K("twin"), K("sensor_tau_s"), K(id.as_str())];
-            if !SENSOR_IDS.contains(&id.as_str()) {
-                return Err(ck.err(&path, format!("a sensor id ({})", SENSOR_IDS.join(", "))));
-            }
-            let v = ck.within(&path, v, 0.0, 1e5, "a time constant in s")?;
-            p.sensor_tau_s.insert(id, v);
-        }
+        read_joints(ck, t.joints, &mut p.joints)?;
+        read_spindle_and_coolant(ck, t.spindle, t.coolant, &mut p)?;
+        read_drives(ck, t.drive, &mut p)?;
+        read_sensor_taus(ck, t.sensor_tau_s, &mut p)?;
         Ok(p)
     }
+}
+
+/// Sets `into` from an optional value checked to lie within [lo, hi].
+fn set(
+    ck: &Checker,
+    v: Option<f64>,
+    path: &[Seg],
+    lo: f64,
+    hi: f64,
+    what: &str,
+    into: &mut f64,
+) -> Result<(), ScenarioError> {
+    if let Some(v) = v {
+        *into = ck.within(path, v, lo, hi, what)?;
+    }
+    Ok(())
+}
+
+/// A field of a keyed table: its key, where it goes, its range and what it is.
+type Field<'a> = (&'a str, &'a mut f64, f64, f64, &'a str);
+
+/// Reads the keyed table `[twin.TABLE]` into `fields`; an unknown key is named with the keys
+/// it may have.
+fn map_into(
+    ck: &Checker,
+    m: Option<BTreeMap<String, f64>>,
+    table: &str,
+    fields: &mut [Field<'_>],
+) -> Result<(), ScenarioError> {
+    use Seg::Key as K;
+    for (k, v) in m.unwrap_or_default() {
+        let path = [K("twin"), K(table), K(k.as_str())];
+        match fields.iter_mut().find(|f| f.0 == k) {
+            Some(f) => *f.1 = ck.within(&path, v, f.2, f.3, f.4)?,
+            None => {
+                let names: Vec<&str> = fields.iter().map(|f| f.0).collect();
+                return Err(ck.err(&path, format!("one of the keys {}", names.join(", "))));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The structural parts' materials and section shares.
+fn read_parts(
+    ck: &Checker,
+    parts: [(&str, Option<FilePart>, &mut PartParams); 5],
+) -> Result<(), ScenarioError> {
+    use Seg::Key as K;
+    for (name, part, target) in parts {
+        let Some(f) = part else { continue };
+        let path = |k| [K("twin"), K(name), K(k)];
+        set(
+            ck,
+            f.alpha_per_k,
+            &path("alpha_per_k"),
+            -1e-4,
+            1e-4,
+            "an expansion coefficient in 1/K",
+            &mut target.material.alpha_per_k,
+        )?;
+        set(
+            ck,
+            f.density_kg_m3,
+            &path("density_kg_m3"),
+            100.0,
+            30_000.0,
+            "a density in kg/m³",
+            &mut target.material.density_kg_m3,
+        )?;
+        set(
+            ck,
+            f.specific_heat_j_kg_k,
+            &path("specific_heat_j_kg_k"),
+            50.0,
+            5000.0,
+            "a specific heat in J/(kg·K)",
+            &mut target.material.specific_heat_j_kg_k,
+        )?;
+        set(
+            ck,
+            f.conductivity_w_m_k,
+            &path("conductivity_w_m_k"),
+            0.01,
+            1000.0,
+            "a conductivity in W/(m·K)",
+            &mut target.material.conductivity_w_m_k,
+        )?;
+        set(
+            ck,
+            f.fill,
+            &path("fill"),
+            0.01,
+            1.0,
+            "a share",
+            &mut target.fill,
+        )?;
+        set(
+            ck,
+            f.web,
+            &path("web"),
+            0.001,
+            1.0,
+            "a share",
+            &mut target.web,
+        )?;
+    }
+    Ok(())
+}
+
+/// The conductances of the joints between parts (W/K).
+fn read_joints(
+    ck: &Checker,
+    m: Option<BTreeMap<String, f64>>,
+    j: &mut JointParams,
+) -> Result<(), ScenarioError> {
+    map_into(
+        ck,
+        m,
+        "joints",
+        &mut [
+            (
+                "column_bed",
+                &mut j.column_bed,
+                0.0,
+                1e5,
+                "a conductance in W/K",
+            ),
+            (
+                "saddle_bed",
+                &mut j.saddle_bed,
+                0.0,
+                1e5,
+                "a conductance in W/K",
+            ),
+            (
+                "table_saddle",
+                &mut j.table_saddle,
+                0.0,
+                1e5,
+                "a conductance in W/K",
+            ),
+            (
+                "head_column",
+                &mut j.head_column,
+                0.0,
+                1e5,
+                "a conductance in W/K",
+            ),
+            (
+                "spindle_front_head",
+                &mut j.spindle_front_head,
+                0.0,
+                1e5,
+                "a conductance in W/K",
+            ),
+            (
+                "spindle_rear_head",
+                &mut j.spindle_rear_head,
+                0.0,
+                1e5,
+                "a conductance in W/K",
+            ),
+            (
+                "spindle_motor_head",
+                &mut j.spindle_motor_head,
+                0.0,
+                1e5,
+                "a conductance in W/K",
+            ),
+        ],
+    )
+}
+
+/// The spindle's losses and the coolant.
+fn read_spindle_and_coolant(
+    ck: &Checker,
+    spindle: Option<BTreeMap<String, f64>>,
+    coolant: Option<BTreeMap<String, f64>>,
+    p: &mut TwinParams,
+) -> Result<(), ScenarioError> {
+    let s = &mut p.spindle;
+    map_into(
+        ck,
+        spindle,
+        "spindle",
+        &mut [
+            ("front_a", &mut s.front_a, 0.0, 1e4, "W per 1000/min"),
+            ("front_b", &mut s.front_b, 0.0, 1e4, "W per (1000/min)²"),
+            (
+                "rear_share",
+                &mut s.rear_share,
+                0.0,
+                10.0,
+                "a share of the front bearing's losses",
+            ),
+            ("motor_a", &mut s.motor_a, 0.0, 1e4, "W per 1000/min"),
+            ("motor_b", &mut s.motor_b, 0.0, 1e4, "W per (1000/min)²"),
+            (
+                "rotor_share",
+                &mut s.rotor_share,
+                0.0,
+                1.0,
+                "a share between 0 and 1",
+            ),
+        ],
+    )?;
+    let c = &mut p.coolant;
+    map_into(
+        ck,
+        coolant,
+        "coolant",
+        &mut [
+            ("w_per_k", &mut c.w_per_k, 0.0, 1e4, "a conductance in W/K"),
+            (
+                "rise_k",
+                &mut c.rise_k,
+                -20.0,
+                20.0,
+                "a temperature rise in K",
+            ),
+            ("tau_s", &mut c.tau_s, 1.0, 1e6, "a time constant in s"),
+        ],
+    )
+}
+
+/// The feed drives' losses per axis.
+fn read_drives(
+    ck: &Checker,
+    drive: Option<BTreeMap<String, BTreeMap<String, f64>>>,
+    p: &mut TwinParams,
+) -> Result<(), ScenarioError> {
+    use Seg::Key as K;
+    for (axis, fields) in drive.unwrap_or_default() {
+        let Some(a) = ["X", "Y", "Z"].iter().position(|n| *n == axis) else {
+            return Err(ck.err(
+                &[K("twin"), K("drive"), K(axis.as_str())],
+                "one of the axes X, Y, Z",
+            ));
+        };
+        let d = &mut p.drives[a];
+        for (k, v) in fields {
+            let path = [K("twin"), K("drive"), K(axis.as_str()), K(k.as_str())];
+            let (slot, what) = match k.as_str() {
+                "p0_w" => (&mut d.p0_w, "a power in W"),
+                "c1_w_per_m_min" => (&mut d.c1_w_per_m_min, "W per m/min"),
+                "c2_w_per_m_min2" => (&mut d.c2_w_per_m_min2, "W per (m/min)²"),
+                _ => {
+                    return Err(ck.err(
+                        &path,
+                        "one of the keys p0_w, c1_w_per_m_min, c2_w_per_m_min2",
+                    ))
+                }
+            };
+            *slot = ck.within(&path, v, 0.0, 1e4, what)?;
+        }
+    }
+    Ok(())
+}
+
+/// Sensor time constants that differ from the built-in ones.
+fn read_sensor_taus(
+    ck: &Checker,
+    taus: Option<BTreeMap<String, f64>>,
+    p: &mut TwinParams,
+) -> Result<(), ScenarioError> {
+    use Seg::Key as K;
+    for (id, v) in taus.unwrap_or_default() {
+        let path = [K("twin"), K("sensor_tau_s"), K(id.as_str())];
+        if !SENSOR_IDS.contains(&id.as_str()) {
+            return Err(ck.err(&path, format!("a sensor id ({})", SENSOR_IDS.join(", "))));
+        }
+        let v = ck.within(&path, v, 0.0, 1e5, "a time constant in s")?;
+        p.sensor_tau_s.insert(id, v);
+    }
+    Ok(())
 }
 
 #[cfg(test)]

@@ -4,6 +4,7 @@ use std::fmt;
 use std::io::Write;
 
 use crate::machine::{Operating, Spot, Twin, AXES};
+use crate::network::Stepper;
 use crate::scenario::{check_fault_sensors, Pattern, Phase, Probing, Scenario, MAX_SAMPLES};
 use crate::sensor::{normal, Draws, Noise, SensorState};
 
@@ -105,6 +106,12 @@ pub struct Summary {
 pub type Spread = (f64, (f64, [f64; 3]), (f64, [f64; 3]));
 
 impl SimRun {
+    /// Appends a row and the network's temperatures at its instant.
+    fn push(&mut self, row: Row, temps: &[f64]) {
+        self.rows.push(row);
+        self.states.extend_from_slice(temps);
+    }
+
     /// True node temperatures at row `i`.
     pub fn state(&self, i: usize) -> &[f64] {
         let n = self.node_names.len();
@@ -336,6 +343,84 @@ enum ProbeState {
     Active { point: usize, dwell_left: f64 },
 }
 
+/// The sensors of a run: their states, the faults scheduled for each, the noise they read with.
+struct Sensing<'a> {
+    states: Vec<SensorState>,
+    faults: Vec<Vec<&'a crate::scenario::Fault>>,
+    noise: Noise,
+}
+
+impl Sensing<'_> {
+    /// Every sensor's reading at `t`, drawing its noise from `rng` in sensor order.
+    fn read_all(&mut self, rng: &mut fastrand::Rng, t: f64) -> Vec<f64> {
+        self.states
+            .iter_mut()
+            .zip(&self.faults)
+            .map(|(s, f)| {
+                let d = Draws {
+                    normal: normal(rng),
+                    uniform: rng.f64(),
+                    sign: if rng.bool() { 1.0 } else { -1.0 },
+                };
+                s.read(t, &self.noise, d, f)
+            })
+            .collect()
+    }
+}
+
+/// Where the probing cycles stand: the state and the cycle counters the readings carry.
+struct ProbeClock {
+    state: ProbeState,
+    cycle: usize,
+    cycle_of_touch: usize,
+}
+
+impl ProbeClock {
+    /// At the start of a step at `t`: whether a probing cycle runs now, and the position
+    /// touched if the probe measures in place at this instant.
+    fn begin(
+        &mut self,
+        probing: Option<&Probing>,
+        phase_probes: bool,
+        t: f64,
+        position: [f64; 3],
+    ) -> (bool, Option<[f64; 3]>) {
+        match (&mut self.state, probing) {
+            (ProbeState::Idle { next_s }, Some(p)) if t >= *next_s - 1e-9 => {
+                if !phase_probes {
+                    while *next_s <= t + 1e-9 {
+                        *next_s += p.every_s;
+                    }
+                    return (false, None);
+                }
+                self.cycle_of_touch = self.cycle;
+                self.cycle += 1;
+                if p.in_place {
+                    *next_s += p.every_s;
+                    (false, Some(position))
+                } else {
+                    self.state = ProbeState::Active {
+                        point: 0,
+                        dwell_left: p.dwell_s,
+                    };
+                    (true, None)
+                }
+            }
+            (ProbeState::Active { .. }, Some(_)) => (true, None),
+            _ => (false, None),
+        }
+    }
+}
+
+/// The temperature a sensor's spot has: the mean of its nodes, the air or the coolant.
+fn spot(s: &Spot, temps: &[f64], amb: f64, cool: f64) -> f64 {
+    match s {
+        Spot::Nodes(v) => v.iter().map(|&i| temps[i]).sum::<f64>() / v.len() as f64,
+        Spot::Ambient => amb,
+        Spot::Coolant => cool,
+    }
+}
+
 impl Twin {
     /// Runs `scenario` with random draws from `seed` (the same seed gives the same run).
     pub fn run(&self, scenario: &Scenario, seed: u64) -> Result<SimRun, SimError> {
@@ -353,6 +438,172 @@ impl Twin {
         sc.check_size().map_err(SimError)?;
         let ids: Vec<String> = self.sensors.iter().map(|s| s.id.clone()).collect();
         check_fault_sensors(sc, &ids).map_err(SimError)?;
+        self.check_fits(sc)?;
+        let mut rng = fastrand::Rng::with_seed(seed);
+        let h = sc.step_s;
+        let mut stepper = self.stepper(h);
+        let n = self.node_count();
+        let amb0 = sc.ambient.at(0.0, sc.start_hour);
+        let mut temps = vec![sc.initial_c.unwrap_or(amb0); n];
+        let mut coolant_c = amb0;
+        let mut sensors = Sensing {
+            states: self
+                .sensors
+                .iter()
+                .map(|s| SensorState::new(s.tau_s, h, spot(&s.spot, &temps, amb0, coolant_c)))
+                .collect(),
+            faults: self
+                .sensors
+                .iter()
+                .map(|s| sc.faults.iter().filter(|f| f.sensor == s.id).collect())
+                .collect(),
+            noise: Noise {
+                sigma_c: sc.sensor_noise_c,
+                resolution_c: sc.sensor_resolution_c,
+            },
+        };
+        let centre = |a: usize| (self.travel_mm[a][0] + self.travel_mm[a][1]) / 2.0;
+        let mut axes = [0, 1, 2].map(|a| AxisState {
+            pos: centre(a),
+            dir: 1.0,
+            target: None,
+            dwell_left: 0.0,
+        });
+        let mut run = SimRun {
+            machine: self.name.clone(),
+            scenario: sc.name.clone(),
+            seed,
+            sensor_ids: ids,
+            node_names: self.network.names.clone(),
+            rows: Vec::new(),
+            states: Vec::new(),
+        };
+        let total_steps = (sc.duration_s() / h).round() as usize;
+        let sample_every = (sc.sample_s / h).round().max(1.0) as usize;
+        let steps_per_minute = ((60.0 / h).round() as usize).max(1);
+        let mut probes = ProbeClock {
+            state: ProbeState::Idle {
+                next_s: sc.probing.as_ref().map_or(f64::INFINITY, |p| p.every_s),
+            },
+            cycle: 0,
+            cycle_of_touch: 0,
+        };
+        let mut phase_idx = 0;
+        let mut phase_end = sc.phases[0].duration_s;
+        let mut op = Operating {
+            position_mm: axes.map(|a| a.pos),
+            ..Operating::default()
+        };
+        let mut powers: Vec<(usize, f64)> = Vec::with_capacity(64);
+        let r0 = sensors.read_all(&mut rng, 0.0);
+        op.servo_on = sc.phases[0].servo_on;
+        run.push(self.row(0.0, &temps, &op, 0, r0, amb0), &temps);
+
+        for k in 0..total_steps {
+            let t = k as f64 * h;
+            let t_end = t + h;
+            while t >= phase_end - 1e-9 && phase_idx + 1 < sc.phases.len() {
+                phase_idx += 1;
+                phase_end += sc.phases[phase_idx].duration_s;
+                for a in &mut axes {
+                    a.target = None;
+                    a.dwell_left = 0.0;
+                }
+            }
+            let phase = &sc.phases[phase_idx];
+            let before = axes.map(|a| a.pos);
+            // Probing cycle or the phase's own operation.
+            let (probing_now, mut touched) =
+                probes.begin(sc.probing.as_ref(), phase.probe, t, before);
+            if probing_now {
+                let p = sc.probing.as_ref().expect("probing is configured");
+                touched = self.probe_step(p, &mut probes.state, &mut axes, h, t);
+                let stop = p.stop_spindle;
+                op.spindle_rpm = if stop { 0.0 } else { phase.spindle_rpm };
+                op.coolant_on = false;
+            } else {
+                self.phase_step(phase, &mut axes, h, &mut rng);
+                op.spindle_rpm = phase.spindle_rpm;
+                op.coolant_on = phase.coolant;
+            }
+            op.servo_on = phase.servo_on;
+            for a in 0..3 {
+                op.speed_mm_min[a] = (axes[a].pos - before[a]).abs() / h * 60.0;
+                op.position_mm[a] = 0.5 * (axes[a].pos + before[a]);
+            }
+            // Heat, network, coolant, sensors.
+            let amb_end = self.advance_heat(
+                sc,
+                &op,
+                &mut temps,
+                &mut coolant_c,
+                &mut sensors.states,
+                &mut stepper,
+                &mut powers,
+                t,
+            );
+            op.position_mm = axes.map(|a| a.pos);
+            let sample = (k + 1) % sample_every == 0;
+            if sample || touched.is_some() {
+                let readings = sensors.read_all(&mut rng, t_end);
+                let probe_reading = touched.map(|pos| {
+                    let noise_um = sc.probing.as_ref().map_or(0.0, |p| p.noise_um);
+                    let e = self.error_um(&temps, pos);
+                    ProbeReading {
+                        position_mm: pos,
+                        measured_um: e.map(|v| v + noise_um * normal(&mut rng)),
+                        cycle: probes.cycle_of_touch,
+                    }
+                });
+                let row = Row {
+                    probe: probe_reading,
+                    ..self.row(t_end, &temps, &op, phase_idx, readings, amb_end)
+                };
+                run.push(row, &temps);
+                // Probe touches add rows beyond the sampled ones: bound them as well.
+                if run.rows.len() as f64 > 2.0 * MAX_SAMPLES {
+                    return Err(SimError(format!(
+                        "scenario {}: more than {} rows (sampled rows and probe touches); probe less often (probing.every_min)",
+                        sc.name,
+                        2.0 * MAX_SAMPLES
+                    )));
+                }
+            }
+            if (k + 1) % steps_per_minute == 0 {
+                progress((k + 1) as f64 / total_steps as f64);
+            }
+        }
+        progress(1.0);
+        Ok(run)
+    }
+
+    /// A sampled row (without a probe reading) at `t`: the operation, the readings, the true
+    /// error at the current position.
+    fn row(
+        &self,
+        t: f64,
+        temps: &[f64],
+        op: &Operating,
+        phase: usize,
+        readings: Vec<f64>,
+        amb: f64,
+    ) -> Row {
+        Row {
+            time_s: t,
+            position_mm: op.position_mm,
+            phase,
+            spindle_rpm: op.spindle_rpm,
+            speed_mm_min: op.speed_mm_min,
+            coolant_on: op.coolant_on,
+            temperatures_c: readings,
+            error_um: self.error_um(temps, op.position_mm),
+            ambient_true_c: amb,
+            probe: None,
+        }
+    }
+
+    /// Every motion and probing point of the scenario stays inside this machine's travel.
+    fn check_fits(&self, sc: &Scenario) -> Result<(), SimError> {
         for ph in &sc.phases {
             for m in &ph.motion {
                 let [lo, hi] = self.travel_mm[m.axis];
@@ -380,219 +631,44 @@ impl Twin {
                 }
             }
         }
-        let mut rng = fastrand::Rng::with_seed(seed);
-        let h = sc.step_s;
-        let mut stepper = self.stepper(h);
-        let n = self.node_count();
-        let amb0 = sc.ambient.at(0.0, sc.start_hour);
-        let mut temps = vec![sc.initial_c.unwrap_or(amb0); n];
-        let mut coolant_c = amb0;
-        let cool_gain = 1.0 - (-h / self.coolant_tau_s).exp();
-        let spot = |s: &Spot, temps: &[f64], amb: f64, cool: f64| match s {
-            Spot::Nodes(v) => v.iter().map(|&i| temps[i]).sum::<f64>() / v.len() as f64,
-            Spot::Ambient => amb,
-            Spot::Coolant => cool,
-        };
-        let mut sensors: Vec<SensorState> = self
-            .sensors
-            .iter()
-            .map(|s| SensorState::new(s.tau_s, h, spot(&s.spot, &temps, amb0, coolant_c)))
-            .collect();
-        let faults: Vec<Vec<&crate::scenario::Fault>> = self
-            .sensors
-            .iter()
-            .map(|s| sc.faults.iter().filter(|f| f.sensor == s.id).collect())
-            .collect();
-        let noise = Noise {
-            sigma_c: sc.sensor_noise_c,
-            resolution_c: sc.sensor_resolution_c,
-        };
-        let centre = |a: usize| (self.travel_mm[a][0] + self.travel_mm[a][1]) / 2.0;
-        let mut axes = [0, 1, 2].map(|a| AxisState {
-            pos: centre(a),
-            dir: 1.0,
-            target: None,
-            dwell_left: 0.0,
-        });
-        let mut run = SimRun {
-            machine: self.name.clone(),
-            scenario: sc.name.clone(),
-            seed,
-            sensor_ids: ids,
-            node_names: self.network.names.clone(),
-            rows: Vec::new(),
-            states: Vec::new(),
-        };
-        let total_steps = (sc.duration_s() / h).round() as usize;
-        let sample_every = (sc.sample_s / h).round().max(1.0) as usize;
-        let steps_per_minute = ((60.0 / h).round() as usize).max(1);
-        let mut probe = ProbeState::Idle {
-            next_s: sc.probing.as_ref().map_or(f64::INFINITY, |p| p.every_s),
-        };
-        let mut cycle = 0usize;
-        let mut cycle_of_touch = 0usize;
-        let mut phase_idx = 0;
-        let mut phase_end = sc.phases[0].duration_s;
-        let mut op = Operating {
-            position_mm: axes.map(|a| a.pos),
-            ..Operating::default()
-        };
-        let mut powers: Vec<(usize, f64)> = Vec::with_capacity(64);
-        let record = |run: &mut SimRun,
-                      t: f64,
-                      temps: &[f64],
-                      op: &Operating,
-                      phase: usize,
-                      readings: Vec<f64>,
-                      probe: Option<ProbeReading>,
-                      amb: f64| {
-            run.rows.push(Row {
-                time_s: t,
-                position_mm: op.position_mm,
-                phase,
-                spindle_rpm: op.spindle_rpm,
-                speed_mm_min: op.speed_mm_min,
-                coolant_on: op.coolant_on,
-                temperatures_c: readings,
-                error_um: self.error_um(temps, op.position_mm),
-                ambient_true_c: amb,
-                probe,
-            });
-            run.states.extend_from_slice(temps);
-        };
-        let read_all =
-            |sensors: &mut Vec<SensorState>, rng: &mut fastrand::Rng, t: f64| -> Vec<f64> {
-                sensors
-                    .iter_mut()
-                    .zip(&faults)
-                    .map(|(s, f)| {
-                        let d = Draws {
-                            normal: normal(rng),
-                            uniform: rng.f64(),
-                            sign: if rng.bool() { 1.0 } else { -1.0 },
-                        };
-                        s.read(t, &noise, d, f)
-                    })
-                    .collect()
-            };
-        let r0 = read_all(&mut sensors, &mut rng, 0.0);
-        op.servo_on = sc.phases[0].servo_on;
-        record(&mut run, 0.0, &temps, &op, 0, r0, None, amb0);
+        Ok(())
+    }
 
-        for k in 0..total_steps {
-            let t = k as f64 * h;
-            let t_end = t + h;
-            while t >= phase_end - 1e-9 && phase_idx + 1 < sc.phases.len() {
-                phase_idx += 1;
-                phase_end += sc.phases[phase_idx].duration_s;
-                for a in &mut axes {
-                    a.target = None;
-                    a.dwell_left = 0.0;
-                }
-            }
-            let phase = &sc.phases[phase_idx];
-            let before = axes.map(|a| a.pos);
-            let mut touched: Option<[f64; 3]> = None;
-            // Probing cycle or the phase's own operation.
-            let probing_now = match (&mut probe, &sc.probing) {
-                (ProbeState::Idle { next_s }, Some(p)) if t >= *next_s - 1e-9 => {
-                    if phase.probe {
-                        cycle_of_touch = cycle;
-                        cycle += 1;
-                        if p.in_place {
-                            touched = Some(before);
-                            *next_s += p.every_s;
-                            false
-                        } else {
-                            probe = ProbeState::Active {
-                                point: 0,
-                                dwell_left: p.dwell_s,
-                            };
-                            true
-                        }
-                    } else {
-                        while *next_s <= t + 1e-9 {
-                            *next_s += p.every_s;
-                        }
-                        false
-                    }
-                }
-                (ProbeState::Active { .. }, Some(_)) => true,
-                _ => false,
-            };
-            if probing_now {
-                let p = sc.probing.as_ref().expect("probing is configured");
-                touched = self.probe_step(p, &mut probe, &mut axes, h, t);
-                let stop = p.stop_spindle;
-                op.spindle_rpm = if stop { 0.0 } else { phase.spindle_rpm };
-                op.coolant_on = false;
-            } else {
-                self.phase_step(phase, &mut axes, h, &mut rng);
-                op.spindle_rpm = phase.spindle_rpm;
-                op.coolant_on = phase.coolant;
-            }
-            op.servo_on = phase.servo_on;
-            for a in 0..3 {
-                op.speed_mm_min[a] = (axes[a].pos - before[a]).abs() / h * 60.0;
-                op.position_mm[a] = 0.5 * (axes[a].pos + before[a]);
-            }
-            // Heat, network, coolant, sensors.
-            powers.clear();
-            self.heat(&op, &mut powers);
-            if op.coolant_on {
-                self.coolant_heat(&temps, coolant_c, &mut powers);
-            }
-            let amb = sc.ambient.at(t + 0.5 * h, sc.start_hour);
-            stepper.step(&mut temps, &powers, amb);
-            let amb_end = sc.ambient.at(t_end, sc.start_hour);
-            let cool_target = amb_end
-                + if op.coolant_on {
-                    self.coolant_rise_k
-                } else {
-                    0.0
-                };
-            coolant_c += cool_gain * (cool_target - coolant_c);
-            for (s, spec) in sensors.iter_mut().zip(&self.sensors) {
-                s.step(spot(&spec.spot, &temps, amb_end, coolant_c));
-            }
-            op.position_mm = axes.map(|a| a.pos);
-            let sample = (k + 1) % sample_every == 0;
-            if sample || touched.is_some() {
-                let readings = read_all(&mut sensors, &mut rng, t_end);
-                let probe_reading = touched.map(|pos| {
-                    let noise_um = sc.probing.as_ref().map_or(0.0, |p| p.noise_um);
-                    let e = self.error_um(&temps, pos);
-                    ProbeReading {
-                        position_mm: pos,
-                        measured_um: e.map(|v| v + noise_um * normal(&mut rng)),
-                        cycle: cycle_of_touch,
-                    }
-                });
-                record(
-                    &mut run,
-                    t_end,
-                    &temps,
-                    &op,
-                    phase_idx,
-                    readings,
-                    probe_reading,
-                    amb_end,
-                );
-                // Probe touches add rows beyond the sampled ones: bound them as well.
-                if run.rows.len() as f64 > 2.0 * MAX_SAMPLES {
-                    return Err(SimError(format!(
-                        "scenario {}: more than {} rows (sampled rows and probe touches); probe less often (probing.every_min)",
-                        sc.name,
-                        2.0 * MAX_SAMPLES
-                    )));
-                }
-            }
-            if (k + 1) % steps_per_minute == 0 {
-                progress((k + 1) as f64 / total_steps as f64);
-            }
+    /// One step of the heat flow: the operation's losses and the coolant into the network,
+    /// the network over the step, the coolant and the sensors after it. Returns the ambient
+    /// temperature at the end of the step.
+    #[allow(clippy::too_many_arguments)] // the loop's state, borrowed piece by piece
+    fn advance_heat(
+        &self,
+        sc: &Scenario,
+        op: &Operating,
+        temps: &mut [f64],
+        coolant_c: &mut f64,
+        sensors: &mut [SensorState],
+        stepper: &mut Stepper,
+        powers: &mut Vec<(usize, f64)>,
+        t: f64,
+    ) -> f64 {
+        let h = sc.step_s;
+        powers.clear();
+        self.heat(op, powers);
+        if op.coolant_on {
+            self.coolant_heat(temps, *coolant_c, powers);
         }
-        progress(1.0);
-        Ok(run)
+        let amb = sc.ambient.at(t + 0.5 * h, sc.start_hour);
+        stepper.step(temps, powers, amb);
+        let amb_end = sc.ambient.at(t + h, sc.start_hour);
+        let cool_target = amb_end
+            + if op.coolant_on {
+                self.coolant_rise_k
+            } else {
+                0.0
+            };
+        *coolant_c += (1.0 - (-h / self.coolant_tau_s).exp()) * (cool_target - *coolant_c);
+        for (s, spec) in sensors.iter_mut().zip(&self.sensors) {
+            s.step(spot(&spec.spot, temps, amb_end, *coolant_c));
+        }
+        amb_end
     }
 
     /// One step of a probing cycle; returns the touched position when a touch happens.

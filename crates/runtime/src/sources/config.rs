@@ -32,6 +32,29 @@ impl std::fmt::Display for ConfigError {
 
 impl std::error::Error for ConfigError {}
 
+/// Reads a source configuration from TOML text; TOML mistakes are named by `section` (the
+/// table's name, `modbus` or `shdr`) with toml's line and column.
+pub fn from_toml_text<T: serde::de::DeserializeOwned>(
+    text: &str,
+    section: &str,
+) -> Result<T, ConfigError> {
+    toml::from_str(text).map_err(|e| ConfigError::new(section, e.to_string()))
+}
+
+/// Reads a source configuration from a TOML file; errors name the file (and, for TOML
+/// mistakes, the line and column). `what` names the configuration in the read error
+/// (`Modbus source`).
+pub fn load_toml_file<T: serde::de::DeserializeOwned>(
+    path: &std::path::Path,
+    what: &str,
+) -> Result<T, ConfigError> {
+    let file = path.display().to_string();
+    let text = std::fs::read_to_string(path).map_err(|e| {
+        ConfigError::new(&file, format!("cannot read the {what} configuration: {e}"))
+    })?;
+    from_toml_text(&text, &file)
+}
+
 /// The checks every network source's configuration shares, for its TOML `section`
 /// (`modbus`, `shdr`): the address resolves, every time in `times_ms` (key, value) is at least
 /// 1 ms, the backoff is sound and there is at least one of `channels` channels, each mapping

@@ -5,6 +5,7 @@ use truepos_model::Machine;
 
 use super::codec::{Encoding, RegisterKind, WordOrder};
 use super::plan::RegisterSpan;
+use crate::sources::config::{from_toml_text, load_toml_file};
 use crate::sources::{
     check_source_config, check_unique_targets, BackoffConfig, ConfigError, Target,
 };
@@ -101,20 +102,13 @@ fn default_timeout_ms() -> u64 {
 impl ModbusConfig {
     /// Reads the configuration from TOML text (a table with the fields above).
     pub fn from_toml(text: &str) -> Result<Self, ConfigError> {
-        toml::from_str(text).map_err(|e| ConfigError::new("modbus", e.to_string()))
+        from_toml_text(text, "modbus")
     }
 
     /// Reads the configuration from a TOML file; errors name the file (and, for TOML mistakes,
     /// the line and column).
     pub fn load(path: &std::path::Path) -> Result<Self, ConfigError> {
-        let file = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|e| {
-            ConfigError::new(
-                &file,
-                format!("cannot read the Modbus source configuration: {e}"),
-            )
-        })?;
-        toml::from_str(&text).map_err(|e| ConfigError::new(file, e.to_string()))
+        load_toml_file(path, "Modbus source")
     }
 
     /// Checks the bounds and resolves the channels against the machine: their targets and

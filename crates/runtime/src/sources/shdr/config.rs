@@ -3,6 +3,7 @@
 use serde::Deserialize;
 use truepos_model::Machine;
 
+use crate::sources::config::{from_toml_text, load_toml_file};
 use crate::sources::{
     check_source_config, check_unique_targets, BackoffConfig, ConfigError, Target,
 };
@@ -88,20 +89,13 @@ fn default_data_timeout_ms() -> u64 {
 impl ShdrConfig {
     /// Reads the configuration from TOML text (a table with the fields above).
     pub fn from_toml(text: &str) -> Result<Self, ConfigError> {
-        toml::from_str(text).map_err(|e| ConfigError::new("shdr", e.to_string()))
+        from_toml_text(text, "shdr")
     }
 
     /// Reads the configuration from a TOML file; errors name the file (and, for TOML mistakes,
     /// the line and column).
     pub fn load(path: &std::path::Path) -> Result<Self, ConfigError> {
-        let file = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|e| {
-            ConfigError::new(
-                &file,
-                format!("cannot read the SHDR source configuration: {e}"),
-            )
-        })?;
-        toml::from_str(&text).map_err(|e| ConfigError::new(file, e.to_string()))
+        load_toml_file(path, "SHDR source")
     }
 
     /// Checks the bounds and resolves the channels against the machine.

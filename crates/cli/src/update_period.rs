@@ -1,9 +1,10 @@
-//! `truepos lag`: seed A's timing argument.
+//! `truepos update-period`: how stale a position-dependent term gets between updates while its
+//! axis moves (seed A's timing argument, `truepos_model::timing`).
 
 use truepos_io::limits::finite_in;
 use truepos_model::{lag_error_fraction, travel_per_update_mm, PositionFactor};
 
-/// Arguments of `truepos lag`.
+/// Arguments of `truepos update-period`.
 #[derive(clap::Args)]
 pub struct Args {
     /// Maximum feed of the axis in m/min, 0.001–1000.

@@ -17,7 +17,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::thread::JoinHandle;
 
-use crate::ffi;
+use truepos_hal::ffi;
 
 /// Length of one `/proc/stat` tick in ms (`USER_HZ` is 100 on every Linux architecture truepos
 /// runs on).

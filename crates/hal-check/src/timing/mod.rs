@@ -1,12 +1,15 @@
-//! The timing benchmark (`truepos-hal timing`): the runtime's service at a fixed period on the
-//! component's own pacing ([`crate::pacer`]), replaying a recorded run and logging to SQLite,
-//! with the host's steal time sampled beside it ([`crate::host`]). It needs no LinuxCNC.
+//! The timing benchmark (`truepos-hal-check timing`): the runtime's service at a fixed period on
+//! the component's own pacing ([`truepos_hal::pacer`]), replaying a recorded run and logging to
+//! SQLite, with the host's steal time sampled beside it ([`host`]). It needs no LinuxCNC.
 //!
 //! A cycle is *late* when it finishes more than `late_ms` after its deadline. Late cycles whose
 //! windows overlap form one stall (*episode*); an episode *coincides with steal* when the
 //! watched CPU's steal counter advanced between the samples around it (widened by the
 //! counter's 10 ms resolution plus one sampling interval). The bar is judged on the late
 //! cycles not explained so; every figure is reported.
+
+pub mod episodes;
+pub mod host;
 
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -16,9 +19,10 @@ use truepos_runtime::model_set::load_entries;
 use truepos_runtime::replay::ReplaySource;
 use truepos_runtime::ServiceHost;
 
-use crate::host::{HostActivity, HostRecord, HostSampler, TICK_MS};
-use crate::pacer::{realtime_setup, Episode, Episodes, Pacer};
-use crate::{ffi, pacer};
+use episodes::{Episode, Episodes};
+use host::{HostActivity, HostRecord, HostSampler, TICK_MS};
+use truepos_hal::pacer::{realtime_setup, Pacer};
+use truepos_hal::{ffi, pacer};
 
 /// What to run.
 #[derive(Debug, Clone)]
@@ -86,7 +90,7 @@ pub fn run(config: &TimingConfig, stop: &AtomicBool) -> Result<Value, String> {
     let replay = ReplaySource::new(format!("replay {}", config.run.display()), cycles, 1.0);
     if replay.duration_s() < config.duration_s {
         eprintln!(
-            "truepos-hal timing: the run lasts {:.0} s, less than {} s; its last values stay",
+            "truepos-hal-check timing: the run lasts {:.0} s, less than {} s; its last values stay",
             replay.duration_s(),
             config.duration_s
         );
@@ -96,7 +100,7 @@ pub fn run(config: &TimingConfig, stop: &AtomicBool) -> Result<Value, String> {
     // priority, so they inherit neither, and bound to the other CPUs.
     if let Some(cpu) = config.cpu {
         if let Err(e) = pacer::keep_off_cpu(cpu) {
-            eprintln!("truepos-hal timing: warning: {e}");
+            eprintln!("truepos-hal-check timing: warning: {e}");
         }
     }
     let mut service_host = ServiceHost::new(machine, entries)
@@ -108,11 +112,11 @@ pub fn run(config: &TimingConfig, stop: &AtomicBool) -> Result<Value, String> {
     let sample_ns = (config.sample_ms * 1e6).round().max(1e5) as u64;
     let sampler = HostSampler::start(sample_ns, config.cpu);
     if let Err(e) = &sampler {
-        eprintln!("truepos-hal timing: warning: no host sampling: {e}");
+        eprintln!("truepos-hal-check timing: warning: no host sampling: {e}");
     }
     let setup = realtime_setup(config.rt_priority, config.cpu);
     for e in &setup.errors {
-        eprintln!("truepos-hal timing: warning: {e}");
+        eprintln!("truepos-hal-check timing: warning: {e}");
     }
 
     let period_ns = (config.period_ms * 1e6).round() as u64;

@@ -1,0 +1,18 @@
+//! # truepos-hal-check — the HAL component's development tools, not shipped
+//!
+//! What checks the `truepos` HAL component (`truepos-hal`) rather than what runs beside
+//! LinuxCNC: the binary `truepos-hal-check` judges the LinuxCNC end-to-end test
+//! (`scripts/linuxcnc_e2e.sh`, [`check`]) and benchmarks the component's cycle without
+//! LinuxCNC (`scripts/cycle_timing.sh`, [`timing`]). It reads the component's pin names,
+//! status codes, pacing and offset resolution from `truepos-hal` itself, so the judge and the
+//! component cannot disagree about them.
+//!
+//! - [`check`]: what LinuxCNC applied against the models seed D's rule selects and the
+//!   output invariant, from the samplers' recording.
+//! - [`timing`]: the service on the component's pacing, replaying a run, with the host's steal
+//!   time sampled beside it.
+#![forbid(unsafe_code)]
+#![warn(missing_docs)]
+
+pub mod check;
+pub mod timing;
