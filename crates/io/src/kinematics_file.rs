@@ -683,9 +683,7 @@ fn read_table(
             } else {
                 LinuxCncType::Trims
             };
-            parse_linuxcnc(table_path, table_text, ty)?
-                .to_table(interp)
-                .map_err(|e| InputError::file(table_path, e))?
+            parse_linuxcnc(table_path, table_text, ty)?.to_table(interp)?
         }
         _ => {
             let mut all = parse_siemens(table_path, table_text, None)?;
@@ -698,9 +696,7 @@ fn read_table(
                     ),
                 ));
             }
-            all.remove(0)
-                .to_table(interp)
-                .map_err(|e| InputError::file(table_path, e))?
+            all.remove(0).to_table(interp)?
         }
     })
 }
