@@ -29,6 +29,7 @@ impl Chain {
     /// reported. Ends with [`KinError::NotConverged`] (`q` at the best point) if a step does
     /// not reduce the residual.
     #[allow(clippy::too_many_arguments)]
+    #[inline]
     pub(super) fn chord_affine(
         &self,
         af: &Affine,
@@ -108,6 +109,7 @@ impl Chain {
     /// `start`: the pose at `q` as predicted by the closed form, with the exact derivatives
     /// there, instead of a transform with derivatives here; a prediction that already meets
     /// the tolerances is confirmed by a transform before it counts.
+    #[inline]
     pub(super) fn chord(
         &self,
         target: &Pose,
