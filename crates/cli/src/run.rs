@@ -11,7 +11,7 @@ use truepos_io::limits::{check_in, finite_in};
 use truepos_io::{cycles, machine_file};
 use truepos_runtime::log;
 use truepos_runtime::model_set::load_entries;
-use truepos_runtime::replay::{state_name, CsvSink, ReplaySource};
+use truepos_runtime::replay::{state_name, CsvSink, Recording, ReplaySource};
 use truepos_runtime::sources::modbus::{ModbusConfig, ModbusSource};
 use truepos_runtime::sources::shdr::{ShdrConfig, ShdrSource};
 use truepos_runtime::{PathState, Running, Service, ServiceConfig, ServiceHost, Sink, Source};
@@ -131,8 +131,7 @@ fn twin_source(
             run.sensor_ids.join(", ")
         ));
     }
-    let run = cycles::Cycles {
-        line: (0..rows as u64).collect(),
+    let run = Recording {
         temperatures_c: (0..rows)
             .map(|i| temps.iter().map(|c| c[i]).collect())
             .collect(),
@@ -266,6 +265,12 @@ fn open_sources(
             "replay" => {
                 let run = cycles::load(std::path::Path::new(what), m, &[])
                     .map_err(|e| e.to_string())?;
+                let run = Recording {
+                    time_s: run.time_s,
+                    temperatures_c: run.temperatures_c,
+                    positions: run.positions,
+                    operating: run.operating,
+                };
                 let replay = ReplaySource::new(format!("replay {what}"), run, speed);
                 replay_end_s = Some(replay.duration_s() / speed);
                 if args.duration_s.is_none() && replay.duration_s() / speed > MAX_RUN_S {

@@ -9,10 +9,14 @@
 //!
 //! - [`check`]: what LinuxCNC applied against the models seed D's rule selects and the
 //!   output invariant, from the samplers' recording.
+//! - [`Error`]: what stops either before a verdict or a figure.
 //! - [`timing`]: the service on the component's pacing, replaying a run, with the host's steal
 //!   time sampled beside it.
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
 pub mod check;
+pub mod error;
 pub mod timing;
+
+pub use error::Error;

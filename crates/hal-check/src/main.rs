@@ -12,6 +12,7 @@ use std::sync::Arc;
 use clap::{Parser, Subcommand};
 use truepos_hal_check::check::{check, events, load_samples, CheckConfig};
 use truepos_hal_check::timing::{self, TimingConfig};
+use truepos_hal_check::Error;
 use truepos_io::limits::{finite_in, int_in};
 use truepos_runtime::model_set::load_entries;
 
@@ -101,7 +102,7 @@ struct TimingArgs {
     late_ms: f64,
 }
 
-fn run_check(args: CheckArgs) -> Result<bool, Box<dyn std::error::Error>> {
+fn run_check(args: CheckArgs) -> Result<bool, Error> {
     let machine = truepos_io::machine_file::load(&args.machine)?;
     // With their axis-combination indices: the check applies seed D's rule itself.
     let models = load_entries(&args.models, &machine)?;
@@ -111,16 +112,10 @@ fn run_check(args: CheckArgs) -> Result<bool, Box<dyn std::error::Error>> {
         hold_ramp_s: args.hold_ramp_s,
         ..CheckConfig::default()
     };
-    let mut report = check(
-        &machine.machine,
-        &models,
-        &machine.axis_runtime,
-        &samples,
-        &config,
-    );
+    let mut report = check(&machine.machine, &models, &machine.axes, &samples, &config);
     if !args.expect_events.is_empty() {
         let Some(log) = &args.log else {
-            return Err("--expect-event needs --log".into());
+            return Err(Error::ExpectEventWithoutLog);
         };
         let events = truepos_runtime::log::read_events(log)?;
         if !args.json {
@@ -147,10 +142,12 @@ fn run_check(args: CheckArgs) -> Result<bool, Box<dyn std::error::Error>> {
     Ok(report.passed())
 }
 
-fn run_timing(args: TimingArgs) -> Result<bool, Box<dyn std::error::Error>> {
+fn run_timing(args: TimingArgs) -> Result<bool, Error> {
     let stop = Arc::new(AtomicBool::new(false));
-    signal_hook::flag::register(signal_hook::consts::SIGTERM, Arc::clone(&stop))?;
-    signal_hook::flag::register(signal_hook::consts::SIGINT, Arc::clone(&stop))?;
+    signal_hook::flag::register(signal_hook::consts::SIGTERM, Arc::clone(&stop))
+        .map_err(Error::Signal)?;
+    signal_hook::flag::register(signal_hook::consts::SIGINT, Arc::clone(&stop))
+        .map_err(Error::Signal)?;
     // The last CPU: the kernel and most other work start on the first.
     let cpu = args.cpu.or_else(|| {
         std::thread::available_parallelism()

@@ -38,11 +38,13 @@ impl Direction {
 }
 
 /// What went wrong talking to HAL.
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 pub enum HalError {
     /// `liblinuxcnchal.so.0` or one of its functions could not be loaded.
+    #[error("cannot load LinuxCNC's HAL library (install linuxcnc-uspace): {0}")]
     Library(String),
     /// A HAL call returned an error code (negative errno, see `rtapi_errno.h`).
+    #[error("{function}(\"{name}\") failed with code {code}{hint}", hint = call_hint(.function))]
     Call {
         /// The C function.
         function: &'static str,
@@ -52,40 +54,21 @@ pub enum HalError {
         code: i32,
     },
     /// `hal_malloc` returned no memory.
+    #[error("hal_malloc: HAL shared memory is exhausted")]
     OutOfMemory,
     /// A name contains a NUL byte or is longer than HAL's 47 characters (`HAL_NAME_LEN`).
+    #[error("HAL name {0:?} must be at most 47 bytes long and contain no NUL")]
     BadName(String),
 }
 
-impl fmt::Display for HalError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            Self::Library(why) => write!(
-                f,
-                "cannot load LinuxCNC's HAL library (install linuxcnc-uspace): {why}"
-            ),
-            Self::Call {
-                function,
-                name,
-                code,
-            } => {
-                let hint = if *function == "hal_init" {
-                    " (is LinuxCNC or halrun running, and is the name free?)"
-                } else {
-                    ""
-                };
-                write!(f, "{function}(\"{name}\") failed with code {code}{hint}")
-            }
-            Self::OutOfMemory => write!(f, "hal_malloc: HAL shared memory is exhausted"),
-            Self::BadName(name) => write!(
-                f,
-                "HAL name {name:?} must be at most 47 bytes long and contain no NUL"
-            ),
-        }
+/// What to try when a call failed: `hal_init` fails when the name is taken or HAL is not up.
+fn call_hint(function: &str) -> &'static str {
+    if function == "hal_init" {
+        " (is LinuxCNC or halrun running, and is the name free?)"
+    } else {
+        ""
     }
 }
-
-impl std::error::Error for HalError {}
 
 /// `HAL_NAME_LEN` in `hal.h`.
 const HAL_NAME_LEN: usize = 47;

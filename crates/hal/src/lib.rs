@@ -12,6 +12,7 @@
 //! - [`source::HalSource`] / [`sink::HalSink`]: the component as the runtime's
 //!   [`Source`](truepos_runtime::Source) and [`Sink`](truepos_runtime::Sink).
 //! - [`eoffset`]: offsets in µm ↔ LinuxCNC counts.
+//! - [`Error`]: why the component could not start or stop cleanly.
 //! - [`pacer`]: the periodic cycle (absolute deadlines, `SCHED_FIFO`, locked memory, one CPU).
 //!
 //! The judge of the LinuxCNC end-to-end test and the timing benchmark of the cycle are
@@ -35,6 +36,7 @@
 #![warn(missing_docs)]
 
 pub mod eoffset;
+pub mod error;
 #[allow(unsafe_code)]
 pub mod ffi;
 pub mod pacer;
@@ -42,5 +44,6 @@ pub mod pins;
 pub mod sink;
 pub mod source;
 
+pub use error::Error;
 pub use sink::HalSink;
 pub use source::HalSource;

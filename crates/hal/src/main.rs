@@ -10,13 +10,12 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use clap::{Parser, Subcommand};
-use truepos_hal::ffi::{self, Component};
+use truepos_hal::ffi::{self, Component, HalError};
 use truepos_hal::pacer::{keep_off_cpu, realtime_setup, Pacer};
-use truepos_hal::{pins, HalSink, HalSource};
+use truepos_hal::{pins, Error, HalSink, HalSource};
 use truepos_io::limits::{finite_in, int_in};
-use truepos_io::machine_file::MachineFile;
 use truepos_runtime::model_set::load_entries;
-use truepos_runtime::{PathState, Running, Service, ServiceConfig, ServiceHost};
+use truepos_runtime::{MachineConfig, PathState, Running, Service, ServiceConfig, ServiceHost};
 
 #[derive(Parser)]
 #[command(
@@ -89,10 +88,10 @@ struct LoopPins {
 fn create_pins(
     component: &Component,
     name: &str,
-    machine: &MachineFile,
-) -> Result<(HalSource, HalSink, LoopPins), Box<dyn std::error::Error>> {
+    machine: &MachineConfig,
+) -> Result<(HalSource, HalSink, LoopPins), HalError> {
     let paths = machine
-        .axis_runtime
+        .axes
         .iter()
         .map(|a| a.path as usize)
         .max()
@@ -107,7 +106,7 @@ fn create_pins(
         all_homed: all.outputs.all_homed.clone(),
         path_models: all.outputs.path_models.clone(),
     };
-    let source = HalSource::new(name, all.inputs, &machine.axis_runtime);
+    let source = HalSource::new(name, all.inputs, &machine.axes);
     let sink = HalSink::new(name, all.outputs);
     Ok((source, sink, loop_pins))
 }
@@ -124,14 +123,16 @@ struct LoopStats {
     cpu_percent: f64,
 }
 
-fn run(args: RunArgs) -> Result<(), Box<dyn std::error::Error>> {
+fn run(args: RunArgs) -> Result<(), Error> {
     let machine = truepos_io::machine_file::load(&args.machine)?;
     // Seed D: a model without an index in its file serves path 1's axes.
     let entries = load_entries(&args.models, &machine)?;
 
     let stop = Arc::new(AtomicBool::new(false));
-    signal_hook::flag::register(signal_hook::consts::SIGTERM, Arc::clone(&stop))?;
-    signal_hook::flag::register(signal_hook::consts::SIGINT, Arc::clone(&stop))?;
+    signal_hook::flag::register(signal_hook::consts::SIGTERM, Arc::clone(&stop))
+        .map_err(Error::Signal)?;
+    signal_hook::flag::register(signal_hook::consts::SIGINT, Arc::clone(&stop))
+        .map_err(Error::Signal)?;
 
     let component = Component::new(&args.name)?;
     let (source, sink, loop_pins) = create_pins(&component, &args.name, &machine)?;
@@ -201,7 +202,7 @@ fn run(args: RunArgs) -> Result<(), Box<dyn std::error::Error>> {
     });
     eprintln!("truepos-hal: stopped after {} cycles: {stats}", s.cycles);
     if let Some(p) = &args.stats {
-        std::fs::write(p, format!("{stats}\n"))?;
+        std::fs::write(p, format!("{stats}\n")).map_err(Error::Stats)?;
     }
     Ok(())
 }

@@ -44,6 +44,22 @@ pub fn operating_pin(id: &str) -> String {
     format!("operating.{id}")
 }
 
+/// The pin-name suffix of the compensation an axis is sent (`X` → `axis.x.offset-um`).
+pub fn offset_um_pin(axis: &str) -> String {
+    format!("{}.offset-um", axis_prefix(axis))
+}
+
+/// The pin-name suffix of the path an axis belongs to (`X` → `axis.x.path`).
+pub fn axis_path_pin(axis: &str) -> String {
+    format!("{}.path", axis_prefix(axis))
+}
+
+/// The pin-name suffix of the compensation state ([`status_code`]).
+pub const STATUS_PIN: &str = "status";
+
+/// The pin-name suffix of the preferred model.
+pub const MODEL_SELECT_PIN: &str = "model-select";
+
 /// The value of `truepos.status` for a compensation state.
 pub fn status_code(state: CompensationState) -> i32 {
     match state {
@@ -138,9 +154,9 @@ pub fn create(component: &Component, machine: &Machine, paths: usize) -> Result<
     for axis in &machine.axes {
         let p = axis_prefix(&axis.name);
         positions.push(component.float_pin(&format!("{p}.pos"), Direction::In)?);
-        axis_paths.push(component.s32_pin(&format!("{p}.path"), Direction::In)?);
+        axis_paths.push(component.s32_pin(&axis_path_pin(&axis.name), Direction::In)?);
         axes.push(AxisOutputPins {
-            offset_um: component.float_pin(&format!("{p}.offset-um"), Direction::Out)?,
+            offset_um: component.float_pin(&offset_um_pin(&axis.name), Direction::Out)?,
             counts: component.s32_pin(&format!("{p}.eoffset-counts"), Direction::Out)?,
             scale: component.float_pin(&format!("{p}.eoffset-scale"), Direction::Out)?,
             enable: component.bit_pin(&format!("{p}.eoffset-enable"), Direction::Out)?,
@@ -166,7 +182,7 @@ pub fn create(component: &Component, machine: &Machine, paths: usize) -> Result<
         .collect::<Result<Vec<_>, _>>()?;
     let control = ControlPins {
         enable: component.bit_pin("enable", Direction::In)?,
-        model_select: component.s32_pin("model-select", Direction::In)?,
+        model_select: component.s32_pin(MODEL_SELECT_PIN, Direction::In)?,
     };
     let inputs = InputPins {
         positions,
@@ -176,7 +192,7 @@ pub fn create(component: &Component, machine: &Machine, paths: usize) -> Result<
     };
     let outputs = OutputPins {
         axes,
-        status: component.s32_pin("status", Direction::Out)?,
+        status: component.s32_pin(STATUS_PIN, Direction::Out)?,
         path_models: (1..=paths)
             .map(|n| component.s32_pin(&path_model_pin(n), Direction::Out))
             .collect::<Result<Vec<_>, _>>()?,

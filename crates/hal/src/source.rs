@@ -1,8 +1,7 @@
 //! The `truepos` component as a [`Source`]: axis positions, temperatures, operating values and
 //! the control's axis configuration from its input pins.
 
-use truepos_io::machine_file::AxisRuntime;
-use truepos_runtime::{Frame, LinkError, Source};
+use truepos_runtime::{AxisConfig, Frame, LinkError, Source};
 
 use crate::pins::InputPins;
 
@@ -21,7 +20,7 @@ impl HalSource {
     /// file (`axes`, machine order). The temperature pins start at NaN, so that a pin left
     /// unconnected is a sensor fault rather than a plausible 0 °C; the axis-path pins start at
     /// each axis' `path` in the machine file, so that left unconnected they change nothing.
-    pub fn new(component: &str, pins: InputPins, axes: &[AxisRuntime]) -> Self {
+    pub fn new(component: &str, pins: InputPins, axes: &[AxisConfig]) -> Self {
         for (_, pin) in &pins.temperatures {
             pin.set(f64::NAN);
         }

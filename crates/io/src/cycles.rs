@@ -3,7 +3,7 @@
 
 use std::path::Path;
 
-use truepos_model::{AxisKind, LagFilters, LagSource, Machine};
+use truepos_model::{LagFilters, LagSource, Machine};
 
 use crate::error::InputError;
 use crate::table::Number;
@@ -22,15 +22,6 @@ pub struct Cycles {
     pub positions: Vec<Vec<f64>>,
     /// Operating state of each row (NaN where the run has no column).
     pub operating: Vec<Vec<f64>>,
-}
-
-/// The column name of an axis position: `<axis>_mm` or `<axis>_deg`.
-pub fn position_column(machine: &Machine, axis: usize) -> String {
-    let a = &machine.axes[axis];
-    match a.kind {
-        AxisKind::Linear => format!("{}_mm", a.name),
-        AxisKind::Rotary => format!("{}_deg", a.name),
-    }
 }
 
 /// Computes the lagged channels of every row from their sources, stepping the real-time
@@ -169,7 +160,7 @@ pub fn read_with(
     let time_col = find("time_s");
     let mut position_cols = Vec::new();
     for a in 0..machine.axes.len() {
-        let name = position_column(machine, a);
+        let name = machine.axes[a].position_column();
         let col = find(&name);
         if col.is_none() && positions_needed == Positions::Required {
             return Err(missing(name, "axis position"));

@@ -2,12 +2,18 @@
 //!
 //! The format is documented in `docs/formats.md`. Loading checks every rule of
 //! [`truepos_model::Machine::check`] and reports each broken one at the line, column and key
-//! where it is written.
+//! where it is written. The result is the runtime's [`MachineConfig`]: the machine with each
+//! axis' envelope and path slot and each sensor's checks.
 
 use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 use toml::Spanned;
+use truepos_model::config::{
+    AxisConfig, MachineConfig, SensorChecks, DEFAULT_MAX_AGE_S, DEFAULT_MAX_OFFSET_UM,
+    DEFAULT_MAX_RATE_K_PER_MIN, DEFAULT_MAX_RATE_UM_PER_S, DEFAULT_NOISE_K,
+    DEFAULT_RECOVER_AFTER_S, DEFAULT_STUCK_AFTER_S,
+};
 use truepos_model::{
     Axis, AxisKind, Carriage, Machine, OperatingChannel, OperatingKind, Reference,
     TemperatureChannel, TemperatureDifference, MAX_AXES,
@@ -130,96 +136,22 @@ struct RawOperating {
     axis: Option<Spanned<String>>,
 }
 
-/// Default safety envelope: largest offset magnitude in µm. Thermal errors of machining
-/// centres reach tens of µm (seed A: −100 … 150 µm on 500 mm at the extreme); 100 µm lets a
-/// sound model work and stops a wild one.
-pub const DEFAULT_MAX_OFFSET_UM: f64 = 100.0;
-/// Default safety envelope: largest offset rate in µm/s. Thermal drift is µm per minute; the
-/// position-dependent terms change faster only with fast moves (20 µm over 500 mm at 10 m/min
-/// is 6.7 µm/s), so 50 µm/s passes them and stops a jump.
-pub const DEFAULT_MAX_RATE_UM_PER_S: f64 = 50.0;
-/// Default fastest plausible temperature change: 2 K/min (a sensor in a casting).
-pub const DEFAULT_MAX_RATE_K_PER_MIN: f64 = 2.0;
-/// Default staleness limit: 10 s without an update.
-pub const DEFAULT_MAX_AGE_S: f64 = 10.0;
-/// Default stuck limit in s: four hours. A sound sensor read at 0.1 K resolution on a machine at
-/// rest can hold one value for hours (FL_THERMAL's t7: 2.5 h), so a shorter default would call
-/// healthy sensors stuck.
-pub const DEFAULT_STUCK_AFTER_S: f64 = 14_400.0;
-/// Default noise band in K: changes this small are never a rate fault. A 0.1 K module flickers
-/// between adjacent levels at rest, and FL_THERMAL's noisiest sensor (t16) steps by up to 2.9 K
-/// between 15 s samples; a 5 K step within one poll stays a fault.
-pub const DEFAULT_NOISE_K: f64 = 3.0;
-/// Default time in s a faulted reading must stay sound before it is used again.
-pub const DEFAULT_RECOVER_AFTER_S: f64 = 2.0;
-
-/// The per-axis settings of the runtime: safety envelope and seed D identity.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct AxisRuntime {
-    /// Largest offset magnitude in µm.
-    pub max_offset_um: f64,
-    /// Largest offset rate in µm/s.
-    pub max_rate_um_per_s: f64,
-    /// Path (channel) at power-on, 1-based.
-    pub path: u32,
-    /// Axis number within the path, 1-based.
-    pub number: u32,
-}
-
-impl AxisRuntime {
-    /// Seed D's axis code b = 100·path + axis number.
-    pub fn code(&self) -> u32 {
-        100 * self.path + self.number
-    }
-}
-
-/// The validation limits of one temperature channel (its valid range is in the machine).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct SensorChecks {
-    /// Fastest plausible change in K/s.
-    pub max_rate_k_per_s: f64,
-    /// Longest time without an update in s.
-    pub max_age_s: f64,
-    /// Time without any change after which a reading is stuck, in s (0: not checked).
-    pub stuck_after_s: f64,
-    /// Largest change in K between readings that is never judged by rate: the channel's
-    /// quantisation steps and noise.
-    pub noise_k: f64,
-    /// Time in s a faulted reading must stay sound before it is used again.
-    pub recover_after_s: f64,
-}
-
-/// A checked machine description with what the file says beyond the real-time core's needs.
-#[derive(Debug, Clone, PartialEq)]
-pub struct MachineFile {
-    /// The machine, checked.
-    pub machine: Machine,
-    /// Free text from `[machine] description`.
-    pub description: String,
-    /// Unit of each operating channel, in machine order.
-    pub operating_units: Vec<String>,
-    /// Envelope and seed D identity per axis, in machine order.
-    pub axis_runtime: Vec<AxisRuntime>,
-    /// Validation limits per temperature channel, in machine order.
-    pub sensor_checks: Vec<SensorChecks>,
-}
-
 /// Reads and checks a machine description file.
-pub fn load(path: &Path) -> Result<MachineFile, InputError> {
+pub fn load(path: &Path) -> Result<MachineConfig, InputError> {
     let text = read_text(path)?;
     parse(path, &text)
 }
 
 /// Checks a machine description given as text; `path` only names it in errors.
-pub fn parse(path: &Path, text: &str) -> Result<MachineFile, InputError> {
+pub fn parse(path: &Path, text: &str) -> Result<MachineConfig, InputError> {
     let raw: RawFile = parse_toml(path, text)?;
     let src = Source { path, text };
 
     check_header(src, &raw)?;
     check_names(src, &raw)?;
     let axes = axes(src, &raw)?;
-    let axis_runtime = axis_runtime(src, &raw)?;
-    check_axis_codes(src, &raw, &axis_runtime)?;
+    let axis_configs = axis_configs(src, &raw)?;
+    check_axis_codes(src, &raw, &axis_configs)?;
     let sensor_checks = sensor_checks(src, &raw)?;
     let temperatures = temperatures(src, &raw)?;
     let differences = differences(src, &raw)?;
@@ -233,11 +165,11 @@ pub fn parse(path: &Path, text: &str) -> Result<MachineFile, InputError> {
         operating,
     };
     check_machine(src, &raw, &machine)?;
-    Ok(MachineFile {
+    Ok(MachineConfig {
         machine,
         description: raw.machine.description,
         operating_units,
-        axis_runtime,
+        axes: axis_configs,
         sensor_checks,
     })
 }
@@ -432,10 +364,10 @@ fn path_or_number(
 }
 
 /// The runtime settings of each axis: its safety envelope and its seed D path and number.
-fn axis_runtime(src: Source, raw: &RawFile) -> Result<Vec<AxisRuntime>, InputError> {
-    let mut axis_runtime = Vec::new();
+fn axis_configs(src: Source, raw: &RawFile) -> Result<Vec<AxisConfig>, InputError> {
+    let mut configs = Vec::new();
     for (i, a) in raw.axis.iter().enumerate() {
-        axis_runtime.push(AxisRuntime {
+        configs.push(AxisConfig {
             max_offset_um: positive(
                 src,
                 &a.max_offset_um,
@@ -454,17 +386,17 @@ fn axis_runtime(src: Source, raw: &RawFile) -> Result<Vec<AxisRuntime>, InputErr
             number: path_or_number(src, &a.number, format!("axis[{i}].number"), i as u32 + 1)?,
         });
     }
-    Ok(axis_runtime)
+    Ok(configs)
 }
 
 /// Seed D identifies an axis by its code (path and number), so no two axes may share one.
 fn check_axis_codes(
     src: Source,
     raw: &RawFile,
-    axis_runtime: &[AxisRuntime],
+    axis_configs: &[AxisConfig],
 ) -> Result<(), InputError> {
-    for (i, a) in axis_runtime.iter().enumerate() {
-        if let Some(first) = axis_runtime[..i].iter().position(|b| b.code() == a.code()) {
+    for (i, a) in axis_configs.iter().enumerate() {
+        if let Some(first) = axis_configs[..i].iter().position(|b| b.code() == a.code()) {
             let span = raw.axis[i]
                 .number
                 .as_ref()

@@ -1,5 +1,5 @@
 //! Recorded runs as tables: CSV files and Excel workbooks (`.xlsx`, `.xlsm`, `.xls`, `.ods`
-//! through calamine; one sheet per run), with columns chosen by name or glob (`t*_c`). Files
+//! through calamine, with the `xlsx` feature; one sheet per run), with columns chosen by name or glob (`t*_c`). Files
 //! are read by [`crate::table`], the one reader of tables.
 //!
 //! Cells are kept as read and converted to numbers only for the columns a caller selects, so a
@@ -255,6 +255,7 @@ mod tests {
         assert_eq!(t.select(&["rpm", "t*_c", "t1_c"]).unwrap(), vec![2, 1, 3]);
     }
 
+    #[cfg(feature = "xlsx")]
     #[test]
     fn the_fl_thermal_workbook_reads_like_its_csv() {
         // The real published workbook beside its ASCII CSV (../shared/data/fl_thermal).

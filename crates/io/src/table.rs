@@ -1,7 +1,8 @@
 //! The one reader of tables: every CSV file and Excel workbook the project reads (runs for
 //! fitting, cycles for evaluation and replay, measured errors for reports, point lists of
 //! `truepos kin`) goes through here once, into named columns of cells that keep their place in
-//! the file.
+//! the file. Workbooks are read with the `xlsx` feature (on by default; the LinuxCNC component
+//! builds without it).
 //!
 //! One place knows the rules: fields split by the csv crate's parser (`,`, `"` quoting, `\n`,
 //! `\r\n` or `\r` line ends, empty lines skipped, a UTF-8 byte order mark ignored), cells
@@ -25,6 +26,7 @@
 use std::io::Read;
 use std::path::{Path, PathBuf};
 
+#[cfg(feature = "xlsx")]
 use calamine::{open_workbook_auto, Data, Reader};
 
 use crate::error::InputError;
@@ -377,6 +379,7 @@ fn tokenize(text: &str) -> Vec<Vec<Field>> {
 /// non-empty sheet (or only `sheet`) is one table; the first non-empty row of a sheet holds the
 /// column names. A sheet without data rows is skipped, or an error when it was asked for by
 /// name; a workbook with none is an error.
+#[cfg(feature = "xlsx")]
 pub fn read_workbook(file: &Path, sheet: Option<&str>) -> Result<Vec<Table>, InputError> {
     let mut wb = open_workbook_auto(file)
         .map_err(|e| InputError::file(file, format!("cannot open the workbook: {e}")))?;
@@ -470,6 +473,19 @@ pub fn read_workbook(file: &Path, sheet: Option<&str>) -> Result<Vec<Table>, Inp
     Ok(out)
 }
 
+/// Without the `xlsx` feature there is no workbook reader: a workbook is refused by name rather
+/// than read as CSV text.
+#[cfg(not(feature = "xlsx"))]
+pub fn read_workbook(file: &Path, _sheet: Option<&str>) -> Result<Vec<Table>, InputError> {
+    Err(InputError::file(file, NO_XLSX))
+}
+
+/// Why a build without the `xlsx` feature refuses a workbook, and what to do instead.
+#[cfg(not(feature = "xlsx"))]
+const NO_XLSX: &str = "this build reads no XLSX; it was built without truepos-io's `xlsx` \
+     feature (the LinuxCNC component reads CSV only): save the sheet as CSV, or read the \
+     workbook with `truepos`";
+
 /// Whether `file` names a workbook by its extension.
 pub fn is_workbook(file: &Path) -> bool {
     let ext = file
@@ -533,6 +549,15 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert_eq!(e, "t.csv:3:1: expected UTF-8 text");
+    }
+
+    #[cfg(not(feature = "xlsx"))]
+    #[test]
+    fn without_the_xlsx_feature_a_workbook_is_refused_by_name() {
+        let e = read_workbook(Path::new("run.xlsx"), None)
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with("run.xlsx: this build reads no XLSX; "), "{e}");
     }
 
     #[test]

@@ -57,6 +57,15 @@ impl Axis {
         self.travel_max - self.travel_min
     }
 
+    /// The name of this axis' position wherever positions are columns (runs, logs): the axis
+    /// name with its unit, `<axis>_mm` or `<axis>_deg`.
+    pub fn position_column(&self) -> String {
+        match self.kind {
+            AxisKind::Linear => alloc::format!("{}_mm", self.name),
+            AxisKind::Rotary => alloc::format!("{}_deg", self.name),
+        }
+    }
+
     /// The dimensionless position r = (position − travel_min) / length, 0 at the lower end of
     /// travel and 1 at the upper end (seed A: r_j = position(A_j) / length(A_j)).
     pub fn ratio(&self, position: f64) -> f64 {

@@ -9,9 +9,9 @@
 //! left and the value it is going to. Then the envelope clamps the rate (µm/s against the last
 //! sent value) and the magnitude (µm).
 
-use truepos_io::machine_file::AxisRuntime;
 use truepos_model::MAX_AXES;
 
+use crate::config::AxisConfig;
 use crate::events::{Event, EventKind, EventQueue};
 
 /// Time in s without clamping after which an axis' clamp counts as released.
@@ -20,7 +20,7 @@ pub const CLAMP_RELEASE_S: f64 = 1.0;
 /// Per-axis blending and clamping state.
 #[derive(Debug, Clone)]
 pub struct Envelope {
-    limits: Vec<AxisRuntime>,
+    limits: Vec<AxisConfig>,
     last_out: [f64; MAX_AXES],
     /// The output when the running blend began.
     blend_from: [f64; MAX_AXES],
@@ -36,7 +36,7 @@ pub struct Envelope {
 
 impl Envelope {
     /// An envelope for the machine's axes, all outputs at zero.
-    pub fn new(limits: &[AxisRuntime]) -> Self {
+    pub fn new(limits: &[AxisConfig]) -> Self {
         Self {
             limits: limits.iter().take(MAX_AXES).copied().collect(),
             last_out: [0.0; MAX_AXES],
@@ -171,7 +171,7 @@ impl Envelope {
 mod tests {
     use super::*;
 
-    const LIMIT: AxisRuntime = AxisRuntime {
+    const LIMIT: AxisConfig = AxisConfig {
         max_offset_um: 100.0,
         max_rate_um_per_s: 50.0,
         path: 1,

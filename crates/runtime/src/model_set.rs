@@ -193,11 +193,11 @@ pub fn index_of(codes: impl IntoIterator<Item = u32>) -> [u32; INDEX_SLOTS] {
 /// whose `path` is 1, by their codes).
 pub fn load_entries(
     paths: &[std::path::PathBuf],
-    machine: &truepos_io::machine_file::MachineFile,
+    machine: &crate::config::MachineConfig,
 ) -> Result<Vec<ModelEntry>, truepos_io::InputError> {
     let default_index = index_of(
         machine
-            .axis_runtime
+            .axes
             .iter()
             .filter(|a| a.path == 1)
             .map(|a| a.code()),

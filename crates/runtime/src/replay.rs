@@ -1,13 +1,25 @@
 //! Testing without hardware: a recorded run replayed as a source, and a CSV file as a sink.
 
-use std::path::Path;
-
-use truepos_io::cycles::Cycles;
-use truepos_io::InputError;
+use std::path::{Path, PathBuf};
 
 use crate::frame::Frame;
 use crate::io_traits::{LinkError, Sink, Source};
 use crate::output::{CompensationState, Output};
+
+/// A recorded run as a replay plays it: one row per sample, each row's channels in the
+/// machine's order; a value the run does not hold is NaN. `truepos-io` reads run files into
+/// its cycles, whose columns these are.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Recording {
+    /// Time of each row in s, increasing.
+    pub time_s: Vec<f64>,
+    /// Temperatures of each row in °C, one per machine temperature channel.
+    pub temperatures_c: Vec<Vec<f64>>,
+    /// Axis positions of each row (mm or degrees), one per machine axis.
+    pub positions: Vec<Vec<f64>>,
+    /// Operating state of each row, one per machine operating channel.
+    pub operating: Vec<Vec<f64>>,
+}
 
 /// Replays a recorded run: at service time t it delivers the last row whose run time (relative
 /// to the first row, scaled by `speed`) is ≤ t. Temperatures, positions and operating state
@@ -15,7 +27,7 @@ use crate::output::{CompensationState, Output};
 /// source may feed them.
 pub struct ReplaySource {
     name: String,
-    run: Cycles,
+    run: Recording,
     start_s: f64,
     speed: f64,
     next: usize,
@@ -24,7 +36,7 @@ pub struct ReplaySource {
 
 impl ReplaySource {
     /// A replay of `run` at `speed` × real time (1 = as recorded).
-    pub fn new(name: impl Into<String>, run: Cycles, speed: f64) -> Self {
+    pub fn new(name: impl Into<String>, run: Recording, speed: f64) -> Self {
         let start_s = run.time_s.first().copied().unwrap_or(0.0);
         Self {
             name: name.into(),
@@ -88,6 +100,27 @@ impl Source for ReplaySource {
     }
 }
 
+/// A CSV sink's file that cannot be written.
+#[derive(Debug)]
+pub struct CsvSinkError {
+    /// The file.
+    pub file: PathBuf,
+    /// Why.
+    pub source: std::io::Error,
+}
+
+impl std::fmt::Display for CsvSinkError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}: cannot write: {}", self.file.display(), self.source)
+    }
+}
+
+impl std::error::Error for CsvSinkError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        Some(&self.source)
+    }
+}
+
 /// Interval in s of service time between two writes of a CSV sink's buffered rows to its
 /// file, and between two attempts while the file fails: a failure shows within this time.
 pub const CSV_FLUSH_EVERY_S: f64 = 0.5;
@@ -116,20 +149,19 @@ impl CsvSink {
     /// A CSV sink writing at most one row every `every_s` seconds (0: every cycle). The header
     /// goes out with the first rows, so a file that cannot take it fails in the service (an
     /// event and a state), not here.
-    pub fn create(path: &Path, axis_names: &[String], every_s: f64) -> Result<Self, InputError> {
-        let file = std::fs::File::create(path)
-            .map_err(|e| InputError::file(path, format!("cannot write: {e}")))?;
+    pub fn create(path: &Path, axis_names: &[String], every_s: f64) -> Result<Self, CsvSinkError> {
+        let fail = |source| CsvSinkError {
+            file: path.to_path_buf(),
+            source,
+        };
+        let file = std::fs::File::create(path).map_err(fail)?;
         let mut header = csv::Writer::from_writer(Vec::new());
         let mut fields = vec!["time_s".to_string()];
         fields.extend(axis_names.iter().map(|a| format!("{a}_offset_um")));
         fields.push("state".into());
         fields.push("clamped".into());
-        header
-            .write_record(&fields)
-            .map_err(|e| InputError::file(path, format!("cannot write: {e}")))?;
-        let pending = header
-            .into_inner()
-            .map_err(|e| InputError::file(path, format!("cannot write: {e}")))?;
+        header.write_record(&fields).map_err(|e| fail(e.into()))?;
+        let pending = header.into_inner().map_err(|e| fail(e.into_error()))?;
         Ok(Self {
             name: format!("csv {}", path.display()),
             file,

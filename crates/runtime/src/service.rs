@@ -7,9 +7,9 @@
 use std::sync::Arc;
 
 use crossbeam_queue::ArrayQueue;
-use truepos_io::machine_file::MachineFile;
 use truepos_model::{CycleInput, LagFilters, MAX_AXES};
 
+use crate::config::MachineConfig;
 use crate::envelope::Envelope;
 use crate::events::{Event, EventKind, EventQueue, Reason};
 use crate::frame::{Frame, NEVER};
@@ -108,7 +108,7 @@ pub struct CycleRecord {
 
 /// The cyclic compensation service.
 pub struct Service {
-    machine: MachineFile,
+    machine: MachineConfig,
     config: ServiceConfig,
     set: ModelSet,
     validator: SensorValidator,
@@ -151,16 +151,16 @@ impl Service {
     /// A service for a machine and a model set. The initial axis configuration groups the axes
     /// by the `path` of the machine file, ordered by `number`; a control source may change it.
     pub fn new(
-        machine: MachineFile,
+        machine: MachineConfig,
         models: Vec<ModelEntry>,
         sources: Vec<Box<dyn Source>>,
         sinks: Vec<Box<dyn Sink>>,
         config: ServiceConfig,
     ) -> Self {
         let m = &machine.machine;
-        let codes: Vec<u32> = machine.axis_runtime.iter().map(|a| a.code()).collect();
+        let codes: Vec<u32> = machine.axes.iter().map(|a| a.code()).collect();
         let max_path = machine
-            .axis_runtime
+            .axes
             .iter()
             .map(|a| a.path as usize)
             .max()
@@ -169,9 +169,9 @@ impl Service {
         let mut paths: Vec<Vec<usize>> = (1..=max_path)
             .map(|p| {
                 let mut axes: Vec<usize> = (0..m.axes.len())
-                    .filter(|&a| machine.axis_runtime[a].path as usize == p)
+                    .filter(|&a| machine.axes[a].path as usize == p)
                     .collect();
-                axes.sort_by_key(|&a| machine.axis_runtime[a].number);
+                axes.sort_by_key(|&a| machine.axes[a].number);
                 axes
             })
             .collect();
@@ -187,7 +187,7 @@ impl Service {
             validator: SensorValidator::new(m, &machine.sensor_checks),
             lags: LagFilters::new(m),
             lags_time_s: f64::NAN,
-            envelope: Envelope::new(&machine.axis_runtime),
+            envelope: Envelope::new(&machine.axes),
             output: Output::zero(m.axes.len()),
             source_ok: vec![true; sources.len()],
             source_reason: vec![Reason::EMPTY; sources.len()],
@@ -247,7 +247,7 @@ impl Service {
     }
 
     /// The machine.
-    pub fn machine(&self) -> &MachineFile {
+    pub fn machine(&self) -> &MachineConfig {
         &self.machine
     }
 

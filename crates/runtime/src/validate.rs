@@ -2,9 +2,9 @@
 //! their valid range before compensating): NaN/∞, range, rate of change, stuck value, missing
 //! updates. The verdict per channel is kept, and transitions raise events.
 
-use truepos_io::machine_file::SensorChecks;
 use truepos_model::{LagSource, Machine};
 
+use crate::config::SensorChecks;
 use crate::events::{Event, EventKind, EventQueue};
 use crate::frame::{Frame, NEVER};
 
@@ -297,7 +297,7 @@ impl SensorValidator {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use truepos_io::machine_file::{
+    use crate::config::{
         DEFAULT_MAX_AGE_S, DEFAULT_MAX_RATE_K_PER_MIN, DEFAULT_NOISE_K, DEFAULT_RECOVER_AFTER_S,
         DEFAULT_STUCK_AFTER_S,
     };

@@ -4,7 +4,7 @@
 
 use std::path::{Path, PathBuf};
 
-use truepos_io::machine_file::{
+use truepos_runtime::config::{
     DEFAULT_MAX_AGE_S, DEFAULT_MAX_RATE_K_PER_MIN, DEFAULT_NOISE_K, DEFAULT_RECOVER_AFTER_S,
     DEFAULT_STUCK_AFTER_S,
 };

@@ -21,13 +21,13 @@ fn repo(path: &str) -> PathBuf {
         .join(path)
 }
 
-fn vmc() -> machine_file::MachineFile {
+fn vmc() -> MachineConfig {
     machine_file::load(&repo("examples/vmc3/machine.toml")).unwrap()
 }
 
 /// The example model and a fallback without its spindle part (no spindle sensors), both for
 /// the machine's one path.
-fn models(machine: &machine_file::MachineFile) -> Vec<ModelEntry> {
+fn models(machine: &MachineConfig) -> Vec<ModelEntry> {
     let full = model_file::load(&repo("examples/vmc3/model.toml"), &machine.machine).unwrap();
     let parts = full.parts()[..1].to_vec();
     let fallback = Model::new("structure-only", &machine.machine, parts).unwrap();
@@ -209,7 +209,7 @@ struct Campaign {
     service: Service,
     next: Arc<Mutex<Delivery>>,
     reference: Vec<Model>,
-    limits: Vec<machine_file::AxisRuntime>,
+    limits: Vec<AxisConfig>,
     ranges: Vec<(f64, f64)>,
     config: ServiceConfig,
     tracks: Vec<AxisTrack>,
@@ -239,7 +239,7 @@ impl Campaign {
         let n_t = machine.machine.temperatures.len();
         let n_a = machine.machine.axes.len();
         let n_o = machine.machine.operating.len();
-        let limits = machine.axis_runtime.clone();
+        let limits = machine.axes.clone();
         let ranges = machine
             .machine
             .temperatures

@@ -160,11 +160,7 @@ fn service_with(make: impl FnOnce(&truepos_model::Machine, Instant) -> Box<dyn S
     };
     let epoch = Instant::now();
     let peer = make(&machine.machine, epoch);
-    let limits: Vec<f64> = machine
-        .axis_runtime
-        .iter()
-        .map(|a| a.max_offset_um)
-        .collect();
+    let limits: Vec<f64> = machine.axes.iter().map(|a| a.max_offset_um).collect();
     let service = Service::new(
         machine,
         vec![model],

@@ -17,7 +17,7 @@ fn repo(path: &str) -> PathBuf {
         .join(path)
 }
 
-fn vmc() -> machine_file::MachineFile {
+fn vmc() -> MachineConfig {
     machine_file::load(&repo("examples/vmc3/machine.toml")).unwrap()
 }
 
@@ -68,7 +68,7 @@ fn service(sinks: Vec<Box<dyn Sink>>) -> (Service, Arc<Mutex<Vec<f64>>>) {
     )
 }
 
-fn start_log(db: &Path, machine: &machine_file::MachineFile, s: &Service) -> Logger {
+fn start_log(db: &Path, machine: &MachineConfig, s: &Service) -> Logger {
     Logger::start(
         LogSetup {
             path: db,

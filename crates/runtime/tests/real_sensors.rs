@@ -4,11 +4,11 @@
 
 use std::path::Path;
 
-use truepos_io::machine_file::{
+use truepos_model::{Axis, AxisKind, Carriage, Machine, TemperatureChannel};
+use truepos_runtime::config::{
     SensorChecks, DEFAULT_MAX_AGE_S, DEFAULT_MAX_RATE_K_PER_MIN, DEFAULT_NOISE_K,
     DEFAULT_RECOVER_AFTER_S, DEFAULT_STUCK_AFTER_S,
 };
-use truepos_model::{Axis, AxisKind, Carriage, Machine, TemperatureChannel};
 use truepos_runtime::events::EventQueue;
 use truepos_runtime::validate::SensorValidator;
 use truepos_runtime::Frame;

@@ -9,7 +9,7 @@ use truepos_model::CycleInput;
 use truepos_runtime::events::EventKind;
 use truepos_runtime::log::{self, LogSetup, Logger};
 use truepos_runtime::model_set::{self, ModelEntry};
-use truepos_runtime::replay::ReplaySource;
+use truepos_runtime::replay::{Recording, ReplaySource};
 use truepos_runtime::*;
 
 fn repo(path: &str) -> PathBuf {
@@ -18,8 +18,18 @@ fn repo(path: &str) -> PathBuf {
         .join(path)
 }
 
-fn vmc() -> machine_file::MachineFile {
+fn vmc() -> MachineConfig {
     machine_file::load(&repo("examples/vmc3/machine.toml")).unwrap()
+}
+
+/// A run's cycles as a replay plays them.
+fn recording(run: &cycles::Cycles) -> Recording {
+    Recording {
+        time_s: run.time_s.clone(),
+        temperatures_c: run.temperatures_c.clone(),
+        positions: run.positions.clone(),
+        operating: run.operating.clone(),
+    }
 }
 
 fn vmc_model(name: &str) -> ModelEntry {
@@ -78,7 +88,7 @@ fn replay_gives_the_model_output() {
     let machine = vmc();
     let run = cycles::load(&repo("examples/vmc3/run.csv"), &machine.machine, &[]).unwrap();
     let reference = model_file::load(&repo("examples/vmc3/model.toml"), &machine.machine).unwrap();
-    let source = ReplaySource::new("replay", run.clone(), 1.0);
+    let source = ReplaySource::new("replay", recording(&run), 1.0);
     let mut service = Service::new(
         machine,
         vec![vmc_model("vmc3")],
@@ -428,7 +438,7 @@ fn enable_and_disable_are_bumpless() {
 fn a_cycle_allocates_nothing() {
     let machine = vmc();
     let run = cycles::load(&repo("examples/vmc3/run.csv"), &machine.machine, &[]).unwrap();
-    let source = ReplaySource::new("replay", run, 60.0);
+    let source = ReplaySource::new("replay", recording(&run), 60.0);
     let mut service = Service::new(
         machine,
         vec![vmc_model("vmc3")],

@@ -3,9 +3,9 @@
 //! say when the component and the servo thread were not in step, the offset rate over a
 //! window, and how LinuxCNC's joints followed the commands.
 
-use truepos_io::machine_file::AxisRuntime;
 use truepos_model::{CycleInput, Machine, Model};
 use truepos_runtime::model_set::ModelEntry;
+use truepos_runtime::AxisConfig;
 
 use super::record::Sample;
 use super::report::CheckReport;
@@ -22,7 +22,7 @@ const AFTER_STEP_CYCLES: usize = 20;
 struct Judge<'a> {
     machine: &'a Machine,
     models: &'a [ModelEntry],
-    limits: &'a [AxisRuntime],
+    limits: &'a [AxisConfig],
     config: &'a CheckConfig,
     /// Operating values: the recording has none, so the model reads zeros.
     operating: Vec<f64>,
@@ -49,7 +49,7 @@ struct Walk {
 pub(super) fn compare_cycles(
     machine: &Machine,
     models: &[ModelEntry],
-    limits: &[AxisRuntime],
+    limits: &[AxisConfig],
     samples: &[Sample],
     config: &CheckConfig,
     report: &mut CheckReport,
@@ -77,13 +77,13 @@ pub(super) fn compare_cycles(
             }
         }
         walk.since_change += 1;
-        if s.status == 2 {
+        if s.holding() {
             report.holding_samples += 1;
         }
         for a in 0..axes {
             report.max_offset_um = report.max_offset_um.max(s.applied_mm[a].abs() * 1000.0);
         }
-        if s.status != 1 || walk.since_change <= settle {
+        if !s.active() || walk.since_change <= settle {
             continue;
         }
         walk.compare(&judge, report, prev, s, moving);

@@ -1,9 +1,9 @@
 //! The output invariant (ARCHITECTURE.md) judged on the offsets LinuxCNC applied.
 
 use truepos_hal::eoffset::RESOLUTION_UM;
-use truepos_io::machine_file::AxisRuntime;
 use truepos_model::Machine;
 use truepos_runtime::model_set::ModelEntry;
+use truepos_runtime::AxisConfig;
 
 use super::record::Sample;
 use super::report::CheckReport;
@@ -82,7 +82,7 @@ fn servo_intervals_s(samples: &[Sample], period_s: f64) -> Vec<f64> {
 pub fn output_invariant(
     machine: &Machine,
     models: &[ModelEntry],
-    limits: &[AxisRuntime],
+    limits: &[AxisConfig],
     samples: &[Sample],
     config: &CheckConfig,
 ) -> InvariantReport {
@@ -138,7 +138,7 @@ pub fn output_invariant(
                 };
             }
         }
-        if s.status == 2 {
+        if s.holding() {
             // The held value ramps to zero; one period more, for the two clocks.
             let left = (1.0 - (since_change_s + config.period_s) / config.hold_ramp_s).max(0.0);
             for a in (0..axes).filter(|&a| s.axis_paths.get(a) == Some(&1)) {
@@ -192,7 +192,7 @@ pub fn output_invariant(
 /// Adds the failures of the output invariant to the report.
 pub(super) fn invariant_failures(
     machine: &Machine,
-    limits: &[AxisRuntime],
+    limits: &[AxisConfig],
     config: &CheckConfig,
     report: &mut CheckReport,
 ) {

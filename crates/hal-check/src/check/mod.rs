@@ -26,11 +26,11 @@ pub mod targets;
 mod tests;
 
 use truepos_hal::eoffset::RESOLUTION_UM;
-use truepos_io::machine_file::AxisRuntime;
 use truepos_model::Machine;
 #[cfg(test)]
 use truepos_model::Model;
 use truepos_runtime::model_set::ModelEntry;
+use truepos_runtime::AxisConfig;
 
 use invariant::invariant_failures;
 pub use invariant::{output_invariant, InvariantReport};
@@ -97,7 +97,7 @@ impl Default for CheckConfig {
 pub fn check(
     machine: &Machine,
     models: &[ModelEntry],
-    limits: &[AxisRuntime],
+    limits: &[AxisConfig],
     samples: &[Sample],
     config: &CheckConfig,
 ) -> CheckReport {
@@ -133,12 +133,7 @@ pub fn check(
 
 /// Adds to the report what fails: the comparison with the model, the joints, the lag, the
 /// output invariant and the offset rate.
-fn judge(
-    machine: &Machine,
-    limits: &[AxisRuntime],
-    config: &CheckConfig,
-    report: &mut CheckReport,
-) {
+fn judge(machine: &Machine, limits: &[AxisConfig], config: &CheckConfig, report: &mut CheckReport) {
     if report.compared == 0 {
         report
             .failures

@@ -1,9 +1,9 @@
 //! What the component should have sent in a cycle: the model seed D's rule selects for the
 //! recorded axis configuration, its compensation, and the size of its position-dependent terms.
 
-use truepos_io::machine_file::AxisRuntime;
 use truepos_model::{CycleInput, Machine, Model};
 use truepos_runtime::model_set::{index_of, ModelEntry};
+use truepos_runtime::AxisConfig;
 
 use super::record::Sample;
 
@@ -46,7 +46,7 @@ pub fn position_span_um(
 /// first; `None` if none matches.
 pub fn expected_model(
     models: &[ModelEntry],
-    limits: &[AxisRuntime],
+    limits: &[AxisConfig],
     axis_paths: &[i32],
     select: i32,
 ) -> Option<usize> {
@@ -69,13 +69,13 @@ pub fn expected_model(
 pub fn targets_um(
     machine: &Machine,
     models: &[ModelEntry],
-    limits: &[AxisRuntime],
+    limits: &[AxisConfig],
     s: &Sample,
     operating: &[f64],
 ) -> Vec<Option<f64>> {
     let axes = machine.axes.len();
     let in_path = |a: usize| s.axis_paths.get(a) == Some(&1);
-    if s.status != 1 {
+    if !s.active() {
         return vec![Some(0.0); axes];
     }
     let evaluated = expected_model(models, limits, &s.axis_paths, s.select)

@@ -56,9 +56,9 @@ fn example() -> (Machine, Model) {
     (machine, model)
 }
 
-fn limits(rate: f64) -> Vec<AxisRuntime> {
+fn limits(rate: f64) -> Vec<AxisConfig> {
     (1..=2)
-        .map(|n| AxisRuntime {
+        .map(|n| AxisConfig {
             max_offset_um: 100.0,
             max_rate_um_per_s: rate,
             path: 1,

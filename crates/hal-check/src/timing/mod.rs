@@ -16,13 +16,15 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use serde_json::{json, Value};
 use truepos_runtime::model_set::load_entries;
-use truepos_runtime::replay::ReplaySource;
+use truepos_runtime::replay::{Recording, ReplaySource};
 use truepos_runtime::ServiceHost;
 
 use episodes::{Episode, Episodes};
 use host::{HostActivity, HostRecord, HostSampler, TICK_MS};
 use truepos_hal::pacer::{realtime_setup, Pacer};
 use truepos_hal::{ffi, pacer};
+
+use crate::Error;
 
 /// What to run.
 #[derive(Debug, Clone)]
@@ -73,21 +75,24 @@ struct Attributed {
 }
 
 /// Runs the benchmark; `stop` ends it early. Returns the JSON summary.
-pub fn run(config: &TimingConfig, stop: &AtomicBool) -> Result<Value, String> {
+pub fn run(config: &TimingConfig, stop: &AtomicBool) -> Result<Value, Error> {
     if !(config.period_ms > 0.0 && config.period_ms <= 1000.0) {
-        return Err(format!(
-            "period {} ms must lie in (0, 1000]",
-            config.period_ms
-        ));
+        return Err(Error::Period(config.period_ms));
     }
     if !(config.duration_s > 0.0 && config.duration_s.is_finite()) {
-        return Err(format!("duration {} s must be > 0", config.duration_s));
+        return Err(Error::Duration(config.duration_s));
     }
-    let machine = truepos_io::machine_file::load(&config.machine).map_err(|e| e.to_string())?;
+    let machine = truepos_io::machine_file::load(&config.machine)?;
     let m = &machine.machine;
-    let entries = load_entries(&config.models, &machine).map_err(|e| e.to_string())?;
-    let cycles = truepos_io::cycles::load(&config.run, m, &[]).map_err(|e| e.to_string())?;
-    let replay = ReplaySource::new(format!("replay {}", config.run.display()), cycles, 1.0);
+    let entries = load_entries(&config.models, &machine)?;
+    let cycles = truepos_io::cycles::load(&config.run, m, &[])?;
+    let run = Recording {
+        time_s: cycles.time_s,
+        temperatures_c: cycles.temperatures_c,
+        positions: cycles.positions,
+        operating: cycles.operating,
+    };
+    let replay = ReplaySource::new(format!("replay {}", config.run.display()), run, 1.0);
     if replay.duration_s() < config.duration_s {
         eprintln!(
             "truepos-hal-check timing: the run lasts {:.0} s, less than {} s; its last values stay",
@@ -106,8 +111,7 @@ pub fn run(config: &TimingConfig, stop: &AtomicBool) -> Result<Value, String> {
     let mut service_host = ServiceHost::new(machine, entries)
         .source(Box::new(replay))
         .log(config.log.clone())
-        .start()
-        .map_err(|e| e.to_string())?;
+        .start()?;
     let service = &mut service_host.service;
     let sample_ns = (config.sample_ms * 1e6).round().max(1e5) as u64;
     let sampler = HostSampler::start(sample_ns, config.cpu);
@@ -157,7 +161,7 @@ pub fn run(config: &TimingConfig, stop: &AtomicBool) -> Result<Value, String> {
     let host = sampler.map(HostSampler::stop).unwrap_or_default();
     let stopped = service_host.stop();
     if let Some((result, _)) = stopped.log {
-        result.map_err(|e| e.to_string())?;
+        result?;
     }
     let service = &stopped.service;
 
