@@ -41,7 +41,7 @@ use crate::error::KinError;
 use crate::forward::Tangents;
 
 /// The inverse transform stops when the TCP is this close to the target (0.5 nm, half the
-/// 1 nm the issue asks for).
+/// 1 nm bar of the kinematics table's accuracy, docs/kinematics.md).
 pub const POSITION_TOLERANCE_MM: f64 = 5e-7;
 /// … and the tool direction this close (0.5 µrad, half of 1 µrad).
 pub const DIRECTION_TOLERANCE_RAD: f64 = 5e-7;
