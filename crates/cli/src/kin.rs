@@ -14,7 +14,7 @@ use std::time::Instant;
 
 use truepos_io::kinematics_file::{self, KinematicsFile};
 use truepos_io::InputError;
-use truepos_model::kinematics::{Chain, Directions, Geometry, KinError, Pose, Row};
+use truepos_kinematics::{Chain, Directions, Geometry, KinError, Pose, Row};
 use truepos_model::AxisKind;
 
 /// Arguments of `truepos kin`.

@@ -16,15 +16,15 @@
 //!   3   MachAxis  A     -          -        # Delta of a MachAxis row: the axis name (- = the letter)
 //! ```
 //!
-//! Rows run from the TCP towards the workpiece (see [`truepos_model::kinematics`] for the
+//! Rows run from the TCP towards the workpiece (see [`truepos_kinematics`] for the
 //! convention). A `MachAxis` whose axis letter carries a minus (`-C`) moves the workpiece.
 //! Table files are read relative to the kinematics file. Every error names the file, line,
 //! column and what was expected.
 
 use std::path::{Path, PathBuf};
 
-use truepos_model::kinematics::{Chain, Dof, ErrorTable, ErrorUnit, KinAxis, Row};
-use truepos_model::table::{CompTable, Interpolation, Wrap};
+use truepos_kinematics::table::{CompTable, Interpolation, Wrap};
+use truepos_kinematics::{Chain, Dof, ErrorTable, ErrorUnit, KinAxis, Row};
 use truepos_model::{AxisKind, Machine};
 
 use crate::comp_table::{parse_csv, parse_linuxcnc, parse_siemens, LinuxCncType};
@@ -479,7 +479,7 @@ impl Draft<'_> {
         }
         let row_lines = self.row_lines;
         let chain = Chain::new(self.axes, self.tables, self.rows).map_err(|e| {
-            use truepos_model::kinematics::ChainError as E;
+            use truepos_kinematics::ChainError as E;
             let line = match &e {
                 E::BadReference { row }
                 | E::KindMismatch { row }
@@ -683,9 +683,7 @@ fn read_table(
             } else {
                 LinuxCncType::Trims
             };
-            parse_linuxcnc(table_path, table_text, ty)?
-                .to_table(interp)
-                .map_err(|e| InputError::file(table_path, e))?
+            parse_linuxcnc(table_path, table_text, ty)?.to_table(interp)?
         }
         _ => {
             let mut all = parse_siemens(table_path, table_text, None)?;
@@ -698,9 +696,7 @@ fn read_table(
                     ),
                 ));
             }
-            all.remove(0)
-                .to_table(interp)
-                .map_err(|e| InputError::file(table_path, e))?
+            all.remove(0).to_table(interp)?
         }
     })
 }
@@ -708,7 +704,7 @@ fn read_table(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use truepos_model::kinematics::{Directions, Geometry};
+    use truepos_kinematics::{Directions, Geometry};
 
     fn examples() -> PathBuf {
         Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/kinematics")
@@ -843,7 +839,7 @@ mod tests {
         assert_eq!(t.name, "F_A_X");
         let v = t
             .table
-            .value(10.0, truepos_model::table::Direction::Forward);
+            .value(10.0, truepos_kinematics::table::Direction::Forward);
         assert!((v - 4.0121).abs() < 1e-4, "{v}");
         let t = load(&examples().join("table-ac/kinematics.ktab"), None).unwrap();
         assert_eq!(

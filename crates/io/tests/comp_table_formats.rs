@@ -5,7 +5,7 @@ use std::path::Path;
 
 use proptest::prelude::*;
 use truepos_io::comp_table::*;
-use truepos_model::table::{CompTable, Direction, Interpolation, Wrap};
+use truepos_kinematics::table::{CompTable, Direction, Interpolation, Wrap};
 
 fn p() -> &'static Path {
     Path::new("t.comp")
@@ -222,4 +222,40 @@ proptest! {
         let back = parse_siemens(p(), &write_siemens(&tables), None).unwrap();
         prop_assert_eq!(back, tables);
     }
+}
+
+#[test]
+fn conversion_errors_name_the_line_and_the_table() {
+    // A modulo table whose ends (0° and 360°, the same position) disagree: the joint is the
+    // last support point's line.
+    let text = "$AN_CEC[1,0]=0\n$AN_CEC[1,1]=0.001\n$AN_CEC[1,2]=0.002\n\
+        $AN_CEC_INPUT_AXIS[1]=AX4\n$AN_CEC_OUTPUT_AXIS[1]=AX4\n$AN_CEC_STEP[1]=180\n\
+        $AN_CEC_MIN[1]=0\n$AN_CEC_MAX[1]=360\n$AN_CEC_IS_MODULO[1]=1\n";
+    let tables = parse_siemens(p(), text, None).unwrap();
+    let e = tables[0].to_table(Interpolation::Linear).unwrap_err();
+    assert_eq!(e.position, Some((3, 1)));
+    assert_eq!(e.key.as_deref(), Some("$AN_CEC[1,…]"));
+    // LinuxCNC type 0: a position of 1e306 mm is no number in µm.
+    let c = parse_linuxcnc(p(), "0 0 0\n10 1e306 10\n", LinuxCncType::Positions).unwrap();
+    let e = c.to_table(Interpolation::Linear).unwrap_err();
+    assert_eq!(
+        (e.position, e.key.as_deref()),
+        (Some((2, 1)), Some("forward"))
+    );
+    assert!(e.to_string().starts_with("t.comp:2:1: `forward`: "), "{e}");
+    // A table built in memory says so instead of naming a file.
+    let t = CompTable::new(
+        vec![0.0, 1.0],
+        vec![0.0; 2],
+        Wrap::Hold,
+        Interpolation::Linear,
+    )
+    .unwrap();
+    let mut comp = LinuxCncComp::from_table(&t, LinuxCncType::Trims).unwrap();
+    comp.forward[1] = f64::INFINITY;
+    let e = comp.to_table(Interpolation::Linear).unwrap_err();
+    assert_eq!(e.file, Path::new("(table built in memory)"));
+    // Exports fail with what the format cannot hold.
+    let e = SiemensTable::directional_pair(&t, 3, "AX1", "AX1").unwrap_err();
+    assert_eq!(e, ExportError::OneDirection);
 }

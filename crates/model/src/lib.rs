@@ -65,13 +65,11 @@ extern crate std;
 pub mod compensation;
 pub mod dynamic;
 pub mod evaluate;
-pub mod kinematics;
 pub mod lag;
 pub mod machine;
 pub mod model;
 pub mod parameters;
 pub mod rls;
-pub mod table;
 pub mod timing;
 
 pub use compensation::{BindError, BoundDynamicModel, Channels, CompensationModel, MachineInput};

@@ -2,8 +2,8 @@
 //! tables of realistic size (tens of µm, tens of µrad).
 #![allow(dead_code)]
 
-use truepos_model::kinematics::{Chain, Dof, ErrorTable, ErrorUnit, KinAxis, Row};
-use truepos_model::table::{CompTable, Interpolation, Wrap};
+use truepos_kinematics::table::{CompTable, Interpolation, Wrap};
+use truepos_kinematics::{Chain, Dof, ErrorTable, ErrorUnit, KinAxis, Row};
 use truepos_model::AxisKind;
 
 pub fn lin(name: &str, min: f64, max: f64) -> KinAxis {

@@ -1,14 +1,14 @@
 //! The kinematics table of seed B on the example machines: forward transform (nominal and
 //! through the error tables) and the compensated inverse transform, per point.
 //!
-//! Run: `cargo bench -p truepos-model --bench kinematics`. Targets: forward ≥ 5 million points
+//! Run: `cargo bench -p truepos-kinematics --bench kinematics`. Targets: forward ≥ 5 million points
 //! per second per core (≤ 200 ns per point); the compensated inverse ≥ 20× the throughput of
 //! KDL's `ChainIkSolverPos_NR` (see `scripts/kdl_compare.py`).
 
 use divan::{black_box, Bencher};
-use truepos_model::kinematics::{Chain, Directions, Geometry, Pose};
+use truepos_kinematics::{Chain, Directions, Geometry, Pose};
 
-#[path = "../tests/kinematics_machines/mod.rs"]
+#[path = "../tests/machines/mod.rs"]
 mod machines;
 
 fn main() {

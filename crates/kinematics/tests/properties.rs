@@ -2,11 +2,11 @@
 //! fwd(inv(p)) = p within 1 nm / 1 µrad (also within 0.01° of the pole), a chain whose tables
 //! are all zero is exactly the nominal chain, nothing allocates, bad input is a value.
 
-mod kinematics_machines;
+mod machines;
 
-use kinematics_machines::*;
+use machines::*;
 use proptest::prelude::*;
-use truepos_model::kinematics::{Chain, Directions, Geometry, KinError, Pose};
+use truepos_kinematics::{Chain, Directions, Geometry, KinError, Pose};
 use truepos_model::AxisKind;
 
 const TOOL: f64 = 100.0;

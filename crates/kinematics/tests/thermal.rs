@@ -1,14 +1,14 @@
 //! Seed A's "other parts": the per-axis thermal compensation superimposes on the set-points the
 //! kinematics returns.
 
-mod kinematics_machines;
+mod machines;
 
-use truepos_model::kinematics::{superimpose, Directions, Geometry, Pose};
+use truepos_kinematics::{superimpose, Directions, Geometry, Pose};
 use truepos_model::*;
 
 #[test]
 fn thermal_compensation_superimposes_on_kinematic_set_points() {
-    let chain = kinematics_machines::head_ac();
+    let chain = machines::head_ac();
     // Machine in control order X Y Z A C with one sensor pair.
     let axis = |name: &str, kind, lo, hi| Axis {
         name: name.into(),

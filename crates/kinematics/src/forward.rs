@@ -2,9 +2,12 @@
 //! coordinates, nominal or through the error tables, optionally with the exact Jacobian
 //! (forward-mode differentiation through every row, including the slopes of the tables).
 
-use super::{Chain, Directions, ErrRef, Geometry, KinError, Pose, Step, DEG};
-use crate::machine::{AxisKind, MAX_AXES};
+use truepos_model::{AxisKind, MAX_AXES};
+
+use crate::chain::{Chain, Directions, ErrRef, Geometry, Pose, Slide, Step};
+use crate::error::KinError;
 use crate::table::Location;
+use crate::{sincos, DEG};
 
 /// Derivatives of the TCP (`dp`) and the tool direction (`dd`) with respect to each axis, per
 /// mm for linear axes and per radian for rotary ones.
@@ -122,6 +125,31 @@ fn err_rotate<const JAC: bool, const ACTUAL: bool, const DIR_JAC: bool, const OM
                     }
                 }
                 *active |= turns_bit::<OMEGA>() << axis;
+            }
+        }
+    }
+}
+
+/// Zeroes the derivatives (with `JAC`) and the angular velocities (with `OMEGA`) of the first
+/// `n` axes, the ones a walk adds to.
+#[inline(always)]
+fn clear<const JAC: bool, const OMEGA: bool>(
+    n: usize,
+    tangents: Option<&mut Tangents>,
+    omega: Option<&mut AngularVelocity>,
+) {
+    if OMEGA {
+        if let Some(w) = omega {
+            for wj in w.iter_mut().take(n) {
+                *wj = [0.0; 3];
+            }
+        }
+    }
+    if JAC {
+        if let Some(t) = tangents {
+            for j in 0..n {
+                t.dp[j] = [0.0; 3];
+                t.dd[j] = [0.0; 3];
             }
         }
     }
@@ -387,7 +415,7 @@ impl Chain {
                 Step::AxisRotate { .. } => return None,
                 Step::ErrRotate { k, e } => {
                     let (angle, slope) = self.error_value::<true>(&e, &mut at, q, dirs);
-                    let (s, c) = super::sincos(angle);
+                    let (s, c) = sincos(angle);
                     x.rotate(k, c, s);
                     x.add_cross(k, 1 + usize::from(e.axis), slope * e.per_unit);
                 }
@@ -411,7 +439,7 @@ impl Chain {
                     }
                     for k in 0..3 {
                         if sl.present >> (3 + k) & 1 == 1 {
-                            let (s, c) = super::sincos(v[3 + k]);
+                            let (s, c) = sincos(v[3 + k]);
                             x.rotate(k, c, s);
                             x.add_cross(k, lane, slope[3 + k] * sl.per_unit);
                         }
@@ -464,23 +492,12 @@ impl Chain {
         mut tangents: Option<&mut Tangents>,
         mut omega: Option<&mut AngularVelocity>,
     ) -> Pose {
-        let n = self.axes.len();
-        if OMEGA {
-            if let Some(w) = omega.as_deref_mut() {
-                for wj in w.iter_mut().take(n) {
-                    *wj = [0.0; 3];
-                }
-            }
-        }
+        clear::<JAC, OMEGA>(
+            self.axes.len(),
+            tangents.as_deref_mut(),
+            omega.as_deref_mut(),
+        );
         let mut x = Pd::START;
-        if JAC {
-            if let Some(t) = tangents.as_deref_mut() {
-                for j in 0..n {
-                    t.dp[j] = [0.0; 3];
-                    t.dd[j] = [0.0; 3];
-                }
-            }
-        }
         // Bit j set: the tangents of axis j are no longer zero (the layout of [`turn`]).
         let mut active: u32 = 0;
         // Where the axis position of the last error row fell in its table: rows reading tables
@@ -547,7 +564,7 @@ impl Chain {
                     }
                 }
                 Step::AxisRotate { k, axis, sign } => {
-                    let (s, c) = super::sincos(sign * q[axis] * DEG);
+                    let (s, c) = sincos(sign * q[axis] * DEG);
                     x.rotate(k, c, s);
                     if JAC {
                         if let Some(t) = tangents.as_deref_mut() {
@@ -571,7 +588,7 @@ impl Chain {
                     } else {
                         (e.offset, 0.0)
                     };
-                    let (s, c) = super::sincos(angle);
+                    let (s, c) = sincos(angle);
                     let axis = usize::from(e.axis);
                     err_rotate::<JAC, ACTUAL, DIR_JAC, OMEGA>(
                         &mut x,
@@ -605,7 +622,7 @@ impl Chain {
         }
     }
 
-    /// The rows of a slide (see [`super::Slide`]) applied to the pose and the derivatives, in
+    /// The rows of a slide (see [`Slide`]) applied to the pose and the derivatives, in
     /// the order and with the operations of the separate rows. `FULL`: every slot is present.
     #[allow(clippy::type_complexity)]
     #[inline(always)]
@@ -617,7 +634,7 @@ impl Chain {
         const FULL: bool,
     >(
         &self,
-        sl: &super::Slide,
+        sl: &Slide,
         q: &[f64],
         dirs: Directions,
         (x, active, at): (&mut Pd, &mut u32, &mut Location),
@@ -666,7 +683,7 @@ impl Chain {
         }
         for k in 0..3 {
             if present(3 + k) {
-                let (s, c) = super::sincos(v[3 + k]);
+                let (s, c) = sincos(v[3 + k]);
                 err_rotate::<JAC, ACTUAL, DIR_JAC, OMEGA>(
                     x,
                     tangents.as_deref_mut(),
@@ -721,8 +738,8 @@ impl Chain {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::kinematics::{Dof, ErrorTable, ErrorUnit, KinAxis, Row};
     use crate::table::{CompTable, Interpolation, Wrap};
+    use crate::{Dof, ErrorTable, ErrorUnit, KinAxis, Row};
     use alloc::vec;
     use alloc::vec::Vec;
 
