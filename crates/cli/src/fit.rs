@@ -5,9 +5,9 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use truepos_fit::dataset::{Columns, Dataset, Patterns};
-use truepos_fit::export::{model_file, TargetAxis};
+use truepos_fit::export::{model_file, plausible, predictions_csv, TargetAxis};
 use truepos_fit::settings::{Families, InnerCv, Ridges, Rule, Settings};
-use truepos_fit::validate::{fit, Outcome, Split};
+use truepos_fit::validate::{fit, Outcome, Split, Validation};
 use truepos_io::limits::int_in;
 use truepos_io::run::{read, Table};
 
@@ -76,9 +76,15 @@ pub struct Args {
     /// target named `Z`, `Z_um` or `dz_um` needs none; others without one are not applied.
     #[arg(long = "axis")]
     axes: Vec<TargetAxis>,
-    /// Write measured and predicted values of every run here (CSV), for reports.
+    /// Write measured and predicted values of every run here (CSV), for reports: each row
+    /// predicted by the model of the fold that held it out; column `held_out` says which rows
+    /// no fold held out (a chronological split's training part, predicted in-sample).
     #[arg(long)]
     predictions: Option<PathBuf>,
+    /// Write the model even when its predictions on its own training data are non-finite or
+    /// more than 10 × the largest measured |error| there.
+    #[arg(long)]
+    force: bool,
     /// Print the figures as JSON.
     #[arg(long)]
     json: bool,
@@ -159,13 +165,28 @@ pub fn run(args: Args) -> Result<(), String> {
     let Outcome {
         validation,
         trained,
-        predictions: pred,
+        ..
     } = &outcome;
+    let mut warnings = validation.warnings.clone();
+    if let Err(bad) = plausible(&ds, &outcome) {
+        let what: Vec<String> = bad.iter().map(ToString::to_string).collect();
+        if !args.force {
+            let out = args.model.as_ref().map_or("the model".into(), |p| {
+                format!("refusing to write {}", p.display())
+            });
+            return Err(format!(
+                "{out}: {}; check the targets, or --force to write it anyway",
+                what.join("; ")
+            ));
+        }
+        warnings.extend(what.into_iter().map(|w| format!("--force: {w}")));
+    }
     let report = serde_json::json!({
         "runs": ds.runs.iter().map(|r| serde_json::json!({"name": r.name, "samples": r.len()})).collect::<Vec<_>>(),
         "inputs": ds.input_names,
         "targets": ds.target_names,
         "validation": validation,
+        "warnings": warnings,
     });
     if let Some(path) = &args.model {
         let created_by = format!("truepos fit {}", env!("CARGO_PKG_VERSION"));
@@ -182,7 +203,11 @@ pub fn run(args: Args) -> Result<(), String> {
             .map_err(|e| format!("{}: cannot write: {e}", path.display()))?;
     }
     if let Some(path) = &args.predictions {
-        write_predictions(path, &ds, pred)?;
+        std::fs::write(path, predictions_csv(&ds, &outcome))
+            .map_err(|e| format!("{}: cannot write: {e}", path.display()))?;
+    }
+    for w in &warnings {
+        eprintln!("warning: {w}");
     }
     if args.json {
         println!(
@@ -212,33 +237,40 @@ pub fn run(args: Args) -> Result<(), String> {
     }
     let sensors = validation.sensors.last().cloned().unwrap_or_default();
     println!("temperature sensors used: {}", sensors.join(", "));
-    for w in &validation.warnings {
-        eprintln!("warning: {w}");
+    if ds.runs.len() > 1 {
+        print_per_run(validation);
     }
     Ok(())
 }
 
-fn write_predictions(
-    path: &std::path::Path,
-    ds: &Dataset,
-    pred: &truepos_fit::validate::Predictions,
-) -> Result<(), String> {
-    let mut out = String::from("run,time_s");
-    for t in &ds.target_names {
-        out += &format!(",{t},{t}_predicted");
-    }
-    out.push('\n');
-    for (r, run) in ds.runs.iter().enumerate() {
-        let rel: Vec<Vec<f64>> = (0..ds.target_names.len())
-            .map(|k| run.relative_target(k))
-            .collect();
-        for i in 0..run.len() {
-            out += &format!("{r},{}", run.time_s[i]);
-            for k in 0..ds.target_names.len() {
-                out += &format!(",{},{}", rel[k][i], pred[r][k][i]);
-            }
-            out.push('\n');
+/// The figures of each run's held-out rows, one line per run and target: a pooled figure can
+/// hide a run the model makes worse.
+fn print_per_run(validation: &Validation) {
+    let width = validation
+        .per_run
+        .iter()
+        .map(|r| r.run.chars().count())
+        .max()
+        .unwrap_or(3)
+        .max(3);
+    println!("per held-out run:");
+    println!(
+        "{:<width$} {:<12} {:>10} {:>10} {:>10} {:>9}  chosen",
+        "run", "target", "uncomp µm", "RMSE µm", "max|e| µm", "reduction"
+    );
+    for r in &validation.per_run {
+        for h in &r.targets {
+            let m = &h.metrics;
+            println!(
+                "{:<width$} {:<12} {:>10.2} {:>10.2} {:>10.2} {:>8.1}%  {}",
+                r.run,
+                m.target,
+                m.uncompensated_rmse_um,
+                m.rmse_um,
+                m.max_abs_um,
+                m.rmse_reduction_percent,
+                h.family
+            );
         }
     }
-    std::fs::write(path, out).map_err(|e| format!("{}: cannot write: {e}", path.display()))
 }

@@ -10,6 +10,12 @@ pub use truepos_io::dynamic_model_file::InputKind;
 use truepos_io::run::{glob_match, Table};
 use truepos_io::InputError;
 
+/// The largest |target| a run may hold, µm: 1 m. No machine errs by that much, so a value beyond
+/// it is a wrong unit or a corrupt cell, and one such value is enough to wreck a fit (a 1e300
+/// target once made a model with an intercept of 2.35e296 µm). Non-finite cells are refused by
+/// `truepos_io::run` already.
+pub const MAX_TARGET_UM: f64 = 1e6;
+
 /// One recorded run.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Run {
@@ -35,11 +41,31 @@ impl Run {
         let numbers = |names: &[String]| -> Result<Vec<Vec<f64>>, InputError> {
             names.iter().map(|n| t.numbers(col(n)?)).collect()
         };
+        let measured = |names: &[String]| -> Result<Vec<Vec<f64>>, InputError> {
+            names
+                .iter()
+                .map(|n| {
+                    let c = col(n)?;
+                    let v = t.numbers(c)?;
+                    match v.iter().position(|x| x.abs() > MAX_TARGET_UM) {
+                        Some(r) => Err(t.table.at(
+                            r,
+                            c,
+                            format!(
+                                "{:e} µm is not a measured error: more than {MAX_TARGET_UM:e} µm (1 m) away (a unit or a corrupt cell?)",
+                                v[r]
+                            ),
+                        )),
+                        None => Ok(v),
+                    }
+                })
+                .collect()
+        };
         Ok(Run {
             name: t.name(),
             time_s: t.time(col(time)?)?,
             inputs: numbers(inputs)?,
-            targets: numbers(targets)?,
+            targets: measured(targets)?,
         })
     }
 
@@ -413,5 +439,18 @@ mod tests {
             Dataset::from_tables(&[], &columns("t1_c", "dz_um")),
             Err(DatasetError::Empty)
         );
+    }
+
+    /// An absurd target is refused at its cell (file:line:column: name); 1 m itself still passes.
+    #[test]
+    fn an_absurd_target_is_refused_at_its_cell() {
+        let t = table("time_s,t1_c,dz_um\n0,20,1\n10,21,1e300\n20,22,-2e6\n");
+        let e = Dataset::from_tables(&[t], &columns("t1_c", "dz_um")).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "day.csv:3:3: `dz_um`: 1e300 µm is not a measured error: more than 1e6 µm (1 m) away (a unit or a corrupt cell?)"
+        );
+        let t = table("time_s,t1_c,dz_um\n0,20,1\n10,21,-1e6\n");
+        assert!(Dataset::from_tables(&[t], &columns("t1_c", "dz_um")).is_ok());
     }
 }

@@ -1,6 +1,8 @@
 //! A fit as the model description `truepos_io` writes: the trained model of the last training
 //! part, its inputs by name and kind, the axis each target compensates, and where it came from
-//! (runs, settings, choices) with its validation figures.
+//! (runs, settings, choices) with its validation figures; the check that refuses a model whose
+//! predictions are not plausible ([`plausible`]); the predictions behind the figures as CSV
+//! ([`predictions_csv`]).
 
 use std::fmt;
 use std::str::FromStr;
@@ -110,9 +112,166 @@ pub fn model_file(
     Ok(file)
 }
 
+/// How far beyond the largest measured |error| a model's prediction on its own training data may
+/// go before the model is refused: a least-squares fit reproduces its training data, so a
+/// prediction an order of magnitude beyond everything it was fitted to means the fit broke
+/// (an absurd value, overflow), not that the machine moved.
+pub const PLAUSIBLE_FACTOR: f64 = 10.0;
+
+/// Measured errors below this (µm) count as this much when judging plausibility: a machine
+/// does not resolve less, and rounding noise of a fit to an all-zero target must not count as
+/// "beyond".
+const RESOLUTION_UM: f64 = 1e-3;
+
+/// A model output whose predictions on its own training data are non-finite or more than
+/// [`PLAUSIBLE_FACTOR`] times the largest measured |error| there.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Implausible {
+    /// The output (target) name.
+    pub target: String,
+    /// The largest |prediction| on the training rows (NaN or infinite when non-finite).
+    pub predicted_um: f64,
+    /// The largest measured |error| (relative to the run start) on the training rows.
+    pub measured_um: f64,
+    /// Where: run name and 0-based row of the worst prediction.
+    pub run: String,
+    /// Row (0-based sample index) of the worst prediction.
+    pub row: usize,
+}
+
+impl fmt::Display for Implausible {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        if self.predicted_um.is_finite() {
+            write!(
+                f,
+                "output `{}` predicts {:.3e} µm on its own training data ({}, sample {}), more than {} × the largest measured |error| there ({:.3} µm)",
+                self.target, self.predicted_um, self.run, self.row, PLAUSIBLE_FACTOR, self.measured_um
+            )
+        } else {
+            write!(
+                f,
+                "output `{}` predicts {} on its own training data ({}, sample {})",
+                self.target, self.predicted_um, self.run, self.row
+            )
+        }
+    }
+}
+
+/// Every output of the fitted model ([`Outcome::trained`]) whose predictions on its training
+/// rows are non-finite or beyond [`PLAUSIBLE_FACTOR`] × the largest measured |error| there.
+pub fn plausible(dataset: &Dataset, outcome: &Outcome) -> Result<(), Vec<Implausible>> {
+    let mut bad = Vec::new();
+    for (k, target) in dataset.target_names.iter().enumerate() {
+        let rel: Vec<Vec<f64>> = dataset.runs.iter().map(|r| r.relative_target(k)).collect();
+        let measured = outcome
+            .training_rows
+            .iter()
+            .fold(0.0_f64, |a, &(r, i)| a.max(rel[r][i].abs()));
+        // The worst row: a non-finite prediction first, else the largest.
+        let worst = outcome
+            .training_rows
+            .iter()
+            .map(|&(r, i)| (r, i, outcome.fitted[r][k][i]))
+            .max_by(|a, b| {
+                let key = |v: f64| {
+                    if v.is_finite() {
+                        v.abs()
+                    } else {
+                        f64::INFINITY
+                    }
+                };
+                key(a.2).total_cmp(&key(b.2))
+            });
+        if let Some((r, i, p)) = worst {
+            if !p.is_finite() || p.abs() > PLAUSIBLE_FACTOR * measured.max(RESOLUTION_UM) {
+                bad.push(Implausible {
+                    target: target.clone(),
+                    predicted_um: if p.is_finite() { p.abs() } else { p },
+                    measured_um: measured,
+                    run: dataset.runs[r].name.clone(),
+                    row: i,
+                });
+            }
+        }
+    }
+    if bad.is_empty() {
+        Ok(())
+    } else {
+        Err(bad)
+    }
+}
+
+/// The predictions behind the figures as CSV: per run (by name) and row, time, whether the row
+/// was held out (its prediction comes from a model that never saw it; see
+/// [`Outcome::predictions`]), and per target the measured error (relative to the run start)
+/// and the prediction.
+pub fn predictions_csv(dataset: &Dataset, outcome: &Outcome) -> String {
+    let mut out = String::from("run,time_s,held_out");
+    for t in &dataset.target_names {
+        out += &format!(",{},{}", csv_field(t), csv_field(&format!("{t}_predicted")));
+    }
+    out.push('\n');
+    for (r, run) in dataset.runs.iter().enumerate() {
+        let name = csv_field(&run.name);
+        let rel: Vec<Vec<f64>> = (0..dataset.target_names.len())
+            .map(|k| run.relative_target(k))
+            .collect();
+        for i in 0..run.len() {
+            out += &format!("{name},{},{}", run.time_s[i], outcome.held_out[r][i]);
+            for (k, measured) in rel.iter().enumerate() {
+                out += &format!(",{},{}", measured[i], outcome.predictions[r][k][i]);
+            }
+            out.push('\n');
+        }
+    }
+    out
+}
+
+/// A CSV field, quoted when it holds a comma, quote or line break (RFC 4180).
+fn csv_field(s: &str) -> String {
+    if s.contains([',', '"', '\n', '\r']) {
+        format!("\"{}\"", s.replace('"', "\"\""))
+    } else {
+        s.to_string()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::validate::tests::{static_settings, three_runs};
+    use crate::validate::{fit, predict};
+
+    /// A sound fit passes; the same fit with an intercept of 10⁹ µm is named with its figure and
+    /// the largest measured |error|; a non-finite prediction is named too (stepping the model
+    /// already refuses one, the check does not rely on that).
+    #[test]
+    fn an_implausible_model_is_named() {
+        let ds = three_runs();
+        let split = "chrono:0.6".parse().unwrap();
+        let mut o = fit(&ds, split, &static_settings(), &mut |_, _| {}).unwrap();
+        assert_eq!(plausible(&ds, &o), Ok(()));
+        let bank = o.trained.model.bank().clone();
+        let coef = o.trained.model.coefficients().to_vec();
+        o.trained.model = truepos_model::DynamicModel::new(bank, vec![1e9], coef).unwrap();
+        o.fitted = predict(&ds, &o.trained).unwrap();
+        let bad = plausible(&ds, &o).unwrap_err();
+        assert_eq!(bad.len(), 1);
+        // The largest measured |error| on the training rows (the first 36 samples of each
+        // run) is run a's at its last training sample: 2 µm/K × 0.1 K × 35 = 7 µm; there the
+        // prediction is largest too.
+        assert_eq!(
+            bad[0].to_string(),
+            "output `dz_um` predicts 1.000e9 µm on its own training data (a.csv, sample 35), \
+             more than 10 × the largest measured |error| there (7.000 µm)"
+        );
+        o.fitted[1][0][20] = f64::NAN;
+        let bad = plausible(&ds, &o).unwrap_err();
+        assert_eq!(
+            bad[0].to_string(),
+            "output `dz_um` predicts NaN on its own training data (b.csv, sample 20)"
+        );
+    }
 
     #[test]
     fn a_target_axis_reads_target_equals_axis() {

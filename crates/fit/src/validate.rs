@@ -164,6 +164,27 @@ impl Metrics {
     }
 }
 
+/// The figures of one target on one run's held-out rows, and what chose its model.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct HeldOut {
+    /// Figures on the run's held-out rows.
+    #[serde(flatten)]
+    pub metrics: Metrics,
+    /// The family the inner selection chose for this target in the fold that held the run out;
+    /// several, joined by " / ", when folds cut the run (blocked k-fold).
+    pub family: String,
+}
+
+/// One run's held-out rows, judged on their own: a pooled figure can hide a run the model makes
+/// worse.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct RunFigures {
+    /// The run's name (its file, and sheet for workbooks).
+    pub run: String,
+    /// Per target.
+    pub targets: Vec<HeldOut>,
+}
+
 /// The outcome of a validation.
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct Validation {
@@ -173,11 +194,14 @@ pub struct Validation {
     pub protocol_text: String,
     /// Per target, pooled over the outer folds.
     pub metrics: Vec<Metrics>,
+    /// Per run, its held-out rows (every run: leave-one-run-out and blocked k-fold hold out
+    /// every row once, a chronological split the end of every run).
+    pub per_run: Vec<RunFigures>,
     /// Per outer fold, what the inner selection chose.
     pub choices: Vec<Vec<Choice>>,
     /// Temperature sensors used per outer fold (names).
     pub sensors: Vec<Vec<String>>,
-    /// Warnings from the fits.
+    /// Warnings from the fits, and every held-out run the model makes worse than uncompensated.
     pub warnings: Vec<String>,
 }
 
@@ -215,7 +239,8 @@ pub fn predict(dataset: &Dataset, trained: &Trained) -> Result<Predictions, Stri
 }
 
 /// Runs the protocol: for each outer fold, select and fit on its training rows, predict its test
-/// rows. Returns the figures and the model of the last fold (for `chrono`, the only one).
+/// rows. Returns the figures, the model of the last fold (for `chrono`, the only one) and the
+/// out-of-fold predictions ([`Outcome::predictions`]).
 pub fn validate(
     dataset: &Dataset,
     cand: &Candidates,
@@ -223,6 +248,18 @@ pub fn validate(
     settings: &Settings,
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<(Validation, Trained, Predictions), String> {
+    let o = outcome(dataset, cand, split, settings, progress)?;
+    Ok((o.validation, o.trained, o.predictions))
+}
+
+/// [`validate`], with everything a report or a model file needs.
+pub fn outcome(
+    dataset: &Dataset,
+    cand: &Candidates,
+    split: Split,
+    settings: &Settings,
+    progress: &mut dyn FnMut(usize, usize),
+) -> Result<Outcome, String> {
     let folds = split.folds(dataset)?;
     let nt = dataset.target_names.len();
     let rel: Vec<Vec<Vec<f64>>> = dataset
@@ -232,6 +269,14 @@ pub fn validate(
         .collect();
     let mut measured = vec![Vec::new(); nt];
     let mut predicted = vec![Vec::new(); nt];
+    // Per run and row, the prediction of the fold that held it out, and which fold that was.
+    let mut oof: Predictions = dataset
+        .runs
+        .iter()
+        .map(|r| vec![vec![f64::NAN; r.len()]; nt])
+        .collect();
+    let mut fold_of: Vec<Vec<Option<usize>>> =
+        dataset.runs.iter().map(|r| vec![None; r.len()]).collect();
     let mut choices = Vec::new();
     let mut sensors = Vec::new();
     let mut warnings = Vec::new();
@@ -244,9 +289,11 @@ pub fn validate(
         let trained = train(dataset, cand, tr, settings)?;
         let pred = predict(dataset, &trained)?;
         for &(r, i) in te {
+            fold_of[r][i] = Some(f);
             for k in 0..nt {
                 measured[k].push(rel[r][k][i]);
                 predicted[k].push(pred[r][k][i]);
+                oof[r][k][i] = pred[r][k][i];
             }
         }
         choices.push(trained.choices.clone());
@@ -258,43 +305,133 @@ pub fn validate(
                 .collect(),
         );
         warnings.extend(trained.warnings.iter().cloned());
-        last = Some((trained, pred));
+        last = Some((trained, pred, tr.clone()));
     }
     progress(folds.len(), folds.len());
     let metrics = (0..nt)
         .map(|k| Metrics::new(&dataset.target_names[k], &measured[k], &predicted[k]))
         .collect();
-    let (trained, pred) = last.ok_or("no folds")?;
-    Ok((
-        Validation {
+    let (trained, fitted, training_rows) = last.ok_or("no folds")?;
+    // A row no fold held out (a chronological split's training rows) has no honest prediction;
+    // it gets the final model's, and `held_out` says so.
+    for (r, run) in oof.iter_mut().enumerate() {
+        for (k, col) in run.iter_mut().enumerate() {
+            for (i, v) in col.iter_mut().enumerate() {
+                if fold_of[r][i].is_none() {
+                    *v = fitted[r][k][i];
+                }
+            }
+        }
+    }
+    let per_run = per_run(dataset, &rel, &oof, &fold_of, &choices);
+    warnings.extend(worse_than_uncompensated(&per_run));
+    Ok(Outcome {
+        validation: Validation {
             protocol: split,
             protocol_text: format!(
                 "{split}; selection inside each training part: {}",
                 settings.describe_selection()
             ),
             metrics,
+            per_run,
             choices,
             sensors,
             warnings,
         },
         trained,
-        pred,
-    ))
+        predictions: oof,
+        held_out: fold_of
+            .iter()
+            .map(|run| run.iter().map(Option::is_some).collect())
+            .collect(),
+        fitted,
+        training_rows,
+    })
 }
 
-/// A fit from a dataset: the validation figures, the model fitted on the (last) training part
-/// and its predictions over every run.
+/// Figures of every run's held-out rows, with the family each fold that held them out chose.
+fn per_run(
+    dataset: &Dataset,
+    rel: &[Vec<Vec<f64>>],
+    oof: &Predictions,
+    fold_of: &[Vec<Option<usize>>],
+    choices: &[Vec<Choice>],
+) -> Vec<RunFigures> {
+    let mut out = Vec::new();
+    for (r, run) in dataset.runs.iter().enumerate() {
+        let rows: Vec<usize> = (0..run.len())
+            .filter(|&i| fold_of[r][i].is_some())
+            .collect();
+        if rows.is_empty() {
+            continue;
+        }
+        let mut folds: Vec<usize> = rows.iter().filter_map(|&i| fold_of[r][i]).collect();
+        folds.dedup();
+        let targets = (0..dataset.target_names.len())
+            .map(|k| {
+                let m: Vec<f64> = rows.iter().map(|&i| rel[r][k][i]).collect();
+                let p: Vec<f64> = rows.iter().map(|&i| oof[r][k][i]).collect();
+                let mut families: Vec<&str> = Vec::new();
+                for &f in &folds {
+                    let name = choices[f][k].family.name();
+                    if !families.contains(&name) {
+                        families.push(name);
+                    }
+                }
+                HeldOut {
+                    metrics: Metrics::new(&dataset.target_names[k], &m, &p),
+                    family: families.join(" / "),
+                }
+            })
+            .collect();
+        out.push(RunFigures {
+            run: run.name.clone(),
+            targets,
+        });
+    }
+    out
+}
+
+/// A warning for every run and target whose held-out rows the model makes worse than leaving
+/// them uncompensated.
+pub fn worse_than_uncompensated(per_run: &[RunFigures]) -> Vec<String> {
+    per_run
+        .iter()
+        .flat_map(|r| {
+            r.targets
+                .iter()
+                .filter(|h| h.metrics.rmse_um > h.metrics.uncompensated_rmse_um)
+                .map(move |h| {
+                    format!(
+                        "run {}, {} held out: the model makes it worse: RMSE {:.2} µm compensated, {:.2} µm uncompensated",
+                        r.run, h.metrics.target, h.metrics.rmse_um, h.metrics.uncompensated_rmse_um
+                    )
+                })
+        })
+        .collect()
+}
+
+/// A fit from a dataset: the validation figures, the model fitted on the (last) training part,
+/// and the predictions behind the figures.
 #[derive(Debug, Clone)]
 pub struct Outcome {
-    /// Figures pooled over the outer folds.
+    /// Figures pooled over the outer folds, and per run.
     pub validation: Validation,
     /// The model of the last outer fold's training part (for `chrono`, the only one).
     pub trained: Trained,
-    /// Its predictions over whole runs.
+    /// Out-of-fold predictions, per run, target and row: each held-out row predicted by the
+    /// model of the fold that held it out (so every row, with leave-one-run-out and blocked
+    /// k-fold); a row no fold held out (a chronological split's training part) by [`Self::trained`].
     pub predictions: Predictions,
+    /// Per run and row, whether a fold held it out (whether its prediction is out of sample).
+    pub held_out: Vec<Vec<bool>>,
+    /// [`Self::trained`]'s predictions over every row of every run.
+    pub fitted: Predictions,
+    /// The rows [`Self::trained`] was fitted on, as (run, row).
+    pub training_rows: Vec<(usize, usize)>,
 }
 
-/// Candidate features of the dataset, then [`validate`]: what `truepos fit` runs.
+/// Candidate features of the dataset, then [`outcome`]: what `truepos fit` runs.
 pub fn fit(
     dataset: &Dataset,
     split: Split,
@@ -302,10 +439,135 @@ pub fn fit(
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<Outcome, String> {
     let cand = candidates(dataset, &settings.taus).map_err(|e| e.to_string())?;
-    let (validation, trained, predictions) = validate(dataset, &cand, split, settings, progress)?;
-    Ok(Outcome {
-        validation,
-        trained,
-        predictions,
-    })
+    outcome(dataset, &cand, split, settings, progress)
+}
+
+#[cfg(test)]
+pub(crate) mod tests {
+    use super::*;
+    use crate::dataset::{InputKind, Run};
+    use crate::features::Family;
+
+    /// Three runs of one sensor: a and b grow 2 µm/K, c shrinks 1 µm/K, so a model fitted
+    /// without c makes c worse than leaving it alone.
+    pub(crate) fn three_runs() -> Dataset {
+        let run = |name: &str, t0: f64, slope: f64, wobble: f64, k: f64| {
+            let n = 60;
+            let temp: Vec<f64> = (0..n)
+                .map(|i| t0 + slope * i as f64 + wobble * (i % 3) as f64)
+                .collect();
+            let y = temp.iter().map(|t| k * (t - t0) + 3.0).collect();
+            Run {
+                name: name.into(),
+                time_s: (0..n).map(|i| 60.0 * i as f64).collect(),
+                inputs: vec![temp],
+                targets: vec![y],
+            }
+        };
+        Dataset {
+            input_names: vec!["t1_c".into()],
+            input_kinds: vec![InputKind::Temperature],
+            target_names: vec!["dz_um".into()],
+            runs: vec![
+                run("a.csv", 20.0, 0.1, 0.0, 2.0),
+                run("b.csv", 22.0, 0.05, 0.2, 2.0),
+                run("c.csv", 21.0, 0.08, -0.1, -1.0),
+            ],
+        }
+    }
+
+    pub(crate) fn static_settings() -> Settings {
+        Settings {
+            families: vec![Family::Static],
+            ridges: vec![0.0],
+            ..Settings::default()
+        }
+    }
+
+    fn run_outcome(ds: &Dataset, split: &str) -> Outcome {
+        fit(
+            ds,
+            split.parse().unwrap(),
+            &static_settings(),
+            &mut |_, _| {},
+        )
+        .unwrap()
+    }
+
+    /// Leave-one-run-out and blocked k-fold: every row's prediction is that of a model fitted
+    /// without it: for each fold, a model trained afresh on the fold's training rows predicts
+    /// exactly what the outcome holds for the fold's test rows; and no row of a run the final
+    /// model saw carries that model's in-sample prediction.
+    #[test]
+    fn every_row_is_predicted_by_a_model_that_did_not_see_it() {
+        let ds = three_runs();
+        let settings = static_settings();
+        let cand = candidates(&ds, &settings.taus).unwrap();
+        for split in ["runs", "kfold:3"] {
+            let o = run_outcome(&ds, split);
+            assert!(o.held_out.iter().flatten().all(|&h| h), "{split}");
+            for (tr, te) in split.parse::<Split>().unwrap().folds(&ds).unwrap() {
+                let alone = predict(&ds, &train(&ds, &cand, &tr, &settings).unwrap()).unwrap();
+                for &(r, i) in &te {
+                    assert!(!tr.contains(&(r, i)));
+                    assert_eq!(o.predictions[r][0][i], alone[r][0][i], "{split} {r} {i}");
+                }
+            }
+        }
+        // The final model (fitted on a and b) reproduces a and b almost exactly in sample; the
+        // out-of-fold predictions of a and b come from models that also saw c, and miss.
+        let o = run_outcome(&ds, "runs");
+        for r in 0..2 {
+            let diff = o.predictions[r][0]
+                .iter()
+                .zip(&o.fitted[r][0])
+                .fold(0.0_f64, |a, (p, q)| a.max((p - q).abs()));
+            assert!(diff > 0.1, "run {r}: {diff}");
+        }
+    }
+
+    /// A chronological split holds out the end of each run only, and says so.
+    #[test]
+    fn a_chronological_split_marks_its_training_rows() {
+        let o = run_outcome(&three_runs(), "chrono:0.6");
+        for run in &o.held_out {
+            assert_eq!(run.iter().filter(|&&h| !h).count(), 36);
+            assert!(run[..36].iter().all(|&h| !h) && run[36..].iter().all(|&h| h));
+        }
+        assert_eq!(o.predictions, o.fitted);
+    }
+
+    /// Per run: the held-out run c, predicted by the slope of a and b (2 µm/K) where it moves
+    /// −1 µm/K, is made worse (residual 3·rise against 1·rise uncompensated), and a warning
+    /// names it and both figures.
+    #[test]
+    fn per_run_figures_and_a_run_made_worse() {
+        let ds = three_runs();
+        let o = run_outcome(&ds, "runs");
+        let v = &o.validation;
+        assert_eq!(
+            v.per_run.iter().map(|r| r.run.as_str()).collect::<Vec<_>>(),
+            ["a.csv", "b.csv", "c.csv"]
+        );
+        let c = &v.per_run[2].targets[0];
+        let rise = ds.runs[2].inputs[0]
+            .iter()
+            .map(|t| t - 21.0)
+            .collect::<Vec<_>>();
+        let rms = (rise.iter().map(|r| r * r).sum::<f64>() / rise.len() as f64).sqrt();
+        assert!((c.metrics.uncompensated_rmse_um - rms).abs() < 1e-9);
+        assert!((c.metrics.rmse_um - 3.0 * rms).abs() < 1e-6, "{c:?}");
+        assert!((c.metrics.rmse_reduction_percent + 200.0).abs() < 1e-4);
+        assert_eq!(c.family, "static");
+        let worse: Vec<&String> = v.warnings.iter().filter(|w| w.contains("worse")).collect();
+        assert!(
+            worse.iter().any(|w| w.contains("run c.csv, dz_um")
+                && w.contains(&format!("{:.2} µm compensated", 3.0 * rms))
+                && w.contains(&format!("{rms:.2} µm uncompensated"))),
+            "{worse:?}"
+        );
+        // The pooled figure is over the same rows as the per-run figures together.
+        let n: usize = v.per_run.iter().map(|r| r.targets[0].metrics.samples).sum();
+        assert_eq!(n, v.metrics[0].samples);
+    }
 }
