@@ -245,8 +245,8 @@ fn a_chronological_split_marks_the_rows_it_trained_on() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
-/// One 1e300 target once made a model with an intercept of 2.35e296 µm that `eval` called ok:
-/// now it is refused at its cell, and nothing is written.
+/// One 1e300 target would make a model with an intercept of 2.35e296 µm that `eval` calls ok:
+/// it is refused at its cell, and nothing is written.
 #[test]
 fn an_absurd_target_is_refused_at_its_cell() {
     let dir = scratch("fit-truth-absurd");

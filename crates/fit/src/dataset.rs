@@ -12,8 +12,8 @@ use truepos_io::InputError;
 
 /// The largest |target| a run may hold, µm: 1 m. No machine errs by that much, so a value beyond
 /// it is a wrong unit or a corrupt cell, and one such value is enough to wreck a fit (a 1e300
-/// target once made a model with an intercept of 2.35e296 µm). Non-finite cells are refused by
-/// `truepos_io::run` already.
+/// target gives a model with an intercept of 2.35e296 µm). Non-finite cells `truepos_io::run`
+/// refuses itself.
 pub const MAX_TARGET_UM: f64 = 1e6;
 
 /// One recorded run.
