@@ -15,7 +15,7 @@ use truepos_runtime::sources::{BackoffConfig, LinkEventKind};
 use truepos_runtime::{LinkError, NEVER};
 
 mod support;
-use support::{frame_for, machine, read, repo, wait_until};
+use support::{frame_for, machine, messages, read, repo, wait_until};
 
 /// A free loopback port: bind, read the port, close.
 fn free_port() -> u16 {
@@ -454,13 +454,7 @@ fn a_refused_grouped_read_is_split_into_single_reads() {
         "{lost}"
     );
     assert_eq!(frame.temperature_stamp_s[bed], NEVER);
-    let bad: Vec<String> = source
-        .link()
-        .drain_events()
-        .into_iter()
-        .filter(|e| e.kind == LinkEventKind::BadData)
-        .map(|e| e.message)
-        .collect();
+    let bad = messages(source.link(), LinkEventKind::BadData);
     assert_eq!(bad.len(), 2, "{bad:?}");
     assert!(
         bad[0].ends_with("registers 0–12: exception 02 (illegal data address) to a grouped read; reading its 2 channels one by one"),

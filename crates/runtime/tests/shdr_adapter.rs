@@ -15,7 +15,7 @@ use truepos_runtime::sources::{BackoffConfig, LinkEventKind};
 use truepos_runtime::{Frame, LinkError, Source, NEVER};
 
 mod support;
-use support::{frame_for, machine, repo, wait_until};
+use support::{frame_for, machine, messages, repo, wait_until};
 
 /// What the adapter stand-in does; the test changes it while it runs.
 #[derive(Default)]
@@ -593,13 +593,7 @@ fn an_endless_line_ends_the_connection() {
         .status()
         .connections
         >= 2));
-    let lost: Vec<String> = source
-        .link()
-        .drain_events()
-        .into_iter()
-        .filter(|e| e.kind == LinkEventKind::Lost)
-        .map(|e| e.message)
-        .collect();
+    let lost = messages(source.link(), LinkEventKind::Lost);
     assert_eq!(lost.len(), 1, "{lost:?}");
     assert!(
         lost[0].contains("expected lines of at most 65536 bytes"),

@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use truepos_model::Machine;
+use truepos_runtime::sources::{LinkEventKind, LinkStatus};
 use truepos_runtime::{Frame, LinkError, MachineConfig, Source};
 
 /// A path in the repository.
@@ -54,4 +55,13 @@ pub fn wait_until(limit: Duration, mut cond: impl FnMut() -> bool) -> bool {
         std::thread::sleep(Duration::from_millis(10));
     }
     cond()
+}
+
+/// The messages of the link's queued events of `kind`, oldest first (the queue is emptied).
+pub fn messages(link: &LinkStatus, kind: LinkEventKind) -> Vec<String> {
+    link.drain_events()
+        .into_iter()
+        .filter(|e| e.kind == kind)
+        .map(|e| e.message)
+        .collect()
 }
