@@ -12,6 +12,7 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+use crate::error::CliError;
 use truepos_io::kinematics_file::{self, KinematicsFile};
 use truepos_io::InputError;
 use truepos_kinematics::{Chain, Directions, Geometry, KinError, Pose, Row};
@@ -71,7 +72,7 @@ enum KinCommand {
     },
 }
 
-pub fn run(args: Args) -> Result<(), String> {
+pub fn run(args: Args) -> Result<(), CliError> {
     match args.command {
         KinCommand::Fwd(c) => fwd(&c),
         KinCommand::Inv(c) => inv(&c),
@@ -83,24 +84,22 @@ pub fn run(args: Args) -> Result<(), String> {
     }
 }
 
-fn load(kinematics: &Path, machine: Option<&Path>) -> Result<KinematicsFile, String> {
+fn load(kinematics: &Path, machine: Option<&Path>) -> Result<KinematicsFile, CliError> {
     let machine = match machine {
-        Some(m) => Some(
-            truepos_io::machine_file::load(m)
-                .map_err(|e| e.to_string())?
-                .machine,
-        ),
+        Some(m) => Some(truepos_io::machine_file::load(m)?.machine),
         None => None,
     };
-    kinematics_file::load(kinematics, machine.as_ref()).map_err(|e| e.to_string())
+    Ok(kinematics_file::load(kinematics, machine.as_ref())?)
 }
 
-fn tool_length(c: &Common, k: &KinematicsFile) -> Result<f64, String> {
+fn tool_length(c: &Common, k: &KinematicsFile) -> Result<f64, CliError> {
     let t = c.tool_length.unwrap_or(k.tool_length_mm);
     if t.is_finite() {
         Ok(t)
     } else {
-        Err(format!("--tool-length must be a finite number, got {t}"))
+        Err(CliError::refused(format!(
+            "--tool-length must be a finite number, got {t}"
+        )))
     }
 }
 
@@ -112,12 +111,11 @@ struct Table {
 
 /// Reads a point list: `#` comments and blank lines skipped, every cell a finite number (an
 /// error names its line and character column), every row as wide as the header.
-fn read_csv(path: &Path) -> Result<Table, String> {
+fn read_csv(path: &Path) -> Result<Table, CliError> {
     use truepos_io::table::{self, Number};
-    let t =
-        table::load_csv(path, table::CsvOptions { comments: true }).map_err(|e| e.to_string())?;
+    let t = table::load_csv(path, table::CsvOptions { comments: true })?;
     if t.columns.is_empty() {
-        return Err(InputError::file(path, "empty file; expected a header and rows").to_string());
+        return Err(InputError::file(path, "empty file; expected a header and rows").into());
     }
     let mut rows = Vec::with_capacity(t.rows.len());
     for (r, row) in t.rows.iter().enumerate() {
@@ -133,7 +131,7 @@ fn read_csv(path: &Path) -> Result<Table, String> {
                     };
                     return Err(t
                         .at_character(r, c, format!("expected a finite number, got `{text}`"))
-                        .to_string());
+                        .into());
                 }
             };
             values.push(v);
@@ -150,7 +148,7 @@ fn read_csv(path: &Path) -> Result<Table, String> {
                     values.len()
                 ),
             )
-            .to_string());
+            .into());
         }
         rows.push((row.line, values));
     }
@@ -161,7 +159,7 @@ fn read_csv(path: &Path) -> Result<Table, String> {
 }
 
 /// Column index of each of `names` in the header.
-fn columns(path: &Path, t: &Table, names: &[&str]) -> Result<Vec<usize>, String> {
+fn columns(path: &Path, t: &Table, names: &[&str]) -> Result<Vec<usize>, CliError> {
     for (c, h) in t.header.iter().enumerate() {
         if !names.contains(&h.as_str()) {
             return Err(InputError::at(
@@ -171,7 +169,7 @@ fn columns(path: &Path, t: &Table, names: &[&str]) -> Result<Vec<usize>, String>
                 h.clone(),
                 format!("unknown column; expected the columns {}", names.join(",")),
             )
-            .to_string());
+            .into());
         }
     }
     names
@@ -185,17 +183,17 @@ fn columns(path: &Path, t: &Table, names: &[&str]) -> Result<Vec<usize>, String>
                     *n,
                     format!("missing column; expected the columns {}", names.join(",")),
                 )
-                .to_string()
+                .into()
             })
         })
         .collect()
 }
 
-fn emit(c: &Common, body: &str, summary: serde_json::Value, text: String) -> Result<(), String> {
+fn emit(c: &Common, body: &str, summary: serde_json::Value, text: String) -> Result<(), CliError> {
     let summary = if c.json { summary.to_string() } else { text };
     match &c.output {
         Some(p) => {
-            std::fs::write(p, body).map_err(|e| format!("{}: cannot write: {e}", p.display()))?;
+            std::fs::write(p, body).map_err(CliError::file(p, Some("cannot write")))?;
             println!("{summary}");
         }
         None => {
@@ -214,7 +212,7 @@ fn geometry(c: &Common) -> Geometry {
     }
 }
 
-fn fwd(c: &Common) -> Result<(), String> {
+fn fwd(c: &Common) -> Result<(), CliError> {
     let k = load(&c.kinematics, c.machine.as_deref())?;
     let tool = tool_length(c, &k)?;
     let chain = &k.chain;
@@ -239,7 +237,7 @@ fn fwd(c: &Common) -> Result<(), String> {
     for ((line, _), p) in t.rows.iter().zip(&poses) {
         let p = p
             .as_ref()
-            .map_err(|e| format!("{}:{line}: {e}", c.input.display()))?;
+            .map_err(|e| CliError::context(format!("{}:{line}: ", c.input.display()))(*e))?;
         let [x, y, z] = p.position;
         let [i, j, kk] = p.direction;
         let _ = writeln!(body, "{x},{y},{z},{i},{j},{kk}");
@@ -273,7 +271,7 @@ fn start_positions(chain: &Chain) -> Vec<f64> {
         .collect()
 }
 
-fn inv(c: &Common) -> Result<(), String> {
+fn inv(c: &Common) -> Result<(), CliError> {
     let k = load(&c.kinematics, c.machine.as_deref())?;
     let tool = tool_length(c, &k)?;
     let chain = &k.chain;
@@ -373,11 +371,14 @@ fn inv(c: &Common) -> Result<(), String> {
     if ok == total {
         Ok(())
     } else {
-        Err(format!("{} of {total} points failed", total - ok))
+        Err(CliError::refused(format!(
+            "{} of {total} points failed",
+            total - ok
+        )))
     }
 }
 
-fn chain(kinematics: &Path, machine: Option<&Path>) -> Result<(), String> {
+fn chain(kinematics: &Path, machine: Option<&Path>) -> Result<(), CliError> {
     let k = load(kinematics, machine)?;
     let axes: Vec<_> = k
         .chain

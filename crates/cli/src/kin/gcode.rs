@@ -8,12 +8,13 @@ use std::fmt::Write as _;
 use truepos_kinematics::{Chain, Directions, Geometry, KinError};
 
 use super::{emit, geometry, load, start_positions, tool_length, Common};
+use crate::error::CliError;
 
-pub(super) fn gcode(c: &Common) -> Result<(), String> {
+pub(super) fn gcode(c: &Common) -> Result<(), CliError> {
     let k = load(&c.kinematics, c.machine.as_deref())?;
     let tool = tool_length(c, &k)?;
-    let text = std::fs::read_to_string(&c.input)
-        .map_err(|e| format!("{}: cannot read: {e}", c.input.display()))?;
+    let text =
+        std::fs::read_to_string(&c.input).map_err(CliError::file(&c.input, Some("cannot read")))?;
     let mut program = Program::new(&k.chain, tool, geometry(c));
     let mut out_text = String::new();
     for (i, raw) in text.lines().enumerate() {
@@ -44,7 +45,10 @@ pub(super) fn gcode(c: &Common) -> Result<(), String> {
     if problems.is_empty() {
         Ok(())
     } else {
-        Err(format!("{} line(s) could not be rewritten", problems.len()))
+        Err(CliError::refused(format!(
+            "{} line(s) could not be rewritten",
+            problems.len()
+        )))
     }
 }
 
