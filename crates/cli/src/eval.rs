@@ -14,8 +14,9 @@ pub struct Args {
     /// Machine description (TOML).
     #[arg(long, default_value = "examples/vmc3/machine.toml")]
     machine: PathBuf,
-    /// Model file: seed A/C form (TOML, or JSON by extension), or a fitted dynamic model (JSON
-    /// with `"format": "truepos-dynamic-model"`).
+    /// Model file: a position-dependent thermal model or a reference-sensor regression (TOML, or
+    /// JSON by extension), or a fitted dynamic model (JSON with
+    /// `"format": "truepos-dynamic-model"`).
     #[arg(long, default_value = "examples/vmc3/model.toml")]
     model: PathBuf,
     /// Run CSV of cycles: time_s, <axis>_mm / <axis>_deg, temperatures, operating state.

@@ -17,7 +17,8 @@ pub struct Args {
     /// Machine description (TOML).
     #[arg(long)]
     machine: PathBuf,
-    /// Model file: seed A/C form (TOML/JSON) or a fitted dynamic model (JSON).
+    /// Model file: a position-dependent thermal model or a reference-sensor regression
+    /// (TOML/JSON), or a fitted dynamic model (JSON).
     #[arg(long)]
     model: PathBuf,
     /// Run CSV with the inputs and the measured errors.
