@@ -4,6 +4,7 @@ use std::io::IsTerminal;
 use std::path::PathBuf;
 use std::time::Instant;
 
+use crate::error::CliError;
 use truepos_fit::dataset::{Columns, Dataset, Patterns};
 use truepos_fit::export::{model_file, TargetAxis};
 use truepos_fit::settings::{Families, InnerCv, Ridges, Rule, Settings};
@@ -85,10 +86,10 @@ pub struct Args {
 }
 
 /// The runs named on the command line, as one dataset.
-fn load(args: &Args) -> Result<Dataset, String> {
+fn load(args: &Args) -> Result<Dataset, CliError> {
     let mut tables: Vec<Table> = Vec::new();
     for path in &args.runs {
-        tables.extend(read(path, args.sheet.as_deref()).map_err(|e| e.to_string())?);
+        tables.extend(read(path, args.sheet.as_deref())?);
     }
     let columns = Columns {
         time: args.time.clone(),
@@ -96,10 +97,10 @@ fn load(args: &Args) -> Result<Dataset, String> {
         targets: args.target.clone(),
         operating: args.operating.clone(),
     };
-    Dataset::from_tables(&tables, &columns).map_err(|e| e.to_string())
+    Ok(Dataset::from_tables(&tables, &columns)?)
 }
 
-fn settings(args: &Args, ds: &Dataset) -> Result<Settings, String> {
+fn settings(args: &Args, ds: &Dataset) -> Result<Settings, CliError> {
     let defaults = Settings::default();
     Ok(Settings {
         families: args.family.clone().map_or(defaults.families, |f| f.0),
@@ -111,7 +112,7 @@ fn settings(args: &Args, ds: &Dataset) -> Result<Settings, String> {
         reference: match &args.reference {
             Some(name) => Some(
                 ds.temperature_input(name)
-                    .map_err(|e| format!("--reference {e}"))?,
+                    .map_err(CliError::context("--reference "))?,
             ),
             None => None,
         },
@@ -147,7 +148,7 @@ impl Progress {
 }
 
 /// Runs `truepos fit`.
-pub fn run(args: Args) -> Result<(), String> {
+pub fn run(args: Args) -> Result<(), CliError> {
     let ds = load(&args)?;
     let settings = settings(&args, &ds)?;
     let mut progress = Progress {
@@ -155,7 +156,9 @@ pub fn run(args: Args) -> Result<(), String> {
     };
     let outcome = fit(&ds, args.split, &settings, &mut |d, t| {
         progress.update(d, t)
-    })?;
+    })
+    // Validation refuses in a sentence of its own (too few rows, a split it cannot make).
+    .map_err(CliError::Refused)?;
     let Outcome {
         validation,
         trained,
@@ -177,18 +180,15 @@ pub fn run(args: Args) -> Result<(), String> {
             &args.axes,
             &created_by,
         )
-        .map_err(|e| format!("--axis: {e}"))?;
+        .map_err(CliError::context("--axis: "))?;
         std::fs::write(path, file.to_json() + "\n")
-            .map_err(|e| format!("{}: cannot write: {e}", path.display()))?;
+            .map_err(CliError::file(path, Some("cannot write")))?;
     }
     if let Some(path) = &args.predictions {
         write_predictions(path, &ds, pred)?;
     }
     if args.json {
-        println!(
-            "{}",
-            serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?
-        );
+        println!("{}", serde_json::to_string_pretty(&report)?);
         return Ok(());
     }
     println!("validation: {}", validation.protocol_text);
@@ -222,7 +222,7 @@ fn write_predictions(
     path: &std::path::Path,
     ds: &Dataset,
     pred: &truepos_fit::validate::Predictions,
-) -> Result<(), String> {
+) -> Result<(), CliError> {
     let mut out = String::from("run,time_s");
     for t in &ds.target_names {
         out += &format!(",{t},{t}_predicted");
@@ -240,5 +240,5 @@ fn write_predictions(
             out.push('\n');
         }
     }
-    std::fs::write(path, out).map_err(|e| format!("{}: cannot write: {e}", path.display()))
+    std::fs::write(path, out).map_err(CliError::file(path, Some("cannot write")))
 }
