@@ -7,6 +7,7 @@
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 
+use crate::error::CliError;
 use truepos_fit::position_model::{choose, input_sets, Candidate, Family, Fitted, Observation};
 use truepos_io::{machine_file, model_file::ModelFile};
 use truepos_model::{CycleInput, Machine, Model};
@@ -36,17 +37,15 @@ pub struct Args {
     json: bool,
 }
 
-fn scenario(name: &str) -> Result<Scenario, String> {
+fn scenario(name: &str) -> Result<Scenario, CliError> {
     match Scenario::builtin(name) {
         Some(s) => Ok(s),
         None => {
-            let text = std::fs::read_to_string(name).map_err(|e| {
-                format!(
-                    "scenario `{name}`: not a built-in ({}) and not a readable file: {e}",
-                    truepos_sim::BUILTIN.join(", ")
-                )
-            })?;
-            Scenario::parse(&text, name, None).map_err(|e| e.to_string())
+            let text = std::fs::read_to_string(name).map_err(CliError::context(format!(
+                "scenario `{name}`: not a built-in ({}) and not a readable file: ",
+                truepos_sim::BUILTIN.join(", ")
+            )))?;
+            Ok(Scenario::parse(&text, name, None)?)
         }
     }
 }
@@ -59,9 +58,9 @@ struct Day {
     operating: Vec<Vec<f64>>,
 }
 
-fn day(twin: &Twin, machine: &Machine, name: &str, seed: u64) -> Result<Day, String> {
+fn day(twin: &Twin, machine: &Machine, name: &str, seed: u64) -> Result<Day, CliError> {
     let sc = scenario(name)?;
-    let run = twin.run(&sc, seed).map_err(|e| e.to_string())?;
+    let run = twin.run(&sc, seed)?;
     let positions = run.rows.iter().map(|r| r.position_mm.to_vec()).collect();
     // What the control knows of its operating state, by the machine's channel ids.
     let operating: Vec<Vec<f64>> = run
@@ -228,7 +227,7 @@ fn fit_both(
     machine: &Machine,
     train: &Day,
     say: &dyn Fn(&str),
-) -> Result<(Candidate, Candidate), String> {
+) -> Result<(Candidate, Candidate), CliError> {
     let sets = input_sets(machine);
     let obs = observations(train);
     let mut tried = |c: &Candidate| {
@@ -249,8 +248,7 @@ fn fit_both(
         &xyz,
         &obs,
         &mut tried,
-    )
-    .map_err(|e| e.to_string())?;
+    )?;
     let posdep = choose(
         "twin-position-dependent",
         machine,
@@ -259,8 +257,7 @@ fn fit_both(
         &xyz,
         &obs,
         &mut tried,
-    )
-    .map_err(|e| e.to_string())?;
+    )?;
     Ok((prior, posdep))
 }
 
@@ -270,7 +267,7 @@ fn save(
     path: &Path,
     family: Family,
     train: &str,
-) -> Result<(), String> {
+) -> Result<(), CliError> {
     let mut file = ModelFile::from_model(&fitted.model, machine);
     file.description = format!(
         "{} fitted by `truepos demo` on the twin's `{train}` day",
@@ -284,8 +281,7 @@ fn save(
     file.provenance.insert("ridge".into(), fitted.ridge.into());
     file.provenance
         .insert("observations".into(), (fitted.observations as i64).into());
-    std::fs::write(path, file.to_toml())
-        .map_err(|e| format!("{}: cannot write: {e}", path.display()))
+    std::fs::write(path, file.to_toml()).map_err(CliError::file(path, Some("cannot write")))
 }
 
 /// The test day's figures: uncompensated, prior art, position-dependent.
@@ -318,10 +314,9 @@ impl Results {
     }
 }
 
-pub fn run(args: Args) -> Result<(), String> {
-    let machine = machine_file::parse(Path::new("examples/twin/machine.toml"), TWIN_MACHINE)
-        .map_err(|e| e.to_string())?
-        .machine;
+pub fn run(args: Args) -> Result<(), CliError> {
+    let machine =
+        machine_file::parse(Path::new("examples/twin/machine.toml"), TWIN_MACHINE)?.machine;
     let twin = Twin::reference();
     let chatty = !args.json && std::io::stderr().is_terminal();
     let say = |m: &str| {
@@ -339,8 +334,7 @@ pub fn run(args: Args) -> Result<(), String> {
     say("fit: prior-art and position-dependent models on the training day only …");
     let (prior, posdep) = fit_both(&machine, &train, &say)?;
 
-    std::fs::create_dir_all(&args.out)
-        .map_err(|e| format!("{}: cannot create: {e}", args.out.display()))?;
+    std::fs::create_dir_all(&args.out).map_err(CliError::file(&args.out, Some("cannot create")))?;
     save(
         &prior.fitted,
         &machine,
@@ -380,7 +374,7 @@ fn report(
     test: &Day,
     posdep: &Candidate,
     stride: usize,
-) -> Result<PathBuf, String> {
+) -> Result<PathBuf, CliError> {
     let (family, posdep) = (posdep.family, &posdep.fitted);
     let mut channels = Vec::new();
     for (a, name) in ["dx", "dy", "dz"].iter().enumerate() {
@@ -429,7 +423,7 @@ fn report(
             ("working volume".into(), format!("{0}×{0}×{0} grid over the travel, every {stride}-th sample of the test day", args.grid)),
         ],
     };
-    write_report(&args.out.join("report"), &data).map_err(|e| e.to_string())
+    Ok(write_report(&args.out.join("report"), &data)?)
 }
 
 fn print_json(args: &Args, r: &Results, prior: &Candidate, posdep: &Candidate, html: &Path) {

@@ -5,6 +5,7 @@ use std::path::PathBuf;
 
 use truepos_io::machine_file;
 
+use crate::error::CliError;
 use crate::evaluator::Evaluator;
 
 /// Arguments of `truepos eval`.
@@ -13,8 +14,9 @@ pub struct Args {
     /// Machine description (TOML).
     #[arg(long, default_value = "examples/vmc3/machine.toml")]
     machine: PathBuf,
-    /// Model file: seed A/C form (TOML, or JSON by extension), or a fitted dynamic model (JSON
-    /// with `"format": "truepos-dynamic-model"`).
+    /// Model file: a position-dependent thermal model or a reference-sensor regression (TOML, or
+    /// JSON by extension), or a fitted dynamic model (JSON with
+    /// `"format": "truepos-dynamic-model"`).
     #[arg(long, default_value = "examples/vmc3/model.toml")]
     model: PathBuf,
     /// Run CSV of cycles: time_s, <axis>_mm / <axis>_deg, temperatures, operating state.
@@ -36,10 +38,8 @@ struct AxisSummary {
     max_abs_um: f64,
 }
 
-pub fn run(args: Args) -> Result<(), String> {
-    let machine = machine_file::load(&args.machine)
-        .map_err(|e| e.to_string())?
-        .machine;
+pub fn run(args: Args) -> Result<(), CliError> {
+    let machine = machine_file::load(&args.machine)?.machine;
     let mut model = Evaluator::load(&args.model, &machine)?;
     let cycles = model.load_run(&args.run, &machine)?;
 
@@ -50,12 +50,12 @@ pub fn run(args: Args) -> Result<(), String> {
         Some(csv::Writer::from_writer(Box::new(std::io::stdout().lock())))
     } else {
         let f = std::fs::File::create(&args.out)
-            .map_err(|e| format!("{}: cannot write: {e}", args.out.display()))?;
+            .map_err(CliError::file(&args.out, Some("cannot write")))?;
         Some(csv::Writer::from_writer(Box::new(std::io::BufWriter::new(
             f,
         ))))
     };
-    let io_err = |e: csv::Error| format!("{}: cannot write: {e}", args.out.display());
+    let io_err = |e: csv::Error| CliError::file(&args.out, Some("cannot write"))(e);
     let n_axes = model.axis_count();
     if let Some(w) = writer.as_mut() {
         let mut header = vec!["time_s".to_string()];
@@ -120,7 +120,7 @@ pub fn run(args: Args) -> Result<(), String> {
     }
     if let Some(mut w) = writer {
         w.flush()
-            .map_err(|e| format!("{}: cannot write: {e}", args.out.display()))?;
+            .map_err(CliError::file(&args.out, Some("cannot write")))?;
     }
 
     let rows = cycles.time_s.len();

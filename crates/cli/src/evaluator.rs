@@ -3,6 +3,7 @@
 //! columns the model needs, stepping the model through the rows in order with the time between
 //! them (as the control steps it every cycle), and naming channels in errors.
 
+use crate::error::CliError;
 use truepos_io::{compensation, cycles};
 use truepos_model::{CompensationModel, CycleInput, Machine, MAX_AXES};
 
@@ -14,8 +15,8 @@ pub struct Evaluator {
 
 impl Evaluator {
     /// Reads a model file of either form, bound to the machine.
-    pub fn load(path: &std::path::Path, machine: &Machine) -> Result<Self, String> {
-        let loaded = compensation::load(path, machine).map_err(|e| e.to_string())?;
+    pub fn load(path: &std::path::Path, machine: &Machine) -> Result<Self, CliError> {
+        let loaded = compensation::load(path, machine)?;
         if let Some(d) = loaded.model.as_dynamic() {
             for name in d.unused_outputs() {
                 eprintln!("note: output `{name}` of the model names no axis and is not applied");
@@ -43,14 +44,18 @@ impl Evaluator {
         &self,
         path: &std::path::Path,
         machine: &Machine,
-    ) -> Result<cycles::Cycles, String> {
+    ) -> Result<cycles::Cycles, CliError> {
         let positions = if self.model.reads_positions() {
             cycles::Positions::Required
         } else {
             cycles::Positions::Optional
         };
-        cycles::load_with(path, machine, self.model.used_sensors(), positions)
-            .map_err(|e| e.to_string())
+        Ok(cycles::load_with(
+            path,
+            machine,
+            self.model.used_sensors(),
+            positions,
+        )?)
     }
 
     /// Axes it gives an error for.
@@ -65,7 +70,7 @@ impl Evaluator {
         cycles: &cycles::Cycles,
         i: usize,
         machine: &Machine,
-    ) -> Result<[f64; MAX_AXES], String> {
+    ) -> Result<[f64; MAX_AXES], CliError> {
         let input = CycleInput {
             temperatures_c: &cycles.temperatures_c[i],
             positions: &cycles.positions[i],
@@ -76,7 +81,7 @@ impl Evaluator {
         let error_um = self
             .model
             .step(dt, &input)
-            .map_err(|e| describe(&e, machine))?;
+            .map_err(|e| CliError::Model(describe(&e, machine)))?;
         self.last_s = Some(t);
         Ok(error_um)
     }

@@ -4,6 +4,7 @@ use std::io::IsTerminal;
 use std::path::PathBuf;
 use std::time::Instant;
 
+use crate::error::CliError;
 use truepos_fit::dataset::{Columns, Dataset, Patterns};
 use truepos_fit::export::{model_file, plausible, predictions_csv, TargetAxis};
 use truepos_fit::settings::{Families, InnerCv, Ridges, Rule, Settings};
@@ -91,10 +92,10 @@ pub struct Args {
 }
 
 /// The runs named on the command line, as one dataset.
-fn load(args: &Args) -> Result<Dataset, String> {
+fn load(args: &Args) -> Result<Dataset, CliError> {
     let mut tables: Vec<Table> = Vec::new();
     for path in &args.runs {
-        tables.extend(read(path, args.sheet.as_deref()).map_err(|e| e.to_string())?);
+        tables.extend(read(path, args.sheet.as_deref())?);
     }
     let columns = Columns {
         time: args.time.clone(),
@@ -102,10 +103,10 @@ fn load(args: &Args) -> Result<Dataset, String> {
         targets: args.target.clone(),
         operating: args.operating.clone(),
     };
-    Dataset::from_tables(&tables, &columns).map_err(|e| e.to_string())
+    Ok(Dataset::from_tables(&tables, &columns)?)
 }
 
-fn settings(args: &Args, ds: &Dataset) -> Result<Settings, String> {
+fn settings(args: &Args, ds: &Dataset) -> Result<Settings, CliError> {
     let defaults = Settings::default();
     Ok(Settings {
         families: args.family.clone().map_or(defaults.families, |f| f.0),
@@ -117,7 +118,7 @@ fn settings(args: &Args, ds: &Dataset) -> Result<Settings, String> {
         reference: match &args.reference {
             Some(name) => Some(
                 ds.temperature_input(name)
-                    .map_err(|e| format!("--reference {e}"))?,
+                    .map_err(CliError::context("--reference "))?,
             ),
             None => None,
         },
@@ -153,7 +154,7 @@ impl Progress {
 }
 
 /// Runs `truepos fit`.
-pub fn run(args: Args) -> Result<(), String> {
+pub fn run(args: Args) -> Result<(), CliError> {
     let ds = load(&args)?;
     let settings = settings(&args, &ds)?;
     let mut progress = Progress {
@@ -161,7 +162,9 @@ pub fn run(args: Args) -> Result<(), String> {
     };
     let outcome = fit(&ds, args.split, &settings, &mut |d, t| {
         progress.update(d, t)
-    })?;
+    })
+    // Validation refuses in a sentence of its own (too few rows, a split it cannot make).
+    .map_err(CliError::Refused)?;
     let Outcome {
         validation,
         trained,
@@ -174,10 +177,10 @@ pub fn run(args: Args) -> Result<(), String> {
             let out = args.model.as_ref().map_or("the model".into(), |p| {
                 format!("refusing to write {}", p.display())
             });
-            return Err(format!(
+            return Err(CliError::refused(format!(
                 "{out}: {}; check the targets, or --force to write it anyway",
                 what.join("; ")
-            ));
+            )));
         }
         warnings.extend(what.into_iter().map(|w| format!("--force: {w}")));
     }
@@ -198,22 +201,19 @@ pub fn run(args: Args) -> Result<(), String> {
             &args.axes,
             &created_by,
         )
-        .map_err(|e| format!("--axis: {e}"))?;
+        .map_err(CliError::context("--axis: "))?;
         std::fs::write(path, file.to_json() + "\n")
-            .map_err(|e| format!("{}: cannot write: {e}", path.display()))?;
+            .map_err(CliError::file(path, Some("cannot write")))?;
     }
     if let Some(path) = &args.predictions {
         std::fs::write(path, predictions_csv(&ds, &outcome))
-            .map_err(|e| format!("{}: cannot write: {e}", path.display()))?;
+            .map_err(CliError::file(path, Some("cannot write")))?;
     }
     for w in &warnings {
         eprintln!("warning: {w}");
     }
     if args.json {
-        println!(
-            "{}",
-            serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?
-        );
+        println!("{}", serde_json::to_string_pretty(&report)?);
         return Ok(());
     }
     println!("validation: {}", validation.protocol_text);

@@ -12,10 +12,13 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+use crate::error::CliError;
 use truepos_io::kinematics_file::{self, KinematicsFile};
 use truepos_io::InputError;
 use truepos_kinematics::{Chain, Directions, Geometry, KinError, Pose, Row};
 use truepos_model::AxisKind;
+
+mod gcode;
 
 /// Arguments of `truepos kin`.
 #[derive(clap::Args)]
@@ -69,11 +72,11 @@ enum KinCommand {
     },
 }
 
-pub fn run(args: Args) -> Result<(), String> {
+pub fn run(args: Args) -> Result<(), CliError> {
     match args.command {
         KinCommand::Fwd(c) => fwd(&c),
         KinCommand::Inv(c) => inv(&c),
-        KinCommand::Gcode(c) => gcode(&c),
+        KinCommand::Gcode(c) => gcode::gcode(&c),
         KinCommand::Chain {
             kinematics,
             machine,
@@ -81,24 +84,22 @@ pub fn run(args: Args) -> Result<(), String> {
     }
 }
 
-fn load(kinematics: &Path, machine: Option<&Path>) -> Result<KinematicsFile, String> {
+fn load(kinematics: &Path, machine: Option<&Path>) -> Result<KinematicsFile, CliError> {
     let machine = match machine {
-        Some(m) => Some(
-            truepos_io::machine_file::load(m)
-                .map_err(|e| e.to_string())?
-                .machine,
-        ),
+        Some(m) => Some(truepos_io::machine_file::load(m)?.machine),
         None => None,
     };
-    kinematics_file::load(kinematics, machine.as_ref()).map_err(|e| e.to_string())
+    Ok(kinematics_file::load(kinematics, machine.as_ref())?)
 }
 
-fn tool_length(c: &Common, k: &KinematicsFile) -> Result<f64, String> {
+fn tool_length(c: &Common, k: &KinematicsFile) -> Result<f64, CliError> {
     let t = c.tool_length.unwrap_or(k.tool_length_mm);
     if t.is_finite() {
         Ok(t)
     } else {
-        Err(format!("--tool-length must be a finite number, got {t}"))
+        Err(CliError::refused(format!(
+            "--tool-length must be a finite number, got {t}"
+        )))
     }
 }
 
@@ -110,12 +111,11 @@ struct Table {
 
 /// Reads a point list: `#` comments and blank lines skipped, every cell a finite number (an
 /// error names its line and character column), every row as wide as the header.
-fn read_csv(path: &Path) -> Result<Table, String> {
+fn read_csv(path: &Path) -> Result<Table, CliError> {
     use truepos_io::table::{self, Number};
-    let t =
-        table::load_csv(path, table::CsvOptions { comments: true }).map_err(|e| e.to_string())?;
+    let t = table::load_csv(path, table::CsvOptions { comments: true })?;
     if t.columns.is_empty() {
-        return Err(InputError::file(path, "empty file; expected a header and rows").to_string());
+        return Err(InputError::file(path, "empty file; expected a header and rows").into());
     }
     let mut rows = Vec::with_capacity(t.rows.len());
     for (r, row) in t.rows.iter().enumerate() {
@@ -131,7 +131,7 @@ fn read_csv(path: &Path) -> Result<Table, String> {
                     };
                     return Err(t
                         .at_character(r, c, format!("expected a finite number, got `{text}`"))
-                        .to_string());
+                        .into());
                 }
             };
             values.push(v);
@@ -148,7 +148,7 @@ fn read_csv(path: &Path) -> Result<Table, String> {
                     values.len()
                 ),
             )
-            .to_string());
+            .into());
         }
         rows.push((row.line, values));
     }
@@ -159,7 +159,7 @@ fn read_csv(path: &Path) -> Result<Table, String> {
 }
 
 /// Column index of each of `names` in the header.
-fn columns(path: &Path, t: &Table, names: &[&str]) -> Result<Vec<usize>, String> {
+fn columns(path: &Path, t: &Table, names: &[&str]) -> Result<Vec<usize>, CliError> {
     for (c, h) in t.header.iter().enumerate() {
         if !names.contains(&h.as_str()) {
             return Err(InputError::at(
@@ -169,7 +169,7 @@ fn columns(path: &Path, t: &Table, names: &[&str]) -> Result<Vec<usize>, String>
                 h.clone(),
                 format!("unknown column; expected the columns {}", names.join(",")),
             )
-            .to_string());
+            .into());
         }
     }
     names
@@ -183,17 +183,17 @@ fn columns(path: &Path, t: &Table, names: &[&str]) -> Result<Vec<usize>, String>
                     *n,
                     format!("missing column; expected the columns {}", names.join(",")),
                 )
-                .to_string()
+                .into()
             })
         })
         .collect()
 }
 
-fn emit(c: &Common, body: &str, summary: serde_json::Value, text: String) -> Result<(), String> {
+fn emit(c: &Common, body: &str, summary: serde_json::Value, text: String) -> Result<(), CliError> {
     let summary = if c.json { summary.to_string() } else { text };
     match &c.output {
         Some(p) => {
-            std::fs::write(p, body).map_err(|e| format!("{}: cannot write: {e}", p.display()))?;
+            std::fs::write(p, body).map_err(CliError::file(p, Some("cannot write")))?;
             println!("{summary}");
         }
         None => {
@@ -212,7 +212,7 @@ fn geometry(c: &Common) -> Geometry {
     }
 }
 
-fn fwd(c: &Common) -> Result<(), String> {
+fn fwd(c: &Common) -> Result<(), CliError> {
     let k = load(&c.kinematics, c.machine.as_deref())?;
     let tool = tool_length(c, &k)?;
     let chain = &k.chain;
@@ -237,7 +237,7 @@ fn fwd(c: &Common) -> Result<(), String> {
     for ((line, _), p) in t.rows.iter().zip(&poses) {
         let p = p
             .as_ref()
-            .map_err(|e| format!("{}:{line}: {e}", c.input.display()))?;
+            .map_err(|e| CliError::context(format!("{}:{line}: ", c.input.display()))(*e))?;
         let [x, y, z] = p.position;
         let [i, j, kk] = p.direction;
         let _ = writeln!(body, "{x},{y},{z},{i},{j},{kk}");
@@ -271,7 +271,7 @@ fn start_positions(chain: &Chain) -> Vec<f64> {
         .collect()
 }
 
-fn inv(c: &Common) -> Result<(), String> {
+fn inv(c: &Common) -> Result<(), CliError> {
     let k = load(&c.kinematics, c.machine.as_deref())?;
     let tool = tool_length(c, &k)?;
     let chain = &k.chain;
@@ -371,11 +371,14 @@ fn inv(c: &Common) -> Result<(), String> {
     if ok == total {
         Ok(())
     } else {
-        Err(format!("{} of {total} points failed", total - ok))
+        Err(CliError::refused(format!(
+            "{} of {total} points failed",
+            total - ok
+        )))
     }
 }
 
-fn chain(kinematics: &Path, machine: Option<&Path>) -> Result<(), String> {
+fn chain(kinematics: &Path, machine: Option<&Path>) -> Result<(), CliError> {
     let k = load(kinematics, machine)?;
     let axes: Vec<_> = k
         .chain
@@ -415,229 +418,4 @@ fn chain(kinematics: &Path, machine: Option<&Path>) -> Result<(), String> {
     });
     println!("{v}");
     Ok(())
-}
-
-fn gcode(c: &Common) -> Result<(), String> {
-    let k = load(&c.kinematics, c.machine.as_deref())?;
-    let tool = tool_length(c, &k)?;
-    let chain = &k.chain;
-    let text = std::fs::read_to_string(&c.input)
-        .map_err(|e| format!("{}: cannot read: {e}", c.input.display()))?;
-    let n = chain.axes().len();
-    // Program axis words: the chain's axes named by one letter.
-    let letters: Vec<char> = chain
-        .axes()
-        .iter()
-        .map(|a| a.name.chars().next().unwrap_or(' '))
-        .collect();
-    let mut nominal = start_positions(chain);
-    let mut dirs = Directions(0);
-    let mut warnings: Vec<String> = Vec::new();
-    let mut out_text = String::new();
-    let mut problems: Vec<String> = Vec::new();
-    let mut moves = 0usize;
-    let mut motion: Option<u32> = None;
-    let mut out = vec![0.0; n];
-    for (i, raw) in text.lines().enumerate() {
-        let ln = i + 1;
-        let loc = format!("{}:{ln}", c.input.display());
-        // Split code from comments: `( … )` anywhere and `;` to the end of the line.
-        let mut code = String::new();
-        let mut comments: Vec<(usize, String)> = Vec::new();
-        let mut depth = 0;
-        let mut current = String::new();
-        let mut rest_comment: Option<String> = None;
-        for (ci, ch) in raw.char_indices() {
-            if depth == 0 && ch == ';' {
-                rest_comment = Some(raw[ci..].to_string());
-                break;
-            }
-            if ch == '(' {
-                depth += 1;
-            }
-            if depth > 0 {
-                current.push(ch);
-                if ch == ')' {
-                    depth -= 1;
-                    if depth == 0 {
-                        comments.push((code.len(), std::mem::take(&mut current)));
-                    }
-                }
-            } else {
-                code.push(ch);
-            }
-        }
-        if depth > 0 {
-            problems.push(format!("{loc}: unclosed comment `(`"));
-            out_text.push_str(raw);
-            out_text.push('\n');
-            continue;
-        }
-        // Words.
-        let mut words: Vec<(char, String)> = Vec::new();
-        let chars: Vec<char> = code.chars().collect();
-        let mut p = 0;
-        let mut bad = false;
-        while p < chars.len() {
-            let ch = chars[p];
-            if ch.is_whitespace() {
-                p += 1;
-                continue;
-            }
-            if !ch.is_ascii_alphabetic() {
-                problems.push(format!(
-                    "{loc}: unexpected `{ch}`; expected a word such as G1 or X10.5"
-                ));
-                bad = true;
-                break;
-            }
-            let mut q = p + 1;
-            while q < chars.len()
-                && (chars[q].is_ascii_digit() || matches!(chars[q], '.' | '-' | '+' | ' '))
-            {
-                q += 1;
-            }
-            let num: String = chars[p + 1..q]
-                .iter()
-                .filter(|c| !c.is_whitespace())
-                .collect();
-            words.push((ch.to_ascii_uppercase(), num));
-            p = q;
-        }
-        let mut axis_words = false;
-        let mut unsupported = bad;
-        for (l, num) in &words {
-            match l {
-                'G' => {
-                    match num.parse::<f64>().ok() {
-                        Some(g) if g == 0.0 || g == 1.0 => motion = Some(g as u32),
-                        Some(g)
-                            if matches!(g as i64, 17 | 21 | 40 | 49 | 54 | 80 | 90 | 94)
-                                && g.fract() == 0.0 => {}
-                        _ => {
-                            problems.push(format!("{loc}: G{num} is not supported (only G0/G1 moves in absolute mm, G90)"));
-                            unsupported = true;
-                        }
-                    }
-                }
-                'N' | 'F' | 'S' | 'M' | 'T' | 'H' | 'D' => {}
-                l if letters.contains(l) => {
-                    axis_words = true;
-                    if num.parse::<f64>().ok().filter(|v| v.is_finite()).is_none() {
-                        problems.push(format!("{loc}: `{l}{num}`: expected a number"));
-                        unsupported = true;
-                    }
-                }
-                _ => {
-                    problems.push(format!("{loc}: word `{l}{num}` is not supported here"));
-                    unsupported = true;
-                }
-            }
-        }
-        if !axis_words || unsupported {
-            out_text.push_str(raw);
-            out_text.push('\n');
-            continue;
-        }
-        if motion.is_none() {
-            problems.push(format!("{loc}: axis words before any G0/G1"));
-            out_text.push_str(raw);
-            out_text.push('\n');
-            continue;
-        }
-        let before = nominal.clone();
-        for (l, num) in &words {
-            if let Some(j) = letters.iter().position(|c| c == l) {
-                nominal[j] = num.parse().unwrap_or(nominal[j]);
-            }
-        }
-        // Travel directions from the programmed motion (for directional tables).
-        for j in 0..n {
-            if nominal[j] > before[j] {
-                dirs.0 &= !(1 << j);
-            } else if nominal[j] < before[j] {
-                dirs.0 |= 1 << j;
-            }
-        }
-        // The nominal machine would put the tool here; find set-points that put the real tool
-        // there, on the branch the program chose.
-        let target = match chain.forward(&nominal, tool, dirs, Geometry::Nominal) {
-            Ok(t) => t,
-            Err(e) => {
-                problems.push(format!("{loc}: {e}"));
-                out_text.push_str(raw);
-                out_text.push('\n');
-                continue;
-            }
-        };
-        match chain.inverse_near(&target, tool, &nominal, dirs, geometry(c), &mut out) {
-            Ok(_) => {}
-            Err(KinError::NotConverged {
-                position_mm,
-                direction_rad,
-            }) if position_mm < 1e-6 => {
-                // The real machine cannot point the tool exactly there (e.g. at the pole, a tilt
-                // in the plane of the swivel axis): TCP exact, direction as close as it gets.
-                warnings.push(format!(
-                    "{loc}: the real tool direction stays {:.1} µrad off (not reachable with these errors); TCP exact",
-                    direction_rad * 1e6
-                ));
-            }
-            Err(e) => {
-                problems.push(format!("{loc}: {e}"));
-                out_text.push_str(raw);
-                out_text.push('\n');
-                continue;
-            }
-        }
-        moves += 1;
-        // Rewrite: every word as it was, axis words of this line with compensated values, axis
-        // words that changed through compensation but were modal added at the end.
-        let mut line = String::new();
-        let mut written = vec![false; n];
-        for (l, num) in &words {
-            if !line.is_empty() {
-                line.push(' ');
-            }
-            if let Some(j) = letters.iter().position(|c| c == l) {
-                let _ = write!(line, "{l}{:.6}", out[j]);
-                written[j] = true;
-            } else {
-                let _ = write!(line, "{l}{num}");
-            }
-        }
-        for j in 0..n {
-            if !written[j] {
-                let _ = write!(line, " {}{:.6}", letters[j], out[j]);
-            }
-        }
-        for (_, cmt) in &comments {
-            line.push(' ');
-            line.push_str(cmt);
-        }
-        if let Some(cmt) = &rest_comment {
-            line.push(' ');
-            line.push_str(cmt);
-        }
-        out_text.push_str(&line);
-        out_text.push('\n');
-    }
-    let summary = serde_json::json!({
-        "moves_rewritten": moves, "problems": problems, "warnings": warnings,
-    });
-    let mut txt = format!(
-        "{moves} moves rewritten; {} problem(s), {} warning(s)",
-        problems.len(),
-        warnings.len()
-    );
-    for p in problems.iter().chain(&warnings) {
-        txt.push('\n');
-        txt.push_str(p);
-    }
-    emit(c, &out_text, summary, txt)?;
-    if problems.is_empty() {
-        Ok(())
-    } else {
-        Err(format!("{} line(s) could not be rewritten", problems.len()))
-    }
 }

@@ -7,6 +7,7 @@ use std::path::{Path, PathBuf};
 use truepos_io::machine_file;
 use truepos_model::{CompensationModel, Model, PartForm};
 
+use crate::error::CliError;
 use crate::evaluator::Evaluator;
 use truepos_report::{channel_metrics, write_report, Channel, Coefficient, ReportData};
 
@@ -16,7 +17,8 @@ pub struct Args {
     /// Machine description (TOML).
     #[arg(long)]
     machine: PathBuf,
-    /// Model file: seed A/C form (TOML/JSON) or a fitted dynamic model (JSON).
+    /// Model file: a position-dependent thermal model or a reference-sensor regression
+    /// (TOML/JSON), or a fitted dynamic model (JSON).
     #[arg(long)]
     model: PathBuf,
     /// Run CSV with the inputs and the measured errors.
@@ -40,25 +42,25 @@ pub struct Args {
 
 /// Reads named numeric columns of a CSV (an empty cell reads as NaN; unparsable text is not
 /// accepted: a bad cell is an error naming line and column).
-fn read_columns(path: &Path, names: &[String]) -> Result<Vec<Vec<f64>>, String> {
+fn read_columns(path: &Path, names: &[String]) -> Result<Vec<Vec<f64>>, CliError> {
     use truepos_io::table::{self, Number};
-    let t = table::load_csv(path, table::CsvOptions::default()).map_err(|e| e.to_string())?;
+    let t = table::load_csv(path, table::CsvOptions::default())?;
     let cols: Vec<usize> = names
         .iter()
         .map(|n| {
             t.column(n).ok_or_else(|| {
-                format!(
+                CliError::refused(format!(
                     "{}:1:1: `{n}`: missing column; the header has: {}",
                     path.display(),
                     t.columns.join(", ")
-                )
+                ))
             })
         })
         .collect::<Result<_, _>>()?;
     let mut out = vec![Vec::new(); names.len()];
     for (r, row) in t.rows.iter().enumerate() {
         if let Some(e) = t.width_error(r) {
-            return Err(e.to_string());
+            return Err(e.into());
         }
         for (k, &c) in cols.iter().enumerate() {
             let v = match row.cells[c].value.number() {
@@ -67,7 +69,7 @@ fn read_columns(path: &Path, names: &[String]) -> Result<Vec<Vec<f64>>, String> 
                 Number::Text(text) => {
                     return Err(t
                         .at(r, c, format!("expected a number, got `{text}`"))
-                        .to_string())
+                        .into())
                 }
             };
             out[k].push(v);
@@ -155,22 +157,20 @@ fn coefficients(model: &Model, machine: &truepos_model::Machine) -> Vec<Coeffici
     out
 }
 
-pub fn run(args: Args) -> Result<(), String> {
-    let machine = machine_file::load(&args.machine)
-        .map_err(|e| e.to_string())?
-        .machine;
+pub fn run(args: Args) -> Result<(), CliError> {
+    let machine = machine_file::load(&args.machine)?.machine;
     let mut model = Evaluator::load(&args.model, &machine)?;
     let run = model.load_run(&args.run, &machine)?;
     let mut pairs = Vec::new();
     for spec in &args.measured {
-        let (axis, column) = spec
-            .split_once('=')
-            .ok_or_else(|| format!("--measured `{spec}`: expected AXIS=COLUMN"))?;
+        let (axis, column) = spec.split_once('=').ok_or_else(|| {
+            CliError::refused(format!("--measured `{spec}`: expected AXIS=COLUMN"))
+        })?;
         let a = machine.axis_index(axis).ok_or_else(|| {
-            format!(
+            CliError::refused(format!(
                 "--measured `{spec}`: machine `{}` has no axis `{axis}`",
                 machine.name
-            )
+            ))
         })?;
         pairs.push((a, column.to_string()));
     }
@@ -258,7 +258,7 @@ pub fn run(args: Args) -> Result<(), String> {
         },
         protocol,
     };
-    let html = write_report(&args.out, &data).map_err(|e| e.to_string())?;
+    let html = write_report(&args.out, &data)?;
     let range = test_from.unwrap_or(0)..run.time_s.len();
     let metrics: Vec<_> = data
         .channels

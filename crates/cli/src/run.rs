@@ -7,6 +7,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
+use crate::error::CliError;
 use truepos_io::compensation::load_set;
 use truepos_io::limits::{check_in, finite_in};
 use truepos_io::{cycles, machine_file};
@@ -104,32 +105,30 @@ fn twin_source(
     scenario: &str,
     machine: &truepos_model::Machine,
     speed: f64,
-) -> Result<ReplaySource, String> {
+) -> Result<ReplaySource, CliError> {
     let sc = match truepos_sim::Scenario::builtin(scenario) {
         Some(s) => s,
         None => {
-            let text = std::fs::read_to_string(scenario).map_err(|e| {
-                format!(
-                    "twin scenario `{scenario}`: not a built-in ({}) and not a readable file: {e}",
-                    truepos_sim::BUILTIN.join(", ")
-                )
-            })?;
-            truepos_sim::Scenario::parse(&text, scenario, None).map_err(|e| e.to_string())?
+            let text = std::fs::read_to_string(scenario).map_err(CliError::context(format!(
+                "twin scenario `{scenario}`: not a built-in ({}) and not a readable file: ",
+                truepos_sim::BUILTIN.join(", ")
+            )))?;
+            truepos_sim::Scenario::parse(&text, scenario, None)?
         }
     };
     let twin = truepos_sim::Twin::reference();
-    let run = twin.run(&sc, 1).map_err(|e| e.to_string())?;
+    let run = twin.run(&sc, 1)?;
     let time_s = run.column("time_s").unwrap_or_default();
     let rows = time_s.len();
     let column = |id: &str| run.column(id).unwrap_or_else(|| vec![f64::NAN; rows]);
     let temps: Vec<Vec<f64>> = machine.temperatures.iter().map(|t| column(&t.id)).collect();
     let ops: Vec<Vec<f64>> = machine.operating.iter().map(|o| column(&o.id)).collect();
     if temps.iter().all(|c| c.iter().all(|v| v.is_nan())) {
-        return Err(format!(
+        return Err(CliError::refused(format!(
             "twin: none of machine `{}`'s temperature ids is a sensor of the twin ({}); use examples/twin/machine.toml",
             machine.name,
             run.sensor_ids.join(", ")
-        ));
+        )));
     }
     let run = Recording {
         temperatures_c: (0..rows)
@@ -183,9 +182,9 @@ impl Timing {
     }
 }
 
-pub fn run(args: RunArgs) -> Result<(), String> {
-    let machine = machine_file::load(&args.machine).map_err(|e| e.to_string())?;
-    let entries = load_set(&args.models, &machine).map_err(|e| e.to_string())?;
+pub fn run(args: RunArgs) -> Result<(), CliError> {
+    let machine = machine_file::load(&args.machine)?;
+    let entries = load_set(&args.models, &machine)?;
     // The service clock's zero, shared with network sources that stamp values themselves.
     let epoch = Instant::now();
     let (sources, replay_end_s) = open_sources(&args, &machine.machine, epoch)?;
@@ -201,12 +200,11 @@ pub fn run(args: RunArgs) -> Result<(), String> {
         .sinks(sinks)
         .config(config)
         .log(args.log.clone())
-        .start()
-        .map_err(|e| e.to_string())?;
+        .start()?;
     let stop = Arc::new(AtomicBool::new(false));
     for signal in [signal_hook::consts::SIGTERM, signal_hook::consts::SIGINT] {
         signal_hook::flag::register(signal, Arc::clone(&stop))
-            .map_err(|e| format!("cannot install the signal handler: {e}"))?;
+            .map_err(CliError::context("cannot install the signal handler: "))?;
     }
 
     let end_s = args
@@ -236,7 +234,7 @@ pub fn run(args: RunArgs) -> Result<(), String> {
     if failures.is_empty() {
         Ok(())
     } else {
-        Err(failures.join("; "))
+        Err(CliError::Refused(failures.join("; ")))
     }
 }
 
@@ -248,7 +246,7 @@ fn open_sources(
     args: &RunArgs,
     m: &truepos_model::Machine,
     epoch: Instant,
-) -> Result<(Sources, Option<f64>), String> {
+) -> Result<(Sources, Option<f64>), CliError> {
     let mut sources: Sources = Vec::new();
     let mut replay_end_s = None;
     for spec in &args.sources {
@@ -256,15 +254,15 @@ fn open_sources(
         let (what, speed) = match rest.rsplit_once('@') {
             Some((f, s)) => (
                 f,
-                check_in(s.parse().unwrap_or(f64::NAN), 0.001, 1e6)
-                    .map_err(|e| format!("--source `{spec}`: speed after @: {e}"))?,
+                check_in(s.parse().unwrap_or(f64::NAN), 0.001, 1e6).map_err(CliError::context(
+                    format!("--source `{spec}`: speed after @: "),
+                ))?,
             ),
             None => (rest, 1.0),
         };
         let source: Box<dyn Source> = match kind {
             "replay" => {
-                let run = cycles::load(std::path::Path::new(what), m, &[])
-                    .map_err(|e| e.to_string())?;
+                let run = cycles::load(std::path::Path::new(what), m, &[])?;
                 let run = Recording {
                     time_s: run.time_s,
                     temperatures_c: run.temperatures_c,
@@ -274,23 +272,23 @@ fn open_sources(
                 let replay = ReplaySource::new(format!("replay {what}"), run, speed);
                 replay_end_s = Some(replay.duration_s() / speed);
                 if args.duration_s.is_none() && replay.duration_s() / speed > MAX_RUN_S {
-                    return Err(format!("--source `{spec}`: lasts {} s at speed {speed}, over the {MAX_RUN_S} s (a year) a run may last; give --duration-s or a higher speed", replay.duration_s() / speed));
+                    return Err(CliError::refused(format!("--source `{spec}`: lasts {} s at speed {speed}, over the {MAX_RUN_S} s (a year) a run may last; give --duration-s or a higher speed", replay.duration_s() / speed)));
                 }
                 Box::new(replay)
             }
             "twin" => Box::new(twin_source(what, m, speed)?),
             "modbus" => {
-                let cfg = ModbusConfig::load(std::path::Path::new(what)).map_err(|e| e.to_string())?;
-                Box::new(ModbusSource::start(&cfg, m, epoch).map_err(|e| e.to_string())?)
+                let cfg = ModbusConfig::load(std::path::Path::new(what))?;
+                Box::new(ModbusSource::start(&cfg, m, epoch)?)
             }
             "shdr" => {
-                let cfg = ShdrConfig::load(std::path::Path::new(what)).map_err(|e| e.to_string())?;
-                Box::new(ShdrSource::start(&cfg, m, epoch).map_err(|e| e.to_string())?)
+                let cfg = ShdrConfig::load(std::path::Path::new(what))?;
+                Box::new(ShdrSource::start(&cfg, m, epoch)?)
             }
             _ => {
-                return Err(format!(
+                return Err(CliError::refused(format!(
                     "--source `{spec}`: expected `replay:FILE.csv[@SPEED]`, `twin:SCENARIO[@SPEED]`, `modbus:CONFIG.toml` or `shdr:CONFIG.toml`"
-                ))
+                )))
             }
         };
         sources.push(source);
@@ -299,15 +297,16 @@ fn open_sources(
 }
 
 /// The sinks of `--sink`.
-fn open_sinks(args: &RunArgs, m: &truepos_model::Machine) -> Result<Vec<Box<dyn Sink>>, String> {
+fn open_sinks(args: &RunArgs, m: &truepos_model::Machine) -> Result<Vec<Box<dyn Sink>>, CliError> {
     let axis_names: Vec<String> = m.axes.iter().map(|a| a.name.clone()).collect();
     let mut sinks: Vec<Box<dyn Sink>> = Vec::new();
     for spec in &args.sinks {
         let Some(file) = spec.strip_prefix("csv:") else {
-            return Err(format!("--sink `{spec}`: expected `csv:FILE.csv`"));
+            return Err(CliError::refused(format!(
+                "--sink `{spec}`: expected `csv:FILE.csv`"
+            )));
         };
-        let sink = CsvSink::create(std::path::Path::new(file), &axis_names, args.sink_every_s)
-            .map_err(|e| e.to_string())?;
+        let sink = CsvSink::create(std::path::Path::new(file), &axis_names, args.sink_every_s)?;
         sinks.push(Box::new(sink));
     }
     Ok(sinks)
@@ -562,9 +561,9 @@ fn status(service: &Service, models: &[String], took_us: u32) -> String {
     )
 }
 
-pub fn show_status(args: StatusArgs) -> Result<(), String> {
-    let (names, rows) = log::read_cycles(&args.log, Some(1)).map_err(|e| e.to_string())?;
-    let events = log::read_events(&args.log).map_err(|e| e.to_string())?;
+pub fn show_status(args: StatusArgs) -> Result<(), CliError> {
+    let (names, rows) = log::read_cycles(&args.log, Some(1))?;
+    let events = log::read_events(&args.log)?;
     let last = rows.last();
     // Sensor health from the last fault or recovery event of each sensor.
     let mut faults: Vec<(String, String)> = Vec::new();
@@ -580,7 +579,7 @@ pub fn show_status(args: StatusArgs) -> Result<(), String> {
     }
     // A sensor that never delivered raises no event (the validator starts every channel as
     // "never updated"): the last cycle, where it has no value, tells.
-    let meta = log::read_meta(&args.log).map_err(|e| e.to_string())?;
+    let meta = log::read_meta(&args.log)?;
     let sensors = meta
         .as_ref()
         .and_then(|m| m["sensors"].as_array().cloned())
@@ -693,23 +692,23 @@ fn link_faults(events: &[log::LoggedEvent]) -> Vec<(String, String)> {
     out
 }
 
-pub fn show_log(args: LogArgs) -> Result<(), String> {
+pub fn show_log(args: LogArgs) -> Result<(), CliError> {
     if let Some(out) = &args.csv {
-        let (names, rows) = log::read_cycles(&args.log, None).map_err(|e| e.to_string())?;
-        let mut w = csv::Writer::from_path(out)
-            .map_err(|e| format!("{}: cannot write: {e}", out.display()))?;
-        w.write_record(&names).map_err(|e| e.to_string())?;
+        let (names, rows) = log::read_cycles(&args.log, None)?;
+        let mut w =
+            csv::Writer::from_path(out).map_err(CliError::file(out, Some("cannot write")))?;
+        w.write_record(&names)?;
         for r in &rows {
-            w.write_record(r).map_err(|e| e.to_string())?;
+            w.write_record(r)?;
         }
-        w.flush().map_err(|e| e.to_string())?;
+        w.flush().map_err(csv::Error::from)?;
         eprintln!("{} cycles written to {}", rows.len(), out.display());
         return Ok(());
     }
-    let events = log::read_events(&args.log).map_err(|e| e.to_string())?;
+    let events = log::read_events(&args.log)?;
     let mut out = std::io::stdout().lock();
     let written = if args.json {
-        let text = serde_json::to_string(&events).map_err(|e| e.to_string())?;
+        let text = serde_json::to_string(&events)?;
         writeln!(out, "{text}")
     } else {
         events.iter().try_for_each(|e| {
@@ -723,6 +722,6 @@ pub fn show_log(args: LogArgs) -> Result<(), String> {
     match written {
         // The reader (`head`, a pager) has seen enough.
         Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
-        r => r.map_err(|e| format!("cannot write to standard output: {e}")),
+        r => r.map_err(CliError::Stdout),
     }
 }

@@ -3,6 +3,7 @@
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 
+use crate::error::CliError;
 use truepos_sim::{Scenario, SimRun, Summary, Twin, TwinParams, AXES, BUILTIN};
 
 /// Rounds to 3 decimals for printing (µm, °C, mm).
@@ -42,13 +43,13 @@ pub struct Args {
     json: bool,
 }
 
-pub fn run(args: Args) -> Result<(), String> {
+pub fn run(args: Args) -> Result<(), CliError> {
     if let Some(name) = &args.print_scenario {
         let text = Scenario::builtin_toml(name).ok_or_else(|| {
-            format!(
+            CliError::refused(format!(
                 "no built-in scenario \"{name}\"; built-ins: {}",
                 BUILTIN.join(", ")
-            )
+            ))
         })?;
         print!("{text}");
         return Ok(());
@@ -71,54 +72,50 @@ pub fn run(args: Args) -> Result<(), String> {
 }
 
 /// The reference machine, or the twin description `--twin` names.
-fn load_twin(args: &Args) -> Result<Twin, String> {
+fn load_twin(args: &Args) -> Result<Twin, CliError> {
     Ok(match &args.twin {
         None => Twin::reference(),
         Some(path) => {
             let text = std::fs::read_to_string(path)
-                .map_err(|e| format!("--twin {}: {e}", path.display()))?;
-            let params =
-                TwinParams::parse(&text, &path.display().to_string()).map_err(|e| e.to_string())?;
+                .map_err(CliError::context(format!("--twin {}: ", path.display())))?;
+            let params = TwinParams::parse(&text, &path.display().to_string())?;
             Twin::from_params(&params)
         }
     })
 }
 
 /// The built-in scenario or scenario file `--scenario` names, with `--sample-s` applied.
-fn load_scenario(args: &Args, twin: &Twin) -> Result<Scenario, String> {
+fn load_scenario(args: &Args, twin: &Twin) -> Result<Scenario, CliError> {
     let mut scenario = match Scenario::builtin(&args.scenario) {
         Some(s) => s,
         None => {
             let path = PathBuf::from(&args.scenario);
-            let src = std::fs::read_to_string(&path).map_err(|e| {
-                format!(
-                    "--scenario {}: neither a built-in scenario ({}) nor a readable file: {e}",
-                    args.scenario,
-                    BUILTIN.join(", ")
-                )
-            })?;
-            Scenario::parse(&src, &path.display().to_string(), Some(twin.travel_mm))
-                .map_err(|e| e.to_string())?
+            let src = std::fs::read_to_string(&path).map_err(CliError::context(format!(
+                "--scenario {}: neither a built-in scenario ({}) nor a readable file: ",
+                args.scenario,
+                BUILTIN.join(", ")
+            )))?;
+            Scenario::parse(&src, &path.display().to_string(), Some(twin.travel_mm))?
         }
     };
     if let Some(s) = args.sample_s {
         let ratio = s / scenario.step_s;
         if !(s.is_finite() && s >= scenario.step_s && (ratio - ratio.round()).abs() < 1e-9) {
-            return Err(format!(
+            return Err(CliError::refused(format!(
                 "--sample-s must be a whole multiple of the scenario's step ({} s), got {s}",
                 scenario.step_s
-            ));
+            )));
         }
         scenario.sample_s = s;
         scenario
             .check_size()
-            .map_err(|e| format!("--sample-s {s}: {e}"))?;
+            .map_err(CliError::context(format!("--sample-s {s}: ")))?;
     }
     Ok(scenario)
 }
 
 /// Runs the twin, with a progress bar on a terminal (not under CI).
-fn simulate(twin: &Twin, scenario: &Scenario, seed: u64) -> Result<SimRun, String> {
+fn simulate(twin: &Twin, scenario: &Scenario, seed: u64) -> Result<SimRun, CliError> {
     let show_bar = std::io::stderr().is_terminal() && std::env::var_os("CI").is_none();
     let bar = show_bar.then(|| {
         let b = indicatif::ProgressBar::new(1000);
@@ -130,13 +127,11 @@ fn simulate(twin: &Twin, scenario: &Scenario, seed: u64) -> Result<SimRun, Strin
         b.set_message(format!("simulating {} h", fmt_h(scenario.duration_s())));
         b
     });
-    let run = twin
-        .run_with_progress(scenario, seed, &mut |f| {
-            if let Some(b) = &bar {
-                b.set_position((f * 1000.0) as u64);
-            }
-        })
-        .map_err(|e| e.to_string())?;
+    let run = twin.run_with_progress(scenario, seed, &mut |f| {
+        if let Some(b) = &bar {
+            b.set_position((f * 1000.0) as u64);
+        }
+    })?;
     if let Some(b) = &bar {
         b.finish_and_clear();
     }
@@ -144,14 +139,14 @@ fn simulate(twin: &Twin, scenario: &Scenario, seed: u64) -> Result<SimRun, Strin
 }
 
 /// Writes the run's CSV to `out` (`-`: standard output).
-fn write_run(run: &SimRun, out: &Path, nodes: bool) -> Result<(), String> {
+fn write_run(run: &SimRun, out: &Path, nodes: bool) -> Result<(), CliError> {
     if out.as_os_str() == "-" {
         run.write_csv(std::io::stdout().lock(), nodes)
-            .map_err(|e| format!("writing CSV: {e}"))?;
+            .map_err(CliError::context("writing CSV: "))?;
     } else {
-        let f = std::fs::File::create(out).map_err(|e| format!("{}: {e}", out.display()))?;
+        let f = std::fs::File::create(out).map_err(CliError::file(out, None))?;
         run.write_csv(std::io::BufWriter::new(f), nodes)
-            .map_err(|e| format!("{}: {e}", out.display()))?;
+            .map_err(CliError::file(out, None))?;
     }
     Ok(())
 }

@@ -1,6 +1,7 @@
 //! `truepos update-period`: how stale a position-dependent term gets between updates while its
 //! axis moves (seed A's timing argument, `truepos_model::timing`).
 
+use crate::error::CliError;
 use truepos_io::limits::finite_in;
 use truepos_model::{lag_error_fraction, travel_per_update_mm, PositionFactor};
 
@@ -21,7 +22,7 @@ pub struct Args {
     json: bool,
 }
 
-pub fn run(args: Args) -> Result<(), String> {
+pub fn run(args: Args) -> Result<(), CliError> {
     let feed_mm_min = args.feed_m_min * 1000.0;
     let travel = travel_per_update_mm(feed_mm_min, args.period_ms);
     let pct = |f| 100.0 * lag_error_fraction(feed_mm_min, args.period_ms, args.length_mm, f);

@@ -4,6 +4,7 @@
 use std::path::Path;
 
 use truepos_model::{LagFilters, LagSource, Machine};
+use truepos_runtime::replay::Recording;
 
 use crate::error::InputError;
 use crate::table::Number;
@@ -22,6 +23,18 @@ pub struct Cycles {
     pub positions: Vec<Vec<f64>>,
     /// Operating state of each row (NaN where the run has no column).
     pub operating: Vec<Vec<f64>>,
+}
+
+/// A run as the runtime's replay plays it; the line numbers only serve messages about the file.
+impl From<Cycles> for Recording {
+    fn from(run: Cycles) -> Self {
+        Recording {
+            time_s: run.time_s,
+            temperatures_c: run.temperatures_c,
+            positions: run.positions,
+            operating: run.operating,
+        }
+    }
 }
 
 /// Computes the lagged channels of every row from their sources, stepping the real-time

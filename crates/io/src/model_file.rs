@@ -443,32 +443,8 @@ impl ModelFile {
         s: &Spanned<String>,
         key: String,
     ) -> Result<usize, BindError> {
-        if !self
-            .inputs
-            .axes
-            .iter()
-            .any(|a| a.name.get_ref() == s.get_ref())
-        {
-            let listed: Vec<&str> = self
-                .inputs
-                .axes
-                .iter()
-                .map(|a| a.name.get_ref().as_str())
-                .collect();
-            return Err(err(
-                s,
-                key,
-                format!(
-                    "axis `{}` is not listed in [[inputs.axes]] (listed: {})",
-                    s.get_ref(),
-                    if listed.is_empty() {
-                        "none".into()
-                    } else {
-                        listed.join(", ")
-                    }
-                ),
-            ));
-        }
+        let names = self.inputs.axes.iter().map(|a| &a.name);
+        require_listed(names, s, key, "axis", "[[inputs.axes]]")?;
         Ok(machine.axis_index(s.get_ref()).expect("checked above"))
     }
 
@@ -480,28 +456,14 @@ impl ModelFile {
         s: &Spanned<String>,
         key: String,
     ) -> Result<usize, BindError> {
-        if !self
-            .inputs
-            .differences
-            .iter()
-            .any(|d| d.name.get_ref() == s.get_ref())
-        {
-            let listed: Vec<&str> = self
-                .inputs
-                .differences
-                .iter()
-                .map(|d| d.name.get_ref().as_str())
-                .collect();
-            return Err(err(
-                s,
-                key,
-                format!(
-                    "temperature difference `{}` is not listed in [[inputs.differences]] (listed: {})",
-                    s.get_ref(),
-                    if listed.is_empty() { "none".into() } else { listed.join(", ") }
-                ),
-            ));
-        }
+        let names = self.inputs.differences.iter().map(|d| &d.name);
+        require_listed(
+            names,
+            s,
+            key,
+            "temperature difference",
+            "[[inputs.differences]]",
+        )?;
         Ok(machine
             .difference_index(s.get_ref())
             .expect("checked above"))
@@ -798,6 +760,34 @@ impl ModelFile {
     pub fn to_toml(&self) -> String {
         toml::to_string_pretty(self).unwrap_or_else(|e| format!("# cannot serialise: {e}\n"))
     }
+}
+
+/// A name a part references must be one of those its model lists in `section`; the error names
+/// what is listed, so the fix is visible without opening the file.
+fn require_listed<'a>(
+    names: impl Iterator<Item = &'a Spanned<String>> + Clone,
+    s: &Spanned<String>,
+    key: String,
+    what: &str,
+    section: &str,
+) -> Result<(), BindError> {
+    if names.clone().any(|n| n.get_ref() == s.get_ref()) {
+        return Ok(());
+    }
+    let listed: Vec<&str> = names.map(|n| n.get_ref().as_str()).collect();
+    let listed = if listed.is_empty() {
+        "none".into()
+    } else {
+        listed.join(", ")
+    };
+    Err(err(
+        s,
+        key,
+        format!(
+            "{what} `{}` is not listed in {section} (listed: {listed})",
+            s.get_ref()
+        ),
+    ))
 }
 
 /// An error at the span of `s`.

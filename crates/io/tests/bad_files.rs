@@ -5,6 +5,9 @@ use std::path::Path;
 
 use truepos_io::{dynamic_model_file, machine_file, model_file};
 
+mod support;
+use support::machine_of;
+
 const MACHINE: &str = r#"[machine]
 name = "two-axis"
 
@@ -69,10 +72,7 @@ fn machine_error(text: &str) -> String {
 }
 
 fn model_error(text: &str) -> String {
-    let machine = machine_file::parse(Path::new("m.toml"), MACHINE)
-        .unwrap()
-        .machine;
-    model_file::parse(Path::new("k.toml"), text, &machine)
+    model_file::parse(Path::new("k.toml"), text, &machine_of(MACHINE))
         .expect_err("the file must be refused")
         .to_string()
 }
@@ -496,9 +496,7 @@ const DYNAMIC: &str = r#"{
 fn dynamic_machine() -> truepos_model::Machine {
     let text =
         format!("{MACHINE}\n[[operating]]\nid = \"spindle_rpm\"\nkind = \"spindle-speed\"\n");
-    machine_file::parse(Path::new("m.toml"), &text)
-        .unwrap()
-        .machine
+    machine_of(&text)
 }
 
 fn dynamic_error(text: &str) -> String {

@@ -1,23 +1,14 @@
 //! Model files: written and read back they evaluate identically, the order of terms in a file
 //! does not change results, and the shipped examples load and bind.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use proptest::prelude::*;
 use truepos_io::{cycles, machine_file, model_file};
 use truepos_model::*;
 
-fn repo(path: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../..")
-        .join(path)
-}
-
-fn vmc() -> Machine {
-    machine_file::load(&repo("examples/vmc3/machine.toml"))
-        .unwrap()
-        .machine
-}
+mod support;
+use support::{repo, vmc};
 
 fn factor() -> impl Strategy<Value = PositionFactor> {
     prop_oneof![

@@ -7,6 +7,9 @@ use std::path::Path;
 use proptest::prelude::*;
 use truepos_io::{cycles, dynamic_model_file, machine_file, model_file};
 
+mod support;
+use support::machine_of;
+
 const MACHINE: &str = include_str!("../../../examples/cross-slide/machine.toml");
 const MODEL: &str = include_str!("../../../examples/cross-slide/model.toml");
 /// A dynamic model for the cross-slide example's machine (its name, a sensor and an axis are
@@ -42,9 +45,7 @@ fn mutate(text: &str, at: usize, with: char, delete: bool) -> String {
 }
 
 fn machine() -> truepos_model::Machine {
-    machine_file::parse(Path::new("m.toml"), MACHINE)
-        .unwrap()
-        .machine
+    machine_of(MACHINE)
 }
 
 fn dynamic(m: &truepos_model::Machine) -> String {

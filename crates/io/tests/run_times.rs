@@ -5,7 +5,10 @@
 use std::path::Path;
 
 use proptest::prelude::*;
-use truepos_io::{cycles, machine_file};
+use truepos_io::cycles;
+
+mod support;
+use support::machine_of;
 
 const MACHINE: &str = include_str!("../../../examples/cross-slide/machine.toml");
 const ROW: &str = "150,750,23,20,21,22,21,22,26,20,2000";
@@ -20,9 +23,7 @@ fn csv(times: &[String]) -> String {
 }
 
 fn load(times: &[&str]) -> Result<cycles::Cycles, String> {
-    let m = machine_file::parse(Path::new("m.toml"), MACHINE)
-        .unwrap()
-        .machine;
+    let m = machine_of(MACHINE);
     let times: Vec<String> = times.iter().map(|t| t.to_string()).collect();
     cycles::read(Path::new("run.csv"), csv(&times).as_bytes(), &m, &[]).map_err(|e| e.to_string())
 }

@@ -60,16 +60,15 @@ fn chain(name: &str) -> Chain {
 
 const MACHINES: [&str; 4] = ["head-ac", "table-ac", "head-bc", "vmc-21"];
 
-/// 1000 forward transforms per iteration: divide the time by 1000 for one point.
-#[divan::bench(args = MACHINES)]
-fn forward_nominal_1000(bencher: Bencher, name: &str) {
+/// 1000 forward transforms of `geometry` per iteration: divide the time by 1000 for one point.
+fn forward_1000(bencher: Bencher, name: &str, geometry: Geometry) {
     let c = chain(name);
     let qs = positions(&c);
     bencher.bench_local(|| {
         let mut s = 0.0;
         for q in &qs {
             s += c
-                .forward(black_box(q), TOOL, Directions(0), Geometry::Nominal)
+                .forward(black_box(q), TOOL, Directions(0), geometry)
                 .unwrap()
                 .position[0];
         }
@@ -77,21 +76,16 @@ fn forward_nominal_1000(bencher: Bencher, name: &str) {
     });
 }
 
+/// 1000 nominal forward transforms per iteration.
+#[divan::bench(args = MACHINES)]
+fn forward_nominal_1000(bencher: Bencher, name: &str) {
+    forward_1000(bencher, name, Geometry::Nominal);
+}
+
 /// 1000 forward transforms through the error tables per iteration.
 #[divan::bench(args = MACHINES)]
 fn forward_actual_1000(bencher: Bencher, name: &str) {
-    let c = chain(name);
-    let qs = positions(&c);
-    bencher.bench_local(|| {
-        let mut s = 0.0;
-        for q in &qs {
-            s += c
-                .forward(black_box(q), TOOL, Directions(0), Geometry::Actual)
-                .unwrap()
-                .position[0];
-        }
-        s
-    });
+    forward_1000(bencher, name, Geometry::Actual);
 }
 
 fn targets(c: &Chain, geometry: Geometry) -> (Vec<Pose>, Vec<Vec<f64>>) {
@@ -108,50 +102,30 @@ fn targets(c: &Chain, geometry: Geometry) -> (Vec<Pose>, Vec<Vec<f64>>) {
     (poses, prev)
 }
 
-/// 1000 compensated inverse transforms (closed form, error pre-correction, Newton).
-#[divan::bench(args = MACHINES)]
-fn inverse_actual_1000(bencher: Bencher, name: &str) {
+/// 1000 inverse transforms of `geometry` with the bencher's clock on the loop only.
+fn inverse_1000(bencher: Bencher, name: &str, geometry: Geometry) {
     let c = chain(name);
-    let (poses, prev) = targets(&c, Geometry::Actual);
+    let (poses, prev) = targets(&c, geometry);
     let mut out = vec![0.0; c.axes().len()];
     bencher.bench_local(|| {
         let mut s = 0.0;
         for (p, q) in poses.iter().zip(&prev) {
-            c.inverse(
-                black_box(p),
-                TOOL,
-                q,
-                Directions(0),
-                Geometry::Actual,
-                &mut out,
-            )
-            .unwrap();
+            c.inverse(black_box(p), TOOL, q, Directions(0), geometry, &mut out)
+                .unwrap();
             s += out[0];
         }
         s
     });
 }
 
+/// 1000 compensated inverse transforms (closed form, error pre-correction, Newton).
+#[divan::bench(args = MACHINES)]
+fn inverse_actual_1000(bencher: Bencher, name: &str) {
+    inverse_1000(bencher, name, Geometry::Actual);
+}
+
 /// 1000 nominal inverse transforms (closed form only).
 #[divan::bench(args = MACHINES)]
 fn inverse_nominal_1000(bencher: Bencher, name: &str) {
-    let c = chain(name);
-    let (poses, prev) = targets(&c, Geometry::Nominal);
-    let mut out = vec![0.0; c.axes().len()];
-    bencher.bench_local(|| {
-        let mut s = 0.0;
-        for (p, q) in poses.iter().zip(&prev) {
-            c.inverse(
-                black_box(p),
-                TOOL,
-                q,
-                Directions(0),
-                Geometry::Nominal,
-                &mut out,
-            )
-            .unwrap();
-            s += out[0];
-        }
-        s
-    });
+    inverse_1000(bencher, name, Geometry::Nominal);
 }

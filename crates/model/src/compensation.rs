@@ -13,7 +13,7 @@ use alloc::vec::Vec;
 use core::fmt;
 
 use crate::dynamic::DynamicModel;
-use crate::evaluate::{CycleInput, EvalError};
+use crate::evaluate::{check_lengths, CycleInput, EvalError};
 use crate::machine::MAX_AXES;
 use crate::model::Model;
 
@@ -226,15 +226,7 @@ impl BoundDynamicModel {
             ),
             ("operating", self.channels.operating, input.operating.len()),
         ];
-        for (name, expected, got) in lengths {
-            if expected != got {
-                return Err(EvalError::InputLength {
-                    input: name,
-                    expected,
-                    got,
-                });
-            }
-        }
+        check_lengths(&lengths)?;
         for (slot, source) in self.buffer.iter_mut().zip(&self.inputs) {
             *slot = match *source {
                 MachineInput::Temperature(channel) => {

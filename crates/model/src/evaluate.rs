@@ -153,6 +153,21 @@ impl Correction {
     }
 }
 
+/// Each input slice has the length the model was bound for: `(input, expected, got)`, the first
+/// that differs is the error.
+pub(crate) fn check_lengths(lengths: &[(&'static str, usize, usize)]) -> Result<(), EvalError> {
+    for &(name, expected, got) in lengths {
+        if expected != got {
+            return Err(EvalError::InputLength {
+                input: name,
+                expected,
+                got,
+            });
+        }
+    }
+    Ok(())
+}
+
 impl Model {
     /// Evaluates every enabled part for one cycle.
     ///
@@ -169,15 +184,7 @@ impl Model {
             ("positions", self.axes.len(), input.positions.len()),
             ("operating", self.operating_count, input.operating.len()),
         ];
-        for (name, expected, got) in lengths {
-            if expected != got {
-                return Err(EvalError::InputLength {
-                    input: name,
-                    expected,
-                    got,
-                });
-            }
-        }
+        check_lengths(&lengths)?;
         for &ch in &self.used_sensors {
             let value = input.temperatures_c[ch];
             if !value.is_finite() {

@@ -178,10 +178,19 @@ mod tests {
         number: 1,
     };
 
+    /// An envelope of one axis at `LIMIT` and the queue its events go to.
+    fn one_axis() -> (EventQueue, Envelope) {
+        (EventQueue::new(16), Envelope::new(&[LIMIT]))
+    }
+
+    /// The kinds of the events queued so far, oldest first.
+    fn drain(q: &EventQueue) -> Vec<EventKind> {
+        std::iter::from_fn(|| q.pop()).map(|e| e.kind).collect()
+    }
+
     #[test]
     fn rate_and_magnitude_are_clamped() {
-        let q = EventQueue::new(16);
-        let mut e = Envelope::new(&[LIMIT]);
+        let (q, mut e) = one_axis();
         let mut out = [0.0];
         e.apply(&[0.0], 0.0, &mut out, &q);
         // A jump to 80 µm within 0.1 s: at most 50 µm/s · 0.1 s = 5 µm.
@@ -193,7 +202,7 @@ mod tests {
         // Back inside: released.
         assert!(!e.apply(&[90.0], 101.0, &mut out, &q));
         assert_eq!(out[0], 90.0);
-        let kinds: Vec<_> = std::iter::from_fn(|| q.pop()).map(|e| e.kind).collect();
+        let kinds = drain(&q);
         assert_eq!(
             kinds,
             vec![
@@ -210,8 +219,7 @@ mod tests {
     fn blending_is_bumpless_and_reaches_the_new_value() {
         // Sending 20 µm; the new model says 30 µm: the output starts at 20 and is at 25 half
         // way through a 10 s blend, 30 at its end (well within 50 µm/s).
-        let q = EventQueue::new(16);
-        let mut e = Envelope::new(&[LIMIT]);
+        let (q, mut e) = one_axis();
         let mut out = [0.0];
         e.apply(&[0.0], 0.0, &mut out, &q);
         e.apply(&[20.0], 1.0, &mut out, &q);
@@ -230,8 +238,7 @@ mod tests {
     fn a_restarted_blend_continues_from_the_output_and_never_stacks() {
         // Blending 0 → 40 over 10 s; at 5 s (output 20) the target changes to −10: the new blend
         // starts at 20, not at 20 plus what was left of the first one.
-        let q = EventQueue::new(16);
-        let mut e = Envelope::new(&[LIMIT]);
+        let (q, mut e) = one_axis();
         let mut out = [0.0];
         e.apply(&[0.0], 0.0, &mut out, &q);
         e.restart_blend(0, 0.0, 10.0);
@@ -257,14 +264,13 @@ mod tests {
     fn a_clamp_every_other_cycle_is_one_event() {
         // A target flickering by ±1 µm at 1 kHz: the 50 µm/s limit (0.05 µm per cycle) binds
         // on every cycle that moves; one clamp event, released a quiet second after it ends.
-        let q = EventQueue::new(16);
-        let mut e = Envelope::new(&[LIMIT]);
+        let (q, mut e) = one_axis();
         let mut out = [0.0];
         for k in 0..4000 {
             let target = if k < 2000 && k % 2 == 1 { 1.0 } else { 0.0 };
             e.apply(&[target], k as f64 * 0.001, &mut out, &q);
         }
-        let kinds: Vec<_> = std::iter::from_fn(|| q.pop()).map(|e| e.kind).collect();
+        let kinds = drain(&q);
         assert_eq!(
             kinds,
             vec![
@@ -279,8 +285,7 @@ mod tests {
 
     #[test]
     fn non_finite_raw_values_never_pass() {
-        let q = EventQueue::new(16);
-        let mut e = Envelope::new(&[LIMIT]);
+        let (q, mut e) = one_axis();
         let mut out = [1.0];
         e.apply(&[f64::NAN], 0.0, &mut out, &q);
         assert_eq!(out[0], 0.0);

@@ -6,24 +6,16 @@
 //! The number of schedules follows `PROPTEST_CASES` (256 by default; the README's test command
 //! runs 10 000 in a release build).
 
-use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 
 use proptest::prelude::*;
-use truepos_io::{cycles, machine_file, model_file};
+use truepos_io::{cycles, model_file};
 use truepos_model::{CycleInput, Model};
 use truepos_runtime::model_set::ModelEntry;
 use truepos_runtime::*;
 
-fn repo(path: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../..")
-        .join(path)
-}
-
-fn vmc() -> MachineConfig {
-    machine_file::load(&repo("examples/vmc3/machine.toml")).unwrap()
-}
+mod support;
+use support::{repo, vmc};
 
 /// The example model and a fallback without its spindle part (no spindle sensors), both for
 /// the machine's one path.

@@ -5,6 +5,9 @@ use std::path::Path;
 use truepos_runtime::replay::{Recording, ReplaySource};
 use truepos_runtime::{log, ServiceHost};
 
+mod support;
+use support::scratch;
+
 /// The host names the log's models, sources and sinks after the service's own, logs the
 /// cycles, and stopping drains the queues and reports a healthy log.
 #[test]
@@ -13,15 +16,8 @@ fn a_hosted_service_logs_under_its_own_names_and_stops_cleanly() {
     let machine = truepos_io::machine_file::load(&root.join("machine.toml")).unwrap();
     let entries = truepos_io::compensation::load_set(&[root.join("model.toml")], &machine).unwrap();
     let run = truepos_io::cycles::load(&root.join("run.csv"), &machine.machine, &[]).unwrap();
-    let run = Recording {
-        time_s: run.time_s,
-        temperatures_c: run.temperatures_c,
-        positions: run.positions,
-        operating: run.operating,
-    };
-    let dir = std::env::temp_dir().join(format!("truepos-host-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+    let run = Recording::from(run);
+    let dir = scratch("host");
     let db = dir.join("log.sqlite");
     let mut running = ServiceHost::new(machine, entries)
         .source(Box::new(ReplaySource::new("replay r", run, 1.0)))

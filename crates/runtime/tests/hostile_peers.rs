@@ -9,7 +9,6 @@
 
 use std::io::{ErrorKind, Read, Write};
 use std::net::{SocketAddr, TcpListener, TcpStream};
-use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Arc;
 use std::thread::JoinHandle;
@@ -25,11 +24,8 @@ use truepos_runtime::sources::shdr::{ShdrChannelConfig, ShdrConfig, ShdrSource};
 use truepos_runtime::sources::BackoffConfig;
 use truepos_runtime::*;
 
-fn repo(path: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../..")
-        .join(path)
-}
+mod support;
+use support::repo;
 
 /// The channels the hostile peer feeds (the example model reads both).
 const PEER_CHANNELS: [&str; 2] = ["x_slide_top", "ambient"];

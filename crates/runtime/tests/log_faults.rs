@@ -1,7 +1,7 @@
 //! The log and the sinks under faults (issue 11): a full disk, a log of another machine, a
 //! failing sink. Each test is bounded in time.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
@@ -11,22 +11,8 @@ use truepos_runtime::log::{self, LogSetup, Logger};
 use truepos_runtime::model_set::ModelEntry;
 use truepos_runtime::*;
 
-fn repo(path: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../..")
-        .join(path)
-}
-
-fn vmc() -> MachineConfig {
-    machine_file::load(&repo("examples/vmc3/machine.toml")).unwrap()
-}
-
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("truepos-logfault-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
+mod support;
+use support::{repo, scratch, vmc};
 
 /// A source of fixed values; the test may change a temperature between cycles.
 struct Fixed(Arc<Mutex<Vec<f64>>>);
@@ -119,7 +105,7 @@ fn cycle_until(
 /// The full disk is SQLite's own SQLITE_FULL, through `max_page_count`.
 #[test]
 fn a_full_disk_shows_within_a_second_and_the_log_resumes_without_losing_the_queue() {
-    let dir = scratch("full");
+    let dir = scratch("logfault-full");
     let db = dir.join("log.sqlite");
     let machine = vmc();
     let (mut s, temps) = service(vec![]);
@@ -193,7 +179,7 @@ fn a_full_disk_shows_within_a_second_and_the_log_resumes_without_losing_the_queu
 /// A log still full at the end: `stop` says so, naming the file and the reason.
 #[test]
 fn a_log_still_failing_at_the_end_is_an_error_of_stop() {
-    let dir = scratch("still");
+    let dir = scratch("logfault-still");
     let db = dir.join("log.sqlite");
     let machine = vmc();
     let (mut s, _) = service(vec![]);
@@ -221,7 +207,7 @@ fn a_log_still_failing_at_the_end_is_an_error_of_stop() {
 /// the log is left as it was.
 #[test]
 fn a_log_of_another_machine_is_refused_at_start_naming_both_machines() {
-    let dir = scratch("owner");
+    let dir = scratch("logfault-owner");
     let db = dir.join("log.sqlite");
     let machine = vmc();
     let (s, _) = service(vec![]);
@@ -343,7 +329,7 @@ fn the_csv_sink_fails_steadily_on_a_full_device() {
             "{i}: {r:?}"
         );
     }
-    let dir = scratch("csv");
+    let dir = scratch("logfault-csv");
     let file = dir.join("out.csv");
     {
         let mut csv = replay::CsvSink::create(&file, &axes, 0.0).unwrap();

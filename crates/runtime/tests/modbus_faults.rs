@@ -15,7 +15,10 @@ use truepos_runtime::sources::modbus::{
     ModbusSource, RegisterKind, WordOrder,
 };
 use truepos_runtime::sources::{BackoffConfig, LinkEventKind};
-use truepos_runtime::{Frame, LinkError, Source};
+use truepos_runtime::{LinkError, Source};
+
+mod support;
+use support::{frame_for, machine, read, wait_until};
 
 type Answer = fn(&[u8; 12]) -> Option<Vec<u8>>;
 
@@ -146,28 +149,6 @@ fn config(address: SocketAddr, encoding: Encoding) -> ModbusConfig {
     }
 }
 
-fn machine() -> truepos_model::Machine {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/vmc3/machine.toml");
-    truepos_io::machine_file::load(&path).unwrap().machine
-}
-
-/// Reads the source into the frame at service time `epoch.elapsed()`.
-fn read(source: &mut ModbusSource, frame: &mut Frame, epoch: Instant) -> Result<(), LinkError> {
-    frame.time_s = epoch.elapsed().as_secs_f64();
-    source.read(frame)
-}
-
-fn wait_until(limit: Duration, mut cond: impl FnMut() -> bool) -> bool {
-    let end = Instant::now() + limit;
-    while Instant::now() < end {
-        if cond() {
-            return true;
-        }
-        std::thread::sleep(Duration::from_millis(10));
-    }
-    cond()
-}
-
 #[test]
 fn a_silent_server_times_out() {
     let server = FakeServer::start(silent);
@@ -213,7 +194,7 @@ fn the_source_reconnects_after_protocol_errors_and_stays_stale() {
     let epoch = Instant::now();
     let mut source =
         ModbusSource::start(&config(server.address, Encoding::Int16Tenths), &m, epoch).unwrap();
-    let mut frame = Frame::new(m.temperatures.len(), m.axes.len(), m.operating.len());
+    let mut frame = frame_for(&m);
     // Every answer is refused, so the connection is dropped and made again, with backoff.
     assert!(wait_until(Duration::from_secs(5), || server
         .connections
@@ -239,7 +220,7 @@ fn a_nan_float_is_published_as_nan_and_reported_once() {
     let epoch = Instant::now();
     let mut source =
         ModbusSource::start(&config(server.address, Encoding::Float32), &m, epoch).unwrap();
-    let mut frame = Frame::new(m.temperatures.len(), m.axes.len(), m.operating.len());
+    let mut frame = frame_for(&m);
     let amb = m.temperature_index("ambient").unwrap();
     // The value is stamped (the module answered) but NaN, so validation rejects it.
     assert!(wait_until(Duration::from_secs(5), || {
@@ -306,7 +287,7 @@ fn reading_allocates_nothing() {
     let epoch = Instant::now();
     let mut source =
         ModbusSource::start(&config(server.address, Encoding::Int16Tenths), &m, epoch).unwrap();
-    let mut frame = Frame::new(m.temperatures.len(), m.axes.len(), m.operating.len());
+    let mut frame = frame_for(&m);
     let amb = m.temperature_index("ambient").unwrap();
     assert!(wait_until(Duration::from_secs(5), || {
         read(&mut source, &mut frame, epoch).is_ok() && frame.temperatures_c[amb] == 24.1

@@ -4,27 +4,18 @@
 //! fail — they never skip.
 
 use std::net::{SocketAddr, TcpListener, TcpStream};
-use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-use truepos_model::Machine;
 use truepos_runtime::sources::modbus::{
     decode, Addressing, Encoding, ModbusChannelConfig, ModbusClient, ModbusConfig, ModbusError,
     ModbusSource, RegisterKind, WordOrder,
 };
 use truepos_runtime::sources::{BackoffConfig, LinkEventKind};
-use truepos_runtime::{Frame, LinkError, Source, NEVER};
+use truepos_runtime::{LinkError, NEVER};
 
-fn repo() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
-
-fn machine() -> Machine {
-    truepos_io::machine_file::load(&repo().join("examples/vmc3/machine.toml"))
-        .expect("example machine")
-        .machine
-}
+mod support;
+use support::{frame_for, machine, messages, read, repo, wait_until};
 
 /// A free loopback port: bind, read the port, close.
 fn free_port() -> u16 {
@@ -43,14 +34,14 @@ struct Server {
 
 impl Server {
     fn start(port: u16) -> Self {
-        let python = repo().join(".venv/bin/python");
+        let python = repo(".venv/bin/python");
         assert!(
             python.exists(),
             "{} is missing: run scripts/setup_python.sh (it installs pymodbus in .venv)",
             python.display()
         );
         let child = Command::new(&python)
-            .arg(repo().join("scripts/modbus_server.py"))
+            .arg(repo("scripts/modbus_server.py"))
             .arg(port.to_string())
             .stdin(Stdio::null())
             .stdout(Stdio::null())
@@ -89,23 +80,6 @@ impl Drop for Server {
         let _ = self.child.kill();
         let _ = self.child.wait();
     }
-}
-
-/// Reads the source into the frame at service time `epoch.elapsed()`.
-fn read(source: &mut ModbusSource, frame: &mut Frame, epoch: Instant) -> Result<(), LinkError> {
-    frame.time_s = epoch.elapsed().as_secs_f64();
-    source.read(frame)
-}
-
-fn wait_until(limit: Duration, mut cond: impl FnMut() -> bool) -> bool {
-    let end = Instant::now() + limit;
-    while Instant::now() < end {
-        if cond() {
-            return true;
-        }
-        std::thread::sleep(Duration::from_millis(10));
-    }
-    cond()
 }
 
 #[test]
@@ -255,7 +229,7 @@ fn source_feeds_the_frame_with_one_based_addressing() {
     let m = machine();
     let epoch = Instant::now();
     let mut source = ModbusSource::start(&one_based_config(server.port), &m, epoch).unwrap();
-    let mut frame = Frame::new(m.temperatures.len(), m.axes.len(), m.operating.len());
+    let mut frame = frame_for(&m);
     let t = |id: &str| m.temperature_index(id).unwrap();
     let feed = m.operating_index("x_feed").unwrap();
     assert!(
@@ -315,7 +289,7 @@ fn an_exception_leaves_its_channels_unstamped_and_is_reported_once() {
     ));
     let epoch = Instant::now();
     let mut source = ModbusSource::start(&config, &m, epoch).unwrap();
-    let mut frame = Frame::new(m.temperatures.len(), m.axes.len(), m.operating.len());
+    let mut frame = frame_for(&m);
     let amb = m.temperature_index("ambient").unwrap();
     let bed = m.temperature_index("bed_top").unwrap();
     // A refused block makes the source count as lost, with the exception as the reason; the
@@ -350,7 +324,7 @@ fn a_lost_server_makes_the_channels_stale_until_it_is_back() {
     let m = machine();
     let epoch = Instant::now();
     let mut source = ModbusSource::start(&one_based_config(port), &m, epoch).unwrap();
-    let mut frame = Frame::new(m.temperatures.len(), m.axes.len(), m.operating.len());
+    let mut frame = frame_for(&m);
     let amb = m.temperature_index("ambient").unwrap();
     assert!(wait_until(Duration::from_secs(5), || {
         read(&mut source, &mut frame, epoch).is_ok() && frame.temperatures_c[amb] == 24.2
@@ -397,7 +371,7 @@ fn a_lost_server_makes_the_channels_stale_until_it_is_back() {
 
 /// The TOML block of `docs/network_sources.md` whose first line is `marker`.
 fn doc_block(marker: &str) -> String {
-    let doc = std::fs::read_to_string(repo().join("docs/network_sources.md")).unwrap();
+    let doc = std::fs::read_to_string(repo("docs/network_sources.md")).unwrap();
     let start = doc
         .find(marker)
         .unwrap_or_else(|| panic!("no `{marker}` block"));
@@ -414,7 +388,7 @@ fn the_documented_example_reads_the_server() {
     let m = machine();
     let epoch = Instant::now();
     let mut source = ModbusSource::start(&config, &m, epoch).unwrap();
-    let mut frame = Frame::new(m.temperatures.len(), m.axes.len(), m.operating.len());
+    let mut frame = frame_for(&m);
     let rpm = m.operating_index("spindle_rpm").unwrap();
     let amb = m.temperature_index("ambient").unwrap();
     assert!(
@@ -462,7 +436,7 @@ fn a_refused_grouped_read_is_split_into_single_reads() {
     ];
     let epoch = Instant::now();
     let mut source = ModbusSource::start(&config, &m, epoch).unwrap();
-    let mut frame = Frame::new(m.temperatures.len(), m.axes.len(), m.operating.len());
+    let mut frame = frame_for(&m);
     let amb = m.temperature_index("ambient").unwrap();
     let bed = m.temperature_index("bed_top").unwrap();
     assert!(
@@ -480,13 +454,7 @@ fn a_refused_grouped_read_is_split_into_single_reads() {
         "{lost}"
     );
     assert_eq!(frame.temperature_stamp_s[bed], NEVER);
-    let bad: Vec<String> = source
-        .link()
-        .drain_events()
-        .into_iter()
-        .filter(|e| e.kind == LinkEventKind::BadData)
-        .map(|e| e.message)
-        .collect();
+    let bad = messages(source.link(), LinkEventKind::BadData);
     assert_eq!(bad.len(), 2, "{bad:?}");
     assert!(
         bad[0].ends_with("registers 0–12: exception 02 (illegal data address) to a grouped read; reading its 2 channels one by one"),

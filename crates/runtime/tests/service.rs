@@ -1,7 +1,7 @@
 //! The cycle end to end without hardware: replayed and scripted sources, model sets, faults,
 //! bumpless switching, the envelope, the log.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::sync::{Arc, Mutex};
 
 use truepos_io::{cycles, machine_file, model_file};
@@ -12,25 +12,8 @@ use truepos_runtime::model_set::ModelEntry;
 use truepos_runtime::replay::{Recording, ReplaySource};
 use truepos_runtime::*;
 
-fn repo(path: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../..")
-        .join(path)
-}
-
-fn vmc() -> MachineConfig {
-    machine_file::load(&repo("examples/vmc3/machine.toml")).unwrap()
-}
-
-/// A run's cycles as a replay plays them.
-fn recording(run: &cycles::Cycles) -> Recording {
-    Recording {
-        time_s: run.time_s.clone(),
-        temperatures_c: run.temperatures_c.clone(),
-        positions: run.positions.clone(),
-        operating: run.operating.clone(),
-    }
-}
+mod support;
+use support::{repo, scratch, vmc};
 
 fn vmc_model(name: &str) -> ModelEntry {
     let m = vmc();
@@ -88,7 +71,7 @@ fn replay_gives_the_model_output() {
     let machine = vmc();
     let run = cycles::load(&repo("examples/vmc3/run.csv"), &machine.machine, &[]).unwrap();
     let reference = model_file::load(&repo("examples/vmc3/model.toml"), &machine.machine).unwrap();
-    let source = ReplaySource::new("replay", recording(&run), 1.0);
+    let source = ReplaySource::new("replay", Recording::from(run.clone()), 1.0);
     let mut service = Service::new(
         machine,
         vec![vmc_model("vmc3")],
@@ -438,7 +421,7 @@ fn enable_and_disable_are_bumpless() {
 fn a_cycle_allocates_nothing() {
     let machine = vmc();
     let run = cycles::load(&repo("examples/vmc3/run.csv"), &machine.machine, &[]).unwrap();
-    let source = ReplaySource::new("replay", recording(&run), 60.0);
+    let source = ReplaySource::new("replay", Recording::from(run.clone()), 60.0);
     let mut service = Service::new(
         machine,
         vec![vmc_model("vmc3")],
@@ -469,8 +452,7 @@ fn a_cycle_allocates_nothing() {
 /// The log holds cycles and events with names, and passes SQLite's integrity check.
 #[test]
 fn the_log_keeps_cycles_and_named_events() {
-    let dir = std::env::temp_dir().join(format!("truepos-log-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = scratch("log");
     let db = dir.join("log.sqlite");
     let _ = std::fs::remove_file(&db);
     let machine = vmc();
@@ -649,8 +631,7 @@ fn a_dynamic_model_file_runs_in_the_service() {
       "outputs": [{"name": "dz_um", "intercept_um": 0.5, "coefficients": [1.0, 2.0]}],
       "provenance": {}, "validation": {}
     }"#;
-    let dir = std::env::temp_dir().join(format!("truepos-dyn-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = scratch("dyn");
     let path = dir.join("spindle.dynamic.json");
     std::fs::write(&path, json).unwrap();
     let entries =

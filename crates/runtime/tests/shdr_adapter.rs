@@ -10,33 +10,12 @@ use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use truepos_model::Machine;
 use truepos_runtime::sources::shdr::{ShdrChannelConfig, ShdrConfig, ShdrSource};
 use truepos_runtime::sources::{BackoffConfig, LinkEventKind};
 use truepos_runtime::{Frame, LinkError, Source, NEVER};
 
-fn machine() -> Machine {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/vmc3/machine.toml");
-    truepos_io::machine_file::load(&path)
-        .expect("example machine")
-        .machine
-}
-
-fn frame_for(m: &Machine) -> Frame {
-    Frame::new(m.temperatures.len(), m.axes.len(), m.operating.len())
-}
-
-/// Polls `cond` every 10 ms for at most `limit`; whether it became true.
-fn wait_until(limit: Duration, mut cond: impl FnMut() -> bool) -> bool {
-    let end = Instant::now() + limit;
-    while Instant::now() < end {
-        if cond() {
-            return true;
-        }
-        std::thread::sleep(Duration::from_millis(10));
-    }
-    cond()
-}
+mod support;
+use support::{frame_for, machine, messages, repo, wait_until};
 
 /// What the adapter stand-in does; the test changes it while it runs.
 #[derive(Default)]
@@ -502,10 +481,7 @@ fn configuration_errors_name_the_key_and_the_expectation() {
 
 #[test]
 fn the_documented_example_reads_an_adapter() {
-    let doc = std::fs::read_to_string(
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../docs/network_sources.md"),
-    )
-    .unwrap();
+    let doc = std::fs::read_to_string(repo("docs/network_sources.md")).unwrap();
     let start = doc.find("# truepos: shdr source").unwrap();
     let text = &doc[start..start + doc[start..].find("```").unwrap()];
     let adapter = Adapter::start(
@@ -617,13 +593,7 @@ fn an_endless_line_ends_the_connection() {
         .status()
         .connections
         >= 2));
-    let lost: Vec<String> = source
-        .link()
-        .drain_events()
-        .into_iter()
-        .filter(|e| e.kind == LinkEventKind::Lost)
-        .map(|e| e.message)
-        .collect();
+    let lost = messages(source.link(), LinkEventKind::Lost);
     assert_eq!(lost.len(), 1, "{lost:?}");
     assert!(
         lost[0].contains("expected lines of at most 65536 bytes"),

@@ -285,15 +285,20 @@ fn flapping(step_um: f64, cycles: usize) -> Vec<Sample> {
         .collect()
 }
 
+/// The default check of runs whose axes stand still: no moving cycle to ask for.
+fn standing() -> CheckConfig {
+    CheckConfig {
+        min_in_step_moving_cycles: 0,
+        ..CheckConfig::default()
+    }
+}
+
 #[test]
 fn the_output_invariant_catches_a_runaway_beyond_model_and_hold() {
     let (machine, model) = example();
     let models = [entry(&model)];
     let limits = limits(50.0);
-    let config = CheckConfig {
-        min_in_step_moving_cycles: 0,
-        ..CheckConfig::default()
-    };
+    let config = standing();
     // Standing at the model's value through the flapping: inside every bracket.
     let r = output_invariant(&machine, &models, &limits, &flapping(0.0, 400), &config);
     assert_eq!(r.max_bracket_excess_um, vec![0.0, 0.0]);
@@ -349,10 +354,7 @@ fn the_step_allowance_follows_the_real_time() {
     let (machine, model) = example();
     let models = [entry(&model)];
     let limits = limits(50.0);
-    let config = CheckConfig {
-        min_in_step_moving_cycles: 0,
-        ..CheckConfig::default()
-    };
+    let config = standing();
     // Twice the rate: 0.1 µm per 1 ms cycle against 50 µm/s × (3 + 1) ms + 0.02 = 0.22 µm
     // passes (the pipeline's cycles are allowed), 0.3 µm per cycle does not.
     let r = output_invariant(&machine, &models, &limits, &flapping(0.1, 50), &config);
@@ -482,10 +484,7 @@ fn warming(extra_um: f64) -> Vec<Sample> {
 fn a_fitted_dynamic_model_is_stepped_through_the_recording() {
     let (machine, model) = example();
     let models = [dynamic_entry(&machine)];
-    let config = CheckConfig {
-        min_in_step_moving_cycles: 0,
-        ..CheckConfig::default()
-    };
+    let config = standing();
     let r = check(&machine, &models, &limits(50.0), &warming(0.0), &config);
     assert_eq!(r.dynamic_compared, 3000, "{r:?}");
     assert_eq!(r.compared, 3000);

@@ -86,12 +86,7 @@ pub fn run(config: &TimingConfig, stop: &AtomicBool) -> Result<Value, Error> {
     let m = &machine.machine;
     let entries = load_set(&config.models, &machine)?;
     let cycles = truepos_io::cycles::load(&config.run, m, &[])?;
-    let run = Recording {
-        time_s: cycles.time_s,
-        temperatures_c: cycles.temperatures_c,
-        positions: cycles.positions,
-        operating: cycles.operating,
-    };
+    let run = Recording::from(cycles);
     let replay = ReplaySource::new(format!("replay {}", config.run.display()), run, 1.0);
     if replay.duration_s() < config.duration_s {
         eprintln!(
