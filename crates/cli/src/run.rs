@@ -262,13 +262,7 @@ fn open_sources(
         };
         let source: Box<dyn Source> = match kind {
             "replay" => {
-                let run = cycles::load(std::path::Path::new(what), m, &[])?;
-                let run = Recording {
-                    time_s: run.time_s,
-                    temperatures_c: run.temperatures_c,
-                    positions: run.positions,
-                    operating: run.operating,
-                };
+                let run = Recording::from(cycles::load(std::path::Path::new(what), m, &[])?);
                 let replay = ReplaySource::new(format!("replay {what}"), run, speed);
                 replay_end_s = Some(replay.duration_s() / speed);
                 if args.duration_s.is_none() && replay.duration_s() / speed > MAX_RUN_S {
