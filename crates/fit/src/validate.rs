@@ -239,7 +239,8 @@ pub fn predict(dataset: &Dataset, trained: &Trained) -> Result<Predictions, Stri
 }
 
 /// Runs the protocol: for each outer fold, select and fit on its training rows, predict its test
-/// rows. Returns the figures, the model of the last fold (for `chrono`, the only one) and the
+/// rows. Returns the figures, the model to write (a chronological split's training-part model;
+/// after leave-one-run-out or blocked k-fold the same selection and fit on every row) and the
 /// out-of-fold predictions ([`Outcome::predictions`]).
 pub fn validate(
     dataset: &Dataset,
@@ -311,7 +312,22 @@ pub fn outcome(
     let metrics = (0..nt)
         .map(|k| Metrics::new(&dataset.target_names[k], &measured[k], &predicted[k]))
         .collect();
-    let (trained, fitted, training_rows) = last.ok_or("no folds")?;
+    let (mut trained, mut fitted, mut training_rows) = last.ok_or("no folds")?;
+    // When every row was held out once (leave-one-run-out, blocked k-fold), the folds only
+    // measure the procedure; the model to write is the same procedure on every row — else it
+    // would be the last fold's, which never saw the last run or block. A chronological split
+    // keeps its training part's model: the one its test figures describe.
+    if fold_of.iter().flatten().all(Option::is_some) {
+        let all: Vec<(usize, usize)> = dataset
+            .runs
+            .iter()
+            .enumerate()
+            .flat_map(|(r, run)| (0..run.len()).map(move |i| (r, i)))
+            .collect();
+        trained = train(dataset, cand, &all, settings)?;
+        fitted = predict(dataset, &trained)?;
+        training_rows = all;
+    }
     // A row no fold held out (a chronological split's training rows) has no honest prediction;
     // it gets the final model's, and `held_out` says so.
     for (r, run) in oof.iter_mut().enumerate() {
@@ -417,7 +433,8 @@ pub fn worse_than_uncompensated(per_run: &[RunFigures]) -> Vec<String> {
 pub struct Outcome {
     /// Figures pooled over the outer folds, and per run.
     pub validation: Validation,
-    /// The model of the last outer fold's training part (for `chrono`, the only one).
+    /// The model to write: a chronological split's training-part model; after leave-one-run-out
+    /// or blocked k-fold, the same selection and fit on every row.
     pub trained: Trained,
     /// Out-of-fold predictions, per run, target and row: each held-out row predicted by the
     /// model of the fold that held it out (so every row, with leave-one-run-out and blocked
@@ -514,15 +531,16 @@ pub(crate) mod tests {
                 }
             }
         }
-        // The final model (fitted on a and b) reproduces a and b almost exactly in sample; the
-        // out-of-fold predictions of a and b come from models that also saw c, and miss.
-        let o = run_outcome(&ds, "runs");
-        for r in 0..2 {
-            let diff = o.predictions[r][0]
-                .iter()
-                .zip(&o.fitted[r][0])
-                .fold(0.0_f64, |a, (p, q)| a.max((p - q).abs()));
-            assert!(diff > 0.1, "run {r}: {diff}");
+        // The model to write is fitted on every run, not the last fold's (which never saw c):
+        // it is what training on all rows gives, and its rows are all of them.
+        for split in ["runs", "kfold:3"] {
+            let o = run_outcome(&ds, split);
+            let all: Vec<(usize, usize)> = (0..3)
+                .flat_map(|r| (0..ds.runs[r].len()).map(move |i| (r, i)))
+                .collect();
+            assert_eq!(o.training_rows, all, "{split}");
+            let whole = predict(&ds, &train(&ds, &cand, &all, &settings).unwrap()).unwrap();
+            assert_eq!(o.fitted, whole, "{split}");
         }
     }
 
