@@ -1,9 +1,9 @@
 //! `truepos update-period`: how stale a position-dependent term gets between updates while its
-//! axis moves (seed A's timing argument, `truepos_model::timing`).
+//! axis moves (seed A's timing argument, `truepos_model::update_period`).
 
 use crate::error::CliError;
 use truepos_io::limits::finite_in;
-use truepos_model::{lag_error_fraction, travel_per_update_mm, PositionFactor};
+use truepos_model::{travel_per_update_mm, update_error_fraction, PositionFactor};
 
 /// Arguments of `truepos update-period`.
 #[derive(clap::Args)]
@@ -25,7 +25,7 @@ pub struct Args {
 pub fn run(args: Args) -> Result<(), CliError> {
     let feed_mm_min = args.feed_m_min * 1000.0;
     let travel = travel_per_update_mm(feed_mm_min, args.period_ms);
-    let pct = |f| 100.0 * lag_error_fraction(feed_mm_min, args.period_ms, args.length_mm, f);
+    let pct = |f| 100.0 * update_error_fraction(feed_mm_min, args.period_ms, args.length_mm, f);
     let (ratio, square, bed) = (
         pct(PositionFactor::Ratio),
         pct(PositionFactor::RatioSquared),

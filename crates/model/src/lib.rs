@@ -70,7 +70,7 @@ pub mod machine;
 pub mod model;
 pub mod parameters;
 pub mod rls;
-pub mod timing;
+pub mod update_period;
 
 pub use compensation::{BindError, BoundDynamicModel, Channels, CompensationModel, MachineInput};
 pub use dynamic::{DynamicError, DynamicModel, Feature, FeatureBank, FeatureKind, FeatureSpec};
@@ -84,7 +84,7 @@ pub use model::{
     Model, ModelError, Part, PartForm, PositionFactor, PositionTerm, Summand, MAX_MODEL_DIFFERENCES,
 };
 pub use rls::{Rls, SwitchRule};
-pub use timing::{lag_error_fraction, travel_per_update_mm};
+pub use update_period::{travel_per_update_mm, update_error_fraction};
 
 // Re-exported so that doc examples and hosted users can name `String`/`vec!` without `std`.
 #[doc(hidden)]

@@ -409,14 +409,14 @@ fn compensation_is_minus_error() {
 #[test]
 fn timing_argument_gives_1_3_percent() {
     assert!((travel_per_update_mm(100_000.0, 4.0) - 6.666_666_666_7).abs() < 1e-9);
-    let f = lag_error_fraction(100_000.0, 4.0, 500.0, Ratio);
+    let f = update_error_fraction(100_000.0, 4.0, 500.0, Ratio);
     assert!((f - 0.013_333_333_3).abs() < 1e-9);
     assert_eq!(format!("{:.1}", 100.0 * f), "1.3");
-    assert!((lag_error_fraction(100_000.0, 4.0, 500.0, BedFactor) - f).abs() < 1e-15);
-    let sq = lag_error_fraction(100_000.0, 4.0, 500.0, RatioSquared);
+    assert!((update_error_fraction(100_000.0, 4.0, 500.0, BedFactor) - f).abs() < 1e-15);
+    let sq = update_error_fraction(100_000.0, 4.0, 500.0, RatioSquared);
     assert!((sq - (2.0 * f - f * f)).abs() < 1e-15);
     // 1 kHz and 10 m/min (the runtime's end-to-end case): 0.1667 mm / 500 mm = 0.033 %.
-    assert!(lag_error_fraction(10_000.0, 1.0, 500.0, Ratio) < 0.01);
+    assert!(update_error_fraction(10_000.0, 1.0, 500.0, Ratio) < 0.01);
 }
 
 /// The regressors reproduce the evaluation: error = Σ θ·φ, for embodiment 6 (bed multiplier)

@@ -5,7 +5,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 
 use crossbeam_queue::ArrayQueue;
 
-use crate::validate::Fault;
+use crate::sensor_validation::Fault;
 
 /// What happened.
 #[derive(Debug, Clone, Copy, PartialEq)]

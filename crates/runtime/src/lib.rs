@@ -15,9 +15,9 @@ pub mod log;
 pub mod model_set;
 pub mod output;
 pub mod replay;
+pub mod sensor_validation;
 pub mod service;
 pub mod sources;
-pub mod validate;
 
 pub use config::{AxisConfig, MachineConfig, SensorChecks};
 pub use frame::{Frame, NEVER};

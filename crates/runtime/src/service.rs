@@ -16,7 +16,7 @@ use crate::frame::{Frame, NEVER};
 use crate::io_traits::{LinkError, Sink, Source};
 use crate::model_set::{ModelEntry, ModelSet};
 use crate::output::{CompensationState, Output};
-use crate::validate::SensorValidator;
+use crate::sensor_validation::SensorValidator;
 
 /// Most temperature channels a log record carries.
 pub const MAX_LOG_TEMPERATURES: usize = 64;

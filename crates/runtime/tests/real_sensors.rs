@@ -10,7 +10,7 @@ use truepos_runtime::config::{
     DEFAULT_RECOVER_AFTER_S, DEFAULT_STUCK_AFTER_S,
 };
 use truepos_runtime::events::EventQueue;
-use truepos_runtime::validate::SensorValidator;
+use truepos_runtime::sensor_validation::SensorValidator;
 use truepos_runtime::Frame;
 
 fn fl_thermal() -> (Vec<f64>, Vec<Vec<f64>>) {

@@ -167,7 +167,7 @@ fn a_bad_sensor_holds_and_ramps_to_zero() {
         e,
         EventKind::SensorFault {
             channel: 1,
-            fault: validate::Fault::NotANumber
+            fault: sensor_validation::Fault::NotANumber
         }
     )));
     assert!(events.contains(&EventKind::Holding { path: 1 }));

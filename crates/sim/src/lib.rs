@@ -41,14 +41,14 @@
 
 pub mod beam;
 pub mod deviation;
-pub mod machine;
 pub mod network;
 pub mod params;
-pub mod run;
 pub mod scenario;
 pub mod sensor;
+pub mod simulation;
+pub mod twin;
 
-pub use machine::{Deformed, Operating, SensorSpec, Twin, AXES};
 pub use params::TwinParams;
-pub use run::{ProbeReading, Row, SimError, SimRun, Summary};
 pub use scenario::{Scenario, ScenarioError, BUILTIN};
+pub use simulation::{ProbeReading, Row, SimError, SimRun, Summary};
+pub use twin::{Deformed, Operating, SensorSpec, Twin, AXES};

@@ -1,6 +1,6 @@
 //! Physical parameters of the twin, and the twin description file that overrides them.
 //!
-//! The topology and the dimensions are those of the reference machine (see [`crate::machine`]);
+//! The topology and the dimensions are those of the reference machine (see [`crate::twin`]);
 //! a twin description (`examples/twin/twin.toml` lists every parameter with its reference value)
 //! changes materials, how the castings conduct and store heat, convection, joints, heat-source
 //! laws, coolant and sensor lags — e.g. a machine with a spindle chiller
@@ -35,9 +35,9 @@ use std::collections::BTreeMap;
 use serde::Deserialize;
 
 use crate::beam::Material;
-use crate::machine::{DriveHeat, SpindleHeat};
 use crate::scenario::checker::{toml_error, Checker, Seg};
 use crate::scenario::ScenarioError;
+use crate::twin::{DriveHeat, SpindleHeat};
 
 /// Material and casting of one part.
 #[derive(Debug, Clone, Copy, PartialEq)]

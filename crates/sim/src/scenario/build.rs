@@ -10,7 +10,7 @@ use super::{
     Ambient, AmbientEvent, Fault, FaultKind, Motion, Pattern, Phase, Probing, Scenario,
     ScenarioError, MAX_DURATION_S, MAX_SAMPLES, MAX_STEPS,
 };
-use crate::machine::AXES;
+use crate::twin::AXES;
 
 impl Checker<'_> {
     /// The bounds of [`Scenario::check_size`], reported at the key that crosses them: the

@@ -21,7 +21,7 @@ pub fn travel_per_update_mm(feed_mm_per_min: f64, period_ms: f64) -> f64 {
 /// Worst-case error of a position-dependent term updated every `period_ms`, as a fraction of
 /// the term's full span over the travel (0.013 = 1.3 %). Inputs must be positive; the result is
 /// capped at 1 (an update slower than a full traverse is no better than none).
-pub fn lag_error_fraction(
+pub fn update_error_fraction(
     feed_mm_per_min: f64,
     period_ms: f64,
     axis_length_mm: f64,

@@ -3,10 +3,10 @@
 use std::fmt;
 use std::io::Write;
 
-use crate::machine::{Operating, Spot, Twin, AXES};
 use crate::network::Stepper;
 use crate::scenario::{check_fault_sensors, Pattern, Phase, Probing, Scenario, MAX_SAMPLES};
 use crate::sensor::{normal, Draws, Noise, SensorState};
+use crate::twin::{Operating, Spot, Twin, AXES};
 
 /// A run that could not start (the scenario does not fit the twin).
 #[derive(Debug, Clone, PartialEq)]
