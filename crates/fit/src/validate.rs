@@ -62,12 +62,7 @@ impl Split {
         &self,
         dataset: &Dataset,
     ) -> Result<Vec<(Vec<(usize, usize)>, Vec<(usize, usize)>)>, String> {
-        let all: Vec<(usize, usize)> = dataset
-            .runs
-            .iter()
-            .enumerate()
-            .flat_map(|(r, run)| (0..run.len()).map(move |i| (r, i)))
-            .collect();
+        let all = all_rows(dataset);
         Ok(match *self {
             Self::Chronological { train_fraction } => {
                 let (tr, te) = all.iter().partition(|&&(r, i)| {
@@ -238,6 +233,16 @@ pub fn predict(dataset: &Dataset, trained: &Trained) -> Result<Predictions, Stri
     Ok(out)
 }
 
+/// Every row of every run as (run, row), in time order run after run.
+fn all_rows(dataset: &Dataset) -> Vec<(usize, usize)> {
+    dataset
+        .runs
+        .iter()
+        .enumerate()
+        .flat_map(|(r, run)| (0..run.len()).map(move |i| (r, i)))
+        .collect()
+}
+
 /// Runs the protocol: for each outer fold, select and fit on its training rows, predict its test
 /// rows. Returns the figures, the model to write (a chronological split's training-part model;
 /// after leave-one-run-out or blocked k-fold the same selection and fit on every row) and the
@@ -318,12 +323,7 @@ pub fn outcome(
     // would be the last fold's, which never saw the last run or block. A chronological split
     // keeps its training part's model: the one its test figures describe.
     if fold_of.iter().flatten().all(Option::is_some) {
-        let all: Vec<(usize, usize)> = dataset
-            .runs
-            .iter()
-            .enumerate()
-            .flat_map(|(r, run)| (0..run.len()).map(move |i| (r, i)))
-            .collect();
+        let all = all_rows(dataset);
         trained = train(dataset, cand, &all, settings)?;
         fitted = predict(dataset, &trained)?;
         training_rows = all;
