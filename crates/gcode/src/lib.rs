@@ -202,6 +202,7 @@ pub fn rewrite<W: Write>(
                         machine,
                         feed,
                         tool_offset_z,
+                        ..
                     } => {
                         let q = comp
                             .apply(&machine, tool_offset_z)

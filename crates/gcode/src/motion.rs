@@ -33,6 +33,9 @@ pub enum Block {
         feed: f64,
         /// The tool length offset's Z in mm, for the tool length the chain uses.
         tool_offset_z: f64,
+        /// Whether this is the end of a canonical command (false for the inner chord ends of
+        /// a linearised arc).
+        end: bool,
     },
     /// The program's length units changed (the writer follows them).
     Units(Units),
@@ -92,6 +95,11 @@ impl Motion {
         self.units
     }
 
+    /// The XY rotation in force, degrees.
+    pub fn rotation_deg(&self) -> f64 {
+        self.rotation_deg
+    }
+
     /// Program coordinates → machine coordinates.
     pub fn to_machine(&self, p: &Pos6) -> Pos6 {
         let s = self.units.mm();
@@ -138,7 +146,7 @@ impl Motion {
         [v[0] * s, v[1] * s, v[2] * s, v[3], v[4], v[5]]
     }
 
-    fn go(&mut self, rapid: bool, p: &Pos6, out: &mut impl FnMut(Block)) {
+    fn go(&mut self, rapid: bool, p: &Pos6, end: bool, out: &mut impl FnMut(Block)) {
         let machine = self.to_machine(p);
         self.position = Some(machine);
         out(Block::Move {
@@ -146,6 +154,7 @@ impl Motion {
             machine,
             feed: self.feed,
             tool_offset_z: self.tool[2],
+            end,
         });
     }
 
@@ -159,10 +168,10 @@ impl Motion {
     /// Handles one command, passing the blocks it makes to `out`.
     pub fn step(&mut self, c: &Canon, out: &mut impl FnMut(Block)) -> Result<(), Refusal> {
         match c {
-            Canon::StraightTraverse(p) => self.go(true, p, out),
+            Canon::StraightTraverse(p) => self.go(true, p, true, out),
             Canon::StraightFeed(p) => {
                 self.check_feed_mode()?;
-                self.go(false, p, out);
+                self.go(false, p, true, out);
             }
             Canon::ArcFeed(a) => {
                 self.check_feed_mode()?;
@@ -324,7 +333,7 @@ impl Motion {
                 }
                 p
             };
-            self.go(false, &p, out);
+            self.go(false, &p, k == n, out);
         }
         self.arcs += 1;
         Ok(())

@@ -2,9 +2,11 @@
 //! streamed line by line into a callback (never buffered whole), its standard error kept
 //! (bounded) for the reason of a refusal, a time limit after which it is killed.
 //!
-//! rs274 runs in a working directory of its own, on copies of the tool table and the parameter
-//! file: the interpreter saves its parameters into the parameter file when it stops, and the
-//! user's files must not change because a program was compensated.
+//! rs274 runs in a working directory of its own, which is also its `HOME`, on copies of the
+//! tool table and the parameter file: the interpreter saves its parameters into the parameter
+//! file when it stops, and creates its tool data file `$HOME/.tool.mmap` truncated — the
+//! user's files, and a LinuxCNC running beside, must not change because a program was
+//! compensated.
 
 use std::io::{BufRead, BufReader, Read};
 use std::path::{Path, PathBuf};
@@ -85,7 +87,11 @@ impl Interpreter {
             }
         }
         cmd.arg("-v").arg(&var).arg(&copy);
-        cmd.current_dir(workdir)
+        // LinuxCNC 2.9's tool data lives in `$HOME/.tool.mmap`, which rs274 creates with
+        // O_TRUNC: two interpreters sharing it crash each other (SIGBUS), and one beside a
+        // running LinuxCNC would truncate the control's tool data. Each run gets its own.
+        cmd.env("HOME", workdir)
+            .current_dir(workdir)
             .stdin(Stdio::null())
             .stdout(Stdio::piped())
             .stderr(Stdio::piped());
