@@ -111,6 +111,14 @@ pub enum Canon {
     StraightFeed(Pos6),
     StraightProbe(Pos6),
     ArcFeed(Arc),
+    /// `START_SPEED_FEED_SYNC(feed_per_rev,velocity_mode)`: spindle-synchronised motion
+    /// (G33, G33.1, G76) from here; the pitch in program units per revolution.
+    StartSpeedFeedSync {
+        feed_per_rev: f64,
+        velocity_mode: i32,
+    },
+    /// `RIGID_TAP(x, y, z)`: tap to this point (program coordinates) and back (G33.1).
+    RigidTap([f64; 3]),
     SetFeedRate(f64),
     /// `SET_FEED_MODE(spindle, mode)`: 0 units per minute (G94), 1 inverse time (G93),
     /// 2 units per revolution (G95).
@@ -337,6 +345,17 @@ fn parse_command(line: &str, p: usize) -> Result<Canon, ParseError> {
             })
         }
         "SET_FEED_RATE" => Canon::SetFeedRate(a.number(a.list(1)?[0])?),
+        "START_SPEED_FEED_SYNC" => {
+            let v = a.list(2)?;
+            Canon::StartSpeedFeedSync {
+                feed_per_rev: a.number(v[0])?,
+                velocity_mode: a.integer(v[1])?,
+            }
+        }
+        "RIGID_TAP" => {
+            let v = a.list(3)?;
+            Canon::RigidTap([a.number(v[0])?, a.number(v[1])?, a.number(v[2])?])
+        }
         "SET_FEED_MODE" => {
             let v = a.list(2)?;
             Canon::SetFeedMode {
@@ -560,6 +579,14 @@ impl fmt::Display for Canon {
                 write_numbers(f, &[a.axis_end, a.abc[0], a.abc[1], a.abc[2]])?;
             }
             Canon::SetFeedRate(v) => write!(f, "SET_FEED_RATE({v:.4}")?,
+            Canon::StartSpeedFeedSync {
+                feed_per_rev,
+                velocity_mode,
+            } => write!(f, "START_SPEED_FEED_SYNC({feed_per_rev:.6},{velocity_mode}")?,
+            Canon::RigidTap(p) => {
+                f.write_str("RIGID_TAP(")?;
+                write_numbers(f, p)?;
+            }
             Canon::SetFeedMode { spindle, mode } => write!(f, "SET_FEED_MODE({spindle}, {mode}")?,
             Canon::UseLengthUnits(u) => write!(f, "USE_LENGTH_UNITS({}", u.name())?,
             Canon::SetG5xOffset { index, offset } => {

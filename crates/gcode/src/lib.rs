@@ -174,7 +174,7 @@ pub fn rewrite<W: Write>(
     .map_err(|r| refused(&none, r))?;
     let letters = comp.letters();
     let rotary: Vec<bool> = (0..letters.len()).map(|j| comp.rotary(j)).collect();
-    let mut writer = Writer::new(w, letters, rotary, &options.header)
+    let mut writer = Writer::new(w, letters.clone(), rotary.clone(), &options.header)
         .map_err(Error::file(input, "cannot write the output for"))?;
     let workdir = tempfile::Builder::new()
         .prefix("truepos-rs274-")
@@ -186,6 +186,8 @@ pub fn rewrite<W: Write>(
     let mut motion = Motion::new(options.chord_tolerance_mm);
     let mut commands = 0u64;
     let mut blocks = Vec::new();
+    // The last compensated point and its machine point (a tap starts there and returns).
+    let mut last: Option<(Vec<f64>, canon::Pos6, f64)> = None;
     options
         .interpreter
         .run(input, workdir.path(), |line, place| {
@@ -208,6 +210,28 @@ pub fn rewrite<W: Write>(
                             .apply(&machine, tool_offset_z)
                             .map_err(|r| refused(&place, r))?;
                         writer.motion(place.line, rapid, q, feed).map_err(io)?;
+                        last = Some((q.to_vec(), machine, tool_offset_z));
+                    }
+                    Block::Tap {
+                        machine,
+                        pitch_mm,
+                        tool_offset_z,
+                    } => {
+                        let Some((from, start, start_tool)) = last.clone() else {
+                            return Err(refused(&place, "a rigid tap before any move".into()));
+                        };
+                        let to = comp
+                            .apply(&machine, tool_offset_z)
+                            .map_err(|r| refused(&place, r))?
+                            .to_vec();
+                        for (j, (a, b)) in from.iter().zip(&to).enumerate() {
+                            if rotary[j] && (a - b).abs() > 1e-9 {
+                                return Err(refused(&place, format!("a rigid tap that turns {}: truepos writes taps along the linear axes only", letters[j])));
+                            }
+                        }
+                        writer.tap(place.line, &from, &to, pitch_mm).map_err(io)?;
+                        // The tap retracts to its start: the compensation state follows.
+                        comp.apply(&start, start_tool).map_err(|r| refused(&place, r))?;
                     }
                     Block::Units(u) => writer.units(place.line, u).map_err(io)?,
                     Block::Code(c) => writer.code(place.line, &c).map_err(io)?,

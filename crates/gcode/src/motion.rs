@@ -37,6 +37,13 @@ pub enum Block {
         /// a linearised arc).
         end: bool,
     },
+    /// A rigid tap (G33.1) from the current point to `machine` and back, `pitch_mm` per
+    /// spindle revolution.
+    Tap {
+        machine: Pos6,
+        pitch_mm: f64,
+        tool_offset_z: f64,
+    },
     /// The program's length units changed (the writer follows them).
     Units(Units),
     /// Words that do not move the axes, in G-code (`M3`, `S1600`, `G4 P2`, `(text)` …).
@@ -62,6 +69,8 @@ pub struct Motion {
     chord_tolerance_mm: f64,
     flood: bool,
     mist: bool,
+    /// Pitch (mm per revolution) while spindle-synchronised motion is on.
+    sync_mm: Option<f64>,
     /// Arcs linearised so far.
     pub arcs: u64,
 }
@@ -86,6 +95,7 @@ impl Motion {
             chord_tolerance_mm,
             flood: false,
             mist: false,
+            sync_mm: None,
             arcs: 0,
         }
     }
@@ -159,6 +169,9 @@ impl Motion {
     }
 
     fn check_feed_mode(&self) -> Result<(), Refusal> {
+        if self.sync_mm.is_some() {
+            return Err("spindle-synchronised motion (G33, G76) follows the spindle's angle along a path truepos cannot write in machine coordinates (only rigid tapping, G33.1, is rewritten)".into());
+        }
         if self.feed_mode == 1 {
             return Err("inverse-time feed (G93): a move split or changed by compensation would not keep the program's time per move; truepos rewrites programs in G94 or G95 only".into());
         }
@@ -179,6 +192,25 @@ impl Motion {
             }
             Canon::StraightProbe(_) => return Err("a probing move (G38.x) stops where the probe trips, which no rewrite can know in advance; truepos does not compensate probing programs".into()),
             Canon::SetFeedRate(f) => self.feed = *f * self.units.mm(),
+            Canon::StartSpeedFeedSync { feed_per_rev, .. } => {
+                self.sync_mm = Some(feed_per_rev * self.units.mm());
+            }
+            Canon::RigidTap(p) => {
+                let Some(pitch_mm) = self.sync_mm else {
+                    return Err("RIGID_TAP without a spindle synchronisation (START_SPEED_FEED_SYNC) before it".into());
+                };
+                let Some(start) = self.position else {
+                    return Err("a rigid tap as the first move: it starts from a position the program never commanded".into());
+                };
+                let here = self.to_program(&start);
+                let end = [p[0], p[1], p[2], here[3], here[4], here[5]];
+                // The tap returns to where it started: the position stays.
+                out(Block::Tap {
+                    machine: self.to_machine(&end),
+                    pitch_mm,
+                    tool_offset_z: self.tool[2],
+                });
+            }
             Canon::SetFeedMode { mode, .. } => {
                 self.feed_mode = *mode;
                 match mode {
@@ -216,6 +248,7 @@ impl Motion {
             Canon::ChangeTool(_) => out(Block::Code("M6".into())),
             Canon::ChangeToolNumber(t) => out(Block::Code(format!("M61 Q{t}"))),
             Canon::Plain(p) => self.plain(*p, out),
+            Canon::Other { name, .. } if name == "STOP_SPEED_FEED_SYNCH" => self.sync_mm = None,
             Canon::Other { name, args } => other(name, args, out)?,
         }
         Ok(())
@@ -356,13 +389,12 @@ fn comment_text(t: &str) -> String {
 /// Commands carried in [`Canon::Other`]: ignored where they change nothing the rewrite
 /// writes, refused with the reason where they would change motion.
 fn other(name: &str, args: &str, out: &mut impl FnMut(Block)) -> Result<(), Refusal> {
-    const NO_MOTION: [&str; 20] = [
+    const NO_MOTION: [&str; 19] = [
         "SET_FEED_REFERENCE",
         "SET_NAIVECAM_TOLERANCE",
         "SET_SPINDLE_MODE",
         "TURN_PROBE_ON",
         "TURN_PROBE_OFF",
-        "STOP_SPEED_FEED_SYNCH",
         "LOG",
         "LOGOPEN",
         "LOGAPPEND",
@@ -386,10 +418,6 @@ fn other(name: &str, args: &str, out: &mut impl FnMut(Block)) -> Result<(), Refu
             out(Block::Code("M60".into()));
             return Ok(());
         }
-        "START_SPEED_FEED_SYNC" | "START_SPEED_FEED_SYNCH" => {
-            "spindle-synchronised motion (G33, G76) follows the spindle's angle, not a rewritten path"
-        }
-        "RIGID_TAP" => "rigid tapping (G33.1) follows the spindle's angle, not a rewritten path",
         "NURBS_FEED" | "SPLINE_FEED" => {
             "a NURBS or spline move (G5, G5.1, G5.2) is not linearised by truepos"
         }

@@ -17,8 +17,11 @@ pub struct Writer<W: Write> {
     units: Units,
     feed: Option<f64>,
     ended: bool,
+    /// Whether the guard against a rotated coordinate system was written (before the first
+    /// tap).
+    tap_guard: bool,
     line: String,
-    /// Blocks written (moves).
+    /// Moves written (a rigid tap counts once).
     pub moves: u64,
 }
 
@@ -38,6 +41,7 @@ impl<W: Write> Writer<W> {
             units: Units::Mm,
             feed: None,
             ended: false,
+            tap_guard: false,
             line: String::with_capacity(128),
             moves: 0,
         };
@@ -112,6 +116,43 @@ impl<W: Write> Writer<W> {
             let _ = write!(self.line, " F{f}");
             self.feed = Some(feed);
         }
+        self.moves += 1;
+        self.flush_line()
+    }
+
+    /// A rigid tap (G33.1) from the compensated point `from` to `to`, `pitch_mm` per
+    /// revolution. G33.1 takes no G53, so the tap is written as an increment (G91), which no
+    /// work or G92 offset or tool length offset changes; an XY rotation of the coordinate
+    /// system the program runs in would turn it, so the program aborts before its first tap
+    /// if the active coordinate system is rotated (`#[5210 + 20·#5220]`, its R).
+    pub fn tap(
+        &mut self,
+        n: Option<u64>,
+        from: &[f64],
+        to: &[f64],
+        pitch_mm: f64,
+    ) -> std::io::Result<()> {
+        self.ended = false;
+        let per = if self.units == Units::Inches {
+            25.4
+        } else {
+            1.0
+        };
+        if !self.tap_guard {
+            self.tap_guard = true;
+            writeln!(
+                self.w,
+                "o<truepos_tap> if [#[5210 + 20 * #5220] NE 0]\n(abort, truepos: the rigid taps of this program are increments and need a coordinate system without rotation)\no<truepos_tap> endif"
+            )?;
+        }
+        self.n_word(n);
+        self.line.push_str("G91 G33.1");
+        for (j, (a, b)) in from.iter().zip(to).enumerate() {
+            let l = self.letters[j];
+            let _ = write!(self.line, " {l}{:.8}", (b - a) / per);
+        }
+        let _ = write!(self.line, " K{:.8}", pitch_mm / per);
+        self.line.push_str("\nG90");
         self.moves += 1;
         self.flush_line()
     }

@@ -219,6 +219,7 @@ fn sample_programs_check_on_sample_mill() {
         "b-index",
         "tort",
         "useful-subroutines",
+        "mmount",
     ] {
         check(
             &Path::new(SAMPLES).join(format!("{name}.ngc")),

@@ -69,22 +69,28 @@ pub fn points(program: &Path, chord_mm: f64) -> Vec<Point> {
             let unit_mm = m.units().mm();
             let rotated = m.rotation_deg() != 0.0;
             m.step(&line.command, &mut |b| {
-                if let Block::Move {
-                    machine,
-                    tool_offset_z,
-                    end,
-                    ..
-                } = b
-                {
-                    v.push(Point {
-                        line: place.line,
+                let (machine, tool_offset_z, end) = match b {
+                    Block::Move {
                         machine,
                         tool_offset_z,
                         end,
-                        unit_mm,
-                        rotated,
-                    });
-                }
+                        ..
+                    } => (machine, tool_offset_z, end),
+                    Block::Tap {
+                        machine,
+                        tool_offset_z,
+                        ..
+                    } => (machine, tool_offset_z, true),
+                    _ => return,
+                };
+                v.push(Point {
+                    line: place.line,
+                    machine,
+                    tool_offset_z,
+                    end,
+                    unit_mm,
+                    rotated,
+                });
             })
             .unwrap_or_else(|e| panic!("{}: {e}", program.display()));
             Ok(truepos_gcode::rs274::Flow::Continue)
@@ -94,11 +100,13 @@ pub fn points(program: &Path, chord_mm: f64) -> Vec<Point> {
 }
 
 /// The moves of a compensated program as written (full precision), in mm and degrees, with
-/// their N words: `letters` the axis words to read.
+/// their N words: `letters` the axis words to read. A rigid tap (`G91 G33.1`, an increment
+/// from the last point) is the point it taps to.
 pub fn written(output: &Path, letters: &[char]) -> Vec<(Option<u64>, Vec<f64>)> {
     let text = std::fs::read_to_string(output).unwrap();
     let mut per = 1.0;
-    let mut v = Vec::new();
+    let mut v: Vec<(Option<u64>, Vec<f64>)> = Vec::new();
+    let mut at: Vec<f64> = Vec::new();
     for l in text.lines() {
         let words: Vec<&str> = l.split_whitespace().collect();
         let n = words
@@ -111,7 +119,8 @@ pub fn written(output: &Path, letters: &[char]) -> Vec<(Option<u64>, Vec<f64>)> 
         if words.contains(&"G21") {
             per = 1.0;
         }
-        if !words.contains(&"G53") {
+        let tap = words.contains(&"G33.1");
+        if !words.contains(&"G53") && !tap {
             continue;
         }
         let q = letters
@@ -129,7 +138,17 @@ pub fn written(output: &Path, letters: &[char]) -> Vec<(Option<u64>, Vec<f64>)> 
                 }
             })
             .collect();
-        v.push((n, q));
+        if tap {
+            let to: Vec<f64> = at
+                .iter()
+                .zip(&q)
+                .map(|(a, d): (&f64, &f64)| a + d)
+                .collect();
+            v.push((n, to));
+        } else {
+            at.clone_from(&q);
+            v.push((n, q));
+        }
     }
     v
 }
