@@ -69,6 +69,8 @@ pub struct Motion {
     chord_tolerance_mm: f64,
     flood: bool,
     mist: bool,
+    /// A PALLET_SHUTTLE waiting for the stop or end that follows it (M60, M30).
+    pallet: bool,
     /// Pitch (mm per revolution) while spindle-synchronised motion is on.
     sync_mm: Option<f64>,
     /// Arcs linearised so far.
@@ -96,6 +98,7 @@ impl Motion {
             flood: false,
             mist: false,
             sync_mm: None,
+            pallet: false,
             arcs: 0,
         }
     }
@@ -249,6 +252,7 @@ impl Motion {
             Canon::ChangeToolNumber(t) => out(Block::Code(format!("M61 Q{t}"))),
             Canon::Plain(p) => self.plain(*p, out),
             Canon::Other { name, .. } if name == "STOP_SPEED_FEED_SYNCH" => self.sync_mm = None,
+            Canon::Other { name, .. } if name == "PALLET_SHUTTLE" => self.pallet = true,
             Canon::Other { name, args } => other(name, args, out)?,
         }
         Ok(())
@@ -280,6 +284,10 @@ impl Motion {
                 }
                 return;
             }
+            // rs274 prints M60 as PALLET_SHUTTLE + PROGRAM_STOP and M30 as PALLET_SHUTTLE +
+            // PROGRAM_END.
+            Plain::ProgramStop if std::mem::take(&mut self.pallet) => "M60",
+            Plain::ProgramEnd if std::mem::take(&mut self.pallet) => "M30",
             Plain::ProgramStop => "M0",
             Plain::OptionalProgramStop => "M1",
             Plain::ProgramEnd => "M2",
@@ -414,10 +422,6 @@ fn other(name: &str, args: &str, out: &mut impl FnMut(Block)) -> Result<(), Refu
         return Ok(());
     }
     let why = match name {
-        "PALLET_SHUTTLE" => {
-            out(Block::Code("M60".into()));
-            return Ok(());
-        }
         "NURBS_FEED" | "SPLINE_FEED" => {
             "a NURBS or spline move (G5, G5.1, G5.2) is not linearised by truepos"
         }
@@ -547,6 +551,33 @@ mod tests {
             }
             assert_eq!(pts.last().unwrap()[axes.0], 20.0);
         }
+    }
+
+    #[test]
+    fn stops_and_ends_keep_their_pallet_shuttle() {
+        let mut m = Motion::new(0.001);
+        let shuttle = Canon::Other {
+            name: "PALLET_SHUTTLE".into(),
+            args: String::new(),
+        };
+        let v = run(
+            &mut m,
+            &[
+                shuttle.clone(),
+                Canon::Plain(Plain::ProgramStop),
+                Canon::Plain(Plain::ProgramStop),
+                shuttle,
+                Canon::Plain(Plain::ProgramEnd),
+            ],
+        );
+        let codes: Vec<&str> = v
+            .iter()
+            .filter_map(|b| match b {
+                Block::Code(c) => Some(c.as_str()),
+                _ => None,
+            })
+            .collect();
+        assert_eq!(codes, ["M60", "M0", "M30"]);
     }
 
     #[test]

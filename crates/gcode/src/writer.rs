@@ -75,7 +75,7 @@ impl<W: Write> Writer<W> {
 
     /// Words that do not move the axes.
     pub fn code(&mut self, n: Option<u64>, code: &str) -> std::io::Result<()> {
-        self.ended = code == "M2";
+        self.ended = code == "M2" || code == "M30";
         self.n_word(n);
         self.line.push_str(code);
         self.flush_line()
@@ -157,7 +157,7 @@ impl<W: Write> Writer<W> {
         self.flush_line()
     }
 
-    /// Ends the program with `M2` unless it just ended so, and returns the output.
+    /// Ends the program with `M2` unless it just ended (M2, M30), and returns the output.
     pub fn finish(mut self) -> std::io::Result<W> {
         if !self.ended {
             writeln!(self.w, "M2")?;
