@@ -253,7 +253,7 @@ impl Motion {
             Canon::Plain(p) => self.plain(*p, out),
             Canon::Other { name, .. } if name == "STOP_SPEED_FEED_SYNCH" => self.sync_mm = None,
             Canon::Other { name, .. } if name == "PALLET_SHUTTLE" => self.pallet = true,
-            Canon::Other { name, args } => other(name, args, out)?,
+            Canon::Other { name, args } => other(name, args)?,
         }
         Ok(())
     }
@@ -346,7 +346,8 @@ impl Motion {
             let step = 2.0 * (1.0 - tol / r).acos();
             (sweep.abs() / step).ceil().max(1.0)
         };
-        if !(n <= MAX_SEGMENTS) {
+        // NaN (a degenerate arc) is refused as well.
+        if n.is_nan() || n > MAX_SEGMENTS {
             return Err(format!(
                 "an arc of radius {r} would need more than {MAX_SEGMENTS} chords at the chord tolerance {} mm",
                 self.chord_tolerance_mm
@@ -396,7 +397,7 @@ fn comment_text(t: &str) -> String {
 
 /// Commands carried in [`Canon::Other`]: ignored where they change nothing the rewrite
 /// writes, refused with the reason where they would change motion.
-fn other(name: &str, args: &str, out: &mut impl FnMut(Block)) -> Result<(), Refusal> {
+fn other(name: &str, args: &str) -> Result<(), Refusal> {
     const NO_MOTION: [&str; 19] = [
         "SET_FEED_REFERENCE",
         "SET_NAIVECAM_TOLERANCE",
