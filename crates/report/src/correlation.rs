@@ -83,4 +83,3 @@ pub(crate) fn correlation_figure(data: &ReportData) -> Result<String, ReportErro
     }
     Ok(svg)
 }
-

@@ -3,7 +3,7 @@
 use plotters::prelude::*;
 
 use crate::metrics::range_of;
-use crate::style::{draw_legend, legend_line, plot_err, PALETTE};
+use crate::style::{plot_err, side_legend, Mark, LEGEND_W, PALETTE};
 use crate::{ReportData, ReportError};
 
 /// Histogram of the held-out residuals of every channel.
@@ -41,14 +41,16 @@ pub(crate) fn histogram_figure(data: &ReportData) -> Result<String, ReportError>
     let top = counts.iter().flatten().copied().max().unwrap_or(1).max(1);
     let mut svg = String::new();
     {
-        let root = SVGBackend::with_string(&mut svg, (900, 380)).into_drawing_area();
+        let root = SVGBackend::with_string(&mut svg, (960, 380)).into_drawing_area();
         root.fill(&WHITE).map_err(plot_err)?;
+        let (plot, side) = root.split_horizontally(960 - LEGEND_W);
+        let mut legend = Vec::new();
         let what = if data.test_from.is_some() {
             "held-out part"
         } else {
             "whole run"
         };
-        let mut chart = ChartBuilder::on(&root)
+        let mut chart = ChartBuilder::on(&plot)
             .caption(format!("Residuals, {what}"), ("sans-serif", 18))
             .margin(10)
             .x_label_area_size(36)
@@ -74,13 +76,11 @@ pub(crate) fn histogram_figure(data: &ReportData) -> Result<String, ReportError>
                 .collect();
             chart
                 .draw_series(LineSeries::new(steps, color.stroke_width(2)))
-                .map_err(plot_err)?
-                .label(name.clone())
-                .legend(legend_line(color));
+                .map_err(plot_err)?;
+            legend.push((name.clone(), color, Mark::Line));
         }
-        draw_legend(&mut chart, SeriesLabelPosition::MiddleRight)?;
+        side_legend(&side, &legend)?;
         root.present().map_err(plot_err)?;
     }
     Ok(svg)
 }
-

@@ -4,12 +4,19 @@
 //! temperatures, coefficients, validation protocol) into one self-contained HTML file with the
 //! figures embedded, and the same figures as SVG files beside it:
 //!
+//! - the headline figures of the run, then the figures of merit per channel and, for
+//!   leave-one-run-out, per held-out run (runs made worse than uncompensated are marked);
+//! - the error over the working volume before and after compensation ([`VolumeMap`]): slices
+//!   of the 3-D grid as heat maps, one figure per error direction, one colour scale per direction;
 //! - measured, predicted and residual error over time, one figure per channel, with the held-out
 //!   part shaded;
 //! - a histogram of the residuals of the held-out part;
-//! - temperatures over time;
+//! - temperatures over time: one figure up to six channels, small multiples beyond, so 16–24
+//!   channels stay readable;
 //! - a correlation heat map of temperatures and measured errors;
 //! - the coefficients and the validation protocol as tables.
+//!
+//! Legends sit beside the plot, never over the data.
 //!
 //! ```
 //! use truepos_report::*;
@@ -25,6 +32,7 @@
 //!     temperatures: vec![("spindle".into(), temp)],
 //!     coefficients: vec![Coefficient { channel: "Z".into(), feature: "spindle − ambient".into(), value: 2.9 }],
 //!     protocol: vec![("split".into(), "chronological, first 60 % train".into())],
+//!     ..Default::default()
 //! };
 //! let dir = std::env::temp_dir().join("truepos-report-doc");
 //! let html = write_report(&dir, &data).unwrap();
@@ -41,6 +49,7 @@ mod html;
 mod metrics;
 mod style;
 mod time_series;
+mod volume;
 
 pub use html::write_report;
 pub use metrics::{channel_metrics, correlation};
@@ -70,7 +79,7 @@ pub struct Coefficient {
 }
 
 /// Everything a report shows.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Default)]
 pub struct ReportData {
     /// Title.
     pub title: String,
@@ -86,10 +95,58 @@ pub struct ReportData {
     pub coefficients: Vec<Coefficient>,
     /// How the model was chosen and validated, as (item, description).
     pub protocol: Vec<(String, String)>,
+    /// The run's headline figures, as (what, value with unit), shown first.
+    pub headline: Vec<(String, String)>,
+    /// Figures of merit per held-out run (leave-one-run-out), one row per run and channel.
+    pub runs: Vec<RunRow>,
+    /// The error over the working volume, if the model depends on the axis positions.
+    pub volume: Option<VolumeMap>,
+}
+
+/// One held-out run's figures for one channel.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RunRow {
+    /// The run's name (file, sheet or run-column value).
+    pub run: String,
+    /// The channel.
+    pub channel: String,
+    /// Samples with a measured value.
+    pub samples: usize,
+    /// The run's figures, from a model that never saw it.
+    pub metrics: Metrics,
+    /// The family the fit chose without this run, if known.
+    pub family: Option<String>,
+}
+
+/// The error over the working volume at one moment: values on a grid spanned by three axes.
+#[derive(Debug, Clone, PartialEq)]
+pub struct VolumeMap {
+    /// What the maps show and when ("test day at 3.4 h, the largest uncompensated error").
+    pub moment: String,
+    /// Names of the three axes spanning the grid (their positions in mm).
+    pub axes: [String; 3],
+    /// Grid positions along each axis, mm, ascending.
+    pub coords: [Vec<f64>; 3],
+    /// What `before` and `after` hold ("uncompensated", "after compensation").
+    pub labels: (String, Option<String>),
+    /// One entry per error direction.
+    pub directions: Vec<VolumeDirection>,
+}
+
+/// One error direction over the grid of a [`VolumeMap`]. Values are µm, indexed
+/// `(ix · ny + iy) · nz + iz`; NaN where the model gives nothing.
+#[derive(Debug, Clone, PartialEq)]
+pub struct VolumeDirection {
+    /// Its name (`dx (X)`).
+    pub name: String,
+    /// The error before compensation (or the model's prediction, as `labels.0` says).
+    pub before: Vec<f64>,
+    /// The error after compensation, if known.
+    pub after: Option<Vec<f64>>,
 }
 
 /// Figures of merit of one channel over a range of samples.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
 pub struct Metrics {
     /// Root-mean-square residual.
     pub rmse_um: f64,
@@ -114,4 +171,3 @@ impl std::fmt::Display for ReportError {
 }
 
 impl std::error::Error for ReportError {}
-

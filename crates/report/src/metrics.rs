@@ -125,7 +125,6 @@ pub(crate) fn range_of<'a>(series: impl Iterator<Item = &'a [f64]>) -> (f64, f64
     (lo - pad, hi + pad)
 }
 
-
 #[cfg(test)]
 mod tests {
     use super::*;

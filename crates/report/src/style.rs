@@ -19,23 +19,36 @@ pub(crate) const PALETTE: [RGBColor; 8] = [
     RGBColor(127, 127, 127),
 ];
 
-/// A series' mark in the legend: a short line in its colour.
-pub(crate) fn legend_line(color: RGBColor) -> impl Fn((i32, i32)) -> PathElement<(i32, i32)> {
-    move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], color)
+/// How a legend entry is marked: a line (a series) or a filled box (an area).
+#[derive(Debug, Clone, Copy)]
+pub(crate) enum Mark {
+    Line,
+    Area,
 }
 
-/// The legend of every labelled series, boxed on a light background at `position`.
-pub(crate) fn draw_legend<'a, DB: DrawingBackend + 'a, CT: CoordTranslate>(
-    chart: &mut ChartContext<'a, DB, CT>,
-    position: SeriesLabelPosition,
+/// Width of the column beside a plot that holds its legend.
+pub(crate) const LEGEND_W: u32 = 190;
+
+/// The legend in its own column beside the plot (`area`, the right part of the figure), so it
+/// never hides data: one entry per line, its mark then its name.
+pub(crate) fn side_legend<DB: DrawingBackend>(
+    area: &DrawingArea<DB, plotters::coord::Shift>,
+    entries: &[(String, RGBColor, Mark)],
 ) -> Result<(), ReportError> {
-    chart
-        .configure_series_labels()
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK)
-        .position(position)
-        .draw()
-        .map_err(plot_err)
+    for (k, (name, color, mark)) in entries.iter().enumerate() {
+        let y = 48 + 20 * k as i32;
+        match mark {
+            Mark::Line => area.draw(&PathElement::new(
+                vec![(8, y), (28, y)],
+                color.stroke_width(2),
+            )),
+            Mark::Area => area.draw(&Rectangle::new([(8, y - 5), (28, y + 5)], color.filled())),
+        }
+        .map_err(plot_err)?;
+        area.draw(&Text::new(name.clone(), (34, y - 7), ("sans-serif", 13)))
+            .map_err(plot_err)?;
+    }
+    Ok(())
 }
 
 /// Blue (−1) … white (0) … red (+1).
@@ -51,4 +64,3 @@ pub(crate) fn diverging(r: f64) -> RGBColor {
         RGBColor(fade(33, -r), fade(102, -r), fade(172, -r))
     }
 }
-
