@@ -73,6 +73,10 @@ pub struct Options {
     /// workpiece but not the frame the linear axes' errors are corrected in. Without this, a
     /// program moving such an axis is refused.
     pub pass_axes: Vec<char>,
+    /// Scale each feed move's F by its compensated over its programmed length (linear axes;
+    /// moves that turn a rotary axis keep their F), so that every move takes the time the
+    /// program gave it.
+    pub correct_feed: bool,
 }
 
 impl Options {
@@ -86,6 +90,7 @@ impl Options {
             tool_length_mm,
             header: Vec::new(),
             pass_axes: Vec::new(),
+            correct_feed: false,
         }
     }
 }
@@ -209,6 +214,12 @@ pub fn rewrite<W: Write>(
                         let q = comp
                             .apply(&machine, tool_offset_z)
                             .map_err(|r| refused(&place, r))?;
+                        let feed = match &last {
+                            Some((from, start, _)) if options.correct_feed && !rapid => {
+                                feed * length_ratio(&letters, &rotary, start, &machine, from, q)
+                            }
+                            _ => feed,
+                        };
                         writer.motion(place.line, rapid, q, feed).map_err(io)?;
                         last = Some((q.to_vec(), machine, tool_offset_z));
                     }
@@ -254,4 +265,34 @@ pub fn rewrite<W: Write>(
         seconds: start.elapsed().as_secs_f64(),
     };
     Ok((summary, w))
+}
+
+/// Compensated over programmed length of a move (linear axes), 1 when a rotary axis turns or
+/// the move is shorter than 1 nm.
+fn length_ratio(
+    letters: &[char],
+    rotary: &[bool],
+    start: &canon::Pos6,
+    end: &canon::Pos6,
+    from: &[f64],
+    to: &[f64],
+) -> f64 {
+    let (mut nominal, mut compensated) = (0.0, 0.0);
+    for (j, l) in letters.iter().enumerate() {
+        let k = compensate::LETTERS.iter().position(|m| m == l).unwrap_or(0);
+        let d = end[k] - start[k];
+        if rotary[j] {
+            if d.abs() > 1e-12 {
+                return 1.0;
+            }
+            continue;
+        }
+        nominal += d * d;
+        compensated += (to[j] - from[j]).powi(2);
+    }
+    if nominal < 1e-12 {
+        1.0
+    } else {
+        (compensated / nominal).sqrt()
+    }
 }

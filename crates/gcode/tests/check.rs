@@ -277,3 +277,55 @@ fn machine_coordinates_of_offsets_rotation_and_units_are_linuxcncs() {
         }
     }
 }
+
+/// With `correct_feed`, every feed move's F is the programmed feed times its compensated over
+/// its programmed length (the move keeps its time); rapids carry none.
+#[test]
+fn corrected_feeds_keep_every_move_its_time() {
+    require_rs274();
+    let dir = tempfile::tempdir().unwrap();
+    let p = write(
+        dir.path(),
+        "feeds.ngc",
+        "G21 G90\nG0 X-500 Y-400 Z-300\nG1 X500 F1000\nG1 Y400 Z300\nG0 X0\nG1 X-900 Y900 Z-500 F250\nM2\n",
+    );
+    let k = example("sample-mill");
+    let letters = ['X', 'Y', 'Z'];
+    let mut o = opts(k.tool_length_mm, &letters);
+    o.correct_feed = true;
+    let out = dir.path().join("feeds.out.ngc");
+    rewrite_file(&p, &k.chain, &o, &out).unwrap_or_else(|e| panic!("{e}"));
+    let text = std::fs::read_to_string(&out).unwrap();
+    let moves: Vec<&str> = text.lines().filter(|l| l.contains(" G53 G")).collect();
+    let w = written(&out, &letters);
+    let orig = points(&p, 0.001);
+    assert_eq!(moves.len(), 5, "{text}");
+    let programmed = [None, Some(1000.0), Some(1000.0), None, Some(250.0)];
+    for i in 1..5 {
+        let f: Option<f64> = moves[i]
+            .split_whitespace()
+            .find_map(|w| w.strip_prefix('F'))
+            .map(|v| v.parse().unwrap());
+        let Some(want) = programmed[i] else {
+            assert!(f.is_none(), "{}", moves[i]);
+            continue;
+        };
+        let len = |a: &[f64], b: &[f64]| {
+            a.iter()
+                .zip(b)
+                .map(|(x, y)| (x - y).powi(2))
+                .sum::<f64>()
+                .sqrt()
+        };
+        let nominal = len(&orig[i].machine[..3], &orig[i - 1].machine[..3]);
+        let compensated = len(&w[i].1, &w[i - 1].1);
+        let f = f.unwrap_or_else(|| panic!("no F in {}", moves[i]));
+        let expect = want * compensated / nominal;
+        assert!(
+            (f - expect).abs() < 1e-5,
+            "{}: F {f}, expected {expect}",
+            moves[i]
+        );
+        assert!((f - want).abs() > 1e-7, "{}: F not corrected", moves[i]);
+    }
+}

@@ -33,6 +33,10 @@ pub(super) struct GcodeArgs {
     /// program that moves such an axis is refused.
     #[arg(long = "pass-axis")]
     pass_axes: Vec<char>,
+    /// Scale each feed move's F by its compensated over its programmed length, so that every
+    /// move takes the time the program gave it.
+    #[arg(long)]
+    correct_feed: bool,
     /// The interpreter executable.
     #[arg(long, default_value = "rs274")]
     rs274: PathBuf,
@@ -52,6 +56,7 @@ pub(super) fn gcode(a: &GcodeArgs) -> Result<(), CliError> {
     opts.chord_tolerance_mm = a.chord_tolerance;
     opts.geometry = geometry(c);
     opts.pass_axes = a.pass_axes.clone();
+    opts.correct_feed = a.correct_feed;
     opts.header = vec![
         format!(
             "compensated by truepos kin gcode from {} through {}{}",
