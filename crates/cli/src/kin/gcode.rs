@@ -84,11 +84,29 @@ pub(super) fn gcode(a: &GcodeArgs) -> Result<(), CliError> {
             s
         }
     };
-    let largest_um: Vec<f64> = s.largest.iter().map(|v| v * 1e3).collect();
+    // The project's units of a compensation: µm on linear axes, µrad on rotary axes.
+    let rotary: Vec<bool> = k
+        .chain
+        .axes()
+        .iter()
+        .map(|x| x.kind == truepos_model::AxisKind::Rotary)
+        .collect();
+    let largest: Vec<f64> = s
+        .largest
+        .iter()
+        .zip(&rotary)
+        .map(|(v, r)| if *r { v.to_radians() * 1e6 } else { v * 1e3 })
+        .collect();
+    let largest_map: serde_json::Map<String, serde_json::Value> = s
+        .axes
+        .iter()
+        .zip(&largest)
+        .map(|(l, v)| (l.to_string(), serde_json::json!(v)))
+        .collect();
     let axes: String = s.axes.iter().collect();
     let summary = serde_json::json!({
         "canonical_commands": s.commands, "moves": s.moves, "arcs_linearised": s.arcs,
-        "axes": axes, "largest_compensation": s.largest,
+        "axes": axes, "largest_compensation_um_or_urad": largest_map,
         "direction_misses": s.direction_misses,
         "largest_direction_miss_rad": s.largest_direction_miss_rad,
         "seconds": s.seconds,
@@ -101,12 +119,12 @@ pub(super) fn gcode(a: &GcodeArgs) -> Result<(), CliError> {
         s.seconds,
         s.axes
             .iter()
-            .zip(&largest_um)
+            .zip(&largest)
             .map(|(l, v)| format!("{l} {v:.3}"))
             .collect::<Vec<_>>()
             .join(", ")
     );
-    text.push_str(" (µm on linear axes, mdeg on rotary axes)");
+    text.push_str(" (µm on linear axes, µrad on rotary axes)");
     if s.direction_misses > 0 {
         text.push_str(&format!(
             "\n{} point(s) where the real tool direction stays up to {:.1} µrad off (not reachable with these errors); TCP exact",
