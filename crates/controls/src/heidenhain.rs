@@ -151,3 +151,144 @@ pub fn tempcomp(
     }
     Ok(out)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use truepos_model::{Axis, AxisKind, Carriage, TemperatureChannel};
+
+    fn machine(lagged: bool) -> Machine {
+        let sensor = |id: &str| TemperatureChannel {
+            id: id.into(),
+            location: String::new(),
+            valid_min_c: -20.0,
+            valid_max_c: 120.0,
+            lag: None,
+        };
+        let mut m = Machine {
+            name: "m".into(),
+            axes: vec![Axis {
+                name: "X".into(),
+                kind: AxisKind::Linear,
+                travel_min: 0.0,
+                travel_max: 800.0,
+                carried_by: None,
+                carriage: Carriage::Cantilever,
+            }],
+            temperatures: vec![sensor("spindle"), sensor("bed")],
+            differences: vec![],
+            operating: vec![],
+        };
+        if lagged {
+            m.temperatures[1].lag = Some(truepos_model::Lag {
+                source: truepos_model::LagSource::Temperature(0),
+                tau_s: 600.0,
+            });
+        }
+        m
+    }
+
+    /// error = 2·(T0 − T1) + 0.01·x·(T0 − 20) µm: at x = 100 the gains are 3 and −2 µm/K.
+    fn model(t: &[f64], p: &[f64]) -> Result<Vec<f64>, String> {
+        Ok(vec![2.0 * (t[0] - t[1]) + 0.01 * p[0] * (t[0] - 20.0)])
+    }
+
+    fn words() -> Vec<PlcWord> {
+        vec![
+            PlcWord {
+                sensor: 0,
+                word: "W486".into(),
+                scale: 0.1,
+            },
+            PlcWord {
+                sensor: 1,
+                word: "W488".into(),
+                scale: 0.1,
+            },
+        ]
+    }
+
+    #[test]
+    fn the_formula_is_the_model_at_its_position_for_any_temperature() {
+        let corners = vec![vec![0.0], vec![800.0]];
+        let tc = tempcomp(
+            &machine(false),
+            &model,
+            &[25.0, 22.0],
+            &[100.0],
+            &corners,
+            &words(),
+            &[300.0],
+        )
+        .unwrap();
+        assert_eq!(tc.len(), 1);
+        assert_eq!(tc[0].per_kelvin_mm, vec![(0, -0.003), (1, 0.002)]);
+        for t in [[20.0, 20.0], [31.5, 18.25], [45.0, 30.0]] {
+            let want = -model(&t, &[100.0]).unwrap()[0] / 1000.0;
+            assert!((tc[0].compensation_mm(&t) - want).abs() < 1e-12);
+        }
+        // At 25 °C on the spindle, x from 100 to 800 adds 0.01·700·5 = 35 µm the formula lacks.
+        assert!((tc[0].position_error_um - 35.0).abs() < 1e-9);
+        assert!(tc[0].formula.starts_with("300 + "), "{}", tc[0].formula);
+        assert!(
+            tc[0].formula.contains("(W486 * 0.1 - 20)"),
+            "{}",
+            tc[0].formula
+        );
+    }
+
+    #[test]
+    fn what_the_plc_does_not_have_is_refused_by_name() {
+        let e = tempcomp(
+            &machine(false),
+            &model,
+            &[25.0, 22.0],
+            &[100.0],
+            &[],
+            &words()[..1],
+            &[],
+        )
+        .unwrap_err();
+        assert!(
+            e.to_string()
+                .contains("sensor `bed`, which has no PLC word (give --plc-word bed=W…)"),
+            "{e}"
+        );
+        let e = tempcomp(
+            &machine(true),
+            &model,
+            &[25.0, 22.0],
+            &[100.0],
+            &[],
+            &words(),
+            &[],
+        )
+        .unwrap_err();
+        assert!(
+            e.to_string().contains("`bed`, a lag of another channel"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn module_9231_range() {
+        use crate::projection::{AxisProjection, LinearForm};
+        let p = |k0_mm: f64| AxisProjection {
+            axis: 0,
+            name: "Z".into(),
+            form: LinearForm {
+                k0_mm,
+                tan_beta: 0.0,
+                p0_mm: 0.0,
+            },
+            along_error_um: 0.0,
+            cross_axis: vec![],
+        };
+        assert_eq!(offset_9231(&p(-0.01234)).unwrap(), -123);
+        assert_eq!(offset_9231(&p(3.0)).unwrap(), 30_000);
+        assert!(offset_9231(&p(3.0001))
+            .unwrap_err()
+            .to_string()
+            .contains("beyond module 9231's ±3 000 µm"));
+    }
+}
