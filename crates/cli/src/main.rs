@@ -11,6 +11,7 @@ mod demo;
 mod error;
 mod eval;
 mod evaluator;
+mod export;
 mod fit;
 mod fit_report;
 mod kin;
@@ -36,6 +37,9 @@ enum Command {
     Demo(demo::Args),
     /// Evaluate a compensation model on a recorded run (CSV of cycles) and write per-axis offsets.
     Eval(eval::Args),
+    /// Project a model at one moment of a run onto a control's own compensation form (Siemens
+    /// SD43900/43910/43920, HEIDENHAIN 9231 or TEMPCOMP) and write the file that sets it.
+    Export(export::Args),
     /// Learn a dynamic compensation model (filtered temperatures and spindle speed, or the
     /// reference-sensor regression) from recorded runs (CSV/XLSX) and validate it honestly.
     Fit(Box<fit::Args>),
@@ -77,6 +81,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Demo(args) => demo::run(args),
         Command::Eval(args) => eval::run(args),
+        Command::Export(args) => export::run(args),
         Command::Fit(args) => fit::run(*args),
         Command::Kin(args) => kin::run(args),
         Command::UpdatePeriod(args) => update_period::run(args),
