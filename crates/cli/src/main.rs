@@ -15,6 +15,7 @@ mod fit;
 mod kin;
 mod report;
 mod run;
+mod shape;
 mod sim;
 mod update_period;
 
