@@ -513,6 +513,28 @@ mod tests {
         );
     }
 
+    /// Empty target cells are rows without a measurement: NaN, kept for the filters; targets
+    /// count from the first measured row; a target in mm and a temperature in °F are converted.
+    #[test]
+    fn sparse_targets_and_units() {
+        let t = table("time_s,t1 (°F),dz_mm\n0,68,\n10,69.8,0.002\n20,71.6,\n30,73.4,0.005\n");
+        let ds = Dataset::from_tables(&[t], &columns("t1 (°F)", "dz_mm")).unwrap();
+        let run = &ds.runs[0];
+        assert!((run.inputs[0][1] - 21.0).abs() < 1e-12);
+        assert!(run.targets[0][0].is_nan());
+        assert!((run.targets[0][3] - 5.0).abs() < 1e-12);
+        assert_eq!((run.measured_rows(), run.first_measured()), (2, Some(1)));
+        let rel = run.relative_target(0);
+        assert!(rel[0].is_nan() && rel[1] == 0.0 && (rel[3] - 3.0).abs() < 1e-12);
+        let t = table("time_s,t1_c,dz_um\n0,20,\n10,21,\n");
+        assert_eq!(
+            Dataset::from_tables(&[t], &columns("t1_c", "dz_um"))
+                .unwrap_err()
+                .to_string(),
+            "day.csv:1:3: `dz_um`: no measured value in this column (every cell is empty)"
+        );
+    }
+
     /// An absurd target is refused at its cell (file:line:column: name); 1 m itself still passes.
     #[test]
     fn an_absurd_target_is_refused_at_its_cell() {

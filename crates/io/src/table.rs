@@ -698,6 +698,29 @@ mod tests {
         assert!("x".parse::<Delimiter>().is_err());
     }
 
+    proptest::proptest! {
+        /// Any numbers written with `;` and decimal commas read as the same numbers written
+        /// with `,` and points, in the same places.
+        #[test]
+        fn decimal_commas_read_as_points(
+            rows in proptest::collection::vec(proptest::collection::vec(-1e6f64..1e6, 3), 1..20)
+        ) {
+            let mut comma = String::from("a,b,c\n");
+            let mut semi = String::from("a;b;c\n");
+            for r in &rows {
+                let cells: Vec<String> = r.iter().map(f64::to_string).collect();
+                comma += &format!("{}\n", cells.join(","));
+                semi += &format!("{}\n", cells.join(";").replace('.', ","));
+            }
+            let (c, s) = (parse(&comma), parse(&semi));
+            proptest::prop_assert_eq!(&c.columns, &s.columns);
+            for (x, y) in c.rows.iter().zip(&s.rows) {
+                let v = |r: &Row| r.cells.iter().map(|c| c.value.clone()).collect::<Vec<_>>();
+                proptest::prop_assert_eq!(v(x), v(y));
+            }
+        }
+    }
+
     #[test]
     fn not_utf8_names_the_line() {
         let e = parse_csv(Path::new("t.csv"), b"a\n1\n\xff\n", CsvOptions::default())
