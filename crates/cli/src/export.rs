@@ -41,6 +41,12 @@ pub struct Args {
     /// Run CSV with the inputs up to the moment exported (a dynamic model's filters run through it).
     #[arg(long)]
     run: PathBuf,
+    /// The time column: seconds or ISO 8601 date-times. Default: `time_s` if there is one,
+    /// else the row number.
+    #[arg(long, conflicts_with = "sample_period")]
+    time: Option<String>,
+    #[command(flatten)]
+    shape: crate::shape::ShapeArgs,
     /// The moment, s of the run's time (the first row at or after it); default: the last row.
     #[arg(long, value_parser = truepos_io::limits::finite_in(-1e10, 1e10))]
     at_s: Option<f64>,
@@ -197,7 +203,17 @@ fn write_whole(path: &Path, text: &str) -> Result<(), CliError> {
 pub fn run(args: Args) -> Result<(), CliError> {
     let machine = machine_file::load(&args.machine)?.machine;
     let mut model = Evaluator::load(&args.model, &machine)?;
-    let cycles = model.load_run(&args.run, &machine)?;
+    let mut runs = model.load_runs(&args.run, &machine, &args.shape, args.time.as_deref())?;
+    if runs.len() != 1 {
+        let names: Vec<&str> = runs.iter().map(|r| r.0.as_str()).collect();
+        return Err(CliError::refused(format!(
+            "{}: export takes one run; the file holds {}: {}",
+            args.run.display(),
+            runs.len(),
+            names.join(", ")
+        )));
+    }
+    let cycles = runs.remove(0).1;
     let (k, error_now) = moment(&mut model, &cycles, &machine, args.at_s)?;
     let now = positions_now(&machine, &cycles, k);
     let header = vec![

@@ -114,7 +114,13 @@ struct Table {
 /// error names its line and character column), every row as wide as the header.
 fn read_csv(path: &Path) -> Result<Table, CliError> {
     use truepos_io::table::{self, Number};
-    let t = table::load_csv(path, table::CsvOptions { comments: true })?;
+    let t = table::load_csv(
+        path,
+        table::CsvOptions {
+            comments: true,
+            ..Default::default()
+        },
+    )?;
     if t.columns.is_empty() {
         return Err(InputError::file(path, "empty file; expected a header and rows").into());
     }

@@ -17,6 +17,7 @@ mod fit_report;
 mod kin;
 mod report;
 mod run;
+mod shape;
 mod sim;
 mod update_period;
 mod volume_map;

@@ -219,7 +219,13 @@ pub fn predictions_csv(dataset: &Dataset, outcome: &Outcome) -> String {
         for i in 0..run.len() {
             out += &format!("{name},{},{}", run.time_s[i], outcome.held_out[r][i]);
             for (k, measured) in rel.iter().enumerate() {
-                out += &format!(",{},{}", measured[i], outcome.predictions[r][k][i]);
+                // A row without a measurement has an empty measured cell, not "NaN".
+                let m = if measured[i].is_nan() {
+                    String::new()
+                } else {
+                    measured[i].to_string()
+                };
+                out += &format!(",{m},{}", outcome.predictions[r][k][i]);
             }
             out.push('\n');
         }

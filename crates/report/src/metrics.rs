@@ -5,9 +5,15 @@ use std::ops::Range;
 use crate::{Channel, Metrics};
 
 /// Metrics of a channel over `range` (NaN samples skipped). The uncompensated error is taken
-/// relative to the first sample of the run, as a machine is zeroed when it starts.
+/// relative to the first measured sample of the run, as a machine is zeroed when it starts
+/// (with sparse measurements the first rows may have none).
 pub fn channel_metrics(ch: &Channel, range: Range<usize>) -> Metrics {
-    let first = ch.measured.first().copied().unwrap_or(0.0);
+    let first = ch
+        .measured
+        .iter()
+        .copied()
+        .find(|m| m.is_finite())
+        .unwrap_or(0.0);
     let (mut se, mut su, mut n) = (0.0, 0.0, 0usize);
     let (mut max_abs, mut lo, mut hi) = (0.0_f64, f64::INFINITY, f64::NEG_INFINITY);
     for i in range.clone() {
