@@ -8,6 +8,7 @@
 //! axis X linear -1000 1000               # set-point order; travel in mm / degrees
 //! axis A rotary -110 110                 # (travel may be left out when a machine file is given)
 //! table F_A_X axis=A unit=um file=tables/F_A_X.csv        # format=csv|linuxcnc-0|linuxcnc-1|siemens
+//! table E_X_Z axis=X unit=um file=tables/cec.ini format=siemens siemens-axis=AX1 siemens-table=2
 //! table F_A_B axis=A unit=urad file=tables/F_A_B.csv interpolation=monotone
 //! # Nr  Key       Axis  Delta      KompFile
 //!   0   Trans     Z     -L-150     -        # tool length L enters here
@@ -27,7 +28,7 @@ use truepos_kinematics::table::{CompTable, Interpolation, Wrap};
 use truepos_kinematics::{Chain, Dof, ErrorTable, ErrorUnit, KinAxis, Row};
 use truepos_model::{AxisKind, Machine};
 
-use crate::comp_table::{parse_csv, parse_linuxcnc, parse_siemens, LinuxCncType};
+use crate::comp_table::{parse_csv, parse_linuxcnc, parse_siemens, select_siemens, LinuxCncType};
 use crate::error::{read_text, InputError};
 
 /// A loaded kinematics table.
@@ -258,6 +259,8 @@ impl Draft<'_> {
             file,
             format,
             interp,
+            siemens_axis,
+            siemens_table,
         } = table_options(line, &self.axes)?;
         let (Some(axis), Some(unit), Some((file_field, file))) = (axis, unit, file) else {
             return Err(line.at(nf, "table", "expected axis=…, unit=… and file=…".into()));
@@ -272,7 +275,18 @@ impl Draft<'_> {
         let table_path: PathBuf = self.dir.join(file);
         let table_text = read_text(&table_path)
             .map_err(|e| line.at(file_field, "file", format!("table `{}`: {}", nf.text, e)))?;
-        let built = read_table(&table_path, &table_text, format, wrap, interp)?;
+        if format != "siemens" && (siemens_axis.is_some() || siemens_table.is_some()) {
+            return Err(line.at(
+                nf,
+                "format",
+                "siemens-axis= and siemens-table= need format=siemens".into(),
+            ));
+        }
+        let pick = SiemensPick {
+            axis: siemens_axis.unwrap_or(&self.axes[axis].name),
+            number: siemens_table,
+        };
+        let built = read_table(&table_path, &table_text, format, wrap, interp, pick)?;
         if built.wrap() != wrap {
             return Err(line.at(
                 nf,
@@ -585,6 +599,11 @@ struct TableOptions<'l, 'a> {
     file: Option<(&'l Field<'a>, &'a str)>,
     format: &'a str,
     interp: Interpolation,
+    /// `siemens-axis=`: the control's name of the row's axis (`AX2`), which a Siemens table
+    /// must read; default the axis' name here.
+    siemens_axis: Option<&'a str>,
+    /// `siemens-table=`: the number of the `$AN_CEC` table to use.
+    siemens_table: Option<u32>,
 }
 
 /// Reads the options of a `table` line: `axis` names a declared axis, `unit`, `format` and
@@ -599,6 +618,8 @@ fn table_options<'l, 'a>(
         file: None,
         format: "csv",
         interp: Interpolation::Linear,
+        siemens_axis: None,
+        siemens_table: None,
     };
     for kv in &line.f[2..] {
         let Some((k, v)) = kv.text.split_once('=') else {
@@ -639,6 +660,16 @@ fn table_options<'l, 'a>(
                 }
                 o.format = v;
             }
+            "siemens-axis" => o.siemens_axis = Some(v),
+            "siemens-table" => {
+                o.siemens_table = Some(v.parse().map_err(|_| {
+                    line.at(
+                        kv,
+                        "siemens-table",
+                        format!("expected the number of an $AN_CEC table, got `{v}`"),
+                    )
+                })?)
+            }
             "interpolation" => {
                 o.interp = match v {
                     "linear" => Interpolation::Linear,
@@ -657,7 +688,7 @@ fn table_options<'l, 'a>(
                     kv,
                     k,
                     format!(
-                        "unknown key `{k}`; expected axis, unit, file, format or interpolation"
+                        "unknown key `{k}`; expected axis, unit, file, format, interpolation, siemens-axis or siemens-table"
                     ),
                 ))
             }
@@ -666,14 +697,24 @@ fn table_options<'l, 'a>(
     Ok(o)
 }
 
-/// The compensation table in `table_text`, read in `format` (a checked `format=` value). A
-/// Siemens file must hold exactly one table, since a row references one.
+/// Which table of a Siemens file a `table` line means.
+struct SiemensPick<'a> {
+    /// The control's name of the axis the table must read.
+    axis: &'a str,
+    /// `siemens-table=`.
+    number: Option<u32>,
+}
+
+/// The compensation table in `table_text`, read in `format` (a checked `format=` value). Of a
+/// Siemens file, the table (or the `_DIRECTION` 1/−1 pair) that reads the row's axis
+/// ([`select_siemens`]): a table declared for another input axis is never applied.
 fn read_table(
     table_path: &Path,
     table_text: &str,
     format: &str,
     wrap: Wrap,
     interp: Interpolation,
+    pick: SiemensPick<'_>,
 ) -> Result<CompTable, InputError> {
     Ok(match format {
         "csv" => parse_csv(table_path, table_text, wrap, interp)?,
@@ -686,17 +727,8 @@ fn read_table(
             parse_linuxcnc(table_path, table_text, ty)?.to_table(interp)?
         }
         _ => {
-            let mut all = parse_siemens(table_path, table_text, None)?;
-            if all.len() != 1 {
-                return Err(InputError::file(
-                    table_path,
-                    format!(
-                        "{} tables; a kinematics row references exactly one",
-                        all.len()
-                    ),
-                ));
-            }
-            all.remove(0).to_table(interp)?
+            let all = parse_siemens(table_path, table_text, None)?;
+            select_siemens(table_path, &all, Some(pick.axis), pick.number, interp)?
         }
     })
 }

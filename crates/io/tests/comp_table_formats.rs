@@ -260,3 +260,177 @@ fn conversion_errors_name_the_line_and_the_table() {
     let e = SiemensTable::directional_pair(&t, 3, "AX1", "AX1").unwrap_err();
     assert_eq!(e, ExportError::OneDirection);
 }
+
+/// Two sag/cross tables in one file, in the manual's syntax (axes in parentheses), each with
+/// its own metadata: table 1 reads AX2 and corrects AX3, table 2 reads AX1 and corrects AX1.
+const TWO_CEC: &str = "\
+%_N_NC_CEC_INI
+CHANDATA(1)
+$AN_CEC[1,0]=0
+$AN_CEC[1,1]=0.004
+$AN_CEC[1,2]=0.002
+$AN_CEC_INPUT_AXIS[1]=(AX2)
+$AN_CEC_OUTPUT_AXIS[1]=(AX3)
+$AN_CEC_STEP[1]=100
+$AN_CEC_MIN[1]=0
+$AN_CEC_MAX[1]=200
+$AN_CEC_DIRECTION[1]=0
+$AN_CEC_MULT_BY_TABLE[1]=0
+$AN_CEC_IS_MODULO[1]=0
+$AN_CEC[2,0]=-0.001
+$AN_CEC[2,1]=0.001
+$AN_CEC_INPUT_AXIS[2]=( AX1 )
+$AN_CEC_OUTPUT_AXIS[2]=AX1
+$AN_CEC_STEP[2]=400
+$AN_CEC_MIN[2]=0
+$AN_CEC_MAX[2]=400
+M17
+";
+
+#[test]
+fn siemens_manual_syntax_and_two_tables_with_their_own_axes() {
+    let tables = parse_siemens(p(), TWO_CEC, None).unwrap();
+    assert_eq!(tables.len(), 2);
+    assert_eq!(tables[0].kind, SiemensKind::Cec { table: 1 });
+    assert_eq!(tables[0].input_axis.as_deref(), Some("AX2"));
+    assert_eq!(tables[0].output_axis.as_deref(), Some("AX3"));
+    assert_eq!(tables[0].values, vec![0.0, 0.004, 0.002]);
+    assert_eq!(tables[1].input_axis.as_deref(), Some("AX1"));
+    assert_eq!(tables[1].output_axis.as_deref(), Some("AX1"));
+    assert_eq!(
+        (tables[1].min, tables[1].max, tables[1].step),
+        (0.0, 400.0, 400.0)
+    );
+    // Written back in the manual's syntax, read back the same.
+    let text = write_siemens(&tables);
+    assert!(text.contains("$AN_CEC_INPUT_AXIS[1]=(AX2)\n"), "{text}");
+    assert_eq!(parse_siemens(p(), &text, None).unwrap(), tables);
+    // A bare name reads the same as the parenthesised one.
+    let bare = TWO_CEC.replace("=(AX2)", "=AX2");
+    assert_eq!(parse_siemens(p(), &bare, None).unwrap(), tables);
+
+    let lin = Interpolation::Linear;
+    // Each axis gets its own table: AX2 reads table 1 (4 µm at 100 mm), AX1 table 2.
+    let t = select_siemens(p(), &tables, Some("AX2"), None, lin).unwrap();
+    assert!((t.value(100.0, Direction::Forward) - 4.0).abs() < 1e-9);
+    let t = select_siemens(p(), &tables, Some("AX1"), None, lin).unwrap();
+    assert!((t.value(200.0, Direction::Forward) - 0.0).abs() < 1e-9);
+    // A table declared for AX2 is never applied to another axis: chosen by number for AX1,
+    // it is refused at its first support point's line, naming both axes.
+    let e = select_siemens(p(), &tables, Some("AX1"), Some(1), lin).unwrap_err();
+    assert_eq!(e.position, Some((3, 1)));
+    assert_eq!(e.key.as_deref(), Some("$AN_CEC[1,…]"));
+    assert!(e.to_string().contains("input axis AX2, not AX1"), "{e}");
+    // No table reads X: refused, listing what the file holds.
+    let e = select_siemens(p(), &tables, Some("X"), None, lin).unwrap_err();
+    assert!(e.to_string().contains("no table reads axis X"), "{e}");
+    assert!(
+        e.to_string()
+            .contains("$AN_CEC[1,…] (input AX2, output AX3"),
+        "{e}"
+    );
+    // Without an axis, two unrelated tables are ambiguous; a number chooses.
+    let e = select_siemens(p(), &tables, None, None, lin).unwrap_err();
+    assert!(e.to_string().contains("2 tables apply"), "{e}");
+    assert!(select_siemens(p(), &tables, None, Some(2), lin).is_ok());
+    let e = select_siemens(p(), &tables, None, Some(7), lin).unwrap_err();
+    assert!(e.to_string().contains("no $AN_CEC table 7"), "{e}");
+}
+
+#[test]
+fn siemens_directions_and_products() {
+    let lin = Interpolation::Linear;
+    // A table for one direction only corrects that direction: zero the other way.
+    let one = TWO_CEC.replace("$AN_CEC_DIRECTION[1]=0", "$AN_CEC_DIRECTION[1]=-1");
+    let tables = parse_siemens(p(), &one, None).unwrap();
+    let t = select_siemens(p(), &tables, Some("AX2"), None, lin).unwrap();
+    assert_eq!(t.value(100.0, Direction::Forward), 0.0);
+    assert!((t.value(100.0, Direction::Reverse) - 4.0).abs() < 1e-9);
+    // A pair with _DIRECTION 1 and -1 for the same axes is one directional table.
+    let pair = CompTable::directional(
+        vec![0.0, 50.0, 100.0],
+        vec![1.0, 2.0, 3.0],
+        vec![-1.0, -2.0, -3.0],
+        Wrap::Hold,
+        lin,
+    )
+    .unwrap();
+    let mut all = SiemensTable::directional_pair(&pair, 5, "AX1", "AX1")
+        .unwrap()
+        .to_vec();
+    all.extend(parse_siemens(p(), TWO_CEC, None).unwrap());
+    let text = write_siemens(&all);
+    let back = parse_siemens(p(), &text, None).unwrap();
+    // Read in table order: 1, 2, then the pair 5, 6.
+    let t = select_siemens(p(), &back[2..], Some("AX1"), None, lin).unwrap();
+    assert!((t.value(50.0, Direction::Reverse) + 2.0).abs() < 1e-9);
+    // Among four tables, AX1 has the pair and table 2: ambiguous, a number picks one.
+    let e = select_siemens(p(), &back, Some("AX1"), None, lin).unwrap_err();
+    assert!(e.to_string().contains("3 tables apply"), "{e}");
+    let t = select_siemens(p(), &back, Some("AX1"), Some(5), lin).unwrap();
+    assert_eq!(t.value(50.0, Direction::Reverse), 0.0);
+    // A table multiplied by another cannot be evaluated alone.
+    let mult = TWO_CEC.replace("$AN_CEC_MULT_BY_TABLE[1]=0", "$AN_CEC_MULT_BY_TABLE[1]=2");
+    let tables = parse_siemens(p(), &mult, None).unwrap();
+    let e = select_siemens(p(), &tables, Some("AX2"), None, lin).unwrap_err();
+    assert!(e.to_string().contains("_MULT_BY_TABLE"), "{e}");
+}
+
+#[test]
+fn siemens_malformed_axes_are_located() {
+    let bad = TWO_CEC.replace("=(AX2)", "=(AX2");
+    let e = parse_siemens(p(), &bad, None).unwrap_err();
+    assert_eq!(e.position, Some((6, 1)));
+    assert!(e.to_string().contains("closing parenthesis"), "{e}");
+    let bad = TWO_CEC.replace("=(AX2)", "=()");
+    let e = parse_siemens(p(), &bad, None).unwrap_err();
+    assert_eq!(e.position, Some((6, 1)));
+    assert!(e.to_string().contains("expected an axis name"), "{e}");
+    // An axis the machine does not have, in parentheses.
+    let e = parse_siemens(p(), TWO_CEC, Some(&["AX1", "AX2"])).unwrap_err();
+    assert_eq!(e.position, Some((7, 1)));
+    assert!(e.to_string().contains("unknown axis `AX3`"), "{e}");
+}
+
+fn mutate(text: &str, at: usize, with: char, delete: bool) -> String {
+    let mut chars: Vec<char> = text.chars().collect();
+    let i = at % chars.len();
+    if delete {
+        chars.remove(i);
+    } else {
+        chars[i] = with;
+    }
+    chars.into_iter().collect()
+}
+
+proptest! {
+    /// Whatever one-character change a file gets, reading it and choosing a table return a
+    /// value or a located error; never a panic, never a non-finite value.
+    #[test]
+    fn siemens_and_linuxcnc_mutations_never_panic(
+        at in 0usize..10_000,
+        with in prop::sample::select(vec!['(', ')', '=', ',', '[', ']', '-', '1', '9', 'X', ' ', ';', '\n', 'e', '.']),
+        delete in any::<bool>(),
+        axis in prop::sample::select(vec![None, Some("AX1"), Some("AX2"), Some("X")]),
+        number in prop::option::of(0u32..4),
+    ) {
+        let text = mutate(TWO_CEC, at, with, delete);
+        if let Ok(tables) = parse_siemens(p(), &text, None) {
+            if let Ok(t) = select_siemens(p(), &tables, axis, number, Interpolation::Linear) {
+                for x in [-10.0, 0.0, 55.5, 400.0, 1e9] {
+                    prop_assert!(t.value(x, Direction::Forward).is_finite());
+                    prop_assert!(t.value(x, Direction::Reverse).is_finite());
+                }
+            }
+        } else {
+            let e = parse_siemens(p(), &text, None).unwrap_err();
+            prop_assert!(e.file == p());
+        }
+        let comp = "0 0.002 -0.004\n40 40.0035 39.9975\n100 100.00725 100.00125\n";
+        for ty in [LinuxCncType::Positions, LinuxCncType::Trims] {
+            if let Ok(c) = parse_linuxcnc(p(), &mutate(comp, at, with, delete), ty) {
+                let _ = c.to_table(Interpolation::Linear);
+            }
+        }
+    }
+}

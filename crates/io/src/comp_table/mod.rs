@@ -34,7 +34,7 @@ mod linuxcnc;
 mod siemens;
 
 pub use linuxcnc::{parse_linuxcnc, LinuxCncComp, LinuxCncType, LINUXCNC_MAX_ROWS};
-pub use siemens::{parse_siemens, write_siemens, SiemensKind, SiemensTable};
+pub use siemens::{parse_siemens, select_siemens, write_siemens, SiemensKind, SiemensTable};
 
 /// Where a controller's table was read from: its file and the line of each support point, so
 /// that turning it into a [`CompTable`] names the line of a support point that does not make

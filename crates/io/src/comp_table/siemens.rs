@@ -206,6 +206,140 @@ impl SiemensTable {
     }
 }
 
+impl SiemensTable {
+    /// The axis whose position reads the table: `_INPUT_AXIS` of a CEC table, the axis of an
+    /// encoder table.
+    pub fn reading_axis(&self) -> Option<&str> {
+        match &self.kind {
+            SiemensKind::Encoder { axis, .. } => Some(axis),
+            SiemensKind::Cec { .. } => self.input_axis.as_deref(),
+        }
+    }
+
+    /// `$AN_CEC[3,…] (input AX2, output AX3, direction 1)`: the table and its metadata.
+    fn describe(&self) -> String {
+        match &self.kind {
+            SiemensKind::Encoder { .. } => self.kind.key(),
+            SiemensKind::Cec { .. } => format!(
+                "{} (input {}, output {}, direction {})",
+                self.kind.key(),
+                self.input_axis.as_deref().unwrap_or("?"),
+                self.output_axis.as_deref().unwrap_or("?"),
+                self.direction.unwrap_or(0)
+            ),
+        }
+    }
+
+    /// One table as a [`CompTable`] in µm, its `_DIRECTION` kept: a CEC table with
+    /// `_DIRECTION` 1 (−1) corrects only while the input axis moves towards larger (smaller)
+    /// positions, so it becomes a directional table that is zero the other way.
+    fn single_to_table(&self, interpolation: Interpolation) -> Result<CompTable, InputError> {
+        let t = self.to_table(interpolation)?;
+        let zero = vec![0.0; t.forward().len()];
+        let (f, r) = match self.direction {
+            Some(1) => (t.forward().to_vec(), zero),
+            Some(-1) => (zero, t.forward().to_vec()),
+            _ => return Ok(t),
+        };
+        CompTable::directional(t.positions().to_vec(), f, r, t.wrap(), interpolation)
+            .map_err(|e| self.origin.table_error(&self.kind.key(), e))
+    }
+}
+
+/// The compensation table for `axis` (the control's name of the axis whose position reads it)
+/// among the `tables` of one Siemens file, optionally only CEC table `number`: the one table
+/// that reads `axis`, or the two CEC tables with `_DIRECTION` 1 and −1 that read it and
+/// correct the same output axis (one directional table). A table declared for another input
+/// axis is never applied to `axis`; a table multiplied by another (`_MULT_BY_TABLE`) is
+/// refused, since its value depends on that table too. Errors name the file and the table.
+pub fn select_siemens(
+    path: &Path,
+    tables: &[SiemensTable],
+    axis: Option<&str>,
+    number: Option<u32>,
+    interpolation: Interpolation,
+) -> Result<CompTable, InputError> {
+    let list = || {
+        tables
+            .iter()
+            .map(SiemensTable::describe)
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    let numbered: Vec<&SiemensTable> = match number {
+        None => tables.iter().collect(),
+        Some(n) => {
+            let t = tables
+                .iter()
+                .find(|t| t.kind == SiemensKind::Cec { table: n })
+                .ok_or_else(|| {
+                    InputError::file(
+                        path,
+                        format!("no $AN_CEC table {n}; the file holds {}", list()),
+                    )
+                })?;
+            vec![t]
+        }
+    };
+    let chosen: Vec<&SiemensTable> = match axis {
+        None => numbered,
+        Some(a) => {
+            if let [t] = numbered.as_slice() {
+                if t.reading_axis() != Some(a) {
+                    return Err(t.origin.error(
+                        &t.kind.key(),
+                        format!(
+                            "{} is declared for input axis {}, not {a}; expected a table that reads {a} (give the control's name of the axis if it differs)",
+                            t.kind.key(),
+                            t.reading_axis().unwrap_or("?")
+                        ),
+                    ));
+                }
+            }
+            numbered
+                .into_iter()
+                .filter(|t| t.reading_axis() == Some(a))
+                .collect()
+        }
+    };
+    if let Some(t) = chosen.iter().find(|t| t.mult_by_table.unwrap_or(0) != 0) {
+        return Err(t.origin.error(
+            &t.kind.key(),
+            format!(
+                "{} is multiplied by table {} (_MULT_BY_TABLE); expected 0, a table truepos can evaluate on its own",
+                t.kind.key(),
+                t.mult_by_table.unwrap_or(0)
+            ),
+        ));
+    }
+    match chosen.as_slice() {
+        [t] => t.single_to_table(interpolation),
+        [a, b]
+            if matches!((a.direction, b.direction), (Some(1), Some(-1)) | (Some(-1), Some(1)))
+                && a.input_axis == b.input_axis
+                && a.output_axis == b.output_axis =>
+        {
+            SiemensTable::pair_to_table(a, b, interpolation)
+        }
+        [] => Err(InputError::file(
+            path,
+            format!(
+                "no table reads axis {}; the file holds {} (give the control's name of the axis if it differs)",
+                axis.unwrap_or("?"),
+                list()
+            ),
+        )),
+        many => Err(InputError::file(
+            path,
+            format!(
+                "{} tables apply: {}; expected one, or two $AN_CEC tables with _DIRECTION 1 and -1 (choose the table by its number)",
+                many.len(),
+                many.iter().map(|t| t.describe()).collect::<Vec<_>>().join(", ")
+            ),
+        )),
+    }
+}
+
 /// Writes Siemens tables as one INI part program.
 pub fn write_siemens(tables: &[SiemensTable]) -> String {
     let mut out = String::from("%_N_COMP_INI\nCHANDATA(1)\n");
@@ -228,11 +362,12 @@ pub fn write_siemens(tables: &[SiemensTable]) -> String {
                 for (n, v) in t.values.iter().enumerate() {
                     let _ = writeln!(out, "$AN_CEC[{table},{n}]={v}");
                 }
+                // The manual's form, the axis in parentheses.
                 if let Some(a) = &t.input_axis {
-                    let _ = writeln!(out, "$AN_CEC_INPUT_AXIS[{table}]={a}");
+                    let _ = writeln!(out, "$AN_CEC_INPUT_AXIS[{table}]=({a})");
                 }
                 if let Some(a) = &t.output_axis {
-                    let _ = writeln!(out, "$AN_CEC_OUTPUT_AXIS[{table}]={a}");
+                    let _ = writeln!(out, "$AN_CEC_OUTPUT_AXIS[{table}]=({a})");
                 }
                 let _ = writeln!(out, "$AN_CEC_STEP[{table}]={}", t.step);
                 let _ = writeln!(out, "$AN_CEC_MIN[{table}]={}", t.min);
@@ -483,7 +618,17 @@ impl Assignment<'_> {
                 }
             }
             "_INPUT_AXIS" | "_OUTPUT_AXIS" if cec => {
-                let a = self.axis(rhs)?;
+                // The function manual (K3, "Sag compensation") writes the axis in parentheses,
+                // `$AN_CEC_INPUT_AXIS[0]=(AX1)`; a bare name is read the same.
+                let name = match rhs.strip_prefix('(') {
+                    Some(inner) => inner.strip_suffix(')').map(str::trim).ok_or_else(|| {
+                        self.bad(format!(
+                            "expected `(AXIS)` with a closing parenthesis, got `{rhs}`"
+                        ))
+                    })?,
+                    None => rhs,
+                };
+                let a = self.axis(name)?;
                 let slot = if field == "_INPUT_AXIS" {
                     &mut p.input_axis
                 } else {
