@@ -39,6 +39,9 @@ for attempt in 1 2 3; do
 done
 [ "$e2e_ok" = 1 ] || { echo "linuxcnc_e2e: FAIL"; exit 1; }
 
+echo "== LinuxCNC COMP_FILE types 0 and 1: truepos-written tables loaded into LinuxCNC itself"
+bash scripts/linuxcnc_comp.sh
+
 echo "== FL_THERMAL benchmark (real measured run; prints its figures)"
 bash scripts/fl_thermal_bench.sh
 echo "== FL_THERMAL benchmark, rolling-origin selection (docs/fitting.md: why it is not the default)"

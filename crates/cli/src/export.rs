@@ -189,7 +189,7 @@ fn positions_now(machine: &Machine, run: &Cycles, k: usize) -> Vec<f64> {
         .collect()
 }
 
-fn write_whole(path: &Path, text: &str) -> Result<(), CliError> {
+pub(crate) fn write_whole(path: &Path, text: &str) -> Result<(), CliError> {
     let mut tmp = path.as_os_str().to_owned();
     tmp.push(".partial");
     let tmp = PathBuf::from(tmp);

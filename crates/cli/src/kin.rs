@@ -7,6 +7,8 @@
 //! * `kin gcode`: compensates a G-code program through LinuxCNC's interpreter (`truepos_gcode`):
 //!   the real tool lands where the nominal machine would put it; a refused program leaves no
 //!   output.
+//! * `kin table`: converts a compensation table between formats and evaluates it
+//!   (`kin/table.rs`).
 //! * `kin chain`: the resolved chain as JSON (used by `scripts/kdl_compare.py`).
 
 use std::fmt::Write as _;
@@ -20,6 +22,7 @@ use truepos_kinematics::{Chain, Directions, Geometry, KinError, Pose, Row};
 use truepos_model::AxisKind;
 
 mod gcode;
+mod table;
 
 /// Arguments of `truepos kin`.
 #[derive(clap::Args)]
@@ -62,6 +65,9 @@ enum KinCommand {
     Inv(Common),
     /// Compensate a G-code program through LinuxCNC's interpreter (rs274) into G53 blocks.
     Gcode(gcode::GcodeArgs),
+    /// Convert a compensation table between formats (CSV, LinuxCNC COMP_FILE 0/1, Siemens
+    /// $AA_ENC_COMP/$AN_CEC) and evaluate it at given positions.
+    Table(table::TableArgs),
     /// Print the resolved chain (rows, axes) as JSON.
     Chain {
         /// The kinematics table file.
@@ -78,6 +84,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
         KinCommand::Fwd(c) => fwd(&c),
         KinCommand::Inv(c) => inv(&c),
         KinCommand::Gcode(a) => gcode::gcode(&a),
+        KinCommand::Table(a) => table::table(&a),
         KinCommand::Chain {
             kinematics,
             machine,

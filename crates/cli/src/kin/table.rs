@@ -1,0 +1,235 @@
+//! `truepos kin table`: converts a compensation table between truepos' CSV, LinuxCNC
+//! `COMP_FILE` types 0 and 1 and Siemens `$AA_ENC_COMP` / `$AN_CEC` part programs, and
+//! evaluates it at given positions and directions of travel (what the check against LinuxCNC,
+//! `scripts/linuxcnc_comp.sh`, compares with the running control).
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use crate::error::CliError;
+use truepos_io::comp_table::{
+    parse_csv, parse_linuxcnc, parse_siemens, select_siemens, write_csv, write_siemens,
+    LinuxCncComp, LinuxCncType, SiemensKind, SiemensTable,
+};
+use truepos_io::InputError;
+use truepos_kinematics::table::{CompTable, Direction, Interpolation, Wrap};
+
+/// Formats a table is read from.
+#[derive(Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum From {
+    /// truepos' CSV (`position,value` or `position,forward,reverse`, µm).
+    Csv,
+    /// LinuxCNC `COMP_FILE_TYPE = 0` (actual positions, mm).
+    Linuxcnc0,
+    /// LinuxCNC `COMP_FILE_TYPE = 1` (trims = nominal − actual, mm).
+    Linuxcnc1,
+    /// Siemens INI part program (`$AA_ENC_COMP`, `$AN_CEC`, mm).
+    Siemens,
+}
+
+/// Formats a table is written in.
+#[derive(Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum To {
+    /// truepos' CSV.
+    Csv,
+    /// LinuxCNC `COMP_FILE_TYPE = 0`.
+    Linuxcnc0,
+    /// LinuxCNC `COMP_FILE_TYPE = 1`.
+    Linuxcnc1,
+    /// Siemens leadscrew table `$AA_ENC_COMP` (one direction only).
+    SiemensEnc,
+    /// Siemens sag/cross table(s) `$AN_CEC` (a directional table as two, `_DIRECTION` 1/−1).
+    SiemensCec,
+}
+
+/// Arguments of `truepos kin table`.
+#[derive(clap::Args)]
+pub struct TableArgs {
+    /// The table file.
+    #[arg(long)]
+    input: PathBuf,
+    /// Its format.
+    #[arg(long, value_enum)]
+    from: From,
+    /// A CSV table of a rotary axis (periodic over 360°); other formats say it themselves.
+    #[arg(long)]
+    rotary: bool,
+    /// Interpolate with a monotone cubic instead of linearly (LinuxCNC and Siemens interpolate
+    /// linearly).
+    #[arg(long)]
+    monotone: bool,
+    /// Siemens: the control's name of the axis (`AX1`, `X1`). Reading: the table must read this
+    /// axis (`_INPUT_AXIS` of a CEC table); writing: the axis of the table (required).
+    #[arg(long)]
+    siemens_axis: Option<String>,
+    /// Siemens CEC writing: the axis the value corrects (`_OUTPUT_AXIS`; default
+    /// `--siemens-axis`).
+    #[arg(long)]
+    siemens_output_axis: Option<String>,
+    /// Siemens: reading, the number of the `$AN_CEC` table to use; writing, the (first) table
+    /// number (default 1) or the encoder (default 0) of `$AA_ENC_COMP`.
+    #[arg(long)]
+    siemens_table: Option<u32>,
+    /// The format to write (with `--out`).
+    #[arg(long, value_enum, requires = "out")]
+    to: Option<To>,
+    /// The file to write: written whole or not at all.
+    #[arg(long, requires = "to")]
+    out: Option<PathBuf>,
+    /// Evaluate the table at the rows of this CSV (`position,direction`, direction 1 forward
+    /// or −1 reverse): prints `position,direction,error_um,compensation_um` (compensation =
+    /// −error, what a control adds to the command).
+    #[arg(long)]
+    eval: Option<PathBuf>,
+}
+
+pub fn table(a: &TableArgs) -> Result<(), CliError> {
+    if a.to.is_none() && a.eval.is_none() {
+        return Err(CliError::refused(
+            "nothing to do: give --to FORMAT --out FILE, --eval POSITIONS.csv or both",
+        ));
+    }
+    let t = read(a)?;
+    if let (Some(to), Some(out)) = (a.to, &a.out) {
+        let text = write(a, &t, to).map_err(CliError::context(format!(
+            "{}: cannot write the table in this format: ",
+            out.display()
+        )))?;
+        crate::export::write_whole(out, &text)?;
+        eprintln!(
+            "wrote {} support points ({}) to {}",
+            t.positions().len(),
+            if t.reverse().is_some() {
+                "directional"
+            } else {
+                "one direction"
+            },
+            out.display()
+        );
+    }
+    if let Some(eval) = &a.eval {
+        print!("{}", evaluate(&t, eval)?);
+    }
+    Ok(())
+}
+
+fn read(a: &TableArgs) -> Result<CompTable, CliError> {
+    let path = &a.input;
+    let text = std::fs::read_to_string(path).map_err(CliError::file(path, Some("cannot read")))?;
+    let interp = if a.monotone {
+        Interpolation::MonotoneCubic
+    } else {
+        Interpolation::Linear
+    };
+    let siemens_only = a.siemens_table.is_some() || a.siemens_axis.is_some();
+    if a.from != From::Siemens
+        && siemens_only
+        && a.to
+            .is_none_or(|t| !matches!(t, To::SiemensCec | To::SiemensEnc))
+    {
+        return Err(CliError::refused(
+            "--siemens-axis and --siemens-table are for Siemens tables (--from siemens or --to siemens-…)",
+        ));
+    }
+    Ok(match a.from {
+        From::Csv => {
+            let wrap = if a.rotary { Wrap::Rotary } else { Wrap::Hold };
+            parse_csv(path, &text, wrap, interp)?
+        }
+        From::Linuxcnc0 | From::Linuxcnc1 => {
+            let ty = if a.from == From::Linuxcnc0 {
+                LinuxCncType::Positions
+            } else {
+                LinuxCncType::Trims
+            };
+            parse_linuxcnc(path, &text, ty)?.to_table(interp)?
+        }
+        From::Siemens => {
+            let all = parse_siemens(path, &text, None)?;
+            select_siemens(
+                path,
+                &all,
+                a.siemens_axis.as_deref(),
+                a.siemens_table,
+                interp,
+            )?
+        }
+    })
+}
+
+fn write(a: &TableArgs, t: &CompTable, to: To) -> Result<String, CliError> {
+    let axis = || {
+        a.siemens_axis
+            .clone()
+            .ok_or_else(|| CliError::refused("a Siemens table needs --siemens-axis"))
+    };
+    Ok(match to {
+        To::Csv => write_csv(t),
+        To::Linuxcnc0 | To::Linuxcnc1 => {
+            let ty = if to == To::Linuxcnc0 {
+                LinuxCncType::Positions
+            } else {
+                LinuxCncType::Trims
+            };
+            LinuxCncComp::from_table(t, ty)
+                .map_err(|e| CliError::refused(e.to_string()))?
+                .write()
+        }
+        To::SiemensEnc => {
+            let kind = SiemensKind::Encoder {
+                encoder: a.siemens_table.unwrap_or(0),
+                axis: axis()?,
+            };
+            let s =
+                SiemensTable::from_table(t, kind).map_err(|e| CliError::refused(e.to_string()))?;
+            write_siemens(&[s])
+        }
+        To::SiemensCec => {
+            let input = axis()?;
+            let output = a
+                .siemens_output_axis
+                .clone()
+                .unwrap_or_else(|| input.clone());
+            let first = a.siemens_table.unwrap_or(1);
+            let tables = if t.reverse().is_some() {
+                SiemensTable::directional_pair(t, first, &input, &output)
+                    .map_err(|e| CliError::refused(e.to_string()))?
+                    .to_vec()
+            } else {
+                let mut s = SiemensTable::from_table(t, SiemensKind::Cec { table: first })
+                    .map_err(|e| CliError::refused(e.to_string()))?;
+                s.input_axis = Some(input);
+                s.output_axis = Some(output);
+                vec![s]
+            };
+            write_siemens(&tables)
+        }
+    })
+}
+
+/// `position,direction,error_um,compensation_um` at each row of `path`.
+fn evaluate(t: &CompTable, path: &Path) -> Result<String, CliError> {
+    let rows = super::read_csv(path)?;
+    let cols = super::columns(path, &rows, &["position", "direction"])?;
+    let mut out = String::from("position,direction,error_um,compensation_um\n");
+    for (line, r) in &rows.rows {
+        let (p, d) = (r[cols[0]], r[cols[1]]);
+        let direction = match d {
+            1.0 => Direction::Forward,
+            -1.0 => Direction::Reverse,
+            _ => {
+                return Err(InputError::at(
+                    path,
+                    *line,
+                    1,
+                    "direction",
+                    format!("expected 1 (forward) or -1 (reverse), got {d}"),
+                )
+                .into())
+            }
+        };
+        let e = t.value(p, direction);
+        let _ = writeln!(out, "{p},{d},{e},{}", -e);
+    }
+    Ok(out)
+}

@@ -1,0 +1,201 @@
+//! `truepos kin table` end to end: every format it writes reads back to the same table (by
+//! `--eval` at points between and beyond the support points), a table a format cannot hold
+//! leaves no file, and the Siemens axis metadata is checked when reading.
+
+use std::path::Path;
+
+mod support;
+use support::{run as truepos, scratch};
+
+/// Equidistant (so Siemens can hold it) and directional: 4 µm of backlash.
+const TABLE: &str = "position,forward,reverse\n0,2,-2\n100,3.5,-0.5\n200,5,1\n300,-1.25,-5.25\n";
+const EVAL: &str = "position,direction\n-10,1\n0,1\n50,1\n50,-1\n150,-1\n299.5,1\n450,-1\n";
+
+fn eval(table: &str, from: &str, extra: &[&str], points: &str) -> Vec<(f64, f64)> {
+    let mut args = vec![
+        "kin", "table", "--input", table, "--from", from, "--eval", points,
+    ];
+    args.extend_from_slice(extra);
+    let (ok, out, err) = truepos(&args);
+    assert!(ok, "{err}");
+    out.lines()
+        .skip(1)
+        .map(|l| {
+            let f: Vec<f64> = l.split(',').map(|x| x.parse().unwrap()).collect();
+            assert_eq!(f[3], -f[2], "compensation = -error");
+            (f[0], f[2])
+        })
+        .collect()
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+#[test]
+fn every_writer_reads_back_the_same_table() {
+    let d = scratch("kin-table");
+    let (csv, points) = (d.join("t.csv"), d.join("eval.csv"));
+    std::fs::write(&csv, TABLE).unwrap();
+    std::fs::write(&points, EVAL).unwrap();
+    let want = eval(s(&csv), "csv", &[], s(&points));
+    // By hand: 2.75 µm at 50 forward, -1.25 in reverse; held beyond the ends.
+    assert_eq!(want[0], (-10.0, 2.0));
+    assert!((want[2].1 - 2.75).abs() < 1e-12 && (want[3].1 + 1.25).abs() < 1e-12);
+    assert_eq!(want[6], (450.0, -5.25));
+    for (to, from, write_extra, read_extra) in [
+        ("csv", "csv", &[][..], &[][..]),
+        ("linuxcnc0", "linuxcnc0", &[], &[]),
+        ("linuxcnc1", "linuxcnc1", &[], &[]),
+        // Two CEC tables (_DIRECTION 1 and -1) that read AX1, read back for AX1.
+        (
+            "siemens-cec",
+            "siemens",
+            &["--siemens-axis", "AX1"],
+            &["--siemens-axis", "AX1"],
+        ),
+    ] {
+        let out = d.join(format!("t.{to}"));
+        let mut args = vec!["kin", "table", "--input", s(&csv), "--from", "csv"];
+        args.extend_from_slice(&["--to", to, "--out", s(&out)]);
+        args.extend_from_slice(write_extra);
+        let (ok, _, err) = truepos(&args);
+        assert!(ok, "{to}: {err}");
+        let got = eval(s(&out), from, read_extra, s(&points));
+        for ((p, a), (_, b)) in want.iter().zip(&got) {
+            assert!((a - b).abs() < 1e-9, "{to} at {p}: {a} vs {b}");
+        }
+    }
+    // The CEC pair read for another axis is refused: it is declared for AX1.
+    let (ok, _, err) = truepos(&[
+        "kin",
+        "table",
+        "--input",
+        s(&d.join("t.siemens-cec")),
+        "--from",
+        "siemens",
+        "--siemens-axis",
+        "AX2",
+        "--eval",
+        s(&points),
+    ]);
+    assert!(!ok);
+    assert!(err.contains("no table reads axis AX2"), "{err}");
+    // One direction fits $AA_ENC_COMP; read back by its axis.
+    let one = d.join("one.csv");
+    std::fs::write(&one, "position,value\n0,1\n50,-1\n100,4\n").unwrap();
+    let enc = d.join("one.ini");
+    let (ok, _, err) = truepos(&[
+        "kin",
+        "table",
+        "--input",
+        s(&one),
+        "--from",
+        "csv",
+        "--to",
+        "siemens-enc",
+        "--siemens-axis",
+        "X1",
+        "--out",
+        s(&enc),
+    ]);
+    assert!(ok, "{err}");
+    assert!(std::fs::read_to_string(&enc)
+        .unwrap()
+        .contains("$AA_ENC_COMP[0,2,X1]=0.004\n"));
+    let got = eval(s(&enc), "siemens", &["--siemens-axis", "X1"], s(&points));
+    assert!((got[2].1 + 1.0).abs() < 1e-9, "{got:?}");
+    let _ = std::fs::remove_dir_all(&d);
+}
+
+#[test]
+fn a_table_the_format_cannot_hold_leaves_no_file() {
+    let d = scratch("kin-table-refused");
+    let csv = d.join("t.csv");
+    std::fs::write(&csv, TABLE).unwrap();
+    // Directional: $AA_ENC_COMP has no direction of travel.
+    let out = d.join("enc.ini");
+    let (ok, _, err) = truepos(&[
+        "kin",
+        "table",
+        "--input",
+        s(&csv),
+        "--from",
+        "csv",
+        "--to",
+        "siemens-enc",
+        "--siemens-axis",
+        "AX1",
+        "--out",
+        s(&out),
+    ]);
+    assert!(!ok);
+    assert!(err.contains("no direction of travel"), "{err}");
+    assert!(!out.exists() && !d.join("enc.ini.partial").exists());
+    // Unequal spacing for Siemens; a Siemens table without its axis.
+    let uneven = d.join("u.csv");
+    std::fs::write(&uneven, "position,value\n0,1\n10,2\n30,3\n").unwrap();
+    let (ok, _, err) = truepos(&[
+        "kin",
+        "table",
+        "--input",
+        s(&uneven),
+        "--from",
+        "csv",
+        "--to",
+        "siemens-cec",
+        "--siemens-axis",
+        "AX1",
+        "--out",
+        s(&out),
+    ]);
+    assert!(!ok && err.contains("equidistant"), "{err}");
+    let (ok, _, err) = truepos(&[
+        "kin",
+        "table",
+        "--input",
+        s(&csv),
+        "--from",
+        "csv",
+        "--to",
+        "siemens-cec",
+        "--out",
+        s(&out),
+    ]);
+    assert!(!ok && err.contains("--siemens-axis"), "{err}");
+    assert!(!out.exists());
+    // A malformed input is located; a bad direction in the points too.
+    std::fs::write(&csv, "position,value\n0,1\n10,x\n").unwrap();
+    let (ok, _, err) = truepos(&[
+        "kin",
+        "table",
+        "--input",
+        s(&csv),
+        "--from",
+        "csv",
+        "--to",
+        "linuxcnc1",
+        "--out",
+        s(&out),
+    ]);
+    assert!(!ok && err.contains("t.csv:3:4"), "{err}");
+    assert!(!out.exists());
+    std::fs::write(&csv, TABLE).unwrap();
+    let points = d.join("p.csv");
+    std::fs::write(&points, "position,direction\n0,1\n5,0\n").unwrap();
+    let (ok, _, err) = truepos(&[
+        "kin",
+        "table",
+        "--input",
+        s(&csv),
+        "--from",
+        "csv",
+        "--eval",
+        s(&points),
+    ]);
+    assert!(
+        !ok && err.contains("p.csv:3:1") && err.contains("expected 1 (forward) or -1"),
+        "{err}"
+    );
+    let _ = std::fs::remove_dir_all(&d);
+}
