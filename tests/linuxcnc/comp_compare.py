@@ -54,7 +54,7 @@ for joint, (fmt, path) in enumerate([("linuxcnc0", "x.type0.comp"), ("linuxcnc1"
           f"cycles between moves; "
           f"max |backlash-corr - truepos| = {corr_dev:.2e} um; max |motor-pos-cmd - pos-cmd - "
           f"truepos| = {applied_dev:.2e} um over {len(settled)} cycles applied in full "
-          f"({len(moving) - len(settled)} slewing after a reversal left out)")
+          f"({len(moving) - len(settled)} slewing a step of the correction left out)")
     if corr_dev > BAR_UM or applied_dev > BAR_UM:
         print(f"comp_compare: FAIL: joint {joint} disagrees with truepos by more than {BAR_UM} um")
         failed = True
