@@ -12,6 +12,7 @@ mod error;
 mod eval;
 mod evaluator;
 mod fit;
+mod fit_machine;
 mod kin;
 mod report;
 mod run;

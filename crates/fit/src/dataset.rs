@@ -79,6 +79,16 @@ impl Run {
         self.time_s.is_empty()
     }
 
+    /// Target `k` as measured (`absolute`) or [relative to the run's first
+    /// sample](Self::relative_target).
+    pub fn target(&self, k: usize, absolute: bool) -> Vec<f64> {
+        if absolute {
+            self.targets[k].clone()
+        } else {
+            self.relative_target(k)
+        }
+    }
+
     /// Target `k` relative to the run's first sample: the displacement since the start, which
     /// is what a model started with the run predicts and what "uncompensated" means.
     pub fn relative_target(&self, k: usize) -> Vec<f64> {

@@ -63,6 +63,7 @@ pub mod dataset;
 pub mod export;
 pub mod features;
 pub mod least_squares;
+pub mod machine_fit;
 pub mod position_model;
 pub mod reidentify;
 pub mod settings;

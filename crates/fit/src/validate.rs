@@ -234,7 +234,7 @@ pub fn predict(dataset: &Dataset, trained: &Trained) -> Result<Predictions, Stri
 }
 
 /// Every row of every run as (run, row), in time order run after run.
-fn all_rows(dataset: &Dataset) -> Vec<(usize, usize)> {
+pub(crate) fn all_rows(dataset: &Dataset) -> Vec<(usize, usize)> {
     dataset
         .runs
         .iter()
@@ -271,7 +271,11 @@ pub fn outcome(
     let rel: Vec<Vec<Vec<f64>>> = dataset
         .runs
         .iter()
-        .map(|r| (0..nt).map(|k| r.relative_target(k)).collect())
+        .map(|r| {
+            (0..nt)
+                .map(|k| r.target(k, settings.absolute_targets))
+                .collect()
+        })
         .collect();
     let mut measured = vec![Vec::new(); nt];
     let mut predicted = vec![Vec::new(); nt];
@@ -339,7 +343,11 @@ pub fn outcome(
             }
         }
     }
-    let per_run = per_run(dataset, &rel, &oof, &fold_of, &choices);
+    let chosen: Vec<Vec<String>> = choices
+        .iter()
+        .map(|c| c.iter().map(|c| c.family.name().to_string()).collect())
+        .collect();
+    let per_run = per_run(dataset, &rel, &oof, &fold_of, &chosen);
     warnings.extend(worse_than_uncompensated(&per_run));
     Ok(Outcome {
         validation: Validation {
@@ -362,16 +370,17 @@ pub fn outcome(
             .collect(),
         fitted,
         training_rows,
+        absolute_targets: settings.absolute_targets,
     })
 }
 
 /// Figures of every run's held-out rows, with the family each fold that held them out chose.
-fn per_run(
+pub(crate) fn per_run(
     dataset: &Dataset,
     rel: &[Vec<Vec<f64>>],
     oof: &Predictions,
     fold_of: &[Vec<Option<usize>>],
-    choices: &[Vec<Choice>],
+    chosen: &[Vec<String>],
 ) -> Vec<RunFigures> {
     let mut out = Vec::new();
     for (r, run) in dataset.runs.iter().enumerate() {
@@ -389,7 +398,7 @@ fn per_run(
                 let p: Vec<f64> = rows.iter().map(|&i| oof[r][k][i]).collect();
                 let mut families: Vec<&str> = Vec::new();
                 for &f in &folds {
-                    let name = choices[f][k].family.name();
+                    let name = chosen[f][k].as_str();
                     if !families.contains(&name) {
                         families.push(name);
                     }
@@ -446,6 +455,9 @@ pub struct Outcome {
     pub fitted: Predictions,
     /// The rows [`Self::trained`] was fitted on, as (run, row).
     pub training_rows: Vec<(usize, usize)>,
+    /// Whether targets were taken as measured rather than relative to each run's first sample
+    /// ([`Settings::absolute_targets`]).
+    pub absolute_targets: bool,
 }
 
 /// Candidate features of the dataset, then [`outcome`]: what `truepos fit` runs.
