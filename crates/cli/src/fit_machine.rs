@@ -105,12 +105,14 @@ pub fn run(mut args: Args) -> Result<(), CliError> {
         None => reference_sensor(&machine),
     };
     let positions: Option<Vec<String>> = match &args.positions {
-        Some(p) if p.0.len() != machine.axes.len() => return Err(CliError::refused(format!(
+        Some(p) if p.0.len() != machine.axes.len() => {
+            return Err(CliError::refused(format!(
             "--positions: expected {} columns (one per axis of machine `{}`, in its order), got {}",
             machine.axes.len(),
             machine.name,
             p.0.len()
-        ))),
+        )))
+        }
         Some(p) => Some(p.0.clone()),
         None => None,
     };
@@ -130,7 +132,7 @@ pub fn run(mut args: Args) -> Result<(), CliError> {
     let outcome = fit_machine(
         &ds,
         &data,
-        &cand,
+        Some(&cand),
         args.split,
         &settings,
         &fixed,

@@ -337,12 +337,12 @@ fn static_selection(
 }
 
 /// Chooses among every family on the training `rows` by inner CV and fits the choice on them:
-/// the dynamic `settings.families` (none when empty; `cand` their candidate features) and the
-/// seed A/C `families`.
+/// the dynamic `settings.families` (none when empty or without `cand`, their candidate
+/// features) and the seed A/C `families`.
 pub fn select(
     ds: &Dataset,
     data: &MachineData,
-    cand: &Candidates,
+    cand: Option<&Candidates>,
     rows: &[(usize, usize)],
     settings: &Settings,
     families: &[Family],
@@ -365,9 +365,7 @@ pub fn select(
         })
         .collect();
     let mut candidates = Vec::new();
-    let dynamic = if settings.families.is_empty() {
-        None
-    } else {
+    let dynamic = if let Some(cand) = cand.filter(|_| !settings.families.is_empty()) {
         let trained = train(ds, cand, rows, settings)?;
         for s in &trained.scores {
             candidates.push(CandidateFigures {
@@ -387,6 +385,8 @@ pub fn select(
             });
         }
         Some(trained)
+    } else {
+        None
     };
     let fixed = static_selection(
         ds,
@@ -534,7 +534,7 @@ fn figures(target: &str, measured: &[f64], predicted: &[f64]) -> (Metrics, usize
 pub fn fit_machine(
     ds: &Dataset,
     data: &MachineData,
-    cand: &Candidates,
+    cand: Option<&Candidates>,
     split: Split,
     settings: &Settings,
     families: &[Family],
