@@ -331,7 +331,7 @@ fn static_selection(
             parts.push(p);
         }
     }
-    let model = Model::new(&format!("{}-fit", machine.name), machine, parts)
+    let model = Model::new(format!("{}-fit", machine.name), machine, parts)
         .map_err(|e| format!("the chosen seed A/C model: {e}"))?;
     Ok(Some(StaticModel { model, choices }))
 }

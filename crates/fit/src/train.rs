@@ -327,14 +327,8 @@ pub fn train(
             settings.folds
         ));
     }
-    let p = Problem::new(
-        dataset,
-        cand,
-        rows,
-        settings.folds,
-        settings.inner,
-        settings.absolute_targets,
-    );
+    let (folds, inner, absolute) = (settings.folds, settings.inner, settings.absolute_targets);
+    let p = Problem::new(dataset, cand, rows, folds, inner, absolute);
     let nt = dataset.target_names.len();
     let all_sensors: Vec<usize> = (0..cand.spec.temperatures).collect();
     let mut sensors = match settings.max_sensors {
