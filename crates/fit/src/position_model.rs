@@ -4,8 +4,10 @@
 //! A [`Family`] fixes which coefficients exist ([`structure`] builds the model with all of them
 //! zero); [`fit_structure`] estimates them by least squares through the model's own regressors
 //! (`Model::regressors`: error = Σ θ·φ), so the fitted model is exactly the model file the
-//! control evaluates. The ridge weight is chosen by blocked time-series cross-validation inside
-//! the observations given (the training part), never on data the caller holds out.
+//! control evaluates. The ridge weight is chosen by time-series cross-validation over contiguous
+//! blocks of the observations given (the training part), never on data the caller holds out
+//! ([`fit_blocks`] with the dynamic families' options; [`crate::machine_fit`] chooses among
+//! families and input sets).
 
 use std::fmt;
 
@@ -389,19 +391,18 @@ fn fit_rows(
             continue;
         }
         held.push(block.len());
-        let triangle = train.finish();
-        for (r, &ridge) in ridges.iter().enumerate() {
-            let mut sum = 0.0;
-            match triangle.solve(&solve(ridge)) {
-                Ok(sol) => {
-                    let theta = &sol.coefficients[0];
-                    for (phi, y) in block {
-                        let p: f64 = phi.iter().zip(theta).map(|(a, t)| a * t).sum();
-                        sum += (y - p) * (y - p);
-                    }
-                }
-                Err(_) => sum = f64::INFINITY,
-            }
+        let path = train.finish().ridge_path(ridges);
+        for r in 0..ridges.len() {
+            let sum = match &path {
+                Ok(thetas) => block
+                    .iter()
+                    .map(|(phi, y)| {
+                        let p: f64 = phi.iter().zip(&thetas[r]).map(|(a, t)| a * t).sum();
+                        (y - p) * (y - p)
+                    })
+                    .sum(),
+                Err(_) => f64::INFINITY,
+            };
             se[r].push(sum);
         }
     }
@@ -500,85 +501,6 @@ pub fn input_sets(machine: &Machine) -> Vec<InputSet> {
     sets
 }
 
-/// One candidate of [`choose`]: a family on an input set, fitted.
-#[derive(Debug, Clone)]
-pub struct Candidate {
-    /// The family.
-    pub family: Family,
-    /// The input set's label.
-    pub inputs: &'static str,
-    /// The lowest cross-validated RMSE over the ridge grid, µm.
-    pub cv_rmse_um: f64,
-    /// The fitted model.
-    pub fitted: Fitted,
-}
-
-/// Why no model could be chosen.
-#[derive(Debug, Clone, PartialEq)]
-pub enum ChooseError {
-    /// A structure could not be built on the machine.
-    Model(ModelError),
-    /// A fit failed.
-    Solve(SolveError),
-    /// No family or no input set was given.
-    NoCandidate,
-}
-
-impl fmt::Display for ChooseError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            Self::Model(e) => write!(f, "{e}"),
-            Self::Solve(e) => write!(f, "{e}"),
-            Self::NoCandidate => write!(f, "no family or no input set to choose from"),
-        }
-    }
-}
-
-impl std::error::Error for ChooseError {}
-
-/// Fits every family on every input set (`name`d models of every target axis, with a constant)
-/// and returns the one with the lowest cross-validated RMSE, the first of equals in the order
-/// given: the choice is made inside the observations (the training part) only. `tried` sees
-/// every candidate as it is fitted.
-pub fn choose(
-    name: &str,
-    machine: &Machine,
-    families: &[Family],
-    sets: &[InputSet],
-    targets: &[usize],
-    observations: &[Observation<'_>],
-    tried: &mut dyn FnMut(&Candidate),
-) -> Result<Candidate, ChooseError> {
-    let mut candidates = Vec::new();
-    for &family in families {
-        for set in sets {
-            let s = structure(name, machine, family, &set.differences, targets, true)
-                .map_err(ChooseError::Model)?;
-            let fitted = fit_structure(&s, machine, observations.iter().copied())
-                .map_err(ChooseError::Solve)?;
-            let cv_rmse_um = fitted
-                .cv_rmse_um
-                .iter()
-                .map(|c| c.1)
-                .fold(f64::INFINITY, f64::min);
-            let candidate = Candidate {
-                family,
-                inputs: set.label,
-                cv_rmse_um,
-                fitted,
-            };
-            tried(&candidate);
-            candidates.push(candidate);
-        }
-    }
-    // A stable sort: among equal scores the first given (the simpler) wins.
-    candidates.sort_by(|a, b| a.cv_rmse_um.total_cmp(&b.cv_rmse_um));
-    candidates
-        .into_iter()
-        .next()
-        .ok_or(ChooseError::NoCandidate)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -590,7 +512,7 @@ mod tests {
     }
 
     #[test]
-    fn input_sets_grow_and_the_choice_finds_the_position_dependent_truth() {
+    fn input_sets_grow_and_the_fit_finds_the_position_dependent_truth() {
         let machine = twin_machine();
         let sets = input_sets(&machine);
         assert_eq!(sets[0].label, "measured sensors");
@@ -650,20 +572,21 @@ mod tests {
                 });
             }
         }
-        let mut tried = 0;
-        let families = [Family::PositionIndependent, Family::AllAxes];
-        let best = choose(
-            "m",
-            &machine,
-            &families,
-            &sets[..1],
-            &[0, 1, 2],
-            &obs,
-            &mut |_| tried += 1,
-        )
-        .unwrap();
-        assert_eq!(tried, 2);
-        assert_eq!(best.family, Family::AllAxes);
-        assert!(best.cv_rmse_um < 1e-3, "{}", best.cv_rmse_um);
+        // Fitted on the truth's input set, the all-axes family finds it; the prior art cannot.
+        let fit = |family| {
+            let s = structure(
+                "m",
+                &machine,
+                family,
+                &sets[0].differences,
+                &[0, 1, 2],
+                true,
+            )
+            .unwrap();
+            fit_structure(&s, &machine, obs.iter().copied()).unwrap()
+        };
+        let best = fit(Family::AllAxes);
+        assert!(fit(Family::PositionIndependent).score_um > 100.0 * best.score_um);
+        assert!(best.score_um < 1e-3, "{}", best.score_um);
     }
 }
