@@ -36,6 +36,7 @@ pub struct Args {
     #[arg(long)]
     pub(crate) positions: Option<Patterns>,
     /// Which inputs are operating state (filtered as is, and squared) rather than temperatures.
+    /// With a machine file and no --inputs: the machine's operating channels.
     #[arg(long, default_value = "*rpm*,*speed*,*feed*,*power*,*torque*")]
     pub(crate) operating: Patterns,
     /// The time column, in seconds.

@@ -82,10 +82,14 @@ pub fn run(mut args: Args) -> Result<(), CliError> {
     args.family = dynamic;
     let first = tables(&args)?;
     let columns = first.first().map(|t| t.columns.clone()).unwrap_or_default();
-    let inputs = args
-        .inputs
-        .clone()
-        .unwrap_or_else(|| default_inputs(&machine, &columns));
+    let inputs = match args.inputs.clone() {
+        Some(inputs) => inputs,
+        None => {
+            // The machine says which of its channels are operating state.
+            args.operating = Patterns(machine.operating.iter().map(|o| o.id.clone()).collect());
+            default_inputs(&machine, &columns)
+        }
+    };
     let (ds, tables) = load(&args, &inputs)?;
     let mut settings = settings(&args, &ds)?;
     settings.absolute_targets = true;

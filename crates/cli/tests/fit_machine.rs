@@ -229,3 +229,46 @@ fn the_candidates_on_screen_and_in_json_agree() {
     }
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// What a machine fit cannot do is refused before any fitting, naming what is wrong.
+#[test]
+fn a_machine_fit_refuses_what_it_cannot_do() {
+    let dir = scratch("fit-machine-errors");
+    let run = dir.join("day.csv");
+    sim("mixed-shift", "1", &run, &["--sample-s", "600"]);
+    let fit = |extra: &[&str]| {
+        let out = truepos()
+            .args(["fit", "--machine", "examples/twin/machine.toml", "--run"])
+            .arg(&run)
+            .args(extra)
+            .output()
+            .unwrap();
+        assert!(!out.status.success(), "{extra:?}");
+        String::from_utf8(out.stderr).unwrap()
+    };
+    let e = fit(&["--target", "dx_um", "--positions", "X_mm,Y_mm"]);
+    assert!(
+        e.contains("--positions: expected 3 columns (one per axis of machine `twin-vmc3`, in its order), got 2"),
+        "{e}"
+    );
+    let e = fit(&["--target", "dx_um", "--positions", "px_mm,Y_mm,Z_mm"]);
+    assert!(
+        e.contains("day.csv") && e.contains("no column matches `px_mm`"),
+        "{e}"
+    );
+    let e = fit(&["--target", "phase"]);
+    assert!(
+        e.contains("target `phase`: no axis of machine `twin-vmc3` is named like it; give --axis phase=<axis>"),
+        "{e}"
+    );
+    let e = fit(&["--target", "dx_um,dy_um", "--axis", "dy_um=X"]);
+    assert!(
+        e.contains("target `dy_um`: axis X already has a target"),
+        "{e}"
+    );
+    let e = fit(&["--target", "dx_um", "--reference", "nowhere"]);
+    assert!(e.contains("--reference") && e.contains("nowhere"), "{e}");
+    let e = fit(&["--target", "dx_um", "--family", "all-axes,warm"]);
+    assert!(e.contains("--family") && e.contains("got `warm`"), "{e}");
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -512,6 +512,39 @@ mod tests {
     }
 
     #[test]
+    fn families_parse_by_their_command_line_names_and_build_on_the_twin() {
+        let machine = twin_machine();
+        let diffs: Vec<usize> = (0..machine.differences.len()).collect();
+        let reference = reference_sensor(&machine);
+        assert_eq!(
+            reference.map(|r| machine.temperatures[r].id.as_str()),
+            Some("ambient")
+        );
+        for f in Family::ALL {
+            assert_eq!(f.key().parse::<Family>(), Ok(f));
+            assert_eq!(f.to_string(), f.key());
+            let d = family_differences(&machine, f, &diffs, reference);
+            let m = structure("m", &machine, f, &d, &[2], true).unwrap();
+            // Per difference: K0 (+ a term per axis, + squares, + the bed summands) + constant.
+            let per = match f {
+                Family::ReferenceSensor | Family::PositionIndependent => 1,
+                Family::AllAxes => 4,
+                Family::AllAxesSquared => 7,
+                // X and Y ride on beds: two bed-multiplied summands of two coefficients each.
+                Family::BedFactor => 4 + 2 * 2,
+            };
+            assert_eq!(m.parameter_count(), per * d.len() + 1, "{f}");
+        }
+        // Seed C's form reads only the differences against the reference sensor.
+        let c = family_differences(&machine, Family::ReferenceSensor, &diffs, reference);
+        assert_eq!(c.len(), 18);
+        assert!("warm"
+            .parse::<Family>()
+            .unwrap_err()
+            .starts_with("expected one of reference-sensor, prior-art"));
+    }
+
+    #[test]
     fn input_sets_grow_and_the_fit_finds_the_position_dependent_truth() {
         let machine = twin_machine();
         let sets = input_sets(&machine);

@@ -394,8 +394,13 @@ pub(crate) fn per_run(
         folds.dedup();
         let targets = (0..dataset.target_names.len())
             .map(|k| {
-                let m: Vec<f64> = rows.iter().map(|&i| rel[r][k][i]).collect();
-                let p: Vec<f64> = rows.iter().map(|&i| oof[r][k][i]).collect();
+                // A seed A/C model refuses an input it cannot read (NaN there; the pooled
+                // figures say how many); a dynamic model's predictions are always finite.
+                let (m, p): (Vec<f64>, Vec<f64>) = rows
+                    .iter()
+                    .filter(|&&i| oof[r][k][i].is_finite())
+                    .map(|&i| (rel[r][k][i], oof[r][k][i]))
+                    .unzip();
                 let mut families: Vec<&str> = Vec::new();
                 for &f in &folds {
                     let name = chosen[f][k].as_str();
