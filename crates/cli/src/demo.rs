@@ -209,6 +209,7 @@ fn training_data(machine: &Machine, train: &Day) -> (Dataset, MachineData) {
         target_axes: vec![0, 1, 2],
         reference: reference_sensor(machine),
         differences: (0..machine.differences.len()).collect(),
+        owners: Vec::new(),
     };
     (ds, data)
 }

@@ -35,6 +35,11 @@ pub struct Args {
     /// machine's own axis position columns (`X_mm`, …).
     #[arg(long)]
     pub(crate) positions: Option<Patterns>,
+    /// With a machine file: the axis whose part a difference measures, `<difference>=<axis>`
+    /// (repeat; e.g. `dT_y_saddle=Y`): adds seed A's embodiments 1 (own-axis) and 4 (serial),
+    /// whose terms follow that axis, to the candidates.
+    #[arg(long = "difference-axis")]
+    pub(crate) difference_axes: Vec<TargetAxis>,
     /// Which inputs are operating state (filtered as is, and squared) rather than temperatures.
     /// With a machine file and no --inputs: the machine's operating channels.
     #[arg(long, default_value = "*rpm*,*speed*,*feed*,*power*,*torque*")]
@@ -50,7 +55,8 @@ pub struct Args {
     /// spindle speed), dynamic (+ filtered temperatures), dynamic-rates (+ rates of change),
     /// dynamic-running, dynamic-rates-running (+ rises while the spindle runs); with a machine
     /// file also seed A/C's: prior-art, all-axes, all-axes-squared, bed-factor,
-    /// reference-sensor. Default: chosen automatically among all of them.
+    /// reference-sensor, and with --difference-axis own-axis and serial. Default: chosen
+    /// automatically among all of them.
     #[arg(long)]
     pub(crate) family: Option<String>,
     /// Fix the ridge parameter(s), comma-separated, each 0–10¹². Default: chosen automatically.

@@ -74,6 +74,31 @@ fn target_axes(args: &Args, ds: &Dataset, machine: &Machine) -> Result<Vec<usize
     Ok(axes)
 }
 
+/// `--difference-axis`: per machine difference, the axis it belongs to.
+fn owners(args: &Args, machine: &Machine) -> Result<Vec<Option<usize>>, CliError> {
+    let mut owners = vec![None; machine.differences.len()];
+    for d in &args.difference_axes {
+        let i = machine
+            .differences
+            .iter()
+            .position(|m| m.name == d.target)
+            .ok_or_else(|| {
+                let names: Vec<&str> = machine.differences.iter().map(|m| m.name.as_str()).collect();
+                CliError::refused(format!(
+                    "--difference-axis {}={}: machine `{}` has no difference `{}`; its differences are {}",
+                    d.target, d.axis, machine.name, d.target, names.join(", ")
+                ))
+            })?;
+        owners[i] = Some(machine.axis_index(&d.axis).ok_or_else(|| {
+            CliError::refused(format!(
+                "--difference-axis {}={}: machine `{}` has no axis `{}`",
+                d.target, d.axis, machine.name, d.axis
+            ))
+        })?);
+    }
+    Ok(owners)
+}
+
 /// Runs `truepos fit --machine MACHINE.toml`.
 pub fn run(mut args: Args) -> Result<(), CliError> {
     let path = Path::new(&args.machine).to_path_buf();
@@ -129,6 +154,8 @@ pub fn run(mut args: Args) -> Result<(), CliError> {
         axes,
         reference,
     )?;
+    let mut data = data;
+    data.owners = owners(&args, &machine)?;
     let cand = candidates(&ds, &settings.taus).map_err(|e| CliError::refused(e.to_string()))?;
     let mut progress = Progress {
         start: Instant::now(),

@@ -268,6 +268,16 @@ fn a_machine_fit_refuses_what_it_cannot_do() {
     );
     let e = fit(&["--target", "dx_um", "--reference", "nowhere"]);
     assert!(e.contains("--reference") && e.contains("nowhere"), "{e}");
+    let e = fit(&["--target", "dx_um", "--difference-axis", "dT_nope=X"]);
+    assert!(
+        e.contains("--difference-axis dT_nope=X: machine `twin-vmc3` has no difference `dT_nope`; its differences are dT_x_table, dT_y_saddle"),
+        "{e}"
+    );
+    let e = fit(&["--target", "dx_um", "--difference-axis", "dT_bed=W"]);
+    assert!(
+        e.contains("--difference-axis dT_bed=W: machine `twin-vmc3` has no axis `W`"),
+        "{e}"
+    );
     let e = fit(&["--target", "dx_um", "--family", "all-axes,warm"]);
     assert!(e.contains("--family") && e.contains("got `warm`"), "{e}");
     std::fs::remove_dir_all(&dir).ok();

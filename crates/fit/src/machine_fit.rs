@@ -18,7 +18,8 @@ use truepos_model::{CycleInput, LagSource, Machine, Model, Part, Reference};
 use crate::dataset::Dataset;
 use crate::features::Candidates;
 use crate::position_model::{
-    family_differences, fit_blocks, input_sets, structure, CvOptions, Family, Fitted, Observation,
+    family_differences, fit_blocks, input_sets, structure_owned, CvOptions, Family, Fitted,
+    Observation,
 };
 use crate::settings::{InnerCv, Settings, ROLLING_FIRST_HELD_OUT};
 use crate::train::{train, Trained};
@@ -52,6 +53,9 @@ pub struct MachineData {
     pub reference: Option<usize>,
     /// The machine's differences every run holds the channels of.
     pub differences: Vec<usize>,
+    /// Per machine difference, the axis whose part it measures, if known (seed A's
+    /// embodiments 1 and 4 need it; without any, those families are no candidates).
+    pub owners: Vec<Option<usize>>,
 }
 
 impl MachineData {
@@ -151,6 +155,7 @@ impl MachineData {
             target_axes,
             reference,
             differences,
+            owners: Vec::new(),
         })
     }
 
@@ -267,6 +272,10 @@ fn static_selection(
         .collect();
     let mut best: Vec<Option<(Family, &'static str, Fitted)>> = vec![None; nt];
     for &family in families {
+        let owned = data.owners.iter().any(Option::is_some);
+        if matches!(family, Family::OwnAxis | Family::Serial) && !owned {
+            continue;
+        }
         let mut seen: Vec<Vec<usize>> = Vec::new();
         for set in &sets {
             let diffs = family_differences(machine, family, &set.differences, data.reference);
@@ -279,8 +288,9 @@ fn static_selection(
             let mut scores = Vec::new();
             for k in 0..nt {
                 let axis = data.target_axes[k];
-                let s = structure("fit", machine, family, &diffs, &[axis], true)
-                    .map_err(|e| e.to_string())?;
+                let s =
+                    structure_owned("fit", machine, family, &diffs, &[axis], true, &data.owners)
+                        .map_err(|e| e.to_string())?;
                 let obs: Vec<Vec<Observation<'_>>> = blocks
                     .iter()
                     .map(|b| {

@@ -33,6 +33,14 @@ pub enum Family {
     /// difference's summand ΔT_m·[K_nm0' + K_nmb'·KFA_b]·KFA_b — the bed bends, the error is
     /// smallest in its middle and grows towards both ends (eq. 41).
     BedFactor,
+    /// Seed A embodiment 1: the summand of a difference that belongs to axis m carries that
+    /// axis' position only, ΔT_m·[K_nm0 + K_nmm·g_m]; a difference of no axis stays prior art.
+    /// Needs the owners ([`structure_owned`]).
+    OwnAxis,
+    /// Seed A embodiment 4, N serial axes: the summand of axis m's difference carries the
+    /// positions of m and of every axis resting on it (`carried_by`, transitively),
+    /// ΔT_m·[K_nm0 + Σ_{j on m} K_nmj·g_j]. Needs the owners ([`structure_owned`]).
+    Serial,
     /// Seed C's regression Y_n = Σ_i k_ni·(t_i − t_r) + c_n: no position, only the machine's
     /// differences of a sensor against the reference sensor t_r ([`reference_sensor`]).
     ReferenceSensor,
@@ -40,9 +48,11 @@ pub enum Family {
 
 impl Family {
     /// Every family, simplest first.
-    pub const ALL: [Family; 5] = [
+    pub const ALL: [Family; 7] = [
         Family::ReferenceSensor,
         Family::PositionIndependent,
+        Family::OwnAxis,
+        Family::Serial,
         Family::AllAxes,
         Family::AllAxesSquared,
         Family::BedFactor,
@@ -57,6 +67,8 @@ impl Family {
                 "position-dependent, all axes with squares (seed A emb. 5 + ex. 2)"
             }
             Self::BedFactor => "position-dependent with bed factor (seed A embodiments 5 + 6)",
+            Self::OwnAxis => "position-dependent, each difference its own axis (seed A emb. 1)",
+            Self::Serial => "position-dependent, serial axes (seed A embodiment 4)",
             Self::ReferenceSensor => "reference-sensor regression (seed C)",
         }
     }
@@ -68,6 +80,8 @@ impl Family {
             Self::AllAxes => "all-axes",
             Self::AllAxesSquared => "all-axes-squared",
             Self::BedFactor => "bed-factor",
+            Self::OwnAxis => "own-axis",
+            Self::Serial => "serial",
             Self::ReferenceSensor => "reference-sensor",
         }
     }
@@ -139,6 +153,47 @@ pub fn structure(
     targets: &[usize],
     constant: bool,
 ) -> Result<Model, ModelError> {
+    structure_owned(name, machine, family, differences, targets, constant, &[])
+}
+
+/// The axes whose positions the summand of a difference owned by `owner` carries in
+/// [`Family::OwnAxis`] (the owner) and [`Family::Serial`] (the owner and every axis resting on
+/// it); none for a difference of no axis.
+fn owned_axes(machine: &Machine, family: Family, owner: Option<usize>) -> Vec<usize> {
+    let Some(o) = owner else {
+        return Vec::new();
+    };
+    let rests_on = |mut j: usize| {
+        // The chain is checked acyclic by the machine; the bound only guards the loop.
+        for _ in 0..=machine.axes.len() {
+            if j == o {
+                return true;
+            }
+            match machine.axes[j].carried_by {
+                Some(c) => j = c,
+                None => return false,
+            }
+        }
+        false
+    };
+    match family {
+        Family::OwnAxis => vec![o],
+        _ => (0..machine.axes.len()).filter(|&j| rests_on(j)).collect(),
+    }
+}
+
+/// [`structure`], with the axis each of the machine's differences belongs to (`owners`, by
+/// difference index; missing or `None`: no axis), which [`Family::OwnAxis`] and
+/// [`Family::Serial`] need.
+pub fn structure_owned(
+    name: &str,
+    machine: &Machine,
+    family: Family,
+    differences: &[usize],
+    targets: &[usize],
+    constant: bool,
+    owners: &[Option<usize>],
+) -> Result<Model, ModelError> {
     if family == Family::ReferenceSensor {
         let parts = targets
             .iter()
@@ -172,7 +227,16 @@ pub fn structure(
     for &n in targets {
         for &m in differences {
             let mut position_terms = Vec::new();
-            if family != Family::PositionIndependent {
+            if matches!(family, Family::OwnAxis | Family::Serial) {
+                let owner = owners.get(m).copied().flatten();
+                for j in owned_axes(machine, family, owner) {
+                    position_terms.push(PositionTerm {
+                        axis: j,
+                        factor: natural(j),
+                        k_um_per_k: 0.0,
+                    });
+                }
+            } else if family != Family::PositionIndependent {
                 for j in 0..machine.axes.len() {
                     position_terms.push(PositionTerm {
                         axis: j,
@@ -527,13 +591,24 @@ mod tests {
             let m = structure("m", &machine, f, &d, &[2], true).unwrap();
             // Per difference: K0 (+ a term per axis, + squares, + the bed summands) + constant.
             let per = match f {
-                Family::ReferenceSensor | Family::PositionIndependent => 1,
+                // Without owners no difference carries a position.
+                Family::ReferenceSensor
+                | Family::PositionIndependent
+                | Family::OwnAxis
+                | Family::Serial => 1,
                 Family::AllAxes => 4,
                 Family::AllAxesSquared => 7,
                 // X and Y ride on beds: two bed-multiplied summands of two coefficients each.
                 Family::BedFactor => 4 + 2 * 2,
             };
             assert_eq!(m.parameter_count(), per * d.len() + 1, "{f}");
+        }
+        // dT_y_saddle (difference 1) belongs to Y, on which X rests: embodiment 1 carries r_Y,
+        // embodiment 4 r_Y and r_X (KFA: both ride on beds).
+        let owners = [None, Some(1)];
+        for (f, n) in [(Family::OwnAxis, 2), (Family::Serial, 3)] {
+            let m = structure_owned("m", &machine, f, &[0, 1], &[2], false, &owners).unwrap();
+            assert_eq!(m.parameter_count(), 1 + n, "{f}");
         }
         // Seed C's form reads only the differences against the reference sensor.
         let c = family_differences(&machine, Family::ReferenceSensor, &diffs, reference);
