@@ -7,6 +7,7 @@ use truepos_io::machine_file;
 
 use crate::error::CliError;
 use crate::evaluator::Evaluator;
+use crate::shape::ShapeArgs;
 
 /// Arguments of `truepos eval`.
 #[derive(clap::Args)]
@@ -19,9 +20,16 @@ pub struct Args {
     /// `"format": "truepos-dynamic-model"`).
     #[arg(long, default_value = "examples/vmc3/model.toml")]
     model: PathBuf,
-    /// Run CSV of cycles: time_s, <axis>_mm / <axis>_deg, temperatures, operating state.
+    /// Run CSV (or workbook) of cycles: time_s, <axis>_mm / <axis>_deg, temperatures,
+    /// operating state; units in column names are converted (`X_in`, `t1 (°F)`).
     #[arg(long, default_value = "examples/vmc3/run.csv")]
     run: PathBuf,
+    /// The time column: seconds or ISO 8601 date-times. Default: `time_s` if there is one,
+    /// else the row number.
+    #[arg(long, conflicts_with = "sample_period")]
+    time: Option<String>,
+    #[command(flatten)]
+    shape: ShapeArgs,
     /// Where to write per-axis offsets (CSV); `-` for standard output.
     #[arg(long, short, default_value = "-")]
     out: PathBuf,
@@ -41,7 +49,9 @@ struct AxisSummary {
 pub fn run(args: Args) -> Result<(), CliError> {
     let machine = machine_file::load(&args.machine)?.machine;
     let mut model = Evaluator::load(&args.model, &machine)?;
-    let cycles = model.load_run(&args.run, &machine)?;
+    let runs = model.load_runs(&args.run, &machine, &args.shape, args.time.as_deref())?;
+    // Rows say their run when the file holds several or a run column named one.
+    let named = runs.len() > 1 || runs[0].0 != args.run.display().to_string();
 
     let to_stdout = args.out.as_os_str() == "-";
     let mut writer: Option<csv::Writer<Box<dyn Write>>> = if to_stdout && args.json {
@@ -58,7 +68,11 @@ pub fn run(args: Args) -> Result<(), CliError> {
     let io_err = |e: csv::Error| CliError::file(&args.out, Some("cannot write"))(e);
     let n_axes = model.axis_count();
     if let Some(w) = writer.as_mut() {
-        let mut header = vec!["time_s".to_string()];
+        let mut header = Vec::new();
+        if named {
+            header.push("run".to_string());
+        }
+        header.push("time_s".to_string());
         for a in &machine.axes[..n_axes] {
             header.push(format!("{}_error_um", a.name));
             header.push(format!("{}_comp_um", a.name));
@@ -76,54 +90,24 @@ pub fn run(args: Args) -> Result<(), CliError> {
             max_abs_um: 0.0,
         })
         .collect();
-    let mut failed = 0usize;
-    let mut first_failure: Option<String> = None;
-    for i in 0..cycles.time_s.len() {
-        let mut record = vec![format!("{}", cycles.time_s[i])];
-        match model.error_um(&cycles, i, &machine) {
-            Ok(errors) => {
-                for (a, s) in summary.iter_mut().enumerate() {
-                    let e = errors[a];
-                    s.min_um = s.min_um.min(e);
-                    s.max_um = s.max_um.max(e);
-                    s.max_abs_um = s.max_abs_um.max(e.abs());
-                    record.push(format!("{e:.6}"));
-                    // 0 − e, not −e: no "-0.000000" for a zero compensation.
-                    record.push(format!("{:.6}", 0.0 - e));
-                }
-                record.push("ok".into());
-            }
-            Err(reason) => {
-                // A failed cycle writes no number at all: a blank cell can never be taken for
-                // a compensation, a NaN might.
-                failed += 1;
-                if first_failure.is_none() {
-                    first_failure = Some(format!(
-                        "{}:{}: {reason}",
-                        args.run.display(),
-                        cycles.line[i]
-                    ));
-                }
-                record.extend(std::iter::repeat_n(String::new(), 2 * n_axes));
-                record.push(format!("error: {reason}"));
-            }
-        }
-        if let Some(w) = writer.as_mut() {
-            if let Err(e) = w.write_record(&record) {
-                if is_broken_pipe(&e) {
-                    // The reader (`head`, a pager) has seen enough.
-                    return Ok(());
-                }
-                return Err(io_err(e));
-            }
-        }
-    }
+    let (failed, first_failure, per_run) = match evaluate(
+        &args,
+        &machine,
+        &mut model,
+        &runs,
+        named,
+        &mut summary,
+        writer.as_mut(),
+    )? {
+        Some(figures) => figures,
+        None => return Ok(()), // the reader (`head`, a pager) has seen enough
+    };
     if let Some(mut w) = writer {
         w.flush()
             .map_err(CliError::file(&args.out, Some("cannot write")))?;
     }
 
-    let rows = cycles.time_s.len();
+    let rows: usize = runs.iter().map(|(_, c)| c.time_s.len()).sum();
     if args.json {
         let axes: Vec<serde_json::Value> = summary
             .iter()
@@ -145,6 +129,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
             "failed_cycles": failed,
             "first_failure": first_failure,
             "axes": axes,
+            "runs": per_run,
         });
         println!("{v}");
     } else {
@@ -155,6 +140,16 @@ pub fn run(args: Args) -> Result<(), CliError> {
             model.name(),
             failed
         );
+        if named {
+            for r in &per_run {
+                eprintln!(
+                    "  run {}: {} cycles ({} failed)",
+                    r["name"].as_str().unwrap_or(""),
+                    r["cycles"],
+                    r["failed_cycles"]
+                );
+            }
+        }
         for s in &summary {
             if s.min_um.is_finite() {
                 eprintln!(
@@ -168,6 +163,81 @@ pub fn run(args: Args) -> Result<(), CliError> {
         }
     }
     Ok(())
+}
+
+/// What evaluating the runs found: failed cycles, the first failure, and per run its name,
+/// cycles and failed cycles.
+type Evaluated = (usize, Option<String>, Vec<serde_json::Value>);
+
+/// Steps the model through every run from its start, writing a CSV record per cycle and
+/// widening the per-axis summary; `None` when the CSV's reader closed the pipe.
+fn evaluate(
+    args: &Args,
+    machine: &truepos_model::Machine,
+    model: &mut Evaluator,
+    runs: &[(String, truepos_io::cycles::Cycles)],
+    named: bool,
+    summary: &mut [AxisSummary],
+    mut writer: Option<&mut csv::Writer<Box<dyn Write>>>,
+) -> Result<Option<Evaluated>, CliError> {
+    let n_axes = summary.len();
+    let io_err = |e: csv::Error| CliError::file(&args.out, Some("cannot write"))(e);
+    let mut failed = 0usize;
+    let mut first_failure: Option<String> = None;
+    let mut per_run = Vec::new();
+    for (name, cycles) in runs {
+        model.restart();
+        let failed_before = failed;
+        for i in 0..cycles.time_s.len() {
+            let mut record = Vec::with_capacity(2 + 2 * n_axes);
+            if named {
+                record.push(name.clone());
+            }
+            record.push(format!("{}", cycles.time_s[i]));
+            match model.error_um(cycles, i, machine) {
+                Ok(errors) => {
+                    for (a, s) in summary.iter_mut().enumerate() {
+                        let e = errors[a];
+                        s.min_um = s.min_um.min(e);
+                        s.max_um = s.max_um.max(e);
+                        s.max_abs_um = s.max_abs_um.max(e.abs());
+                        record.push(format!("{e:.6}"));
+                        // 0 − e, not −e: no "-0.000000" for a zero compensation.
+                        record.push(format!("{:.6}", 0.0 - e));
+                    }
+                    record.push("ok".into());
+                }
+                Err(reason) => {
+                    // A failed cycle writes no number at all: a blank cell can never be taken
+                    // for a compensation, a NaN might.
+                    failed += 1;
+                    if first_failure.is_none() {
+                        first_failure = Some(format!(
+                            "{}:{}: {reason}",
+                            args.run.display(),
+                            cycles.line[i]
+                        ));
+                    }
+                    record.extend(std::iter::repeat_n(String::new(), 2 * n_axes));
+                    record.push(format!("error: {reason}"));
+                }
+            }
+            if let Some(w) = writer.as_mut() {
+                if let Err(e) = w.write_record(&record) {
+                    if is_broken_pipe(&e) {
+                        return Ok(None);
+                    }
+                    return Err(io_err(e));
+                }
+            }
+        }
+        per_run.push(serde_json::json!({
+            "name": name,
+            "cycles": cycles.time_s.len(),
+            "failed_cycles": failed - failed_before,
+        }));
+    }
+    Ok(Some((failed, first_failure, per_run)))
 }
 
 fn is_broken_pipe(e: &csv::Error) -> bool {

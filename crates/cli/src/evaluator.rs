@@ -4,6 +4,7 @@
 //! them (as the control steps it every cycle), and naming channels in errors.
 
 use crate::error::CliError;
+use crate::shape::ShapeArgs;
 use truepos_io::{compensation, cycles};
 use truepos_model::{CompensationModel, CycleInput, Machine, MAX_AXES};
 
@@ -38,24 +39,42 @@ impl Evaluator {
         self.model.name()
     }
 
-    /// Reads a run for it: the sensors it reads must be there, the axis positions only if it
-    /// reads them (a fitted dynamic model does not).
-    pub fn load_run(
-        &self,
-        path: &std::path::Path,
-        machine: &Machine,
-    ) -> Result<cycles::Cycles, CliError> {
-        let positions = if self.model.reads_positions() {
+    /// Whether a run must hold the axis positions: only if the model reads them (a fitted
+    /// dynamic model does not).
+    fn positions(&self) -> cycles::Positions {
+        if self.model.reads_positions() {
             cycles::Positions::Required
         } else {
             cycles::Positions::Optional
+        }
+    }
+
+    /// Reads every run of a run file laid out as `shape` says, each with its name (the value of
+    /// the run column, else the file and sheet): the sensors the model reads must be there.
+    pub fn load_runs(
+        &self,
+        path: &std::path::Path,
+        machine: &Machine,
+        shape: &ShapeArgs,
+        time: Option<&str>,
+    ) -> Result<Vec<(String, cycles::Cycles)>, CliError> {
+        let options = cycles::Options {
+            positions: self.positions(),
+            shape: shape.shape(),
+            time: shape.time(time),
         };
-        Ok(cycles::load_with(
+        Ok(cycles::load_runs(
             path,
             machine,
             self.model.used_sensors(),
-            positions,
+            &options,
         )?)
+    }
+
+    /// Starts the model afresh for the next run: its filters from that run's first row.
+    pub fn restart(&mut self) {
+        self.model.reset();
+        self.last_s = None;
     }
 
     /// Axes it gives an error for.

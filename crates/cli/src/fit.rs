@@ -10,7 +10,9 @@ use truepos_fit::export::{model_file, plausible, predictions_csv, TargetAxis};
 use truepos_fit::settings::{Families, InnerCv, Ridges, Rule, Settings};
 use truepos_fit::validate::{fit, Outcome, Split, Validation};
 use truepos_io::limits::int_in;
-use truepos_io::run::{read, Table};
+use truepos_io::run::{read_shaped, Table, Time};
+
+use crate::shape::ShapeArgs;
 
 /// Arguments of `truepos fit`.
 #[derive(clap::Args)]
@@ -22,11 +24,14 @@ pub struct Args {
     /// Only this sheet of each workbook.
     #[arg(long)]
     pub(crate) sheet: Option<String>,
-    /// Target columns (measured errors in µm): names or globs, comma-separated.
+    /// Target columns (measured errors): names or globs, comma-separated. Converted to µm by
+    /// the unit in the name (`_mm`, `(µm)`, …; none = µm); an empty cell is a row without a
+    /// measurement, which steps the filters but neither trains nor scores.
     #[arg(long, default_value = "*_um")]
     pub(crate) target: Patterns,
     /// Input columns of the dynamic families (what the control knows): names or globs,
-    /// comma-separated. Required without a machine file; with one, default: the machine's
+    /// comma-separated. Temperatures are converted to °C by the unit in the name (`_f`, `(K)`,
+    /// …; none = °C). Required without a machine file; with one, default: the machine's
     /// measured temperature and operating channels the first run holds.
     #[arg(long)]
     pub(crate) inputs: Option<Patterns>,
@@ -44,9 +49,12 @@ pub struct Args {
     /// With a machine file and no --inputs: the machine's operating channels.
     #[arg(long, default_value = "*rpm*,*speed*,*feed*,*power*,*torque*")]
     pub(crate) operating: Patterns,
-    /// The time column, in seconds.
-    #[arg(long, default_value = "time_s")]
+    /// The time column: seconds, or ISO 8601 date-times (`2024-03-01T08:00:00`, a space for
+    /// the `T`, fractional seconds, `Z` or an offset) counted from the run's first row.
+    #[arg(long, default_value = "time_s", conflicts_with = "sample_period")]
     pub(crate) time: String,
+    #[command(flatten)]
+    pub(crate) shape: ShapeArgs,
     /// Validation: chrono:<train fraction>, runs (leave one run out) or kfold:<k>.
     #[arg(long, default_value = "chrono:0.6")]
     pub(crate) split: Split,
@@ -99,6 +107,10 @@ pub struct Args {
     /// no fold held out (a chronological split's training part, predicted in-sample).
     #[arg(long)]
     pub(crate) predictions: Option<PathBuf>,
+    /// Write an HTML report of the validation here (folder): out-of-fold predictions over the
+    /// runs, a table per held-out run, temperatures, the protocol.
+    #[arg(long)]
+    pub(crate) report: Option<PathBuf>,
     /// Write the model even when its predictions on its own training data are non-finite or
     /// more than 10 × the largest measured |error| there.
     #[arg(long)]
@@ -112,7 +124,10 @@ pub struct Args {
 pub(crate) fn load(args: &Args, inputs: &Patterns) -> Result<(Dataset, Vec<Table>), CliError> {
     let tables = tables(args)?;
     let columns = Columns {
-        time: args.time.clone(),
+        time: args
+            .shape
+            .time(Some(&args.time))
+            .unwrap_or(Time::Column(args.time.clone())),
         inputs: inputs.clone(),
         targets: args.target.clone(),
         operating: args.operating.clone(),
@@ -123,8 +138,9 @@ pub(crate) fn load(args: &Args, inputs: &Patterns) -> Result<(Dataset, Vec<Table
 /// The run tables named on the command line.
 pub(crate) fn tables(args: &Args) -> Result<Vec<Table>, CliError> {
     let mut tables: Vec<Table> = Vec::new();
+    let shape = args.shape.shape();
     for path in &args.runs {
-        tables.extend(read(path, args.sheet.as_deref())?);
+        tables.extend(read_shaped(path, args.sheet.as_deref(), &shape)?);
     }
     Ok(tables)
 }
@@ -209,6 +225,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
         ..
     } = &outcome;
     let mut warnings = validation.warnings.clone();
+    warnings.extend(late_first_measurements(&ds));
     if let Err(bad) = plausible(&ds, &outcome) {
         let what: Vec<String> = bad.iter().map(ToString::to_string).collect();
         if !args.force {
@@ -223,7 +240,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
         warnings.extend(what.into_iter().map(|w| format!("--force: {w}")));
     }
     let report = serde_json::json!({
-        "runs": ds.runs.iter().map(|r| serde_json::json!({"name": r.name, "samples": r.len()})).collect::<Vec<_>>(),
+        "runs": ds.runs.iter().map(|r| serde_json::json!({"name": r.name, "samples": r.len(), "measured": r.measured_rows()})).collect::<Vec<_>>(),
         "inputs": ds.input_names,
         "targets": ds.target_names,
         "validation": validation,
@@ -246,6 +263,9 @@ pub fn run(args: Args) -> Result<(), CliError> {
     if let Some(path) = &args.predictions {
         std::fs::write(path, predictions_csv(&ds, &outcome))
             .map_err(CliError::file(path, Some("cannot write")))?;
+    }
+    if let Some(dir) = &args.report {
+        crate::fit_report::write(dir, &ds, &outcome, &warnings)?;
     }
     for w in &warnings {
         eprintln!("warning: {w}");
@@ -275,6 +295,17 @@ pub fn run(args: Args) -> Result<(), CliError> {
     }
     let sensors = validation.sensors.last().cloned().unwrap_or_default();
     println!("temperature sensors used: {}", sensors.join(", "));
+    if ds.runs.iter().any(|r| r.measured_rows() < r.len()) {
+        let runs: Vec<String> = ds
+            .runs
+            .iter()
+            .map(|r| format!("{} {} of {}", r.name, r.measured_rows(), r.len()))
+            .collect();
+        println!(
+            "rows with a measurement (the others only step the filters): {}",
+            runs.join(", ")
+        );
+    }
     if ds.runs.len() > 1 {
         print_per_run(validation);
     }
@@ -293,16 +324,17 @@ pub(crate) fn print_per_run(validation: &Validation) {
         .max(3);
     println!("per held-out run:");
     println!(
-        "{:<width$} {:<12} {:>10} {:>10} {:>10} {:>9}  chosen",
-        "run", "target", "uncomp µm", "RMSE µm", "max|e| µm", "reduction"
+        "{:<width$} {:<12} {:>7} {:>10} {:>10} {:>10} {:>9}  chosen",
+        "run", "target", "rows", "uncomp µm", "RMSE µm", "max|e| µm", "reduction"
     );
     for r in &validation.per_run {
         for h in &r.targets {
             let m = &h.metrics;
             println!(
-                "{:<width$} {:<12} {:>10.2} {:>10.2} {:>10.2} {:>8.1}%  {}",
+                "{:<width$} {:<12} {:>7} {:>10.2} {:>10.2} {:>10.2} {:>8.1}%  {}",
                 r.run,
                 m.target,
+                m.samples,
                 m.uncompensated_rmse_um,
                 m.rmse_um,
                 m.max_abs_um,
@@ -311,4 +343,21 @@ pub(crate) fn print_per_run(validation: &Validation) {
             );
         }
     }
+}
+
+/// A warning for every run whose first measurement is not at its first row: its targets are
+/// taken relative to that measurement as if it were the run's start.
+fn late_first_measurements(ds: &Dataset) -> Vec<String> {
+    ds.runs
+        .iter()
+        .filter_map(|r| {
+            let first = r.first_measured()?;
+            (first > 0).then(|| {
+                format!(
+                    "run {}: the first row with every target measured is row {} (t = {} s): its errors are taken relative to that row as if it were the run's start; measure at the start of a run",
+                    r.name, first + 1, r.time_s[first] - r.time_s[0]
+                )
+            })
+        })
+        .collect()
 }

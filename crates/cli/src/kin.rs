@@ -4,8 +4,9 @@
 //!   → TCP `X,Y,Z` (mm) and tool direction `I,J,K` in workpiece coordinates.
 //! * `kin inv`: `X,Y,Z,I,J,K` → axis set-points, through the error tables (or nominal with
 //!   `--nominal`); each row starts from the previous row's set-points.
-//! * `kin gcode`: rewrites G0/G1 moves whose X Y Z A B C words are nominal axis positions into
-//!   compensated axis positions (the real tool lands where the nominal machine would put it).
+//! * `kin gcode`: compensates a G-code program through LinuxCNC's interpreter (`truepos_gcode`):
+//!   the real tool lands where the nominal machine would put it; a refused program leaves no
+//!   output.
 //! * `kin chain`: the resolved chain as JSON (used by `scripts/kdl_compare.py`).
 
 use std::fmt::Write as _;
@@ -59,8 +60,8 @@ enum KinCommand {
     Fwd(Common),
     /// TCP and tool direction → axis set-points.
     Inv(Common),
-    /// Rewrite a G-code program of G0/G1 moves into compensated axis positions.
-    Gcode(Common),
+    /// Compensate a G-code program through LinuxCNC's interpreter (rs274) into G53 blocks.
+    Gcode(gcode::GcodeArgs),
     /// Print the resolved chain (rows, axes) as JSON.
     Chain {
         /// The kinematics table file.
@@ -76,7 +77,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
     match args.command {
         KinCommand::Fwd(c) => fwd(&c),
         KinCommand::Inv(c) => inv(&c),
-        KinCommand::Gcode(c) => gcode::gcode(&c),
+        KinCommand::Gcode(a) => gcode::gcode(&a),
         KinCommand::Chain {
             kinematics,
             machine,
@@ -113,7 +114,13 @@ struct Table {
 /// error names its line and character column), every row as wide as the header.
 fn read_csv(path: &Path) -> Result<Table, CliError> {
     use truepos_io::table::{self, Number};
-    let t = table::load_csv(path, table::CsvOptions { comments: true })?;
+    let t = table::load_csv(
+        path,
+        table::CsvOptions {
+            comments: true,
+            ..Default::default()
+        },
+    )?;
     if t.columns.is_empty() {
         return Err(InputError::file(path, "empty file; expected a header and rows").into());
     }

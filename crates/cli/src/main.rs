@@ -11,13 +11,17 @@ mod demo;
 mod error;
 mod eval;
 mod evaluator;
+mod export;
 mod fit;
 mod fit_machine;
+mod fit_report;
 mod kin;
 mod report;
 mod run;
+mod shape;
 mod sim;
 mod update_period;
+mod volume_map;
 
 /// truepos keeps the tool tip of a CNC machine tool where the program says it is, while the
 /// machine warms up, bends and carries geometric errors.
@@ -35,6 +39,9 @@ enum Command {
     Demo(demo::Args),
     /// Evaluate a compensation model on a recorded run (CSV of cycles) and write per-axis offsets.
     Eval(eval::Args),
+    /// Project a model at one moment of a run onto a control's own compensation form (Siemens
+    /// SD43900/43910/43920, HEIDENHAIN 9231 or TEMPCOMP) and write the file that sets it.
+    Export(export::Args),
     /// Learn a dynamic compensation model (filtered temperatures and spindle speed, or the
     /// reference-sensor regression) from recorded runs (CSV/XLSX) and validate it honestly.
     Fit(Box<fit::Args>),
@@ -76,6 +83,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Demo(args) => demo::run(args),
         Command::Eval(args) => eval::run(args),
+        Command::Export(args) => export::run(args),
         Command::Fit(args) => fit::run(*args),
         Command::Kin(args) => kin::run(args),
         Command::UpdatePeriod(args) => update_period::run(args),

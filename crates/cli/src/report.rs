@@ -2,13 +2,14 @@
 //! figures — measured, predicted and residual per axis, residual histogram, temperatures,
 //! correlation heat map, coefficients and the validation protocol.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use truepos_io::machine_file;
 use truepos_model::{CompensationModel, Model, PartForm};
 
 use crate::error::CliError;
 use crate::evaluator::Evaluator;
+use crate::shape::ShapeArgs;
 use truepos_report::{channel_metrics, write_report, Channel, Coefficient, ReportData};
 
 /// Arguments of `truepos report`.
@@ -21,11 +22,22 @@ pub struct Args {
     /// (TOML/JSON), or a fitted dynamic model (JSON).
     #[arg(long)]
     model: PathBuf,
-    /// Run CSV with the inputs and the measured errors.
+    /// Run CSV (or workbook) with the inputs and the measured errors.
     #[arg(long)]
     run: PathBuf,
-    /// Which column holds the measured error of which axis, as AXIS=COLUMN (µm, error =
-    /// actual − nominal), e.g. `X=dx_um,Y=dy_um,Z=dz_um`.
+    /// The time column: seconds or ISO 8601 date-times. Default: `time_s` if there is one,
+    /// else the row number.
+    #[arg(long, conflicts_with = "sample_period")]
+    time: Option<String>,
+    #[command(flatten)]
+    shape: ShapeArgs,
+    /// The run to report when the file holds several (`--run-column`, workbook sheets): its
+    /// name. Default: the only run.
+    #[arg(long)]
+    select_run: Option<String>,
+    /// Which column holds the measured error of which axis, as AXIS=COLUMN (error = actual −
+    /// nominal; converted to µm by the unit in the name, none = µm; an empty cell is a row
+    /// without a measurement, left out of the figures), e.g. `X=dx_um,Y=dy_um,Z=dz_um`.
     #[arg(long, value_delimiter = ',', required = true)]
     measured: Vec<String>,
     /// Time (s) from which the run is held out (was not used to make the model); the figures of
@@ -40,42 +52,50 @@ pub struct Args {
     json: bool,
 }
 
-/// Reads named numeric columns of a CSV (an empty cell reads as NaN; unparsable text is not
-/// accepted: a bad cell is an error naming line and column).
-fn read_columns(path: &Path, names: &[String]) -> Result<Vec<Vec<f64>>, CliError> {
-    use truepos_io::table::{self, Number};
-    let t = table::load_csv(path, table::CsvOptions::default())?;
-    let cols: Vec<usize> = names
+/// The run to report, and its measured-error columns by name (in µm, NaN where a row has no
+/// measurement), read by io's one run reader with the file's shape.
+fn read_measured(args: &Args, names: &[String]) -> Result<(String, Vec<Vec<f64>>), CliError> {
+    let tables = truepos_io::run::read_shaped(&args.run, None, &args.shape.shape())?;
+    let listed = || {
+        tables
+            .iter()
+            .map(truepos_io::run::Table::name)
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    let table = match &args.select_run {
+        Some(name) => tables.iter().find(|t| t.name() == *name).ok_or_else(|| {
+            CliError::refused(format!(
+                "--select-run `{name}`: no such run in {}; the runs are: {}",
+                args.run.display(),
+                listed()
+            ))
+        })?,
+        None if tables.len() == 1 => &tables[0],
+        None => {
+            return Err(CliError::refused(format!(
+                "{} holds {} runs; choose one with --select-run: {}",
+                args.run.display(),
+                tables.len(),
+                listed()
+            )))
+        }
+    };
+    let columns = names
         .iter()
         .map(|n| {
-            t.column(n).ok_or_else(|| {
+            let c = table.table.column(n).ok_or_else(|| {
                 CliError::refused(format!(
-                    "{}:1:1: `{n}`: missing column; the header has: {}",
-                    path.display(),
-                    t.columns.join(", ")
+                    "{}:{}:1: `{n}`: missing column; the header has: {}",
+                    args.run.display(),
+                    table.table.header_line,
+                    table.columns.join(", ")
                 ))
-            })
+            })?;
+            Ok(table.measured(c)?)
         })
-        .collect::<Result<_, _>>()?;
-    let mut out = vec![Vec::new(); names.len()];
-    for (r, row) in t.rows.iter().enumerate() {
-        if let Some(e) = t.width_error(r) {
-            return Err(e.into());
-        }
-        for (k, &c) in cols.iter().enumerate() {
-            let v = match row.cells[c].value.number() {
-                Number::Value(v) => v,
-                Number::Empty => f64::NAN,
-                Number::Text(text) => {
-                    return Err(t
-                        .at(r, c, format!("expected a number, got `{text}`"))
-                        .into())
-                }
-            };
-            out[k].push(v);
-        }
-    }
-    Ok(out)
+        .collect::<Result<_, CliError>>()?;
+    Ok((table.name(), columns))
 }
 
 /// A dynamic model's coefficients: per applied output, the intercept and every non-zero feature.
@@ -157,10 +177,26 @@ fn coefficients(model: &Model, machine: &truepos_model::Machine) -> Vec<Coeffici
     out
 }
 
+/// The volume map of a position-dependent model over the run's states.
+fn volume(
+    machine: &truepos_model::Machine,
+    model: &CompensationModel,
+    run: &truepos_io::cycles::Cycles,
+) -> Option<truepos_report::VolumeMap> {
+    let rows: Vec<truepos_model::CycleInput<'_>> = (0..run.time_s.len())
+        .map(|i| truepos_model::CycleInput {
+            temperatures_c: &run.temperatures_c[i],
+            positions: &run.positions[i],
+            operating: &run.operating[i],
+        })
+        .collect();
+    crate::volume_map::of_model(machine, model.as_static()?, &rows, &run.time_s)
+}
+
 pub fn run(args: Args) -> Result<(), CliError> {
     let machine = machine_file::load(&args.machine)?.machine;
     let mut model = Evaluator::load(&args.model, &machine)?;
-    let run = model.load_run(&args.run, &machine)?;
+    let runs = model.load_runs(&args.run, &machine, &args.shape, args.time.as_deref())?;
     let mut pairs = Vec::new();
     for spec in &args.measured {
         let (axis, column) = spec.split_once('=').ok_or_else(|| {
@@ -175,7 +211,12 @@ pub fn run(args: Args) -> Result<(), CliError> {
         pairs.push((a, column.to_string()));
     }
     let columns: Vec<String> = pairs.iter().map(|p| p.1.clone()).collect();
-    let measured = read_columns(&args.run, &columns)?;
+    let (run_name, measured) = read_measured(&args, &columns)?;
+    let run = runs
+        .into_iter()
+        .find(|(name, _)| *name == run_name)
+        .map(|(_, cycles)| cycles)
+        .ok_or_else(|| CliError::refused(format!("run `{run_name}`: not found")))?;
 
     let mut predicted = vec![Vec::with_capacity(run.time_s.len()); pairs.len()];
     let mut failed = 0usize;
@@ -221,7 +262,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
     let mut protocol = vec![
         ("machine".to_string(), machine.name.clone()),
         ("model".to_string(), model.name().to_string()),
-        ("run".to_string(), args.run.display().to_string()),
+        ("run".to_string(), run_name.clone()),
         (
             "evaluation".to_string(),
             format!(
@@ -243,11 +284,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
         },
     ));
     let data = ReportData {
-        title: format!(
-            "truepos report: model `{}` on {}",
-            model.name(),
-            args.run.display()
-        ),
+        title: format!("truepos report: model `{}` on {}", model.name(), run_name),
         time_s: run.time_s.clone(),
         test_from,
         channels,
@@ -257,6 +294,9 @@ pub fn run(args: Args) -> Result<(), CliError> {
             CompensationModel::Dynamic(d) => dynamic_coefficients(d, &machine),
         },
         protocol,
+        volume: volume(&machine, model.model(), &run),
+        headline: Vec::new(),
+        runs: Vec::new(),
     };
     let html = write_report(&args.out, &data)?;
     let range = test_from.unwrap_or(0)..run.time_s.len();

@@ -150,9 +150,10 @@ fn leave_one_run_out_shows_every_run_the_same_on_screen_and_in_json() {
                 got(key)
             );
         }
-        // The screen shows the JSON's numbers, rounded.
+        // The screen shows the JSON's numbers, rounded, and the run's measured rows.
+        assert_eq!(t["samples"], 20);
         let want = format!(
-            "{name} dz_um {:.2} {:.2} {:.2} {:.1}% static",
+            "{name} dz_um 20 {:.2} {:.2} {:.2} {:.1}% static",
             got("uncompensated_rmse_um"),
             got("rmse_um"),
             got("max_abs_um"),

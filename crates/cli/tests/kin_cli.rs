@@ -356,11 +356,12 @@ fn malformed_csv_gives_located_errors() {
     );
 }
 
-/// A program with comments, line numbers, modal words and unsupported words. With `--nominal`
-/// the rewritten axis words are the programmed ones (all axes on every move, 6 decimals);
-/// other lines pass unchanged, and every unsupported word is reported with its line.
+/// A program that cannot be compensated — here a move beyond the travel of head-ac's X axis
+/// after two good ones — is refused with its file and line and leaves no output: neither a new
+/// file nor a change to one that was there (issue 15: a failed rewrite used to write its
+/// output, with moves the original never had).
 #[test]
-fn gcode_keeps_comments_and_line_numbers_and_reports_unsupported_words() {
+fn gcode_refuses_with_file_and_line_and_writes_nothing() {
     let d = scratch("gcode");
     let program = "\
 %
@@ -368,66 +369,94 @@ fn gcode_keeps_comments_and_line_numbers_and_reports_unsupported_words() {
 N10 G90 G21 G17
 N20 G0 X10 Y20 Z100 A15 C30 ; above the part
 N30 G1 X12.5 F800 (modal move)
-N40 G2 X20 Y20 I5 J0
-N50 G1 Q7 X1
-N60 G1 Y-5 C-40.25
-N70 M30
+N40 G1 X5000
+N50 M30
+%
 ";
     let input = write(&d, "prog.nc", program);
     let k = ktab("head-ac");
-    let (ok, out, err) = truepos(&[
+    let fresh = d.join("fresh.ngc");
+    let (ok, _, err) = truepos(&[
         "kin",
         "gcode",
         "--kinematics",
         &k,
-        "--nominal",
         "--input",
         &input,
+        "--output",
+        fresh.to_str().unwrap(),
     ]);
-    assert!(!ok, "unsupported words must fail the command: {err}");
-    let want = "\
-%
-(a test program)
-N10 G90 G21 G17
-N20 G0 X10.000000 Y20.000000 Z100.000000 A15.000000 C30.000000 ; above the part
-N30 G1 X12.500000 F800 Y20.000000 Z100.000000 A15.000000 C30.000000 (modal move)
-N40 G2 X20 Y20 I5 J0
-N50 G1 Q7 X1
-N60 G1 Y-5.000000 C-40.250000 X12.500000 Z100.000000 A15.000000
-N70 M30
-";
-    assert_eq!(out, want);
-    for line in [
-        format!("{input}:1: unexpected `%`"),
-        format!("{input}:6: G2 is not supported"),
-        format!("{input}:6: word `I5` is not supported"),
-        format!("{input}:6: word `J0` is not supported"),
-        format!("{input}:7: word `Q7` is not supported"),
-    ] {
-        assert!(err.contains(&line), "want `{line}` in:\n{err}");
-    }
+    assert!(!ok, "a move beyond travel must fail the command: {err}");
     assert!(
-        err.contains("3 moves rewritten; 5 problem(s), 0 warning(s)"),
+        err.contains(&format!("{input}:6: the program moves X to 5000.0000"))
+            && err.contains("outside its travel"),
+        "{err}"
+    );
+    assert!(
+        !fresh.exists(),
+        "a refused program left {}",
+        fresh.display()
+    );
+    let kept = write(&d, "kept.ngc", "(an earlier result)\n");
+    let (ok, _, err) = truepos(&[
+        "kin",
+        "gcode",
+        "--kinematics",
+        &k,
+        "--input",
+        &input,
+        "--output",
+        &kept,
+    ]);
+    assert!(!ok, "{err}");
+    assert_eq!(
+        std::fs::read_to_string(&kept).unwrap(),
+        "(an earlier result)\n"
+    );
+    let leftovers: Vec<_> = std::fs::read_dir(&d)
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .filter(|n| n.starts_with(".truepos-gcode-"))
+        .collect();
+    assert!(leftovers.is_empty(), "temporary files left: {leftovers:?}");
+    // An interpreter error names the line rs274 stopped at.
+    let bad = write(&d, "bad.nc", "G0 X1\nG1 X2 F100\nG1 X3 Q\nM2\n");
+    let (ok, _, err) = truepos(&["kin", "gcode", "--kinematics", &k, "--input", &bad]);
+    assert!(!ok);
+    assert!(
+        err.contains(&format!(
+            "{bad}:3: LinuxCNC's interpreter refused the program"
+        )),
         "{err}"
     );
 }
 
-/// Through the error tables: the rewritten set-points put the real tool where the nominal
+/// Through the error tables: the compensated set-points put the real tool where the nominal
 /// machine puts it at the programmed positions (checked with `kin fwd`), and they differ from
-/// the programmed ones by µm / µrad-sized amounts, not by nothing.
+/// the programmed ones by µm / µrad-sized amounts, not by nothing. Every move is a G53 block
+/// whose N word is its source line.
 #[test]
 fn gcode_compensation_lands_the_real_tool_on_the_nominal_pose() {
     let d = scratch("gcode_comp");
     let program =
-        "N1 G1 X10 Y20 Z30 A15 C30\nN2 X-40 A-35.5 C-100 (tilted)\nN3 Y55 Z-12 A60 C250\n";
+        "G1 X10 Y20 Z30 A15 C30 F1000\nX-40 A-35.5 C-100 (tilted)\nY55 Z-12 A60 C250\nM2\n";
     let input = write(&d, "prog.nc", program);
+    let output = d.join("out.ngc");
     let k = ktab("head-ac");
-    let (ok, out, err) = truepos(&["kin", "gcode", "--kinematics", &k, "--input", &input]);
+    let (ok, summary, err) = truepos(&[
+        "kin",
+        "gcode",
+        "--kinematics",
+        &k,
+        "--input",
+        &input,
+        "--output",
+        output.to_str().unwrap(),
+    ]);
     assert!(ok, "{err}");
-    assert!(
-        err.contains("3 moves rewritten; 0 problem(s), 0 warning(s)"),
-        "{err}"
-    );
+    assert!(summary.contains("3 moves written"), "{summary}");
+    let out = std::fs::read_to_string(&output).unwrap();
     let words = |line: &str| -> Vec<f64> {
         ['X', 'Y', 'Z', 'A', 'C']
             .iter()
@@ -445,10 +474,16 @@ fn gcode_compensation_lands_the_real_tool_on_the_nominal_pose() {
         vec![-40.0, 20.0, 30.0, -35.5, -100.0],
         vec![-40.0, 55.0, -12.0, 60.0, 250.0],
     ];
-    let lines: Vec<&str> = out.lines().collect();
-    assert_eq!(lines.len(), 3);
-    assert!(lines[0].starts_with("N1 G1 X"), "{}", lines[0]);
-    assert!(lines[1].starts_with("N2 X") && lines[1].ends_with(" (tilted)"));
+    let lines: Vec<&str> = out.lines().filter(|l| l.contains(" G53 G")).collect();
+    assert_eq!(lines.len(), 3, "{out}");
+    assert!(
+        lines[0].starts_with("N1 G53 G1 X") && lines[0].ends_with(" F1000"),
+        "{}",
+        lines[0]
+    );
+    assert!(lines[1].starts_with("N2 G53 G1 X"), "{}", lines[1]);
+    assert!(lines[2].starts_with("N3 G53 G1 X"), "{}", lines[2]);
+    assert!(out.contains("N2 (tilted)"), "{out}");
     let rewritten: Vec<Vec<f64>> = lines.iter().map(|l| words(l)).collect();
     for (r, p) in rewritten.iter().zip(&programmed) {
         let moved = r
@@ -463,8 +498,8 @@ fn gcode_compensation_lands_the_real_tool_on_the_nominal_pose() {
     let actual_in = write(&d, "rewritten.csv", &to_csv(&header, &rewritten));
     let (_, want) = fwd("head-ac", &nominal_in, true);
     let (_, got) = fwd("head-ac", &actual_in, false);
-    // The program carries 6 decimals: 1e-6° at 250 mm is 4.4e-6 mm.
-    assert_rows_close(&got, &want, 1e-5, "real pose of the rewritten program");
+    // The program carries 7 decimals (mm) and 8 (degrees): 1e-8° at 250 mm is 4.4e-8 mm.
+    assert_rows_close(&got, &want, 1e-6, "real pose of the rewritten program");
 }
 
 /// `kin chain` prints the resolved chain: axes with travel, rows in file order with the tool

@@ -7,7 +7,9 @@ use std::fmt;
 use std::str::FromStr;
 
 pub use truepos_io::dynamic_model_file::InputKind;
+pub use truepos_io::run::Time;
 use truepos_io::run::{glob_match, Table};
+use truepos_io::units::Role;
 use truepos_io::InputError;
 
 /// The largest |target| a run may hold, µm: 1 m. No machine errs by that much, so a value beyond
@@ -25,7 +27,8 @@ pub struct Run {
     pub time_s: Vec<f64>,
     /// One column per input of the [`Dataset`].
     pub inputs: Vec<Vec<f64>>,
-    /// One column per target of the [`Dataset`], µm.
+    /// One column per target of the [`Dataset`], µm; NaN where the row has no measurement
+    /// (a probe every 15 minutes): such a row drives the filters but neither trains nor scores.
     pub targets: Vec<Vec<f64>>,
 }
 
@@ -33,20 +36,27 @@ impl Run {
     /// The columns named `inputs` and `targets` of a table, and its time column.
     fn from_table(
         t: &Table,
-        time: &str,
-        inputs: &[String],
+        time: &Time,
+        inputs: &[(String, InputKind)],
         targets: &[String],
     ) -> Result<Run, InputError> {
         let col = |name: &str| t.select(&[name]).map(|v| v[0]);
-        let numbers = |names: &[String]| -> Result<Vec<Vec<f64>>, InputError> {
-            names.iter().map(|n| t.numbers(col(n)?)).collect()
+        // Temperatures in °C whatever unit their names state; operating state as written.
+        let numbers = |names: &[(String, InputKind)]| -> Result<Vec<Vec<f64>>, InputError> {
+            names
+                .iter()
+                .map(|(n, kind)| match kind {
+                    InputKind::Temperature => t.numbers_as(col(n)?, Role::Temperature),
+                    InputKind::Operating => t.numbers(col(n)?),
+                })
+                .collect()
         };
         let measured = |names: &[String]| -> Result<Vec<Vec<f64>>, InputError> {
             names
                 .iter()
                 .map(|n| {
                     let c = col(n)?;
-                    let v = t.numbers(c)?;
+                    let v = t.measured(c)?;
                     match v.iter().position(|x| x.abs() > MAX_TARGET_UM) {
                         Some(r) => Err(t.table.at(
                             r,
@@ -63,7 +73,7 @@ impl Run {
         };
         Ok(Run {
             name: t.name(),
-            time_s: t.time(col(time)?)?,
+            time_s: t.times(time)?,
             inputs: numbers(inputs)?,
             targets: measured(targets)?,
         })
@@ -89,12 +99,29 @@ impl Run {
         }
     }
 
-    /// Target `k` relative to the run's first sample: the displacement since the start, which
-    /// is what a model started with the run predicts and what "uncompensated" means.
+    /// Target `k` relative to the run's first measured sample: the displacement since the
+    /// start, which is what a model started with the run predicts and what "uncompensated"
+    /// means (NaN where the row has no measurement). A run should therefore be measured at its
+    /// start; [`Run::first_measured`] tells where it was.
     pub fn relative_target(&self, k: usize) -> Vec<f64> {
         let col = &self.targets[k];
-        let first = col.first().copied().unwrap_or(0.0);
+        let first = col.iter().copied().find(|v| !v.is_nan()).unwrap_or(0.0);
         col.iter().map(|v| v - first).collect()
+    }
+
+    /// Whether row `i` has a measurement of every target (only such rows train and score).
+    pub fn measured(&self, i: usize) -> bool {
+        self.targets.iter().all(|c| !c[i].is_nan())
+    }
+
+    /// Rows with a measurement of every target.
+    pub fn measured_rows(&self) -> usize {
+        (0..self.len()).filter(|&i| self.measured(i)).count()
+    }
+
+    /// The first row with a measurement of every target.
+    pub fn first_measured(&self) -> Option<usize> {
+        (0..self.len()).find(|&i| self.measured(i))
     }
 }
 
@@ -133,6 +160,16 @@ pub enum DatasetError {
         /// Column name.
         column: String,
     },
+    /// Two runs with one name (the same run-column value in two files).
+    DuplicateRun {
+        /// The name.
+        run: String,
+    },
+    /// A run without a single row that has a measurement of every target.
+    NoMeasuredRow {
+        /// Run name.
+        run: String,
+    },
     /// A name that should be a temperature input of the dataset is not one.
     NotATemperature {
         /// The name given.
@@ -162,6 +199,14 @@ impl fmt::Display for DatasetError {
                 )
             }
             Self::Empty => write!(f, "the dataset needs at least one run, input and target"),
+            Self::DuplicateRun { run } => write!(
+                f,
+                "two runs are named `{run}`: the values of a run column name runs and must differ between files"
+            ),
+            Self::NoMeasuredRow { run } => write!(
+                f,
+                "{run}: no row has a value in every target column: a row trains and scores only where every target is measured"
+            ),
             Self::Input(e) => write!(f, "{e}"),
             Self::InputIsTarget { column } => write!(
                 f,
@@ -215,10 +260,10 @@ impl FromStr for Patterns {
 }
 
 /// Which columns of the run tables a dataset reads.
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct Columns {
-    /// The time column, in seconds.
-    pub time: String,
+    /// The time: a column of seconds or ISO 8601 date-times, or a sample period.
+    pub time: Time,
     /// Input columns: what the control knows.
     pub inputs: Patterns,
     /// Target columns: measured errors in µm.
@@ -257,7 +302,7 @@ impl Dataset {
                 column: both.clone(),
             });
         }
-        let input_kinds = input_names
+        let input_kinds: Vec<InputKind> = input_names
             .iter()
             .map(|n| {
                 if columns.operating.matches(n) {
@@ -267,10 +312,24 @@ impl Dataset {
                 }
             })
             .collect();
-        let runs = tables
+        let named: Vec<(String, InputKind)> = input_names
             .iter()
-            .map(|t| Run::from_table(t, &columns.time, &input_names, &target_names))
+            .cloned()
+            .zip(input_kinds.iter().copied())
+            .collect();
+        let runs: Vec<Run> = tables
+            .iter()
+            .map(|t| Run::from_table(t, &columns.time, &named, &target_names))
             .collect::<Result<_, _>>()?;
+        // Runs named by a run column must differ: the value is all that names them in the
+        // output (a file given twice keeps its meaning: two runs with the file's name).
+        if let Some(i) = (0..runs.len())
+            .find(|&i| tables[i].run.is_some() && runs[..i].iter().any(|b| b.name == runs[i].name))
+        {
+            return Err(DatasetError::DuplicateRun {
+                run: runs[i].name.clone(),
+            });
+        }
         let ds = Dataset {
             input_names,
             input_kinds,
@@ -316,14 +375,22 @@ impl Dataset {
                     column: "(column count)".into(),
                 });
             }
-            for (name, col) in cols {
+            for (c, (name, col)) in cols.enumerate() {
                 if col.len() != run.len() {
                     return Err(DatasetError::Length {
                         run: run.name.clone(),
                         column: name.clone(),
                     });
                 }
-                if let Some(row) = col.iter().position(|v| !v.is_finite()) {
+                // A target may be NaN (not measured in that row), never infinite.
+                let bad = |v: &f64| {
+                    if c < self.input_names.len() {
+                        !v.is_finite()
+                    } else {
+                        v.is_infinite()
+                    }
+                };
+                if let Some(row) = col.iter().position(bad) {
                     return Err(DatasetError::NonFinite {
                         run: run.name.clone(),
                         column: name.clone(),
@@ -338,6 +405,11 @@ impl Dataset {
                         row: row + 1,
                     });
                 }
+            }
+            if run.first_measured().is_none() && !run.is_empty() {
+                return Err(DatasetError::NoMeasuredRow {
+                    run: run.name.clone(),
+                });
             }
             if run.time_s.iter().any(|t| !t.is_finite()) {
                 return Err(DatasetError::NonFinite {
@@ -397,7 +469,7 @@ mod tests {
 
     fn columns(inputs: &str, targets: &str) -> Columns {
         Columns {
-            time: "time_s".into(),
+            time: Time::default(),
             inputs: inputs.parse().unwrap(),
             targets: targets.parse().unwrap(),
             operating: "*rpm*".parse().unwrap(),
@@ -448,6 +520,28 @@ mod tests {
         assert_eq!(
             Dataset::from_tables(&[], &columns("t1_c", "dz_um")),
             Err(DatasetError::Empty)
+        );
+    }
+
+    /// Empty target cells are rows without a measurement: NaN, kept for the filters; targets
+    /// count from the first measured row; a target in mm and a temperature in °F are converted.
+    #[test]
+    fn sparse_targets_and_units() {
+        let t = table("time_s,t1 (°F),dz_mm\n0,68,\n10,69.8,0.002\n20,71.6,\n30,73.4,0.005\n");
+        let ds = Dataset::from_tables(&[t], &columns("t1 (°F)", "dz_mm")).unwrap();
+        let run = &ds.runs[0];
+        assert!((run.inputs[0][1] - 21.0).abs() < 1e-12);
+        assert!(run.targets[0][0].is_nan());
+        assert!((run.targets[0][3] - 5.0).abs() < 1e-12);
+        assert_eq!((run.measured_rows(), run.first_measured()), (2, Some(1)));
+        let rel = run.relative_target(0);
+        assert!(rel[0].is_nan() && rel[1] == 0.0 && (rel[3] - 3.0).abs() < 1e-12);
+        let t = table("time_s,t1_c,dz_um\n0,20,\n10,21,\n");
+        assert_eq!(
+            Dataset::from_tables(&[t], &columns("t1_c", "dz_um"))
+                .unwrap_err()
+                .to_string(),
+            "day.csv:1:3: `dz_um`: no measured value in this column (every cell is empty)"
         );
     }
 

@@ -270,7 +270,13 @@ pub fn predictions_csv_of(
         for i in 0..run.len() {
             out += &format!("{name},{},{}", run.time_s[i], held_out[r][i]);
             for (k, measured) in rel.iter().enumerate() {
-                out += &format!(",{},{}", measured[i], predictions[r][k][i]);
+                // A row without a measurement has an empty measured cell, not "NaN".
+                let m = if measured[i].is_nan() {
+                    String::new()
+                } else {
+                    measured[i].to_string()
+                };
+                out += &format!(",{m},{}", predictions[r][k][i]);
             }
             out.push('\n');
         }

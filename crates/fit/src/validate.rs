@@ -233,13 +233,19 @@ pub fn predict(dataset: &Dataset, trained: &Trained) -> Result<Predictions, Stri
     Ok(out)
 }
 
-/// Every row of every run as (run, row), in time order run after run.
+/// Every measured row of every run as (run, row), in time order run after run: a row without
+/// a measurement of every target neither trains nor scores (its inputs still step the filters,
+/// which run over whole runs).
 pub(crate) fn all_rows(dataset: &Dataset) -> Vec<(usize, usize)> {
     dataset
         .runs
         .iter()
         .enumerate()
-        .flat_map(|(r, run)| (0..run.len()).map(move |i| (r, i)))
+        .flat_map(|(r, run)| {
+            (0..run.len())
+                .filter(|&i| run.measured(i))
+                .map(move |i| (r, i))
+        })
         .collect()
 }
 
@@ -287,6 +293,9 @@ pub fn outcome(
         .collect();
     let mut fold_of: Vec<Vec<Option<usize>>> =
         dataset.runs.iter().map(|r| vec![None; r.len()]).collect();
+    let owners = owners(dataset);
+    // Rows without a measurement that a fold predicted out of sample ([`owners`]).
+    let mut filled: Vec<Vec<bool>> = dataset.runs.iter().map(|r| vec![false; r.len()]).collect();
     let mut choices = Vec::new();
     let mut sensors = Vec::new();
     let mut warnings = Vec::new();
@@ -306,6 +315,7 @@ pub fn outcome(
                 oof[r][k][i] = pred[r][k][i];
             }
         }
+        fill_unmeasured(&owners, &fold_of, f, &pred, &mut oof, &mut filled);
         choices.push(trained.choices.clone());
         sensors.push(
             trained
@@ -326,7 +336,12 @@ pub fn outcome(
     // measure the procedure; the model to write is the same procedure on every row — else it
     // would be the last fold's, which never saw the last run or block. A chronological split
     // keeps its training part's model: the one its test figures describe.
-    if fold_of.iter().flatten().all(Option::is_some) {
+    let every_measured_row_held_out = dataset
+        .runs
+        .iter()
+        .zip(&fold_of)
+        .all(|(run, folds)| (0..run.len()).all(|i| !run.measured(i) || folds[i].is_some()));
+    if every_measured_row_held_out {
         let all = all_rows(dataset);
         trained = train(dataset, cand, &all, settings)?;
         fitted = predict(dataset, &trained)?;
@@ -337,7 +352,7 @@ pub fn outcome(
     for (r, run) in oof.iter_mut().enumerate() {
         for (k, col) in run.iter_mut().enumerate() {
             for (i, v) in col.iter_mut().enumerate() {
-                if fold_of[r][i].is_none() {
+                if fold_of[r][i].is_none() && !filled[r][i] {
                     *v = fitted[r][k][i];
                 }
             }
@@ -366,12 +381,63 @@ pub fn outcome(
         predictions: oof,
         held_out: fold_of
             .iter()
-            .map(|run| run.iter().map(Option::is_some).collect())
+            .zip(&filled)
+            .map(|(run, filled)| {
+                run.iter()
+                    .zip(filled)
+                    .map(|(f, &u)| f.is_some() || u)
+                    .collect()
+            })
             .collect(),
         fitted,
         training_rows,
         absolute_targets: settings.absolute_targets,
     })
+}
+
+/// For each row without a measurement, the measured row of its run whose fold predicts it: the
+/// last one before it, or at a run's start the first one after (the stretch of the run it lies
+/// in); `None` for measured rows.
+fn owners(dataset: &Dataset) -> Vec<Vec<Option<usize>>> {
+    dataset
+        .runs
+        .iter()
+        .map(|run| {
+            let first = run.first_measured();
+            let mut last = None;
+            (0..run.len())
+                .map(|i| {
+                    if run.measured(i) {
+                        last = Some(i);
+                        None
+                    } else {
+                        last.or(first)
+                    }
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// Gives every row without a measurement whose owner fold `f` held out that fold's prediction.
+fn fill_unmeasured(
+    owners: &[Vec<Option<usize>>],
+    fold_of: &[Vec<Option<usize>>],
+    f: usize,
+    pred: &Predictions,
+    oof: &mut Predictions,
+    filled: &mut [Vec<bool>],
+) {
+    for (r, run) in owners.iter().enumerate() {
+        for (i, owner) in run.iter().enumerate() {
+            if owner.is_some_and(|o| fold_of[r][o] == Some(f)) {
+                filled[r][i] = true;
+                for (k, col) in oof[r].iter_mut().enumerate() {
+                    col[i] = pred[r][k][i];
+                }
+            }
+        }
+    }
 }
 
 /// Figures of every run's held-out rows, with the family each fold that held them out chose.

@@ -7,7 +7,10 @@ use truepos_model::{LagFilters, LagSource, Machine};
 use truepos_runtime::replay::Recording;
 
 use crate::error::InputError;
-use crate::table::Number;
+use crate::run::{Shape, Time};
+use crate::table::{Number, Table, Value};
+use crate::timestamp;
+use crate::units::{self, Role, Unit};
 
 /// The cycles of a run, in the machine's channel order.
 #[derive(Debug, Clone, PartialEq)]
@@ -153,15 +156,76 @@ pub fn read_with(
     positions_needed: Positions,
 ) -> Result<Cycles, InputError> {
     let table = crate::table::read_csv(path, reader, crate::table::CsvOptions::default())?;
-    let header = &table.columns;
-    if header.iter().all(|h| h.is_empty()) {
-        return Err(InputError::file(path, "empty file; expected a header row"));
+    let options = Options {
+        positions: positions_needed,
+        ..Options::default()
+    };
+    from_table(&table, machine, required_sensors, &options)
+}
+
+/// How a run file is read for a machine, beyond its columns.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Options {
+    /// Whether the axis positions are required.
+    pub positions: Positions,
+    /// The file's separator and run column.
+    pub shape: Shape,
+    /// The time: `None` reads `time_s` when there is one and else numbers the rows (0, 1, 2 …);
+    /// a named column must be there.
+    pub time: Option<Time>,
+}
+
+impl Default for Options {
+    fn default() -> Self {
+        Self {
+            positions: Positions::Required,
+            shape: Shape::default(),
+            time: None,
+        }
     }
-    let find = |name: &str| header.iter().position(|h| h == name);
+}
+
+/// Reads every run of a run file (CSV, or a workbook's sheets) as `options` say: a run column
+/// splits a table into runs, each named by its value (else by its file and sheet).
+pub fn load_runs(
+    path: &Path,
+    machine: &Machine,
+    required_sensors: &[usize],
+    options: &Options,
+) -> Result<Vec<(String, Cycles)>, InputError> {
+    crate::run::read_shaped(path, None, &options.shape)?
+        .into_iter()
+        .map(|t| {
+            let cycles = from_table(&t.table, machine, required_sensors, options)?;
+            Ok((t.name(), cycles))
+        })
+        .collect()
+}
+
+/// A column of the table and the unit its values convert from.
+type Source = Option<(usize, Unit, Role)>;
+
+/// The columns a run's channels come from.
+struct Sources {
+    time: Option<usize>,
+    positions: Vec<Source>,
+    temperatures: Vec<Source>,
+    operating: Vec<Option<usize>>,
+}
+
+/// Finds the machine's channels in the header (with or without a unit in the column name,
+/// [`units::find_channel`]), each with the unit it converts from.
+fn sources(
+    table: &Table,
+    machine: &Machine,
+    required_sensors: &[usize],
+    options: &Options,
+) -> Result<Sources, InputError> {
+    let header = &table.columns;
     let missing = |name: String, what: &str| {
         InputError::at(
-            path,
-            1,
+            &table.file,
+            table.header_line,
             1,
             name.clone(),
             format!(
@@ -170,42 +234,101 @@ pub fn read_with(
             ),
         )
     };
-    let time_col = find("time_s");
-    let mut position_cols = Vec::new();
-    for a in 0..machine.axes.len() {
-        let name = machine.axes[a].position_column();
-        let col = find(&name);
-        if col.is_none() && positions_needed == Positions::Required {
+    let source = |col: Option<usize>, role: Role| -> Result<Source, InputError> {
+        col.map(|c| {
+            units::for_role(&header[c], role)
+                .map(|u| (c, u, role))
+                .map_err(|e| table.header_at(c, e))
+        })
+        .transpose()
+    };
+    let time = match &options.time {
+        None => header.iter().position(|h| h == "time_s"),
+        Some(Time::Column(name)) => Some(
+            header
+                .iter()
+                .position(|h| h == name)
+                .ok_or_else(|| missing(name.clone(), "time"))?,
+        ),
+        Some(Time::Period(_)) => None,
+    };
+    let mut positions = Vec::new();
+    for axis in &machine.axes {
+        let name = axis.position_column();
+        let col = header
+            .iter()
+            .position(|h| *h == name)
+            .or_else(|| units::find_channel(header, &axis.name));
+        if col.is_none() && options.positions == Positions::Required {
             return Err(missing(name, "axis position"));
         }
-        position_cols.push(col);
+        let role = match axis.kind {
+            truepos_model::AxisKind::Rotary => Role::Angle,
+            _ => Role::Position,
+        };
+        positions.push(source(col, role)?);
     }
-    let mut temperature_cols = Vec::new();
+    let mut temperatures = Vec::new();
     for (i, t) in machine.temperatures.iter().enumerate() {
         // A lagged channel is computed from its source below, never read from the file.
         if let Some(lag) = t.lag {
-            let source = match lag.source {
-                LagSource::Temperature(s) => &machine.temperatures[s].id,
-                LagSource::Operating { channel, .. } => &machine.operating[channel].id,
+            let (source_id, found) = match lag.source {
+                LagSource::Temperature(s) => {
+                    let id = &machine.temperatures[s].id;
+                    (id, units::find_channel(header, id))
+                }
+                LagSource::Operating { channel, .. } => {
+                    let id = &machine.operating[channel].id;
+                    (id, header.iter().position(|h| h == id))
+                }
             };
-            if required_sensors.contains(&i) && find(source).is_none() {
+            if required_sensors.contains(&i) && found.is_none() {
                 return Err(missing(
-                    source.clone(),
+                    source_id.clone(),
                     "the source of a lagged channel the model reads",
                 ));
             }
-            temperature_cols.push(None);
+            temperatures.push(None);
             continue;
         }
-        let col = find(&t.id);
+        let col = units::find_channel(header, &t.id);
         if col.is_none() && required_sensors.contains(&i) {
             return Err(missing(t.id.clone(), "temperature the model reads"));
         }
-        temperature_cols.push(col);
+        temperatures.push(source(col, Role::Temperature)?);
     }
-    let operating_cols: Vec<Option<usize>> =
-        machine.operating.iter().map(|o| find(&o.id)).collect();
+    let operating = machine
+        .operating
+        .iter()
+        .map(|o| header.iter().position(|h| *h == o.id))
+        .collect();
+    Ok(Sources {
+        time,
+        positions,
+        temperatures,
+        operating,
+    })
+}
 
+/// The cycles of one table: the machine's channels found by name ([`sources`]) and converted
+/// to °C and mm.
+pub fn from_table(
+    table: &Table,
+    machine: &Machine,
+    required_sensors: &[usize],
+    options: &Options,
+) -> Result<Cycles, InputError> {
+    let path = table.file.as_path();
+    let header = &table.columns;
+    if header.iter().all(|h| h.is_empty()) {
+        return Err(InputError::file(path, "empty file; expected a header row"));
+    }
+    let Sources {
+        time: time_col,
+        positions: position_cols,
+        temperatures: temperature_cols,
+        operating: operating_cols,
+    } = sources(table, machine, required_sensors, options)?;
     let mut out = Cycles {
         time_s: Vec::new(),
         line: Vec::new(),
@@ -213,6 +336,13 @@ pub fn read_with(
         positions: Vec::new(),
         operating: Vec::new(),
     };
+    let first_iso = time_col.and_then(|c| {
+        let first = table.rows.first()?.cells.get(c)?;
+        match &first.value {
+            Value::Text(t) => timestamp::parse(t).ok(),
+            _ => None,
+        }
+    });
     for (row_index, row) in table.rows.iter().enumerate() {
         if let Some(e) = table.width_error(row_index) {
             return Err(e);
@@ -227,25 +357,35 @@ pub fn read_with(
                 Number::Empty => Err(table.at(row_index, col, "expected a number, got ``")),
             }
         };
-        let time = match time_col {
-            Some(c) => {
-                let t = cell(c)?;
+        let converted = |src: &Source| -> Result<f64, InputError> {
+            match *src {
+                None => Ok(f64::NAN),
+                Some((c, unit, role)) => Ok(unit.convert(cell(c)?, role).unwrap_or(f64::NAN)),
+            }
+        };
+        let time = match (time_col, &options.time) {
+            (Some(c), _) => {
+                let t = match first_iso {
+                    Some(first) => iso_seconds(table, row_index, c, first)?,
+                    None => cell(c)?,
+                };
                 // Every row's time, the first and the last included: a NaN or infinite time
                 // would end up in outputs, stall a replay or change the lag filters' steps.
                 check_time(t, out.time_s.last().copied())
-                    .map_err(|e| InputError::at(path, line as usize, c + 1, "time_s", e))?
+                    .map_err(|e| InputError::at(path, line as usize, c + 1, header[c].clone(), e))?
             }
-            None => row_index as f64,
+            (None, Some(Time::Period(p))) => row_index as f64 * p,
+            (None, _) => row_index as f64,
         };
         // Sensor and position values are passed on as read (NaN included): judging them is
         // the model's job, and a bad value must show as a failed cycle, not vanish here.
         let positions = position_cols
             .iter()
-            .map(|c| c.map_or(Ok(f64::NAN), cell))
+            .map(converted)
             .collect::<Result<_, _>>()?;
         let temperatures = temperature_cols
             .iter()
-            .map(|c| c.map_or(Ok(f64::NAN), cell))
+            .map(converted)
             .collect::<Result<_, _>>()?;
         let operating = operating_cols
             .iter()
@@ -267,4 +407,18 @@ pub fn read_with(
         &out.operating,
     );
     Ok(out)
+}
+
+/// Seconds since the first row of an ISO 8601 time cell.
+fn iso_seconds(table: &Table, row: usize, col: usize, first: i128) -> Result<f64, InputError> {
+    let ns =
+        match &table.rows[row].cells[col].value {
+            Value::Text(t) => timestamp::parse(t).map_err(|e| table.at(row, col, e))?,
+            _ => return Err(table.at(
+                row,
+                col,
+                "expected an ISO 8601 date-time as in the first row, got a number or an empty cell",
+            )),
+        };
+    Ok((ns - first) as f64 / 1e9)
 }

@@ -35,5 +35,7 @@ pub mod machine_file;
 pub mod model_file;
 pub mod run;
 pub mod table;
+pub mod timestamp;
+pub mod units;
 
 pub use error::InputError;

@@ -22,7 +22,9 @@
 use std::path::{Path, PathBuf};
 
 use crate::error::InputError;
-use crate::table::{self, CsvOptions, Number};
+use crate::table::{self, CsvOptions, Delimiter, Number};
+use crate::timestamp;
+use crate::units::{self, Role};
 
 /// One run as a table of named columns, read by [`crate::table`].
 #[derive(Debug, Clone, PartialEq)]
@@ -31,10 +33,37 @@ pub struct Table {
     pub file: PathBuf,
     /// The sheet, for workbooks.
     pub sheet: Option<String>,
+    /// The run's name when a run column split the file into runs ([`Shape::run_column`]).
+    pub run: Option<String>,
     /// Column names (the header row).
     pub columns: Vec<String>,
     /// The cells as read, with their places.
     pub table: table::Table,
+}
+
+/// How run files are laid out, beyond what the reader sees by itself.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct Shape {
+    /// The field separator of CSV files (detected by default).
+    pub delimiter: Delimiter,
+    /// A column whose value names the run each row belongs to: a file holding several runs is
+    /// split into one run per value, in order of first appearance.
+    pub run_column: Option<String>,
+}
+
+/// Where a run's time comes from.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Time {
+    /// A column (a name or glob) of seconds or of ISO 8601 date-times.
+    Column(String),
+    /// No time column: row `i` is at `i` × this many seconds.
+    Period(f64),
+}
+
+impl Default for Time {
+    fn default() -> Self {
+        Time::Column("time_s".into())
+    }
 }
 
 impl Table {
@@ -42,14 +71,73 @@ impl Table {
         Self {
             file: table.file.clone(),
             sheet: table.sheet.clone(),
+            run: None,
             columns: table.columns.clone(),
             table,
         }
     }
 
-    /// "file" or "file, sheet `name`", for messages and run names.
+    /// The run's name: the value of its run column, else "file" or "file, sheet `name`".
     pub fn name(&self) -> String {
-        self.table.name()
+        self.run.clone().unwrap_or_else(|| self.table.name())
+    }
+
+    /// Splits the table into runs by the value of column `column` (text or number), in order of
+    /// first appearance. The rows of one run must be together: a run that appears again after
+    /// another one is an error at the row where it does, as is an empty cell.
+    pub fn split_runs(self, column: &str) -> Result<Vec<Table>, InputError> {
+        let col = self.select(&[column])?[0];
+        let t = &self.table;
+        let mut runs: Vec<(String, usize, Vec<table::Row>)> = Vec::new();
+        for (r, row) in t.rows.iter().enumerate() {
+            let key = match &row.cells.get(col).map(|c| &c.value) {
+                Some(table::Value::Number(v)) => v.to_string(),
+                Some(table::Value::Text(s)) => s.to_string(),
+                Some(table::Value::Empty) | None => {
+                    return Err(t.at(
+                        r,
+                        col,
+                        "expected the name of the row's run, the cell is empty",
+                    ))
+                }
+            };
+            match runs.iter().position(|(k, _, _)| *k == key) {
+                Some(i) if i + 1 == runs.len() => runs[i].2.push(row.clone()),
+                Some(i) => {
+                    return Err(t.at(
+                        r,
+                        col,
+                        format!(
+                            "run `{key}` (from line {}) appears again after run `{}`: the rows of one run must be together",
+                            runs[i].1,
+                            runs[runs.len() - 1].0
+                        ),
+                    ))
+                }
+                None => runs.push((key, row.line, vec![row.clone()])),
+            }
+        }
+        Ok(runs
+            .into_iter()
+            .map(|(key, _, rows)| Table {
+                run: Some(key),
+                table: table::Table {
+                    rows,
+                    ..t.clone_header()
+                },
+                ..self.clone_header()
+            })
+            .collect())
+    }
+
+    fn clone_header(&self) -> Table {
+        Table {
+            file: self.file.clone(),
+            sheet: self.sheet.clone(),
+            run: self.run.clone(),
+            columns: self.columns.clone(),
+            table: self.table.clone_header(),
+        }
     }
 
     /// Number of data rows.
@@ -72,9 +160,67 @@ impl Table {
             .collect()
     }
 
-    /// A time column: numbers that increase strictly (a duplicate time is an error).
+    /// The values of column `col` converted to `role`'s unit from the unit its name states
+    /// ([`crate::units`]); a unit that is unknown or does not fit the role is an error at the
+    /// header naming the column.
+    pub fn numbers_as(&self, col: usize, role: Role) -> Result<Vec<f64>, InputError> {
+        let unit = self.unit(col, role)?;
+        let v = self.numbers(col)?;
+        Ok(v.into_iter()
+            .map(|x| unit.convert(x, role).unwrap_or(f64::NAN))
+            .collect())
+    }
+
+    fn unit(&self, col: usize, role: Role) -> Result<units::Unit, InputError> {
+        units::for_role(&self.columns[col], role).map_err(|e| self.table.header_at(col, e))
+    }
+
+    /// A column of measured errors, converted to µm by its unit: an empty cell is a row without
+    /// a measurement (NaN), text is an error at its cell, and so is a column with no value at
+    /// all in this run.
+    pub fn measured(&self, col: usize) -> Result<Vec<f64>, InputError> {
+        let unit = self.unit(col, Role::Error)?;
+        let t = &self.table;
+        let v = t
+            .rows
+            .iter()
+            .enumerate()
+            .map(|(r, row)| match row.cells[col].value.number() {
+                Number::Value(v) if v.is_finite() => Ok(unit.convert(v, Role::Error).unwrap_or(v)),
+                Number::Value(v) => Err(t.at(r, col, format!("expected a finite number, got {v}"))),
+                Number::Text(x) => Err(t.at(r, col, format!("expected a number, got `{x}`"))),
+                Number::Empty => Ok(f64::NAN),
+            })
+            .collect::<Result<Vec<f64>, _>>()?;
+        if v.iter().all(|x| x.is_nan()) {
+            let mut e = t.header_at(
+                col,
+                format!(
+                    "run `{}` has no measured value in this column (every cell is empty)",
+                    self.name()
+                ),
+            );
+            if self.run.is_none() {
+                e.message = "no measured value in this column (every cell is empty)".into();
+            }
+            return Err(e);
+        }
+        Ok(v)
+    }
+
+    /// The run's time in s from `time`: a column of seconds or of ISO 8601 date-times (then
+    /// seconds since the run's first row), or row `i` × a sample period.
+    pub fn times(&self, time: &Time) -> Result<Vec<f64>, InputError> {
+        match time {
+            Time::Period(p) => Ok((0..self.rows()).map(|i| i as f64 * p).collect()),
+            Time::Column(name) => self.time(self.select(&[name.as_str()])?[0]),
+        }
+    }
+
+    /// A time column: seconds, or ISO 8601 date-times as seconds since the first row (the first
+    /// cell decides which), that increase strictly (a duplicate time is an error).
     pub fn time(&self, col: usize) -> Result<Vec<f64>, InputError> {
-        let t = self.numbers(col)?;
+        let t = self.time_values(col)?;
         for r in 1..t.len() {
             if t[r] <= t[r - 1] {
                 return Err(self.table.at(
@@ -94,6 +240,39 @@ impl Table {
             }
         }
         Ok(t)
+    }
+
+    fn time_values(&self, col: usize) -> Result<Vec<f64>, InputError> {
+        let t = &self.table;
+        let iso = |r: usize| -> Result<Option<i128>, InputError> {
+            match &t.rows[r].cells[col].value {
+                table::Value::Text(x) => timestamp::parse(x).map(Some).or_else(|_| {
+                    match t.rows[r].cells[col].value.number() {
+                        Number::Value(_) => Ok(None),
+                        _ => Err(t.at(r, col, timestamp::parse(x).unwrap_err())),
+                    }
+                }),
+                _ => Ok(None),
+            }
+        };
+        let Some(first) = (!t.rows.is_empty()).then(|| iso(0)).transpose()?.flatten() else {
+            return self.numbers(col).map_err(|mut e| {
+                if let Some(rest) = e.message.strip_prefix("expected a number, got ") {
+                    e.message = format!("expected seconds (a number) or an ISO 8601 date-time like 2024-03-01T08:00:00, got {rest}");
+                }
+                e
+            });
+        };
+        (0..t.rows.len())
+            .map(|r| match iso(r)? {
+                Some(ns) => Ok((ns - first) as f64 / 1e9),
+                None => Err(t.at(
+                    r,
+                    col,
+                    "expected an ISO 8601 date-time as in the first row, got a number or an empty cell",
+                )),
+            })
+            .collect()
     }
 
     /// Column indices for names or globs (`*` any run of characters, `?` one character), in
@@ -192,13 +371,34 @@ pub fn read_workbook(file: &Path, sheet: Option<&str>) -> Result<Vec<Table>, Inp
 
 /// Reads a run file by its extension: `.csv` (one run) or a workbook (one run per sheet).
 pub fn read(file: &Path, sheet: Option<&str>) -> Result<Vec<Table>, InputError> {
-    if table::is_workbook(file) {
-        read_workbook(file, sheet)
+    read_shaped(file, sheet, &Shape::default())
+}
+
+/// [`read`] with the file's [`Shape`]: its CSV separator, and a run column that splits every
+/// table into runs.
+pub fn read_shaped(
+    file: &Path,
+    sheet: Option<&str>,
+    shape: &Shape,
+) -> Result<Vec<Table>, InputError> {
+    let tables = if table::is_workbook(file) {
+        read_workbook(file, sheet)?
     } else {
-        Ok(vec![csv_run(table::load_csv(
-            file,
-            CsvOptions::default(),
-        )?)?])
+        let options = CsvOptions {
+            delimiter: shape.delimiter,
+            ..Default::default()
+        };
+        vec![csv_run(table::load_csv(file, options)?)?]
+    };
+    match &shape.run_column {
+        None => Ok(tables),
+        Some(column) => {
+            let mut out = Vec::new();
+            for t in tables {
+                out.extend(t.split_runs(column)?);
+            }
+            Ok(out)
+        }
     }
 }
 

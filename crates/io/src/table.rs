@@ -4,9 +4,11 @@
 //! the file. Workbooks are read with the `xlsx` feature (on by default; the LinuxCNC component
 //! builds without it).
 //!
-//! One place knows the rules: fields split by the csv crate's parser (`,`, `"` quoting, `\n`,
+//! One place knows the rules: fields split by the csv crate's parser (`,`, or `;` or a tab as
+//! detected from the header line or given, [`Delimiter`]; `"` quoting, `\n`,
 //! `\r\n` or `\r` line ends, empty lines skipped, a UTF-8 byte order mark ignored), cells
-//! trimmed, an empty cell is [`Value::Empty`], numbers parsed by [`Value::number`], and errors
+//! trimmed, an empty cell is [`Value::Empty`], numbers parsed by [`Value::number`] (with `;` or a
+//! tab between fields, `20,5` too), and errors
 //! name file:line:column, the column and the expectation ([`Table::at`]). What a caller accepts
 //! (an empty cell as NaN or as an error, NaN at all) stays the caller's rule.
 //!
@@ -188,6 +190,18 @@ impl Table {
         })
     }
 
+    /// The table without its rows.
+    pub fn clone_header(&self) -> Table {
+        Table {
+            file: self.file.clone(),
+            sheet: self.sheet.clone(),
+            columns: self.columns.clone(),
+            header_line: self.header_line,
+            first_column: self.first_column,
+            rows: Vec::new(),
+        }
+    }
+
     /// An error at the first column name that repeats an earlier one.
     pub fn check_unique_columns(&self) -> Result<(), InputError> {
         for (c, name) in self.columns.iter().enumerate() {
@@ -205,6 +219,94 @@ pub struct CsvOptions {
     /// `#` starts a comment to the end of its line, and lines holding only a comment or blanks
     /// are skipped (the point lists of `truepos kin`).
     pub comments: bool,
+    /// The field separator; [`Delimiter::Auto`] detects it from the header line.
+    pub delimiter: Delimiter,
+}
+
+/// The field separator of a CSV file. With `;` or a tab, a number may also be written with a
+/// decimal comma (`20,5`), as spreadsheets in many locales save it; with `,` it cannot be.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum Delimiter {
+    /// Detected from the header line ([`detect_delimiter`]).
+    #[default]
+    Auto,
+    /// `,`.
+    Comma,
+    /// `;` (decimal commas allowed).
+    Semicolon,
+    /// A tab (decimal commas allowed).
+    Tab,
+}
+
+impl Delimiter {
+    fn byte(self) -> u8 {
+        match self {
+            Self::Auto | Self::Comma => b',',
+            Self::Semicolon => b';',
+            Self::Tab => b'\t',
+        }
+    }
+
+    /// Whether a number may be written with a decimal comma.
+    pub fn decimal_comma(self) -> bool {
+        matches!(self, Self::Semicolon | Self::Tab)
+    }
+}
+
+impl std::str::FromStr for Delimiter {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "auto" => Ok(Self::Auto),
+            "," | "comma" => Ok(Self::Comma),
+            ";" | "semicolon" => Ok(Self::Semicolon),
+            "\t" | "\\t" | "tab" => Ok(Self::Tab),
+            _ => Err(format!(
+                "expected auto, `,` (comma), `;` (semicolon) or tab, got `{s}`"
+            )),
+        }
+    }
+}
+
+impl std::fmt::Display for Delimiter {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Self::Auto => "auto",
+            Self::Comma => ",",
+            Self::Semicolon => ";",
+            Self::Tab => "tab",
+        })
+    }
+}
+
+/// The separator of a CSV text, from its header line (the first line that is not blank): the
+/// one of `,`, `;` and tab that occurs most often outside double quotes, `,` on a tie or when
+/// none occurs. Quoted cells are skipped, so `time_s,"a;b","c;d"` stays comma-separated, and a
+/// header whose names hold a comma (`t1 (°C, front);dz_um`) is still read by its majority.
+pub fn detect_delimiter(text: &str) -> Delimiter {
+    let header = text
+        .split('\n')
+        .find(|l| !l.trim().is_empty())
+        .unwrap_or("");
+    let (mut comma, mut semicolon, mut tab) = (0usize, 0usize, 0usize);
+    let mut quoted = false;
+    for ch in header.chars() {
+        match ch {
+            '"' => quoted = !quoted,
+            ',' if !quoted => comma += 1,
+            ';' if !quoted => semicolon += 1,
+            '\t' if !quoted => tab += 1,
+            _ => {}
+        }
+    }
+    if semicolon > comma && semicolon >= tab {
+        Delimiter::Semicolon
+    } else if tab > comma && tab > semicolon {
+        Delimiter::Tab
+    } else {
+        Delimiter::Comma
+    }
 }
 
 /// Reads a CSV file.
@@ -247,7 +349,11 @@ pub fn parse_csv(file: &Path, bytes: &[u8], options: CsvOptions) -> Result<Table
     } else {
         text
     };
-    let mut records = tokenize(text).into_iter();
+    let delimiter = match options.delimiter {
+        Delimiter::Auto => detect_delimiter(text),
+        d => d,
+    };
+    let mut records = tokenize(text, delimiter.byte()).into_iter();
     let (columns, header_line) = match records.next() {
         Some(header) => (
             header.iter().map(|c| c.text.trim().to_string()).collect(),
@@ -261,7 +367,7 @@ pub fn parse_csv(file: &Path, bytes: &[u8], options: CsvOptions) -> Result<Table
             cells: fields
                 .into_iter()
                 .map(|f| Cell {
-                    value: value_of(f.text.trim()),
+                    value: value_of(f.text.trim(), delimiter.decimal_comma()),
                     line: f.line,
                     column: f.column,
                 })
@@ -278,11 +384,17 @@ pub fn parse_csv(file: &Path, bytes: &[u8], options: CsvOptions) -> Result<Table
     })
 }
 
-fn value_of(text: &str) -> Value {
+fn value_of(text: &str, decimal_comma: bool) -> Value {
     if text.is_empty() {
         return Value::Empty;
     }
-    match text.parse::<f64>() {
+    let parsed = match text.parse::<f64>() {
+        Err(_) if decimal_comma && text.matches(',').count() == 1 && !text.contains('.') => {
+            text.replacen(',', ".", 1).parse::<f64>()
+        }
+        other => other,
+    };
+    match parsed {
         Ok(v) if v.is_finite() => Value::Number(v),
         _ => Value::Text(text.into()),
     }
@@ -312,9 +424,9 @@ struct Field {
 
 /// Splits CSV text into records of fields with their 1-based line and character column, with
 /// the csv crate's parser (csv-core).
-fn tokenize(text: &str) -> Vec<Vec<Field>> {
+fn tokenize(text: &str, delimiter: u8) -> Vec<Vec<Field>> {
     let input = text.as_bytes();
-    let mut reader = csv_core::Reader::new();
+    let mut reader = csv_core::ReaderBuilder::new().delimiter(delimiter).build();
     let mut records = Vec::new();
     let mut record: Vec<Field> = Vec::new();
     let mut out = vec![0u8; 1024];
@@ -534,13 +646,79 @@ mod tests {
         let t = parse_csv(
             Path::new("p.csv"),
             text.as_bytes(),
-            CsvOptions { comments: true },
+            CsvOptions {
+                comments: true,
+                ..Default::default()
+            },
         )
         .unwrap();
         assert_eq!(t.columns, ["X", "Y"]);
         assert_eq!(t.header_line, 2);
         assert_eq!(t.rows.iter().map(|r| r.line).collect::<Vec<_>>(), [5, 7]);
         assert_eq!(t.rows[0].cells[1].value, Value::Number(2.0));
+    }
+
+    #[test]
+    fn semicolons_and_decimal_commas_are_detected_from_the_header() {
+        let t = parse("time_s;t1_c;dz_um\n0;20,5;1\n1;21.25;-0,5\n");
+        assert_eq!(t.columns, ["time_s", "t1_c", "dz_um"]);
+        assert_eq!(t.rows[0].cells[1].value, Value::Number(20.5));
+        assert_eq!(t.rows[1].cells[1].value, Value::Number(21.25));
+        assert_eq!(t.rows[1].cells[2].value, Value::Number(-0.5));
+        assert_eq!(t.rows[1].cells[2].column, 9);
+        // A thousands separator is no decimal comma: the cell stays text for a message.
+        let t = parse("a;b\n1.234,5;1,2,3\n");
+        assert_eq!(t.rows[0].cells[0].value, Value::Text("1.234,5".into()));
+        assert_eq!(t.rows[0].cells[1].value, Value::Text("1,2,3".into()));
+        // Quoted semicolons do not make a comma file a semicolon file; with `,` a decimal
+        // comma cannot exist.
+        let t = parse("time_s,\"a;b\",\"c;d;e\"\n0,\"1,5\",2\n");
+        assert_eq!(t.columns, ["time_s", "a;b", "c;d;e"]);
+        assert_eq!(t.rows[0].cells[1].value, Value::Text("1,5".into()));
+        // A comma inside a name does not outvote the semicolons.
+        assert_eq!(
+            detect_delimiter("\n\ntime_s;t1 (°C, front);dz_um\n"),
+            Delimiter::Semicolon
+        );
+        assert_eq!(detect_delimiter("a\tb\tc\n"), Delimiter::Tab);
+        assert_eq!(detect_delimiter("a\n"), Delimiter::Comma);
+        assert_eq!(detect_delimiter("a;b,c\n"), Delimiter::Comma);
+        // Forced: a `;` header read as one comma column.
+        let t = parse_csv(
+            Path::new("t.csv"),
+            b"a;b\n1;2\n",
+            CsvOptions {
+                delimiter: Delimiter::Comma,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        assert_eq!(t.columns, ["a;b"]);
+        assert_eq!("tab".parse::<Delimiter>(), Ok(Delimiter::Tab));
+        assert!("x".parse::<Delimiter>().is_err());
+    }
+
+    proptest::proptest! {
+        /// Any numbers written with `;` and decimal commas read as the same numbers written
+        /// with `,` and points, in the same places.
+        #[test]
+        fn decimal_commas_read_as_points(
+            rows in proptest::collection::vec(proptest::collection::vec(-1e6f64..1e6, 3), 1..20)
+        ) {
+            let mut comma = String::from("a,b,c\n");
+            let mut semi = String::from("a;b;c\n");
+            for r in &rows {
+                let cells: Vec<String> = r.iter().map(f64::to_string).collect();
+                comma += &format!("{}\n", cells.join(","));
+                semi += &format!("{}\n", cells.join(";").replace('.', ","));
+            }
+            let (c, s) = (parse(&comma), parse(&semi));
+            proptest::prop_assert_eq!(&c.columns, &s.columns);
+            for (x, y) in c.rows.iter().zip(&s.rows) {
+                let v = |r: &Row| r.cells.iter().map(|c| c.value.clone()).collect::<Vec<_>>();
+                proptest::prop_assert_eq!(v(x), v(y));
+            }
+        }
     }
 
     #[test]

@@ -59,8 +59,9 @@ fn linuxcnc_types_mean_positions_and_trims() {
     let t = c.to_table(Interpolation::Linear).unwrap();
     assert!((t.value(100.0, Direction::Forward) - 2.0).abs() < 1e-9);
     assert!((t.value(100.0, Direction::Reverse) + 3.0).abs() < 1e-9);
-    // Type 1: the same as trims.
-    let c = parse_linuxcnc(p(), "0 0 0\n100 0.002 -0.003\n", LinuxCncType::Trims).unwrap();
+    // Type 1: the same as trims, as LinuxCNC's loader makes them from type 0:
+    // trim = nominal − actual (−0.002 forward, +0.003 in reverse).
+    let c = parse_linuxcnc(p(), "0 0 0\n100 -0.002 0.003\n", LinuxCncType::Trims).unwrap();
     let t1 = c.to_table(Interpolation::Linear).unwrap();
     assert!((t1.value(50.0, Direction::Forward) - 1.0).abs() < 1e-9);
     assert!((t1.value(50.0, Direction::Reverse) + 1.5).abs() < 1e-9);

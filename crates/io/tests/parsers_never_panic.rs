@@ -108,3 +108,73 @@ proptest! {
         let _ = cycles::read(Path::new("run.csv"), text.as_bytes(), &m, &[]);
     }
 }
+
+/// A run table in any of the shapes users have, from arbitrary text: every reader of it returns
+/// a value or an error.
+fn read_every_way(text: &str, delimiter: truepos_io::table::Delimiter) {
+    use truepos_io::run::{self, Shape, Time};
+    use truepos_io::table::{self, CsvOptions};
+    use truepos_io::units::Role;
+    let file = Path::new("run.csv");
+    let options = CsvOptions {
+        delimiter,
+        ..Default::default()
+    };
+    let Ok(t) = table::parse_csv(file, text.as_bytes(), options) else {
+        return;
+    };
+    let Ok(r) = run::parse_csv(file, text) else {
+        return;
+    };
+    for c in 0..r.columns.len() {
+        let _ = r.measured(c);
+        let _ = r.numbers_as(c, Role::Temperature);
+        let _ = r.time(c);
+        if let Ok(runs) = r.clone().split_runs(&r.columns[c]) {
+            for run in runs {
+                let _ = run.times(&Time::Period(0.5));
+                let _ = run.measured(c);
+            }
+        }
+    }
+    let m = machine();
+    let cycle_options = cycles::Options {
+        positions: cycles::Positions::Optional,
+        shape: Shape {
+            delimiter,
+            run_column: None,
+        },
+        time: Some(Time::Period(1.0)),
+    };
+    let _ = cycles::from_table(&t, &m, &[], &cycle_options);
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(1000))]
+
+    /// Arbitrary text of cells, separators, quotes, decimal commas and date-times.
+    #[test]
+    fn shaped_runs_never_panic(
+        text in "[a-z_0-9,;\t\"\n :.TZ+()°µ-]{0,200}",
+        d in 0..4usize,
+    ) {
+        use truepos_io::table::Delimiter;
+        let delimiter = [Delimiter::Auto, Delimiter::Comma, Delimiter::Semicolon, Delimiter::Tab][d];
+        read_every_way(&text, delimiter);
+    }
+
+    /// Mutations of the shipped run rewritten with `;`, decimal commas and ISO times.
+    #[test]
+    fn semicolon_runs_never_panic(at in 0..10_000usize, with in any::<char>(), delete in any::<bool>()) {
+        let semi: String = RUN
+            .lines()
+            .enumerate()
+            .map(|(i, l)| {
+                let l = l.replace(',', ";").replace('.', ",");
+                if i == 0 { l } else { format!("2024-03-01T08:{:02}:00{}", i % 60, &l[l.find(';').unwrap_or(0)..]) }
+            })
+            .collect::<Vec<_>>()
+            .join("\n");
+        read_every_way(&mutate(&semi, at, with, delete), truepos_io::table::Delimiter::Auto);
+    }
+}

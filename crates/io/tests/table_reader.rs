@@ -38,7 +38,10 @@ proptest! {
     #[test]
     fn never_panics(bytes in prop::collection::vec(any::<u8>(), 0..200), text in "[a-z0-9,\"#\r\n .é-]{0,120}") {
         for comments in [false, true] {
-            let o = CsvOptions { comments };
+            let o = CsvOptions {
+                comments,
+                ..Default::default()
+            };
             if let Ok(t) = table::parse_csv(Path::new("t.csv"), &bytes, o) {
                 for r in 0..t.rows.len() {
                     let _ = t.width_error(r);

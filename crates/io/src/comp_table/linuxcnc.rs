@@ -17,7 +17,9 @@ pub const LINUXCNC_MAX_ROWS: usize = 256;
 pub enum LinuxCncType {
     /// `COMP_FILE_TYPE = 0`: actual positions reached moving forward / in reverse.
     Positions,
-    /// `COMP_FILE_TYPE = 1`: trims (actual − nominal) moving forward / in reverse.
+    /// `COMP_FILE_TYPE = 1`: trims moving forward / in reverse, trim = nominal − actual (what
+    /// LinuxCNC adds to the commanded position: the compensation, −error), as LinuxCNC's
+    /// loader (`usrmotLoadComp`) documents and turns a type 0 line into.
     Trims,
 }
 
@@ -43,7 +45,7 @@ impl LinuxCncComp {
     pub fn to_table(&self, interpolation: Interpolation) -> Result<CompTable, InputError> {
         let um = |v: f64, n: f64| match self.file_type {
             LinuxCncType::Positions => (v - n) * 1000.0,
-            LinuxCncType::Trims => v * 1000.0,
+            LinuxCncType::Trims => -v * 1000.0,
         };
         let trim = |col: &[f64]| -> Vec<f64> {
             col.iter()
@@ -91,7 +93,7 @@ impl LinuxCncComp {
                 .zip(table.positions())
                 .map(|(v, n)| match file_type {
                     LinuxCncType::Positions => n + v / 1000.0,
-                    LinuxCncType::Trims => v / 1000.0,
+                    LinuxCncType::Trims => -v / 1000.0,
                 })
                 .collect()
         };

@@ -11,7 +11,8 @@
 //! * **LinuxCNC** (`[JOINT_n] COMP_FILE`, `COMP_FILE_TYPE`): lines of three numbers
 //!   `nominal forward reverse`, at most 256 rows, nominal strictly increasing. Type 0 holds the
 //!   actual positions reached when moving forward / in reverse, type 1 the trims
-//!   (actual − nominal). LinuxCNC's joint compensation documentation describes both types.
+//!   (nominal − actual: what LinuxCNC adds to the command, the compensation), the sign LinuxCNC's
+//!   own loader gives a type 0 line (`usrmotLoadComp` in `usrmotintf.cc`).
 //! * **Siemens** (SINUMERIK 840D sl, function manual "Compensations" K3): an INI part program
 //!   of assignments `$AA_ENC_COMP[e,N,AXn]=value` with `$AA_ENC_COMP_STEP/_MIN/_MAX/_IS_MODULO[e,AXn]`,
 //!   and `$AN_CEC[t,N]=value` with `$AN_CEC_INPUT_AXIS/_OUTPUT_AXIS/_STEP/_MIN/_MAX/_DIRECTION/

@@ -1,0 +1,438 @@
+//! `truepos export`: a model's state at one moment of a run, projected onto a control's own
+//! compensation form and written as the file that sets it (see docs/controls.md).
+
+use std::path::{Path, PathBuf};
+
+use truepos_controls::heidenhain::{offset_9231, tempcomp, PlcWord};
+use truepos_controls::projection::{project, AxisProjection, Form};
+use truepos_controls::siemens::write_program;
+use truepos_io::cycles::Cycles;
+use truepos_io::machine_file;
+use truepos_model::{AxisKind, CycleInput, Machine, Model};
+
+use crate::error::CliError;
+use crate::evaluator::Evaluator;
+
+/// The control forms `export` writes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum To {
+    /// SINUMERIK 840D sl / 828D: a part program setting SD43900/43910/43920 per axis
+    /// (K0 + tanβ·(P − P0)); the same numbers serve Beckhoff/ISG's linear form.
+    Siemens,
+    /// HEIDENHAIN PLC module 9231: a thermal offset per axis in 0.1 µm (CSV).
+    Heidenhain9231,
+    /// HEIDENHAIN kinematics `TEMPCOMP` formulas over PLC words (static models linear in the
+    /// temperatures).
+    HeidenhainTempcomp,
+}
+
+/// Arguments of `truepos export`.
+#[derive(clap::Args)]
+pub struct Args {
+    /// The control form.
+    #[arg(long, value_enum)]
+    to: To,
+    /// Machine description (TOML).
+    #[arg(long)]
+    machine: PathBuf,
+    /// Model file (seed A/C TOML/JSON or a fitted dynamic model).
+    #[arg(long)]
+    model: PathBuf,
+    /// Run CSV with the inputs up to the moment exported (a dynamic model's filters run through it).
+    #[arg(long)]
+    run: PathBuf,
+    /// The time column: seconds or ISO 8601 date-times. Default: `time_s` if there is one,
+    /// else the row number.
+    #[arg(long, conflicts_with = "sample_period")]
+    time: Option<String>,
+    #[command(flatten)]
+    shape: crate::shape::ShapeArgs,
+    /// The moment, s of the run's time (the first row at or after it); default: the last row.
+    #[arg(long, value_parser = truepos_io::limits::finite_in(-1e10, 1e10))]
+    at_s: Option<f64>,
+    /// Reference position P0 of an axis, AXIS=mm (repeat or comma-separate); default 0.
+    #[arg(long, value_delimiter = ',')]
+    p0: Vec<String>,
+    /// A sensor's PLC word for TEMPCOMP, SENSOR=WORD or SENSOR=WORD*SCALE (°C per count,
+    /// default 0.1).
+    #[arg(long = "plc-word", value_delimiter = ',')]
+    plc_words: Vec<String>,
+    /// An axis' nominal transformation length for TEMPCOMP, AXIS=mm; default 0.
+    #[arg(long, value_delimiter = ',')]
+    nominal: Vec<String>,
+    /// Refuse when the form misses the model by more than this anywhere checked, µm.
+    #[arg(long, default_value_t = 2.0, value_parser = truepos_io::limits::finite_in(0.0, 1e6))]
+    max_error_um: f64,
+    /// Write even when the projection error is above --max-error-um (it is still reported).
+    #[arg(long)]
+    force: bool,
+    /// Output file (written whole or not at all).
+    #[arg(long)]
+    out: PathBuf,
+    /// Print the projection as JSON.
+    #[arg(long)]
+    json: bool,
+}
+
+/// `AXIS=value` pairs as a value per machine axis (0 where not given).
+fn per_axis(machine: &Machine, specs: &[String], flag: &str) -> Result<Vec<f64>, CliError> {
+    let mut out = vec![0.0; machine.axes.len()];
+    for s in specs {
+        let (axis, v) = s
+            .split_once('=')
+            .ok_or_else(|| CliError::refused(format!("{flag} `{s}`: expected AXIS=mm")))?;
+        let a = machine.axis_index(axis).ok_or_else(|| {
+            CliError::refused(format!(
+                "{flag} `{s}`: machine `{}` has no axis `{axis}`",
+                machine.name
+            ))
+        })?;
+        out[a] = v
+            .trim()
+            .parse()
+            .ok()
+            .filter(|v: &f64| v.is_finite())
+            .ok_or_else(|| {
+                CliError::refused(format!("{flag} `{s}`: expected a finite number of mm"))
+            })?;
+    }
+    Ok(out)
+}
+
+fn plc_words(machine: &Machine, specs: &[String]) -> Result<Vec<PlcWord>, CliError> {
+    specs
+        .iter()
+        .map(|s| {
+            let bad = |why: &str| CliError::refused(format!("--plc-word `{s}`: {why}"));
+            let (sensor, rest) = s
+                .split_once('=')
+                .ok_or_else(|| bad("expected SENSOR=WORD[*SCALE]"))?;
+            let sensor = machine
+                .temperatures
+                .iter()
+                .position(|t| t.id == sensor)
+                .ok_or_else(|| {
+                    bad(&format!(
+                        "machine `{}` has no temperature sensor `{sensor}`",
+                        machine.name
+                    ))
+                })?;
+            let (word, scale) = match rest.split_once('*') {
+                Some((w, k)) => (
+                    w,
+                    k.trim()
+                        .parse()
+                        .ok()
+                        .filter(|k: &f64| k.is_finite() && *k != 0.0)
+                        .ok_or_else(|| bad("expected a finite, non-zero scale in °C per count"))?,
+                ),
+                None => (rest, 0.1),
+            };
+            let word = word.trim();
+            if word.is_empty()
+                || !word
+                    .chars()
+                    .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '.')
+            {
+                return Err(bad("expected a PLC operand such as W486"));
+            }
+            Ok(PlcWord {
+                sensor,
+                word: word.to_string(),
+                scale,
+            })
+        })
+        .collect()
+}
+
+/// The row exported and the model's error there (a dynamic model stepped through every row
+/// before it).
+fn moment(
+    model: &mut Evaluator,
+    run: &Cycles,
+    machine: &Machine,
+    at_s: Option<f64>,
+) -> Result<(usize, Vec<f64>), CliError> {
+    let n = run.time_s.len();
+    let k = match at_s {
+        Some(t) => run.time_s.iter().position(|&x| x >= t).ok_or_else(|| {
+            CliError::refused(format!(
+                "--at-s {t}: the run ends at {} s",
+                run.time_s.last().copied().unwrap_or(0.0)
+            ))
+        })?,
+        None => n
+            .checked_sub(1)
+            .ok_or_else(|| CliError::refused("the run has no rows".to_string()))?,
+    };
+    let mut error = Vec::new();
+    for i in 0..=k {
+        error = model.error_um(run, i, machine)?.to_vec();
+    }
+    Ok((k, error))
+}
+
+/// Axis positions of the row, an axis the run does not give at its travel's middle.
+fn positions_now(machine: &Machine, run: &Cycles, k: usize) -> Vec<f64> {
+    machine
+        .axes
+        .iter()
+        .enumerate()
+        .map(|(a, x)| {
+            let p = run.positions[k].get(a).copied().unwrap_or(f64::NAN);
+            if p.is_finite() {
+                p
+            } else {
+                0.5 * (x.travel_min + x.travel_max)
+            }
+        })
+        .collect()
+}
+
+fn write_whole(path: &Path, text: &str) -> Result<(), CliError> {
+    let mut tmp = path.as_os_str().to_owned();
+    tmp.push(".partial");
+    let tmp = PathBuf::from(tmp);
+    std::fs::write(&tmp, text).map_err(CliError::file(&tmp, Some("cannot write")))?;
+    std::fs::rename(&tmp, path).map_err(|e| {
+        let _ = std::fs::remove_file(&tmp);
+        CliError::file(path, Some("cannot write"))(e)
+    })
+}
+
+pub fn run(args: Args) -> Result<(), CliError> {
+    let machine = machine_file::load(&args.machine)?.machine;
+    let mut model = Evaluator::load(&args.model, &machine)?;
+    let mut runs = model.load_runs(&args.run, &machine, &args.shape, args.time.as_deref())?;
+    if runs.len() != 1 {
+        let names: Vec<&str> = runs.iter().map(|r| r.0.as_str()).collect();
+        return Err(CliError::refused(format!(
+            "{}: export takes one run; the file holds {}: {}",
+            args.run.display(),
+            runs.len(),
+            names.join(", ")
+        )));
+    }
+    let cycles = runs.remove(0).1;
+    let (k, error_now) = moment(&mut model, &cycles, &machine, args.at_s)?;
+    let now = positions_now(&machine, &cycles, k);
+    let header = vec![
+        format!(
+            "truepos export: model `{}` ({}) on machine `{}`",
+            model.name(),
+            args.model.display(),
+            machine.name
+        ),
+        format!(
+            "at t = {} s of {} (row {}); compensation = −error, mm",
+            cycles.time_s[k],
+            args.run.display(),
+            k + 1
+        ),
+    ];
+    let static_model = model.model().as_static().cloned();
+    let row = |i: usize| CycleInput {
+        temperatures_c: &cycles.temperatures_c[i],
+        positions: &cycles.positions[i],
+        operating: &cycles.operating[i],
+    };
+    let at_positions = |p: &[f64]| -> Result<Vec<f64>, String> {
+        match &static_model {
+            Some(m) => evaluate(
+                m,
+                &CycleInput {
+                    positions: p,
+                    ..row(k)
+                },
+            ),
+            None => Ok(error_now.clone()),
+        }
+    };
+    let (text, axes_json) = match args.to {
+        To::Siemens | To::Heidenhain9231 => {
+            let form = if args.to == To::Siemens {
+                Form::Linear
+            } else {
+                Form::Constant
+            };
+            let p0 = per_axis(&machine, &args.p0, "--p0")?;
+            let proj = project(&machine, &at_positions, &now, form, &p0)
+                .map_err(|e| CliError::refused(e.to_string()))?;
+            check_error(&args, &proj)?;
+            let text = if args.to == To::Siemens {
+                write_program(&proj, &header)
+            } else {
+                module_9231_csv(&proj)?
+            };
+            (text, projection_json(&proj))
+        }
+        To::HeidenhainTempcomp => tempcomp_file(
+            &args,
+            &machine,
+            static_model.as_ref(),
+            &row(k),
+            &now,
+            &header,
+        )?,
+    };
+    write_whole(&args.out, &text)?;
+    if args.json {
+        let v = serde_json::json!({"to": format!("{:?}", args.to), "at_s": cycles.time_s[k], "axes": axes_json, "out": args.out.display().to_string()});
+        println!("{v}");
+    } else {
+        print!("{}", summary(&axes_json));
+        println!("written: {}", args.out.display());
+    }
+    Ok(())
+}
+
+fn evaluate(m: &Model, input: &CycleInput<'_>) -> Result<Vec<f64>, String> {
+    m.evaluate(input)
+        .map(|c| c.error_um().to_vec())
+        .map_err(|e| e.to_string())
+}
+
+fn check_error(args: &Args, proj: &[AxisProjection]) -> Result<(), CliError> {
+    for p in proj {
+        if p.worst_um() > args.max_error_um {
+            let what = format!(
+                "axis {}: the control's form misses the model by up to {:.3} µm ({:.3} along its travel{}), more than --max-error-um {}",
+                p.name,
+                p.worst_um(),
+                p.along_error_um,
+                p.cross_axis.iter().map(|c| format!(", {:.3} when {} travels", c.change_um, c.axis)).collect::<String>(),
+                args.max_error_um
+            );
+            if !args.force {
+                return Err(CliError::refused(format!(
+                    "{what}; --force to write it anyway"
+                )));
+            }
+            eprintln!("warning: --force: {what}");
+        }
+    }
+    Ok(())
+}
+
+fn module_9231_csv(proj: &[AxisProjection]) -> Result<String, CliError> {
+    let mut out = String::from("axis,offset_0_1um,projection_error_um\n");
+    for p in proj {
+        let v = offset_9231(p).map_err(|e| CliError::refused(e.to_string()))?;
+        out += &format!("{},{v},{:.3}\n", p.name, p.worst_um());
+    }
+    Ok(out)
+}
+
+fn projection_json(proj: &[AxisProjection]) -> Vec<serde_json::Value> {
+    proj.iter()
+        .map(|p| {
+            serde_json::json!({
+                "axis": p.name, "k0_mm": p.form.k0_mm, "tan_beta": p.form.tan_beta, "p0_mm": p.form.p0_mm,
+                "along_error_um": p.along_error_um, "worst_um": p.worst_um(),
+                "cross_axis": p.cross_axis.iter().map(|c| serde_json::json!({"axis": c.axis, "change_um": c.change_um})).collect::<Vec<_>>(),
+            })
+        })
+        .collect()
+}
+
+fn summary(axes: &[serde_json::Value]) -> String {
+    let mut out = String::new();
+    for a in axes {
+        let f = |k: &str| a[k].as_f64().unwrap_or(f64::NAN);
+        match a.get("formula") {
+            Some(formula) => {
+                out += &format!(
+                    "{}: TEMPCOMP = {} (position error {:.3} µm)\n",
+                    a["axis"].as_str().unwrap_or("?"),
+                    formula.as_str().unwrap_or(""),
+                    f("position_error_um")
+                )
+            }
+            None => {
+                out += &format!(
+                    "{}: K0 {:.7} mm, tanβ {:.3e}, P0 {} mm; misses the model by up to {:.3} µm\n",
+                    a["axis"].as_str().unwrap_or("?"),
+                    f("k0_mm"),
+                    f("tan_beta"),
+                    f("p0_mm"),
+                    f("worst_um")
+                )
+            }
+        }
+    }
+    out
+}
+
+/// TEMPCOMP: a static model only; the corners of the linear axes' travel measure what the
+/// formula's position independence loses.
+fn tempcomp_file(
+    args: &Args,
+    machine: &Machine,
+    model: Option<&Model>,
+    row: &CycleInput<'_>,
+    now: &[f64],
+    header: &[String],
+) -> Result<(String, Vec<serde_json::Value>), CliError> {
+    let model = model.ok_or_else(|| {
+        CliError::refused("TEMPCOMP carries a static model linear in the temperatures; this is a fitted dynamic model (use --to siemens or heidenhain9231)".to_string())
+    })?;
+    let words = plc_words(machine, &args.plc_words)?;
+    let nominal = per_axis(machine, &args.nominal, "--nominal")?;
+    let linear: Vec<usize> = (0..machine.axes.len())
+        .filter(|&a| machine.axes[a].kind == AxisKind::Linear)
+        .collect();
+    let corners: Vec<Vec<f64>> = (0..1usize << linear.len())
+        .map(|bits| {
+            let mut p = now.to_vec();
+            for (i, &a) in linear.iter().enumerate() {
+                let x = &machine.axes[a];
+                p[a] = if bits >> i & 1 == 1 {
+                    x.travel_max
+                } else {
+                    x.travel_min
+                };
+            }
+            p
+        })
+        .collect();
+    let f = |t: &[f64], p: &[f64]| {
+        evaluate(
+            model,
+            &CycleInput {
+                temperatures_c: t,
+                positions: p,
+                ..*row
+            },
+        )
+    };
+    let tc = tempcomp(
+        machine,
+        &f,
+        row.temperatures_c,
+        now,
+        &corners,
+        &words,
+        &nominal,
+    )
+    .map_err(|e| CliError::refused(e.to_string()))?;
+    let mut text: String = header.iter().map(|h| format!("; {h}\n")).collect();
+    let mut json = Vec::new();
+    for t in &tc {
+        let name = &machine.axes[t.axis].name;
+        if t.position_error_um > args.max_error_um {
+            let what = format!("axis {name}: the model varies {:.3} µm over the travel, which TEMPCOMP cannot carry (more than --max-error-um {})", t.position_error_um, args.max_error_um);
+            if !args.force {
+                return Err(CliError::refused(format!(
+                    "{what}; --force to write it anyway"
+                )));
+            }
+            eprintln!("warning: --force: {what}");
+        }
+        text += &format!(
+            "; {name}: position error {:.3} µm\n{name} = {}\n",
+            t.position_error_um, t.formula
+        );
+        json.push(serde_json::json!({"axis": name, "formula": t.formula, "position_error_um": t.position_error_um, "at_20c_mm": t.at_20c_mm}));
+    }
+    Ok((text, json))
+}

@@ -1,0 +1,96 @@
+//! ISO 8601 date-times in a run's time column, read with `jiff` (no time-zone database: the
+//! crate built with `std` only, one small dependency).
+//!
+//! Accepted: a date and a time separated by `T` or a space, seconds optional, fractional
+//! seconds (`.` or `,`), and optionally `Z` or an offset (`+02:00`). A date-time without an
+//! offset is taken as written, as if in UTC: without a zone a local clock's daylight-saving
+//! jump cannot be known, so it shows as an hour's gap or as time going backwards (refused).
+//!
+//! ```
+//! use truepos_io::timestamp::parse;
+//! let a = parse("2024-03-01T08:00:00").unwrap();
+//! let b = parse("2024-03-01 08:00:01.5").unwrap();
+//! assert_eq!(b - a, 1_500_000_000);
+//! assert_eq!(parse("2024-03-01T10:00:00+02:00"), Ok(a));
+//! assert!(parse("yesterday").is_err());
+//! ```
+
+/// Nanoseconds since 1970-01-01T00:00:00Z of an ISO 8601 date-time; the error sentence says
+/// what was expected.
+pub fn parse(text: &str) -> Result<i128, String> {
+    let text = text.trim();
+    // Only text that starts like a date is tried: `jiff` would take a bare number for nothing
+    // useful, and a message about a number belongs to the number syntax.
+    let date_like = text.len() >= 10
+        && text.as_bytes()[..4].iter().all(u8::is_ascii_digit)
+        && text.as_bytes()[4] == b'-';
+    if date_like {
+        if let Ok(ts) = text.parse::<jiff::Timestamp>() {
+            return Ok(ts.as_nanosecond());
+        }
+        if let Ok(dt) = text.parse::<jiff::civil::DateTime>() {
+            if let Ok(ts) = jiff::tz::Offset::UTC.to_timestamp(dt) {
+                return Ok(ts.as_nanosecond());
+            }
+        }
+    }
+    Err(format!(
+        "expected seconds (a number) or an ISO 8601 date-time like 2024-03-01T08:00:00, got `{text}`"
+    ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn forms_users_have() {
+        let base = parse("2024-03-01T08:00:00").unwrap();
+        let s = |t: &str| (parse(t).unwrap() - base) as f64 / 1e9;
+        assert_eq!(s("2024-03-01T08:00:00Z"), 0.0);
+        assert_eq!(s("2024-03-01 08:00:00"), 0.0);
+        assert_eq!(s("2024-03-01T08:00"), 0.0);
+        assert_eq!(s("2024-03-01T08:00:00.25"), 0.25);
+        assert_eq!(s("2024-03-01T08:00:00,25"), 0.25);
+        assert_eq!(s("2024-03-01T09:00:00+01:00"), 0.0);
+        assert_eq!(s("2024-03-01T07:30:00-00:30"), 0.0);
+        assert_eq!(s("2024-03-02T08:00:00"), 86_400.0);
+        for bad in [
+            "",
+            "12.5",
+            "08:00:00",
+            "2024-13-01T00:00:00",
+            "2024-03-01T25:00",
+            "x",
+        ] {
+            assert!(parse(bad).is_err(), "{bad}");
+        }
+    }
+
+    proptest::proptest! {
+        /// Never a panic on any text.
+        #[test]
+        fn any_text(text in "\\PC{0,40}") {
+            let _ = parse(&text);
+        }
+
+        /// Every date-time written the documented ways reads back to the same instant.
+        #[test]
+        fn written_forms_agree(
+            y in 1970i32..2200, mo in 1u32..13, d in 1u32..29, h in 0u32..24, mi in 0u32..60,
+            s in 0u32..60, ms in 0u32..1000, off in -12i32..15
+        ) {
+            let civil = format!("{y:04}-{mo:02}-{d:02}T{h:02}:{mi:02}:{s:02}.{ms:03}");
+            let t = parse(&civil).unwrap();
+            proptest::prop_assert_eq!(parse(&civil.replace('T', " ")), Ok(t));
+            proptest::prop_assert_eq!(parse(&format!("{civil}Z")), Ok(t));
+            let sign = if off < 0 { '-' } else { '+' };
+            let shifted = parse(&format!("{civil}{sign}{:02}:00", off.abs())).unwrap();
+            proptest::prop_assert_eq!(t - shifted, i128::from(off) * 3_600_000_000_000);
+            let day = parse(&format!("{y:04}-{mo:02}-{d:02}T00:00:00")).unwrap();
+            let expect = (i128::from(h) * 3600 + i128::from(mi) * 60 + i128::from(s)) * 1_000_000_000
+                + i128::from(ms) * 1_000_000;
+            proptest::prop_assert_eq!(t - day, expect);
+        }
+    }
+}
