@@ -1,0 +1,169 @@
+//! Probe events from a run CSV: the rows of a run (time, axis positions, temperatures,
+//! operating state) of which some carry a probe measurement in the columns
+//! `probe_<axis>_mm` (where the probe touched) and `probe_d<axis>_um` (the measured error), the
+//! axis name in lower case — the columns `truepos sim` writes. Every row drives the lagged
+//! channels; only rows with a measured error are events.
+
+use std::path::Path;
+
+use truepos_fit::reidentify::ProbeEvent;
+use truepos_io::cycles::{self, Positions};
+use truepos_io::table::{self, Number, Table};
+use truepos_io::InputError;
+use truepos_model::Machine;
+use truepos_runtime::probe::{MAX_PROBE_DEVIATION_UM, PROBE_TRAVEL_MARGIN_MM};
+
+use crate::error::CliError;
+
+/// Column names of the probed position and the measured error of an axis.
+pub fn probe_columns(axis: &str) -> (String, String) {
+    let a = axis.to_lowercase();
+    (format!("probe_{a}_mm"), format!("probe_d{a}_um"))
+}
+
+/// Reads the probe events of a run CSV; `sensors` are the temperature channels the model
+/// reads (required in the file).
+pub fn read(
+    path: &Path,
+    machine: &Machine,
+    sensors: &[usize],
+) -> Result<Vec<ProbeEvent>, CliError> {
+    let bytes = std::fs::read(path).map_err(CliError::file(path, Some("cannot read")))?;
+    let cyc = cycles::read_with(path, &bytes[..], machine, sensors, Positions::Optional)?;
+    let table = table::parse_csv(path, &bytes, table::CsvOptions::default())?;
+    let cols: Vec<(Option<usize>, Option<usize>)> = machine
+        .axes
+        .iter()
+        .map(|a| {
+            let (p, d) = probe_columns(&a.name);
+            (table.column(&p), table.column(&d))
+        })
+        .collect();
+    if cols.iter().all(|c| c.1.is_none()) {
+        let names: Vec<String> = machine
+            .axes
+            .iter()
+            .map(|a| probe_columns(&a.name).1)
+            .collect();
+        return Err(InputError::at(
+            path,
+            table.header_line,
+            1,
+            "",
+            format!(
+                "no probe measurement column; expected at least one of {} (the measured error \
+                 in µm) beside probe_<axis>_mm (where the probe touched)",
+                names.join(", ")
+            ),
+        )
+        .into());
+    }
+    if table.rows.len() != cyc.time_s.len() {
+        return Err(CliError::refused(format!(
+            "{}: {} data rows read as a table but {} as cycles",
+            path.display(),
+            table.rows.len(),
+            cyc.time_s.len()
+        )));
+    }
+    let mut events = Vec::new();
+    for (i, row) in table.rows.iter().enumerate() {
+        let mut measured = vec![None; machine.axes.len()];
+        for (a, (_, dev)) in cols.iter().enumerate() {
+            let Some(c) = *dev else { continue };
+            measured[a] = deviation(&table, i, c)?;
+        }
+        if measured.iter().all(Option::is_none) {
+            continue;
+        }
+        let mut position = Vec::with_capacity(machine.axes.len());
+        for (a, (pos, _)) in cols.iter().enumerate() {
+            position.push(probed_position(
+                &table,
+                machine,
+                i,
+                a,
+                *pos,
+                cyc.positions[i][a],
+            )?);
+        }
+        events.push(ProbeEvent {
+            time_s: cyc.time_s[i],
+            place: format!("{}:{}", path.display(), row.line),
+            temperatures_c: cyc.temperatures_c[i].clone(),
+            operating: cyc.operating[i].clone(),
+            position_mm: position,
+            measured_um: measured,
+        });
+    }
+    Ok(events)
+}
+
+/// A measured error: empty (not measured) or a finite number within the bound.
+fn deviation(table: &Table, row: usize, col: usize) -> Result<Option<f64>, InputError> {
+    let cell = &table.rows[row].cells.get(col);
+    let number = cell.map_or(Number::Empty, |c| c.value.number());
+    match number {
+        Number::Empty => Ok(None),
+        Number::Value(v) if v.is_finite() && v.abs() <= MAX_PROBE_DEVIATION_UM => Ok(Some(v)),
+        Number::Value(v) => Err(table.at(
+            row,
+            col,
+            format!(
+                "expected the measured error in µm, a finite number within ±{MAX_PROBE_DEVIATION_UM}, got {v}"
+            ),
+        )),
+        Number::Text(t) => Err(table.at(
+            row,
+            col,
+            format!("expected the measured error in µm (a number, or empty where not measured), got `{t}`"),
+        )),
+    }
+}
+
+/// Where the probe touched on axis `a`: its `probe_<axis>_mm` cell, or the row's axis position
+/// when the file has no such column; finite and within the axis' travel.
+fn probed_position(
+    table: &Table,
+    machine: &Machine,
+    row: usize,
+    a: usize,
+    col: Option<usize>,
+    axis_position: f64,
+) -> Result<f64, InputError> {
+    let axis = &machine.axes[a];
+    let (lo, hi) = (
+        axis.travel_min - PROBE_TRAVEL_MARGIN_MM,
+        axis.travel_max + PROBE_TRAVEL_MARGIN_MM,
+    );
+    let expect = format!(
+        "expected the probed position of axis {} in mm within its travel [{}, {}]",
+        axis.name, axis.travel_min, axis.travel_max
+    );
+    let Some(col) = col else {
+        if axis_position.is_finite() && (lo..=hi).contains(&axis_position) {
+            return Ok(axis_position);
+        }
+        let (p, _) = probe_columns(&axis.name);
+        return Err(InputError::at(
+            &table.file,
+            table.rows[row].line,
+            1,
+            p.clone(),
+            format!(
+                "{expect}: the file has no column `{p}` and the row's {} is {axis_position}",
+                axis.position_column()
+            ),
+        ));
+    };
+    match table.rows[row].cells.get(col).map(|c| c.value.number()) {
+        Some(Number::Value(v)) if v.is_finite() && (lo..=hi).contains(&v) => Ok(v),
+        Some(Number::Value(v)) => Err(table.at(row, col, format!("{expect}, got {v}"))),
+        Some(Number::Text(t)) => Err(table.at(row, col, format!("{expect}, got `{t}`"))),
+        Some(Number::Empty) | None => Err(table.at(
+            row,
+            col,
+            format!("{expect}; the cell is empty on a row with a measured error"),
+        )),
+    }
+}
