@@ -1,6 +1,7 @@
 //! The `truepos` component as a [`Source`]: axis positions, temperatures, operating values and
 //! the control's axis configuration from its input pins.
 
+use truepos_runtime::probe::ProbeInput;
 use truepos_runtime::{AxisConfig, Frame, LinkError, Source};
 
 use crate::pins::InputPins;
@@ -13,6 +14,22 @@ pub struct HalSource {
     name: String,
     /// Machine axis indices by axis number: the order of a path's axes (seed D's index).
     by_number: Vec<usize>,
+    probe_edge: Edge,
+}
+
+/// A rising-edge detector: `true` once when the input goes from low to high.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Edge {
+    last: bool,
+}
+
+impl Edge {
+    /// Whether `now` is a rising edge after the previous sample.
+    pub fn rising(&mut self, now: bool) -> bool {
+        let rose = now && !self.last;
+        self.last = now;
+        rose
+    }
 }
 
 impl HalSource {
@@ -33,6 +50,7 @@ impl HalSource {
             pins,
             name: format!("hal {component}"),
             by_number,
+            probe_edge: Edge::default(),
         }
     }
 }
@@ -52,6 +70,24 @@ impl Source for HalSource {
         for (i, pin) in self.pins.operating.iter().enumerate() {
             frame.set_operating(i, pin.get());
         }
+        // One probe event per rising edge of the trigger: the values of that cycle.
+        let probe = &self.pins.probe;
+        if self.probe_edge.rising(probe.trigger.get()) {
+            let mut event = ProbeInput::EMPTY;
+            for (a, ((pos, dev), measured)) in probe
+                .positions
+                .iter()
+                .zip(&probe.deviations)
+                .zip(&probe.measured)
+                .enumerate()
+                .take(truepos_model::MAX_AXES)
+            {
+                event.position_mm[a] = pos.get();
+                event.deviation_um[a] = dev.get();
+                event.measured[a] = measured.get();
+            }
+            frame.probe = Some(event);
+        }
         // The axis configuration, rebuilt in the capacity the service reserved (no
         // allocation); an axis whose pin names no path of the machine is in none (parked).
         for axes in &mut frame.paths {
@@ -65,5 +101,24 @@ impl Source for HalSource {
             }
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// One event per rising edge: held high is one event, low then high again another.
+    #[test]
+    fn a_rising_edge_is_one_probe_event() {
+        let mut e = Edge::default();
+        let trigger = [false, true, true, true, false, false, true, false, true];
+        let events: Vec<usize> = trigger
+            .iter()
+            .enumerate()
+            .filter(|(_, &t)| e.rising(t))
+            .map(|(i, _)| i)
+            .collect();
+        assert_eq!(events, [1, 6, 8]);
     }
 }

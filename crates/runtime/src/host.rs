@@ -93,7 +93,7 @@ impl ServiceHost {
             self.config,
         );
         let logger = match &self.log {
-            Some(path) => Some(Logger::start(
+            Some(path) => Some(Logger::start_with_probes(
                 LogSetup {
                     path,
                     machine: service.machine(),
@@ -105,6 +105,7 @@ impl ServiceHost {
                 },
                 service.events(),
                 service.records(),
+                service.probes(),
             )?),
             None => None,
         };

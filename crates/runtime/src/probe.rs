@@ -9,7 +9,7 @@
 //! the reason; the logger writes every record to the `probes` table (docs/formats.md). A
 //! rejected event is kept for the record and never used by `truepos reidentify`.
 
-use truepos_model::MAX_AXES;
+use truepos_model::{Axis, MAX_AXES};
 
 use crate::events::Reason;
 use crate::output::CompensationState;
@@ -67,35 +67,26 @@ pub struct ProbeRecord {
     pub operating: [f64; MAX_LOG_OPERATING],
 }
 
-/// The travel of one axis, as the check needs it.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Travel {
-    /// Lower end.
-    pub min: f64,
-    /// Upper end.
-    pub max: f64,
-}
-
 /// Checks a probe event against the axes' travel: at least one axis measured; every probed
 /// position finite and within travel (± [`PROBE_TRAVEL_MARGIN_MM`]), since the model reads every
 /// axis' position; every measured error finite and within ± [`MAX_PROBE_DEVIATION_UM`]. Returns
 /// the reason of the first failure. Allocates nothing.
-pub fn check(probe: &ProbeInput, travel: &[Travel], names: &[&str]) -> Result<(), Reason> {
-    let name = |a: usize| names.get(a).copied().unwrap_or("?");
-    if !probe.measured.iter().take(travel.len()).any(|&m| m) {
+pub fn check(probe: &ProbeInput, axes: &[Axis]) -> Result<(), Reason> {
+    let name = |a: usize| axes[a].name.as_str();
+    if !probe.measured.iter().take(axes.len()).any(|&m| m) {
         return Err(Reason::new("no axis measured"));
     }
-    for (a, t) in travel.iter().enumerate().take(MAX_AXES) {
+    for (a, t) in axes.iter().enumerate().take(MAX_AXES) {
         let p = probe.position_mm[a];
         if !p.is_finite()
-            || p < t.min - PROBE_TRAVEL_MARGIN_MM
-            || p > t.max + PROBE_TRAVEL_MARGIN_MM
+            || p < t.travel_min - PROBE_TRAVEL_MARGIN_MM
+            || p > t.travel_max + PROBE_TRAVEL_MARGIN_MM
         {
             return Err(reason(format_args!(
                 "probed position of {} is {p}, outside its travel [{}, {}]",
                 name(a),
-                t.min,
-                t.max
+                t.travel_min,
+                t.travel_max
             )));
         }
         let d = probe.deviation_um[a];
@@ -110,7 +101,7 @@ pub fn check(probe: &ProbeInput, travel: &[Travel], names: &[&str]) -> Result<()
 }
 
 /// A reason formatted into a fixed buffer, so that a rejection allocates nothing.
-fn reason(args: std::fmt::Arguments<'_>) -> Reason {
+pub(crate) fn reason(args: std::fmt::Arguments<'_>) -> Reason {
     let mut buf = FixedText::default();
     let _ = std::fmt::write(&mut buf, args);
     Reason::new(buf.as_str())
@@ -163,48 +154,55 @@ mod tests {
         p
     }
 
-    const TRAVEL: [Travel; 3] = [Travel {
-        min: 0.0,
-        max: 800.0,
-    }; 3];
-    const NAMES: [&str; 3] = ["X", "Y", "Z"];
+    fn axes() -> Vec<Axis> {
+        ["X", "Y", "Z"]
+            .map(|n| Axis {
+                name: n.into(),
+                kind: truepos_model::AxisKind::Linear,
+                travel_min: 0.0,
+                travel_max: 800.0,
+                carried_by: None,
+                carriage: truepos_model::Carriage::Cantilever,
+            })
+            .to_vec()
+    }
 
     #[test]
     fn a_good_event_passes_and_bad_ones_say_why() {
-        assert_eq!(check(&probe(), &TRAVEL, &NAMES), Ok(()));
+        let axes = axes();
+        assert_eq!(check(&probe(), &axes), Ok(()));
         let mut nan = probe();
         nan.deviation_um[2] = f64::NAN;
-        let why = check(&nan, &TRAVEL, &NAMES).unwrap_err();
+        let why = check(&nan, &axes).unwrap_err();
         assert!(why.contains("measured error of Z is NaN"), "{why}");
         let mut absurd = probe();
         absurd.deviation_um[2] = 5e4;
-        assert!(check(&absurd, &TRAVEL, &NAMES)
-            .unwrap_err()
-            .contains("±1000"));
+        assert!(check(&absurd, &axes).unwrap_err().contains("±1000"));
         let mut outside = probe();
         outside.position_mm[0] = 900.0;
-        let why = check(&outside, &TRAVEL, &NAMES).unwrap_err();
+        let why = check(&outside, &axes).unwrap_err();
         assert!(why.contains("probed position of X is 900"), "{why}");
         let mut none = probe();
         none.measured = [false; MAX_AXES];
         assert_eq!(
-            check(&none, &TRAVEL, &NAMES).unwrap_err().as_str(),
+            check(&none, &axes).unwrap_err().as_str(),
             "no axis measured"
         );
         // An axis not measured may carry any error value.
         let mut unmeasured = probe();
         unmeasured.deviation_um[0] = f64::NAN;
-        assert_eq!(check(&unmeasured, &TRAVEL, &NAMES), Ok(()));
+        assert_eq!(check(&unmeasured, &axes), Ok(()));
     }
 
     #[test]
     fn checking_allocates_nothing() {
         let mut bad = probe();
         bad.deviation_um[2] = f64::INFINITY;
+        let axes = axes();
         let counted = allocation_counter::measure(|| {
             for _ in 0..100 {
-                let _ = check(&bad, &TRAVEL, &NAMES);
-                let _ = check(&probe(), &TRAVEL, &NAMES);
+                let _ = check(&bad, &axes);
+                let _ = check(&probe(), &axes);
             }
         });
         assert_eq!(counted.count_total, 0);

@@ -99,6 +99,14 @@ enum FaultKind {
     Disabled,
     /// Z leaves the path (parked or handed over).
     AxisOut,
+    /// At the episode's start, model `model` is reloaded between cycles: a good file (its
+    /// parameters scaled by `scale`, as a re-identification changes them) or a bad one (made
+    /// for another axis combination), which must leave the running model untouched.
+    Reload {
+        model: usize,
+        scale: f64,
+        good: bool,
+    },
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -139,6 +147,8 @@ fn fault_kind(n_t: usize) -> impl Strategy<Value = FaultKind> {
         Just(FaultKind::PreferFallback),
         Just(FaultKind::Disabled),
         Just(FaultKind::AxisOut),
+        (0usize..2, 0.3..1.7f64, any::<bool>())
+            .prop_map(|(model, scale, good)| FaultKind::Reload { model, scale, good }),
     ]
 }
 
@@ -201,6 +211,7 @@ struct Campaign {
     service: Service,
     next: Arc<Mutex<Delivery>>,
     reference: Vec<Model>,
+    machine: truepos_model::Machine,
     limits: Vec<AxisConfig>,
     ranges: Vec<(f64, f64)>,
     config: ServiceConfig,
@@ -238,6 +249,7 @@ impl Campaign {
             .iter()
             .map(|t| (t.valid_min_c, t.valid_max_c))
             .collect();
+        let bound = machine.machine.clone();
         let service = Service::new(
             machine,
             entries,
@@ -249,6 +261,7 @@ impl Campaign {
             service,
             next,
             reference,
+            machine: bound,
             limits,
             ranges,
             config,
@@ -367,6 +380,57 @@ impl Campaign {
         Ok(out)
     }
 
+    /// Reloads model `m` between cycles (see [`FaultKind::Reload`]). A good reload of the model
+    /// an axis follows is a change of origin for the test's account: the blend restarts from
+    /// the output last sent, at the time of the last cycle.
+    fn reload(&mut self, m: usize, scale: f64, good: bool) -> Result<(), TestCaseError> {
+        let theta: Vec<f64> = self.reference[m]
+            .parameters()
+            .iter()
+            .map(|p| p * scale)
+            .collect();
+        let new = self.reference[m]
+            .with_parameters(&self.machine, &theta)
+            .unwrap();
+        let index = if good { [101, 102, 103] } else { [101, 102, 0] };
+        let result = self.service.replace_model(
+            m,
+            ModelEntry {
+                name: format!("reloaded {m}"),
+                model: new.clone().into(),
+                index,
+            },
+        );
+        if !good {
+            prop_assert!(
+                result.is_err(),
+                "a model for another axis combination was taken"
+            );
+            return Ok(());
+        }
+        prop_assert!(
+            result.is_ok(),
+            "a good reload was refused: {:?}",
+            result.err()
+        );
+        self.reference[m] = new;
+        let since = if self.prev_time.is_nan() {
+            0.0
+        } else {
+            self.prev_time
+        };
+        for (a, tr) in self.tracks.iter_mut().enumerate() {
+            if tr.origin == Origin::Model(m) {
+                *tr = AxisTrack {
+                    origin: tr.origin,
+                    from: self.prev_out[a],
+                    since,
+                };
+            }
+        }
+        Ok(())
+    }
+
     /// A path reported active uses a model whose inputs, as delivered, are numbers within their
     /// valid range and whose positions are usable; returns the reference compensation.
     fn check_model_inputs(&self, m: usize, t: f64) -> Result<Vec<f64>, TestCaseError> {
@@ -433,6 +497,12 @@ fn run_schedule(s: &Schedule) -> Result<(), TestCaseError> {
                     frozen[ch] = None;
                 }
             }
+            if let FaultKind::Reload { model, scale, good } = e.kind {
+                if i == e.start {
+                    c.reload(model, scale, good)?;
+                }
+                continue;
+            }
             if !active {
                 continue;
             }
@@ -476,7 +546,7 @@ fn apply_fault(e: &Episode, i: usize, temps: &[f64], frozen: &[Option<f64>], d: 
         FaultKind::PositionNan(a) => d.positions[a] = Some(f64::NAN),
         FaultKind::PositionStale => d.positions.iter_mut().for_each(|p| *p = None),
         FaultKind::AxisOut => d.path = vec![0, 1],
-        FaultKind::PreferFallback | FaultKind::Disabled => {}
+        FaultKind::PreferFallback | FaultKind::Disabled | FaultKind::Reload { .. } => {}
     }
 }
 
