@@ -6,13 +6,14 @@
 //! Exit status: 0 with a new model written (`"status": "switched"`); 3 when the running model
 //! stays (`"status": "kept"`, the reason said, nothing written); 1 on an error.
 
-mod probes_csv;
+pub(crate) mod probes_csv;
+mod probes_log;
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use sha2::{Digest, Sha256};
-use truepos_fit::reidentify::{reidentify, Outcome, ProbeEvent, Settings, Verdict};
+use truepos_fit::reidentify::{reidentify, Outcome, Settings, Verdict};
 use truepos_io::limits::finite_in;
 use truepos_io::model_file::ModelFile;
 use truepos_io::{compensation, machine_file};
@@ -85,9 +86,16 @@ pub fn run(args: Args) -> Result<ExitCode, CliError> {
             args.model.display()
         )));
     };
-    let (events, source) = match (&args.log, &args.run) {
-        (Some(log), _) => (read_log(log, &machine)?, log),
-        (None, Some(run)) => (probes_csv::read(run, &machine, model.used_sensors())?, run),
+    let (events, rejected, source) = match (&args.log, &args.run) {
+        (Some(log), _) => {
+            let (events, rejected) = probes_log::read(log, &machine)?;
+            (events, rejected, log)
+        }
+        (None, Some(run)) => (
+            probes_csv::read(run, &machine, model.used_sensors())?,
+            0,
+            run,
+        ),
         (None, None) => unreachable!("clap requires --log or --run"),
     };
     let settings = Settings {
@@ -109,15 +117,11 @@ pub fn run(args: Args) -> Result<ExitCode, CliError> {
         )?),
         None => None,
     };
-    print(&args, &parent, source, &outcome, written)?;
+    print(&args, &parent, source, &outcome, rejected, written)?;
     Ok(match outcome.verdict {
         Verdict::Switched => ExitCode::SUCCESS,
         Verdict::Kept => ExitCode::from(KEPT),
     })
-}
-
-fn read_log(_log: &Path, _machine: &Machine) -> Result<Vec<ProbeEvent>, CliError> {
-    Err(CliError::refused("--log is not read yet"))
 }
 
 /// The model re-identification starts from: its file, content hash and generation.
@@ -237,6 +241,7 @@ fn print(
     parent: &Parent,
     source: &Path,
     o: &Outcome,
+    rejected: usize,
     generation: Option<i64>,
 ) -> Result<(), CliError> {
     let status = match o.verdict {
@@ -254,6 +259,7 @@ fn print(
             "data": {
                 "source": source.display().to_string(),
                 "events": o.events,
+                "rejected_by_the_service": rejected,
                 "measurements": o.measurements,
                 "skipped": o.skipped,
                 "first_time_s": finite(o.first_time_s),
@@ -271,7 +277,7 @@ fn print(
         return Ok(());
     }
     println!(
-        "{} probe events, {} measurements used, {} skipped; time {:.1} … {:.1} s ({})",
+        "{} probe events ({rejected} more rejected by the service), {} measurements used, {} skipped; time {:.1} … {:.1} s ({})",
         o.events,
         o.measurements,
         o.skipped.len(),

@@ -226,6 +226,83 @@ fn probes_of_a_drifted_day_give_a_model_that_is_better_on_later_probes() {
         "re-identified {e_new:.2} µm vs original {e_old:.2} µm"
     );
 
+    // The same probes through the service: replayed with the run, logged, re-identified from
+    // the log. Every event reaches the log, and the model from it is better on later probes.
+    let db = dir.join("service.sqlite");
+    let replay = format!("replay:{}", probes.display());
+    let probe_source = format!("probes:{}", probes.display());
+    let served = command()
+        .args(["run", "--fast", "--machine", MACHINE, "--models"])
+        .arg(&old)
+        .args([
+            "--source",
+            &replay,
+            "--source",
+            &probe_source,
+            "--period-ms",
+            "1000",
+            "--log",
+        ])
+        .arg(&db)
+        .arg("--json")
+        .output()
+        .unwrap();
+    assert!(
+        served.status.success(),
+        "{}",
+        String::from_utf8_lossy(&served.stderr)
+    );
+    let logged = truepos_runtime::log::read_probes(&db).unwrap();
+    assert_eq!(
+        logged.rows.len() as u64,
+        v["data"]["events"].as_u64().unwrap()
+    );
+    assert!(
+        logged.rows.iter().all(|r| r.accepted),
+        "{:?}",
+        logged.rows.iter().find(|r| !r.accepted)
+    );
+    let from_log = dir.join("from-log.toml");
+    let out = command()
+        .args(["reidentify", "--machine", MACHINE, "--model"])
+        .arg(&old)
+        .arg("--log")
+        .arg(&db)
+        .arg("--out")
+        .arg(&from_log)
+        .arg("--json")
+        .output()
+        .unwrap();
+    let lv: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    println!("from the log: {lv}");
+    assert_eq!(lv["status"], "switched", "{lv}");
+    // A machine description the model and the log were not made for is refused.
+    let other = command()
+        .args([
+            "reidentify",
+            "--machine",
+            "examples/vmc3/machine.toml",
+            "--model",
+        ])
+        .arg(&old)
+        .arg("--log")
+        .arg(&db)
+        .arg("--out")
+        .arg(dir.join("other.toml"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&other.stderr);
+    assert_eq!(other.status.code(), Some(1), "{err}");
+    let via_log = truepos_io::compensation::load(&from_log, &machine)
+        .unwrap()
+        .model;
+    let e_log = probe_rmse(&via_log, &day_b, &temps, split, 0..3);
+    println!("later probes: re-identified from the service's log {e_log:.2} µm RMS");
+    assert!(
+        e_log < 0.7 * e_old,
+        "from the log {e_log:.2} µm vs original {e_old:.2} µm"
+    );
+
     // A second re-identification starts from the first: generation 3, its parent the new file.
     let third = dir.join("third.toml");
     let later = dir.join("later.csv");

@@ -30,8 +30,11 @@ use crossbeam_queue::ArrayQueue;
 use rusqlite::{params_from_iter, Connection};
 
 mod probes;
+mod read;
 
 pub use probes::{axis_columns as probe_axis_columns, read_probes, ProbeRow, ProbeTable};
+use read::open_read;
+pub use read::{integrity_check, read_cycles, read_events, read_meta, CycleTable, LoggedEvent};
 
 use crate::config::MachineConfig;
 use crate::events::{Event, EventKind, EventQueue};
@@ -139,9 +142,14 @@ pub struct LogHealth {
 #[derive(Debug, Default)]
 struct Shared {
     health: Mutex<LogHealth>,
+    /// Events from outside the cycle (a model reload), with their full text.
+    notes: Mutex<Vec<Note>>,
     /// Page limit to apply (0: none asked).
     page_limit: AtomicU64,
 }
+
+/// An event the logger writes as given: (service time, kind, subject, detail).
+type Note = (f64, &'static str, String, String);
 
 /// The logger thread; stop it with [`Logger::stop`] (dropping it stops it too).
 pub struct Logger {
@@ -266,6 +274,17 @@ impl Logger {
         }
     }
 
+    /// Logs an event that does not come from the cycle (a model reload, from the host's loop
+    /// between cycles), with its full text. Takes a lock the logger thread shares: never call
+    /// it inside a cycle.
+    pub fn note(&self, time_s: f64, kind: &'static str, subject: String, detail: String) {
+        let mut notes = match self.shared.notes.lock() {
+            Ok(g) => g,
+            Err(p) => p.into_inner(),
+        };
+        notes.push((time_s, kind, subject, detail));
+    }
+
     /// Caps the database at `pages` pages (SQLite's `max_page_count`, applied by the thread
     /// before its next write): beyond it a write fails with SQLITE_FULL exactly as on a full
     /// disk, and raising the cap lets it resume. For a bounded log, and for testing the
@@ -334,7 +353,7 @@ struct Writer {
     events: Vec<Event>,
     probes: Vec<ProbeRecord>,
     /// The logger's own events (failure, resumption, drops) as (time, kind, subject, detail).
-    notes: Vec<(f64, &'static str, String, String)>,
+    notes: Vec<Note>,
     /// The current failure: when, why, and when to try again after how long a wait.
     failure: Option<Failure>,
     health: LogHealth,
@@ -476,6 +495,7 @@ impl Writer {
         loop {
             let stopping = stop.load(Ordering::Acquire);
             self.collect(queues);
+            self.take_notes(shared);
             let limit = shared.page_limit.load(Ordering::Acquire);
             if limit != 0 && limit != self.page_limit {
                 // A failed pragma leaves the old cap; the next write shows what that means.
@@ -562,6 +582,18 @@ impl Writer {
                 ),
             ));
             self.dropped_seen = dropped;
+        }
+    }
+
+    /// Moves the notes given from outside the cycle into the buffer.
+    fn take_notes(&mut self, shared: &Shared) {
+        let mut notes = match shared.notes.lock() {
+            Ok(g) => g,
+            Err(p) => p.into_inner(),
+        };
+        for n in notes.drain(..) {
+            self.last_time = self.last_time.max(n.0);
+            self.notes.push(n);
         }
     }
 
@@ -762,107 +794,6 @@ fn describe(e: &Event, n: &Names) -> (&'static str, String, String) {
         EventKind::SinkBack { sink } => ("sink-back", name(&n.sinks, sink), String::new()),
         EventKind::Overrun { late_us } => ("overrun", "cycle".into(), format!("{late_us} µs late")),
     }
-}
-
-/// One logged event.
-#[derive(Debug, Clone, PartialEq, serde::Serialize)]
-pub struct LoggedEvent {
-    /// Service time in s.
-    pub time_s: f64,
-    /// Kind (`sensor-fault`, `model-selected`, …).
-    pub kind: String,
-    /// What it concerns (a sensor id, an axis, a path).
-    pub subject: String,
-    /// Details.
-    pub detail: String,
-}
-
-pub(crate) fn open_read(path: &Path) -> Result<Connection, LogError> {
-    if !path.exists() {
-        return Err(LogError {
-            file: path.to_path_buf(),
-            message: "no such log".into(),
-        });
-    }
-    Connection::open_with_flags(path, rusqlite::OpenFlags::SQLITE_OPEN_READ_ONLY).map_err(err(path))
-}
-
-/// Reads the events of a log (also while the service writes it).
-pub fn read_events(path: &Path) -> Result<Vec<LoggedEvent>, LogError> {
-    let conn = open_read(path)?;
-    let mut st = conn
-        .prepare("SELECT time_s, kind, subject, detail FROM events ORDER BY rowid")
-        .map_err(err(path))?;
-    let rows = st
-        .query_map([], |r| {
-            Ok(LoggedEvent {
-                time_s: r.get::<_, Option<f64>>(0)?.unwrap_or(f64::NAN),
-                kind: r.get(1)?,
-                subject: r.get(2)?,
-                detail: r.get(3)?,
-            })
-        })
-        .map_err(err(path))?;
-    rows.collect::<Result<Vec<_>, _>>().map_err(err(path))
-}
-
-/// The `meta` a service wrote at start (machine, axes, sensors, models, sources, sinks), or
-/// `None` for a log without one.
-pub fn read_meta(path: &Path) -> Result<Option<serde_json::Value>, LogError> {
-    let conn = open_read(path)?;
-    let text: Option<String> = conn
-        .query_row("SELECT value FROM meta WHERE key = 'service'", [], |r| {
-            r.get(0)
-        })
-        .ok();
-    Ok(text.and_then(|t| serde_json::from_str(&t).ok()))
-}
-
-/// The cycles of a log as (column names, rows); NULL becomes NaN, the state column its text.
-pub type CycleTable = (Vec<String>, Vec<Vec<String>>);
-
-/// Reads the `cycles` table (optionally only the last `last` rows) as text cells.
-pub fn read_cycles(path: &Path, last: Option<usize>) -> Result<CycleTable, LogError> {
-    let conn = open_read(path)?;
-    let sql = match last {
-        Some(n) => format!(
-            "SELECT * FROM (SELECT rowid AS r, * FROM cycles ORDER BY rowid DESC LIMIT {n}) ORDER BY r"
-        ),
-        None => "SELECT 0 AS r, * FROM cycles ORDER BY rowid".to_string(),
-    };
-    let mut st = conn.prepare(&sql).map_err(err(path))?;
-    let names: Vec<String> = st
-        .column_names()
-        .iter()
-        .skip(1)
-        .map(|s| s.to_string())
-        .collect();
-    let width = names.len();
-    let rows = st
-        .query_map([], |r| {
-            (1..=width)
-                .map(|i| {
-                    let v: rusqlite::types::Value = r.get(i)?;
-                    Ok(match v {
-                        rusqlite::types::Value::Null => String::new(),
-                        rusqlite::types::Value::Integer(i) => i.to_string(),
-                        rusqlite::types::Value::Real(f) => f.to_string(),
-                        rusqlite::types::Value::Text(t) => t,
-                        rusqlite::types::Value::Blob(_) => String::new(),
-                    })
-                })
-                .collect::<Result<Vec<_>, _>>()
-        })
-        .map_err(err(path))?;
-    let rows = rows.collect::<Result<Vec<_>, _>>().map_err(err(path))?;
-    Ok((names, rows))
-}
-
-/// Runs SQLite's own consistency check; `Ok("ok")` for a sound file.
-pub fn integrity_check(path: &Path) -> Result<String, LogError> {
-    let conn = open_read(path)?;
-    conn.query_row("PRAGMA integrity_check", [], |r| r.get(0))
-        .map_err(err(path))
 }
 
 #[cfg(test)]

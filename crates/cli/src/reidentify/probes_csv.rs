@@ -99,6 +99,35 @@ pub fn read(
     Ok(events)
 }
 
+/// The probe events of a run CSV as the service's probe replay plays them: (run time, event),
+/// and the run's first time (the replay's zero).
+pub fn read_inputs(
+    path: &Path,
+    machine: &Machine,
+) -> Result<(Vec<(f64, truepos_runtime::probe::ProbeInput)>, f64), CliError> {
+    let bytes = std::fs::read(path).map_err(CliError::file(path, Some("cannot read")))?;
+    let start = cycles::read_with(path, &bytes[..], machine, &[], Positions::Optional)?
+        .time_s
+        .first()
+        .copied()
+        .unwrap_or(0.0);
+    let events = read(path, machine, &[])?
+        .into_iter()
+        .map(|ev| {
+            let mut p = truepos_runtime::probe::ProbeInput::EMPTY;
+            for (a, (pos, m)) in ev.position_mm.iter().zip(&ev.measured_um).enumerate() {
+                if a < p.position_mm.len() {
+                    p.position_mm[a] = *pos;
+                    p.deviation_um[a] = m.unwrap_or(f64::NAN);
+                    p.measured[a] = m.is_some();
+                }
+            }
+            (ev.time_s, p)
+        })
+        .collect();
+    Ok((events, start))
+}
+
 /// A measured error: empty (not measured) or a finite number within the bound.
 fn deviation(table: &Table, row: usize, col: usize) -> Result<Option<f64>, InputError> {
     let cell = &table.rows[row].cells.get(col);
