@@ -29,8 +29,18 @@ pub fn read(
     sensors: &[usize],
 ) -> Result<Vec<ProbeEvent>, CliError> {
     let bytes = std::fs::read(path).map_err(CliError::file(path, Some("cannot read")))?;
-    let cyc = cycles::read_with(path, &bytes[..], machine, sensors, Positions::Optional)?;
-    let table = table::parse_csv(path, &bytes, table::CsvOptions::default())?;
+    parse(path, &bytes, machine, sensors)
+}
+
+/// [`read`] on a file's bytes; `path` names it in errors.
+pub fn parse(
+    path: &Path,
+    bytes: &[u8],
+    machine: &Machine,
+    sensors: &[usize],
+) -> Result<Vec<ProbeEvent>, CliError> {
+    let cyc = cycles::read_with(path, bytes, machine, sensors, Positions::Optional)?;
+    let table = table::parse_csv(path, bytes, table::CsvOptions::default())?;
     let cols: Vec<(Option<usize>, Option<usize>)> = machine
         .axes
         .iter()
@@ -194,5 +204,78 @@ fn probed_position(
             col,
             format!("{expect}; the cell is empty on a row with a measured error"),
         )),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn machine() -> Machine {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/vmc3/machine.toml");
+        truepos_io::machine_file::load(&path).unwrap().machine
+    }
+
+    /// What a probe cell may hold: numbers in and out of bounds, the non-finite spellings,
+    /// text, an empty cell, a decimal comma.
+    fn cell() -> impl Strategy<Value = String> {
+        prop_oneof![
+            (-2000.0..2000.0f64).prop_map(|v| format!("{v}")),
+            Just(String::new()),
+            Just("NaN".to_string()),
+            Just("inf".to_string()),
+            Just("-1e400".to_string()),
+            Just("abc".to_string()),
+            Just("\"1,5\"".to_string()),
+            (-100.0..1200.0f64).prop_map(|v| format!("{v:.3}")),
+        ]
+    }
+
+    proptest! {
+        /// Any content of the probe columns: events whose values are within bounds, or an error
+        /// at file:line:column naming a probe column; never a panic.
+        #[test]
+        fn probe_cells_give_checked_events_or_a_located_error(
+            rows in proptest::collection::vec((cell(), cell(), cell()), 1..20)
+        ) {
+            let m = machine();
+            let sensors: Vec<String> = m
+                .temperatures
+                .iter()
+                .filter(|t| t.lag.is_none())
+                .map(|t| t.id.clone())
+                .collect();
+            let mut text = format!(
+                "time_s,X_mm,Y_mm,Z_mm,{},probe_x_mm,probe_dx_um,probe_dz_um\n",
+                sensors.join(",")
+            );
+            for (i, (px, dx, dz)) in rows.iter().enumerate() {
+                let temps = vec!["21.0"; sensors.len()].join(",");
+                text += &format!("{i},100,100,100,{temps},{px},{dx},{dz}\n");
+            }
+            let path = Path::new("probes.csv");
+            match parse(path, text.as_bytes(), &m, &[]) {
+                Ok(events) => {
+                    for ev in &events {
+                        prop_assert!(ev.measured_um.iter().any(Option::is_some));
+                        for v in ev.measured_um.iter().flatten() {
+                            prop_assert!(v.is_finite() && v.abs() <= MAX_PROBE_DEVIATION_UM);
+                        }
+                        for (a, p) in ev.position_mm.iter().enumerate() {
+                            let ax = &m.axes[a];
+                            prop_assert!(p.is_finite());
+                            prop_assert!(*p >= ax.travel_min - PROBE_TRAVEL_MARGIN_MM);
+                            prop_assert!(*p <= ax.travel_max + PROBE_TRAVEL_MARGIN_MM);
+                        }
+                    }
+                }
+                Err(e) => {
+                    let e = e.to_string();
+                    prop_assert!(e.starts_with("probes.csv:"), "{}", e);
+                    prop_assert!(e.contains("`probe_"), "{}", e);
+                }
+            }
+        }
     }
 }
