@@ -9,6 +9,7 @@ echo "== what the tests need"
 bash scripts/install_system_deps.sh   # SQLite headers (Debian)
 bash scripts/setup_python.sh          # .venv with pymodbus, for the Modbus source tests
 bash scripts/install_linuxcnc.sh      # LinuxCNC 2.9 (Debian), for the HAL component
+bash scripts/install_chromium.sh      # Chromium (Debian), to render the HTML reports in a real browser
 
 echo "== unit, integration and doc tests of every crate"
 cargo test --workspace

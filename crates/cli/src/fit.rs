@@ -82,6 +82,10 @@ pub struct Args {
     /// no fold held out (a chronological split's training part, predicted in-sample).
     #[arg(long)]
     predictions: Option<PathBuf>,
+    /// Write an HTML report of the validation here (folder): out-of-fold predictions over the
+    /// runs, a table per held-out run, temperatures, the protocol.
+    #[arg(long)]
+    report: Option<PathBuf>,
     /// Write the model even when its predictions on its own training data are non-finite or
     /// more than 10 × the largest measured |error| there.
     #[arg(long)]
@@ -208,6 +212,9 @@ pub fn run(args: Args) -> Result<(), CliError> {
     if let Some(path) = &args.predictions {
         std::fs::write(path, predictions_csv(&ds, &outcome))
             .map_err(CliError::file(path, Some("cannot write")))?;
+    }
+    if let Some(dir) = &args.report {
+        crate::fit_report::write(dir, &ds, &outcome, &warnings)?;
     }
     for w in &warnings {
         eprintln!("warning: {w}");

@@ -12,12 +12,14 @@ mod error;
 mod eval;
 mod evaluator;
 mod fit;
+mod fit_report;
 mod kin;
 mod reidentify;
 mod report;
 mod run;
 mod sim;
 mod update_period;
+mod volume_map;
 
 /// truepos keeps the tool tip of a CNC machine tool where the program says it is, while the
 /// machine warms up, bends and carries geometric errors.

@@ -157,6 +157,22 @@ fn coefficients(model: &Model, machine: &truepos_model::Machine) -> Vec<Coeffici
     out
 }
 
+/// The volume map of a position-dependent model over the run's states.
+fn volume(
+    machine: &truepos_model::Machine,
+    model: &CompensationModel,
+    run: &truepos_io::cycles::Cycles,
+) -> Option<truepos_report::VolumeMap> {
+    let rows: Vec<truepos_model::CycleInput<'_>> = (0..run.time_s.len())
+        .map(|i| truepos_model::CycleInput {
+            temperatures_c: &run.temperatures_c[i],
+            positions: &run.positions[i],
+            operating: &run.operating[i],
+        })
+        .collect();
+    crate::volume_map::of_model(machine, model.as_static()?, &rows, &run.time_s)
+}
+
 pub fn run(args: Args) -> Result<(), CliError> {
     let machine = machine_file::load(&args.machine)?.machine;
     let mut model = Evaluator::load(&args.model, &machine)?;
@@ -257,6 +273,9 @@ pub fn run(args: Args) -> Result<(), CliError> {
             CompensationModel::Dynamic(d) => dynamic_coefficients(d, &machine),
         },
         protocol,
+        volume: volume(&machine, model.model(), &run),
+        headline: Vec::new(),
+        runs: Vec::new(),
     };
     let html = write_report(&args.out, &data)?;
     let range = test_from.unwrap_or(0)..run.time_s.len();

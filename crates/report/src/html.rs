@@ -1,0 +1,294 @@
+//! The HTML page: headline figures, tables, and the figures embedded.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use crate::correlation::correlation_figure;
+use crate::histogram::histogram_figure;
+use crate::metrics::channel_metrics;
+use crate::time_series::{channel_figure, temperature_figure};
+use crate::volume::{max_abs, volume_figure};
+use crate::{ReportData, ReportError, RunRow, VolumeMap};
+
+fn escape(s: &str) -> String {
+    s.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+        .replace('"', "&quot;")
+}
+
+/// A file name made of the safe characters of a channel name.
+fn file_stem(name: &str) -> String {
+    name.chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '-' || c == '_' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect()
+}
+
+/// A figure: its file name, caption and SVG.
+struct Figure {
+    file: String,
+    caption: String,
+    svg: String,
+}
+
+/// Every figure of the report, in the order they are shown: the working volume first (what a
+/// position-dependent model is judged by), then the series over time.
+fn figures(data: &ReportData) -> Result<Vec<Figure>, ReportError> {
+    let mut out = Vec::new();
+    if let Some(map) = &data.volume {
+        map.check()?;
+        for d in &map.directions {
+            out.push(Figure {
+                file: format!("volume_{}.svg", file_stem(&d.name)),
+                caption: format!("{}: error over the working volume, {}", d.name, map.moment),
+                svg: volume_figure(map, d)?,
+            });
+        }
+    }
+    for ch in &data.channels {
+        out.push(Figure {
+            file: format!("{}_over_time.svg", file_stem(&ch.name)),
+            caption: format!("{}: measured, predicted, residual", ch.name),
+            svg: channel_figure(data, ch)?,
+        });
+    }
+    if !data.channels.is_empty() {
+        out.push(Figure {
+            file: "residual_histogram.svg".into(),
+            caption: "Residual histogram".into(),
+            svg: histogram_figure(data)?,
+        });
+    }
+    if !data.temperatures.is_empty() {
+        out.push(Figure {
+            file: "temperatures.svg".into(),
+            caption: "Temperatures".into(),
+            svg: temperature_figure(data)?,
+        });
+        out.push(Figure {
+            file: "correlation.svg".into(),
+            caption: "Correlation heat map".into(),
+            svg: correlation_figure(data)?,
+        });
+    }
+    Ok(out)
+}
+
+/// Writes `report.html` (self-contained) and the figures as SVG files into `dir`; returns the
+/// path of the HTML file. Each file is written to a temporary name and renamed, so a failed
+/// report never leaves a half-written file behind.
+pub fn write_report(dir: &Path, data: &ReportData) -> Result<PathBuf, ReportError> {
+    std::fs::create_dir_all(dir).map_err(io_error(dir))?;
+    let figures = figures(data)?;
+    for f in &figures {
+        write_whole(&dir.join(&f.file), &f.svg)?;
+    }
+    let mut html = String::new();
+    let _ = write!(
+        html,
+        "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>{t}</title>\
+         <style>body{{font-family:sans-serif;max-width:1000px;margin:2em auto;color:#222}}\
+         table{{border-collapse:collapse;margin:1em 0}}td,th{{border:1px solid #ccc;padding:4px 8px;text-align:right}}\
+         th{{background:#f3f3f3}}td.l,th.l{{text-align:left}}tr.worse td{{background:#fde0dc}}figure{{margin:1.5em 0}}\
+         .cards{{display:flex;flex-wrap:wrap;gap:12px}}.card{{border:1px solid #ccc;border-radius:6px;padding:8px 14px}}\
+         .card b{{display:block;font-size:1.5em}}</style></head><body><h1>{t}</h1>",
+        t = escape(&data.title)
+    );
+    headline(&mut html, data);
+    merit_table(&mut html, data);
+    runs_table(&mut html, &data.runs);
+    if let Some(map) = &data.volume {
+        volume_table(&mut html, map);
+    }
+    for f in &figures {
+        let _ = write!(
+            html,
+            "<figure>{}<figcaption>{}</figcaption></figure>",
+            f.svg,
+            escape(&f.caption)
+        );
+    }
+    key_value_tables(&mut html, data);
+    html.push_str("</body></html>\n");
+    let path = dir.join("report.html");
+    write_whole(&path, &html)?;
+    Ok(path)
+}
+
+fn io_error(p: &Path) -> impl Fn(std::io::Error) -> ReportError {
+    let p = p.to_path_buf();
+    move |e| ReportError(format!("{}: {e}", p.display()))
+}
+
+/// Writes `text` to `path` through a temporary file in the same folder and a rename.
+fn write_whole(path: &Path, text: &str) -> Result<(), ReportError> {
+    let mut tmp = path.as_os_str().to_owned();
+    tmp.push(".partial");
+    let tmp = PathBuf::from(tmp);
+    std::fs::write(&tmp, text).map_err(io_error(&tmp))?;
+    std::fs::rename(&tmp, path).map_err(|e| {
+        let _ = std::fs::remove_file(&tmp);
+        io_error(path)(e)
+    })
+}
+
+/// The headline figures as cards.
+fn headline(html: &mut String, data: &ReportData) {
+    if data.headline.is_empty() {
+        return;
+    }
+    html.push_str("<div class=\"cards\">");
+    for (what, value) in &data.headline {
+        let _ = write!(
+            html,
+            "<div class=\"card\"><b>{}</b>{}</div>",
+            escape(value),
+            escape(what)
+        );
+    }
+    html.push_str("</div>");
+}
+
+fn merit_table(html: &mut String, data: &ReportData) {
+    if data.channels.is_empty() {
+        return;
+    }
+    let n = data.time_s.len();
+    let test = data.test_from.unwrap_or(0).min(n)..n;
+    let which = if data.test_from.is_some() {
+        "on the held-out part, which the fit never saw"
+    } else {
+        "over the whole run"
+    };
+    let _ = write!(
+        html,
+        "<h2>Figures of merit</h2><p>Residual = measured − predicted, {which} ({} samples).</p>\
+         <table><tr><th class=\"l\">channel</th><th>RMSE</th><th>max |residual|</th><th>peak-to-peak</th>\
+         <th>uncompensated RMS</th><th>reduction</th></tr>",
+        test.len()
+    );
+    for ch in &data.channels {
+        let m = channel_metrics(ch, test.clone());
+        let _ = write!(
+            html,
+            "<tr><td class=\"l\">{}</td><td>{:.2} {u}</td><td>{:.2} {u}</td><td>{:.2} {u}</td><td>{:.2} {u}</td><td>{:.0} %</td></tr>",
+            escape(&ch.name),
+            m.rmse_um,
+            m.max_abs_um,
+            m.peak_to_peak_um,
+            m.uncompensated_rmse_um,
+            100.0 * m.reduction,
+            u = escape(&ch.unit),
+        );
+    }
+    html.push_str("</table>");
+}
+
+/// Leave-one-run-out: one row per held-out run and channel; a run the model made worse than
+/// no compensation is shaded and counted above the table.
+fn runs_table(html: &mut String, runs: &[RunRow]) {
+    if runs.is_empty() {
+        return;
+    }
+    let worse: Vec<&RunRow> = runs.iter().filter(|r| r.metrics.reduction < 0.0).collect();
+    let _ = write!(
+        html,
+        "<h2>Per held-out run</h2><p>Each run predicted by a model fitted without it. {}</p>\
+         <table><tr><th class=\"l\">run</th><th class=\"l\">channel</th><th>samples</th><th>RMSE</th>\
+         <th>max |residual|</th><th>uncompensated RMS</th><th>reduction</th><th class=\"l\">family</th></tr>",
+        if worse.is_empty() {
+            "No run is made worse than uncompensated.".to_string()
+        } else {
+            format!(
+                "<strong>{} run/channel pair(s) made worse than uncompensated</strong> (shaded).",
+                worse.len()
+            )
+        }
+    );
+    for r in runs {
+        let m = &r.metrics;
+        let _ = write!(
+            html,
+            "<tr{}><td class=\"l\">{}</td><td class=\"l\">{}</td><td>{}</td><td>{:.2} µm</td><td>{:.2} µm</td>\
+             <td>{:.2} µm</td><td>{:.0} %</td><td class=\"l\">{}</td></tr>",
+            if m.reduction < 0.0 { " class=\"worse\"" } else { "" },
+            escape(&r.run),
+            escape(&r.channel),
+            r.samples,
+            m.rmse_um,
+            m.max_abs_um,
+            m.uncompensated_rmse_um,
+            100.0 * m.reduction,
+            escape(r.family.as_deref().unwrap_or("—")),
+        );
+    }
+    html.push_str("</table>");
+}
+
+/// Largest error over the grid per direction, before and after.
+fn volume_table(html: &mut String, map: &VolumeMap) {
+    let after = map.labels.1.as_deref();
+    let _ = write!(
+        html,
+        "<h2>Working volume</h2><p>{} grid over the travel, {}.</p><table><tr><th class=\"l\">direction</th><th>max |{}|</th>",
+        map.coords.iter().map(|c| c.len().to_string()).collect::<Vec<_>>().join(" × "),
+        escape(&map.moment),
+        escape(&map.labels.0),
+    );
+    if let Some(a) = after {
+        let _ = write!(html, "<th>max |{}|</th><th>reduction</th>", escape(a));
+    }
+    html.push_str("</tr>");
+    for d in &map.directions {
+        let b = max_abs(&d.before);
+        let _ = write!(
+            html,
+            "<tr><td class=\"l\">{}</td><td>{b:.2} µm</td>",
+            escape(&d.name)
+        );
+        if let Some(a) = &d.after {
+            let a = max_abs(a);
+            let _ = write!(
+                html,
+                "<td>{a:.2} µm</td><td>{:.0} %</td>",
+                100.0 * (1.0 - a / b)
+            );
+        }
+        html.push_str("</tr>");
+    }
+    html.push_str("</table>");
+}
+
+fn key_value_tables(html: &mut String, data: &ReportData) {
+    if !data.coefficients.is_empty() {
+        html.push_str("<h2>Coefficients</h2><table><tr><th class=\"l\">channel</th><th class=\"l\">feature</th><th>value</th></tr>");
+        for c in &data.coefficients {
+            let _ = write!(
+                html,
+                "<tr><td class=\"l\">{}</td><td class=\"l\">{}</td><td>{:.6}</td></tr>",
+                escape(&c.channel),
+                escape(&c.feature),
+                c.value
+            );
+        }
+        html.push_str("</table>");
+    }
+    if !data.protocol.is_empty() {
+        html.push_str("<h2>Validation protocol</h2><table>");
+        for (k, v) in &data.protocol {
+            let _ = write!(
+                html,
+                "<tr><th class=\"l\">{}</th><td class=\"l\">{}</td></tr>",
+                escape(k),
+                escape(v)
+            );
+        }
+        html.push_str("</table>");
+    }
+}
