@@ -408,3 +408,89 @@ fn bad_probe_files_are_located() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(1), "{err}");
 }
+
+/// `truepos run --reload-on-change` takes a rewritten model file without a restart and refuses
+/// a broken one, naming it, while the running model stays; both are events of the log.
+#[test]
+fn a_running_service_reloads_a_rewritten_model_file() {
+    let dir = scratch("run-reload");
+    let machine = truepos_io::machine_file::load(&repo("examples/vmc3/machine.toml"))
+        .unwrap()
+        .machine;
+    let original =
+        truepos_io::model_file::load(&repo("examples/vmc3/model.toml"), &machine).unwrap();
+    let model = dir.join("model.toml");
+    let write = |m: &Model| {
+        let tmp = dir.join("model.tmp");
+        std::fs::write(&tmp, ModelFile::from_model(m, &machine).to_toml()).unwrap();
+        std::fs::rename(&tmp, &model).unwrap();
+    };
+    write(&original);
+    let db = dir.join("service.sqlite");
+    let child = command()
+        .args(["run", "--machine", "examples/vmc3/machine.toml", "--models"])
+        .arg(&model)
+        .args([
+            "--source",
+            "replay:examples/vmc3/run.csv@100",
+            "--duration-s",
+            "120",
+            "--period-ms",
+            "10",
+            "--reload-on-change",
+            "--json",
+            "--log",
+        ])
+        .arg(&db)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Waits (up to 20 s) until the log holds what `ready` looks for.
+    let wait_for = |ready: &dyn Fn() -> bool| {
+        let start = std::time::Instant::now();
+        while !ready() {
+            assert!(start.elapsed().as_secs() < 20, "timed out");
+            std::thread::sleep(std::time::Duration::from_millis(100));
+        }
+    };
+    let logged = |kind: &str| {
+        truepos_runtime::log::read_events(&db)
+            .map(|e| e.iter().any(|e| e.kind == kind))
+            .unwrap_or(false)
+    };
+    // The service runs (the reload thread started before the first cycle).
+    wait_for(&|| truepos_runtime::log::read_cycles(&db, Some(1)).is_ok_and(|c| !c.1.is_empty()));
+    let theta: Vec<f64> = original.parameters().iter().map(|p| p * 1.5).collect();
+    write(&original.with_parameters(&machine, &theta).unwrap());
+    wait_for(&|| logged("model-reloaded"));
+    let tmp = dir.join("model.tmp");
+    std::fs::write(&tmp, "format = \"truepos-model\"\nversion = 1\nname = \n").unwrap();
+    std::fs::rename(&tmp, &model).unwrap();
+    wait_for(&|| logged("model-reload-failed"));
+    // SIGTERM, as a service manager stops it: the run ends normally.
+    let killed = std::process::Command::new("kill")
+        .args(["-TERM", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(killed.success());
+    let out = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(
+        stderr.contains(&format!("reloaded {}", model.display())),
+        "{stderr}"
+    );
+    assert!(
+        stderr.contains(&format!(
+            "reload refused, the running model stays: {}:3:",
+            model.display()
+        )),
+        "{stderr}"
+    );
+    let events = truepos_runtime::log::read_events(&db).unwrap();
+    let kinds: Vec<&str> = events.iter().map(|e| e.kind.as_str()).collect();
+    assert!(kinds.contains(&"model-reloaded"), "{kinds:?}");
+    assert!(kinds.contains(&"model-reload-failed"), "{kinds:?}");
+    std::fs::remove_dir_all(&dir).ok();
+}
