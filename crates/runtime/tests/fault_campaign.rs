@@ -617,3 +617,84 @@ fn an_intermittent_nan_does_not_run_the_output_away() {
         i += 1;
     }
 }
+
+/// Reloads at the moments that matter, on one fixed schedule: during the start-up blend, during
+/// the blend of a model switch (the fallback preferred), a refused one right after, and a
+/// reload of the model the output is blending back to; the invariant holds on every cycle.
+#[test]
+fn reloads_during_blends_keep_the_invariant() {
+    let n_t = vmc().machine.temperatures.len();
+    let episode = |start, len, kind| Episode { start, len, kind };
+    let s = Schedule {
+        cycles: 1200,
+        dt: 0.01,
+        // Every channel warms differently, so that the differences the models read move.
+        warmup: (0..n_t)
+            .map(|c| (1.0 + c as f64 * 0.4, 0.5 + c as f64 * 0.3))
+            .collect(),
+        sweep: vec![(0.2, 0.0), (0.13, 1.0), (0.07, 2.0)],
+        episodes: vec![
+            // A fifth into the start-up blend, to half the model: restarted from the output
+            // sent, the output keeps moving towards the new target; continued from zero, it
+            // would fall back, away from it.
+            episode(
+                40,
+                1,
+                FaultKind::Reload {
+                    model: 0,
+                    scale: 0.5,
+                    good: true,
+                },
+            ),
+            // Blend from model 0 to the fallback (2 s = 200 cycles) starting at cycle 300.
+            episode(300, 400, FaultKind::PreferFallback),
+            episode(
+                350,
+                1,
+                FaultKind::Reload {
+                    model: 1,
+                    scale: 1.6,
+                    good: true,
+                },
+            ),
+            episode(
+                360,
+                1,
+                FaultKind::Reload {
+                    model: 1,
+                    scale: 0.5,
+                    good: false,
+                },
+            ),
+            episode(
+                420,
+                1,
+                FaultKind::Reload {
+                    model: 0,
+                    scale: 0.4,
+                    good: true,
+                },
+            ),
+            // Back to model 0 at cycle 700, reloaded twice during that blend.
+            episode(
+                750,
+                1,
+                FaultKind::Reload {
+                    model: 0,
+                    scale: 1.7,
+                    good: true,
+                },
+            ),
+            episode(
+                760,
+                1,
+                FaultKind::Reload {
+                    model: 0,
+                    scale: 0.3,
+                    good: true,
+                },
+            ),
+        ],
+    };
+    run_schedule(&s).map_err(|e| e.to_string()).unwrap();
+}
