@@ -73,20 +73,12 @@ impl Source for HalSource {
         // One probe event per rising edge of the trigger: the values of that cycle.
         let probe = &self.pins.probe;
         if self.probe_edge.rising(probe.trigger.get()) {
-            let mut event = ProbeInput::EMPTY;
-            for (a, ((pos, dev), measured)) in probe
-                .positions
-                .iter()
-                .zip(&probe.deviations)
-                .zip(&probe.measured)
-                .enumerate()
-                .take(truepos_model::MAX_AXES)
-            {
-                event.position_mm[a] = pos.get();
-                event.deviation_um[a] = dev.get();
-                event.measured[a] = measured.get();
-            }
-            frame.probe = Some(event);
+            frame.probe = Some(probe_event(
+                probe.positions.len(),
+                |a| probe.positions[a].get(),
+                |a| probe.deviations[a].get(),
+                |a| probe.measured[a].get(),
+            ));
         }
         // The axis configuration, rebuilt in the capacity the service reserved (no
         // allocation); an axis whose pin names no path of the machine is in none (parked).
@@ -102,6 +94,23 @@ impl Source for HalSource {
         }
         Ok(())
     }
+}
+
+/// The probe event of `axes` axes from the values of their `pos-N`, `dev-N` and `measured-N`
+/// pins (axes beyond [`truepos_model::MAX_AXES`] are not carried).
+pub fn probe_event(
+    axes: usize,
+    position: impl Fn(usize) -> f64,
+    deviation: impl Fn(usize) -> f64,
+    measured: impl Fn(usize) -> bool,
+) -> ProbeInput {
+    let mut event = ProbeInput::EMPTY;
+    for a in 0..axes.min(truepos_model::MAX_AXES) {
+        event.position_mm[a] = position(a);
+        event.deviation_um[a] = deviation(a);
+        event.measured[a] = measured(a);
+    }
+    event
 }
 
 #[cfg(test)]
@@ -120,5 +129,21 @@ mod tests {
             .map(|(i, _)| i)
             .collect();
         assert_eq!(events, [1, 6, 8]);
+    }
+
+    /// The pins' values in machine axis order make the event; an unmeasured axis keeps its
+    /// value but is marked as such, so the service's check ignores it.
+    #[test]
+    fn the_pins_values_make_the_event() {
+        let pos = [10.0, 20.0, 30.0];
+        let dev = [f64::NAN, 0.0, -7.5];
+        let p = probe_event(3, |a| pos[a], |a| dev[a], |a| a == 2);
+        assert_eq!(&p.position_mm[..3], &pos);
+        assert_eq!(p.deviation_um[2], -7.5);
+        assert_eq!(&p.measured[..4], &[false, false, true, false]);
+        assert!(p.position_mm[3].is_nan(), "no fourth axis");
+        // More axes than an event carries: the first MAX_AXES.
+        let many = probe_event(12, |a| a as f64, |_| 1.0, |_| true);
+        assert_eq!(many.position_mm[8], 8.0);
     }
 }
