@@ -8,7 +8,10 @@ use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 
 use crate::error::CliError;
-use truepos_fit::position_model::{choose, input_sets, Candidate, Family, Fitted, Observation};
+use truepos_fit::dataset::{Dataset, Run};
+use truepos_fit::machine_fit::{select, Chosen, MachineData, MachineRun, StaticModel};
+use truepos_fit::position_model::{reference_sensor, Family};
+use truepos_fit::settings::Settings;
 use truepos_io::{machine_file, model_file::ModelFile};
 use truepos_model::{CycleInput, Machine, Model};
 use truepos_report::{write_report, Channel, Coefficient, ReportData, VolumeMap};
@@ -179,108 +182,122 @@ fn path_rmse(d: &Day, model: Option<&Model>) -> [f64; 3] {
     se.map(|s| (s / n.max(1) as f64).sqrt())
 }
 
-/// What a machine builder measures on the training day: the error at the tool's path, and the
-/// touch-probe grid of the scenario (seed C's on-line procedure), each with the temperatures of
-/// that instant.
-fn observations(train: &Day) -> Vec<Observation<'_>> {
-    let probes: Vec<(usize, &[f64; 3], [f64; 3])> = train
-        .run
-        .rows
-        .iter()
-        .enumerate()
-        .filter_map(|(i, r)| r.probe.as_ref().map(|p| (i, &p.position_mm, p.measured_um)))
-        .collect();
-    let mut obs = Vec::new();
-    let mut next_probe = 0;
-    for i in 0..train.run.rows.len() {
-        for a in 0..3 {
-            obs.push(Observation {
-                input: input(train, i),
-                axis: a,
-                error_um: train.run.rows[i].error_um[a],
-            });
-        }
-        while next_probe < probes.len() && probes[next_probe].0 == i {
-            let (_, pos, measured) = probes[next_probe];
-            for (a, e) in measured.into_iter().enumerate() {
-                obs.push(Observation {
-                    input: CycleInput {
-                        temperatures_c: &train.temps[i],
-                        positions: pos,
-                        operating: &train.operating[i],
-                    },
-                    axis: a,
-                    error_um: e,
-                });
-            }
-            next_probe += 1;
-        }
-    }
-    obs
+/// The training day as `truepos fit --machine` sees a run: the error at the tool's path per
+/// direction (targets as measured) at the axis positions, with the machine's channels.
+fn training_data(machine: &Machine, train: &Day) -> (Dataset, MachineData) {
+    let run = &train.run;
+    let ds = Dataset {
+        input_names: Vec::new(),
+        input_kinds: Vec::new(),
+        target_names: vec!["dx_um".into(), "dy_um".into(), "dz_um".into()],
+        runs: vec![Run {
+            name: "training day".into(),
+            time_s: run.rows.iter().map(|r| r.time_s).collect(),
+            inputs: Vec::new(),
+            targets: (0..3)
+                .map(|a| run.rows.iter().map(|r| r.error_um[a]).collect())
+                .collect(),
+        }],
+    };
+    let data = MachineData {
+        machine: machine.clone(),
+        runs: vec![MachineRun {
+            temperatures_c: train.temps.clone(),
+            positions: train.positions.clone(),
+            operating: train.operating.clone(),
+        }],
+        target_axes: vec![0, 1, 2],
+        reference: reference_sensor(machine),
+        differences: (0..machine.differences.len()).collect(),
+        owners: Vec::new(),
+    };
+    (ds, data)
 }
 
-/// The prior art and the position-dependent model, each chosen on the training day only.
-/// Inputs: the measured sensors' differences; with the lagged channels; with the spindle-load
-/// channels too. Families: linear position terms (embodiment 5) or with squares too
-/// (example 2); the prior art is chosen among the input sets the same way.
+/// The prior art and the position-dependent model, each chosen on the training day only by
+/// `truepos fit --machine`'s selection (`truepos_fit::machine_fit::select`: per axis, family,
+/// input set and ridge by blocked inner CV over the day): the prior art among the input sets,
+/// the position-dependent model among seed A's position-dependent families too.
 fn fit_both(
     machine: &Machine,
     train: &Day,
     say: &dyn Fn(&str),
-) -> Result<(Candidate, Candidate), CliError> {
-    let sets = input_sets(machine);
-    let obs = observations(train);
-    let mut tried = |c: &Candidate| {
-        say(&format!(
-            "  {}, inputs {}: cross-validated RMSE {:.2} µm (ridge {:e})",
-            c.family.name(),
-            c.inputs,
-            c.cv_rmse_um,
-            c.fitted.ridge
-        ))
+) -> Result<(Selected, Selected), CliError> {
+    let (ds, data) = training_data(machine, train);
+    let rows: Vec<(usize, usize)> = (0..ds.runs[0].len()).map(|i| (0, i)).collect();
+    let settings = Settings {
+        families: Vec::new(),
+        absolute_targets: true,
+        ..Settings::default()
     };
-    let xyz = [0, 1, 2];
-    let prior = choose(
-        "twin-prior-art",
-        machine,
-        &[Family::PositionIndependent],
-        &sets,
-        &xyz,
-        &obs,
-        &mut tried,
-    )?;
-    let posdep = choose(
-        "twin-position-dependent",
-        machine,
-        &[Family::AllAxes, Family::AllAxesSquared],
-        &sets,
-        &xyz,
-        &obs,
-        &mut tried,
-    )?;
+    let fit = |families: &[Family]| -> Result<Selected, CliError> {
+        let sel =
+            select(&ds, &data, None, &rows, &settings, families).map_err(CliError::Refused)?;
+        for c in &sel.candidates {
+            let cv: Vec<String> = c
+                .targets
+                .iter()
+                .map(|t| format!("{} {:.2}", t.target, t.cv_rmse_um))
+                .collect();
+            say(&format!(
+                "  {}, inputs {}: cross-validated RMSE (µm) {}",
+                c.family,
+                c.inputs,
+                cv.join(", ")
+            ));
+        }
+        match sel.chosen {
+            Chosen::Static(model) => Ok(Selected {
+                model,
+                labels: sel.labels,
+            }),
+            Chosen::Dynamic(_) => Err(CliError::refused("internal: a dynamic model was chosen")),
+        }
+    };
+    let prior = fit(&[Family::PositionIndependent])?;
+    let posdep = fit(&[Family::AllAxes, Family::AllAxesSquared, Family::BedFactor])?;
     Ok((prior, posdep))
 }
 
+/// A model the selection chose, and per axis what it chose.
+struct Selected {
+    model: StaticModel,
+    labels: Vec<String>,
+}
+
+impl Selected {
+    fn chosen(&self, machine: &Machine) -> String {
+        self.labels
+            .iter()
+            .zip(&machine.axes)
+            .map(|(l, a)| format!("{}: {l}", a.name))
+            .collect::<Vec<_>>()
+            .join("; ")
+    }
+}
+
 fn save(
-    fitted: &Fitted,
+    selected: &Selected,
     machine: &Machine,
     path: &Path,
-    family: Family,
+    what: &str,
     train: &str,
 ) -> Result<(), CliError> {
-    let mut file = ModelFile::from_model(&fitted.model, machine);
-    file.description = format!(
-        "{} fitted by `truepos demo` on the twin's `{train}` day",
-        family.name()
-    );
+    let mut file = ModelFile::from_model(&selected.model.model, machine);
+    file.description = format!("{what} fitted by `truepos demo` on the twin's `{train}` day");
     file.provenance.insert("tool".into(), "truepos demo".into());
     file.provenance
         .insert("training_scenario".into(), train.into());
     file.provenance
-        .insert("family".into(), family.name().into());
-    file.provenance.insert("ridge".into(), fitted.ridge.into());
+        .insert("chosen".into(), selected.chosen(machine).into());
+    let observations: usize = selected
+        .model
+        .choices
+        .iter()
+        .map(|c| c.2.observations)
+        .sum();
     file.provenance
-        .insert("observations".into(), (fitted.observations as i64).into());
+        .insert("observations".into(), (observations as i64).into());
     std::fs::write(path, file.to_toml()).map_err(CliError::file(path, Some("cannot write")))
 }
 
@@ -336,17 +353,17 @@ pub fn run(args: Args) -> Result<(), CliError> {
 
     std::fs::create_dir_all(&args.out).map_err(CliError::file(&args.out, Some("cannot create")))?;
     save(
-        &prior.fitted,
+        &prior,
         &machine,
         &args.out.join("prior-art.model.toml"),
-        Family::PositionIndependent,
+        "the prior art (position-independent)",
         &args.train,
     )?;
     save(
-        &posdep.fitted,
+        &posdep,
         &machine,
         &args.out.join("position-dependent.model.toml"),
-        posdep.family,
+        "the position-dependent model (seed A)",
         &args.train,
     )?;
 
@@ -354,16 +371,16 @@ pub fn run(args: Args) -> Result<(), CliError> {
     let results = Results::new(
         &twin,
         &test,
-        &prior.fitted.model,
-        &posdep.fitted.model,
+        &prior.model.model,
+        &posdep.model.model,
         args.grid,
     );
-    let volume = volume(&twin, &machine, &test, &posdep.fitted.model, results.stride);
+    let volume = volume(&twin, &machine, &test, &posdep.model.model, results.stride);
     let html = report(&args, &machine, &test, &posdep, &results, volume)?;
     if args.json {
-        print_json(&args, &results, &prior, &posdep, &html);
+        print_json(&args, &machine, &results, &prior, &posdep, &html);
     } else {
-        print_table(&args, &results, &prior, &posdep, &html);
+        print_table(&args, &machine, &results, &prior, &posdep, &html);
     }
     Ok(())
 }
@@ -441,12 +458,12 @@ fn report(
     args: &Args,
     machine: &Machine,
     test: &Day,
-    posdep: &Candidate,
+    selected: &Selected,
     results: &Results,
     volume: VolumeMap,
 ) -> Result<PathBuf, CliError> {
     let stride = results.stride;
-    let (family, posdep) = (posdep.family, &posdep.fitted);
+    let posdep = &selected.model;
     let mut channels = Vec::new();
     for (a, name) in ["dx", "dy", "dz"].iter().enumerate() {
         let measured: Vec<f64> = test.run.rows.iter().map(|r| r.error_um[a]).collect();
@@ -488,9 +505,8 @@ fn report(
             ("machine".into(), format!("{} (the built-in thermal twin)", machine.name)),
             ("training".into(), format!("twin scenario `{}`, seed 1: the only data the fit saw", args.train)),
             ("test".into(), format!("twin scenario `{}`, seed 2: a different day, held out entirely", args.test)),
-            ("family".into(), format!("{} — chosen over the alternatives by cross-validated error inside the training day", family.name())),
-            ("regularisation".into(), format!("ridge λ = {:e}, chosen by {}-block time-series cross-validation inside the training day", posdep.ridge, truepos_fit::position_model::CV_BLOCKS)),
-            ("solver".into(), format!("QR of the regressors (rank {} of {}, condition {:.3e})", posdep.solution.rank, posdep.model.parameter_count(), posdep.solution.condition)),
+            ("family".into(), format!("per axis {} — family, inputs and ridge λ chosen over the alternatives by blocked 8-fold time-series cross-validation inside the training day (`truepos fit --machine`'s selection)", selected.chosen(machine))),
+            ("solver".into(), posdep.choices.iter().zip(&machine.axes).map(|(c, a)| format!("{}: rank {} of {}, condition {:.3e}", a.name, c.2.solution.rank, c.2.model.parameter_count(), c.2.solution.condition)).collect::<Vec<_>>().join("; ")),
             ("working volume".into(), format!("{0}×{0}×{0} grid over the travel, every {stride}-th sample of the test day", args.grid)),
         ],
         volume: Some(volume),
@@ -500,18 +516,32 @@ fn report(
     Ok(write_report(&args.out.join("report"), &data)?)
 }
 
-fn print_json(args: &Args, r: &Results, prior: &Candidate, posdep: &Candidate, html: &Path) {
+fn print_json(
+    args: &Args,
+    machine: &Machine,
+    r: &Results,
+    prior: &Selected,
+    posdep: &Selected,
+    html: &Path,
+) {
     let v = serde_json::json!({
         "train": args.train, "test": args.test,
         "uncompensated": r.none,
-        "prior_art": { "inputs": prior.inputs, "figures": r.prior, "volume_reduction": r.reduction(&r.prior), "ridge": prior.fitted.ridge },
-        "position_dependent": { "family": posdep.family.name(), "inputs": posdep.inputs, "figures": r.posdep, "volume_reduction": r.reduction(&r.posdep), "ridge": posdep.fitted.ridge },
+        "prior_art": { "chosen": prior.chosen(machine), "figures": r.prior, "volume_reduction": r.reduction(&r.prior) },
+        "position_dependent": { "chosen": posdep.chosen(machine), "figures": r.posdep, "volume_reduction": r.reduction(&r.posdep) },
         "report": html.display().to_string(),
     });
     println!("{v}");
 }
 
-fn print_table(args: &Args, r: &Results, prior: &Candidate, posdep: &Candidate, html: &Path) {
+fn print_table(
+    args: &Args,
+    machine: &Machine,
+    r: &Results,
+    prior: &Selected,
+    posdep: &Selected,
+    html: &Path,
+) {
     println!(
         "test day `{}` (never seen by the fit), errors of the tool relative to the workpiece:",
         args.test
@@ -535,12 +565,9 @@ fn print_table(args: &Args, r: &Results, prior: &Candidate, posdep: &Candidate, 
             100.0 * r.reduction(f)
         );
     }
-    println!(
-        "chosen by cross-validation on the training day: prior art with {}; {} with {}",
-        prior.inputs,
-        posdep.family.name(),
-        posdep.inputs
-    );
+    println!("chosen by cross-validation on the training day:");
+    println!("  prior art: {}", prior.chosen(machine));
+    println!("  position-dependent: {}", posdep.chosen(machine));
     println!(
         "models: {}/prior-art.model.toml, {}/position-dependent.model.toml",
         args.out.display(),

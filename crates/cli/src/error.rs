@@ -32,9 +32,6 @@ pub enum CliError {
     /// The twin refused to run a scenario.
     #[error(transparent)]
     Sim(#[from] truepos_sim::SimError),
-    /// No model could be chosen among the candidates.
-    #[error(transparent)]
-    Choose(#[from] truepos_fit::position_model::ChooseError),
     /// The HTML report could not be written.
     #[error(transparent)]
     Report(#[from] truepos_report::ReportError),

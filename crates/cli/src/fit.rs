@@ -20,112 +20,143 @@ pub struct Args {
     /// A run: CSV, or a workbook (.xlsx; every sheet is a run). Repeat for several runs, which are
     /// fitted together and validated apart.
     #[arg(long = "run", required = true)]
-    runs: Vec<PathBuf>,
+    pub(crate) runs: Vec<PathBuf>,
     /// Only this sheet of each workbook.
     #[arg(long)]
-    sheet: Option<String>,
+    pub(crate) sheet: Option<String>,
     /// Target columns (measured errors): names or globs, comma-separated. Converted to µm by
     /// the unit in the name (`_mm`, `(µm)`, …; none = µm); an empty cell is a row without a
     /// measurement, which steps the filters but neither trains nor scores.
     #[arg(long, default_value = "*_um")]
-    target: Patterns,
-    /// Input columns (what the control knows): names or globs, comma-separated. Temperatures
-    /// are converted to °C by the unit in the name (`_f`, `(K)`, …; none = °C).
+    pub(crate) target: Patterns,
+    /// Input columns of the dynamic families (what the control knows): names or globs,
+    /// comma-separated. Temperatures are converted to °C by the unit in the name (`_f`, `(K)`,
+    /// …; none = °C). Required without a machine file; with one, default: the machine's
+    /// measured temperature and operating channels the first run holds.
     #[arg(long)]
-    inputs: Patterns,
+    pub(crate) inputs: Option<Patterns>,
+    /// With a machine file: the columns of the positions (one per machine axis, in machine
+    /// order) at which the targets were measured, e.g. a probe's coordinates. Default: the
+    /// machine's own axis position columns (`X_mm`, …).
+    #[arg(long)]
+    pub(crate) positions: Option<Patterns>,
+    /// With a machine file: the axis whose part a difference measures, `<difference>=<axis>`
+    /// (repeat; e.g. `dT_y_saddle=Y`): adds seed A's embodiments 1 (own-axis) and 4 (serial),
+    /// whose terms follow that axis, to the candidates.
+    #[arg(long = "difference-axis")]
+    pub(crate) difference_axes: Vec<TargetAxis>,
     /// Which inputs are operating state (filtered as is, and squared) rather than temperatures.
+    /// With a machine file and no --inputs: the machine's operating channels.
     #[arg(long, default_value = "*rpm*,*speed*,*feed*,*power*,*torque*")]
-    operating: Patterns,
+    pub(crate) operating: Patterns,
     /// The time column: seconds, or ISO 8601 date-times (`2024-03-01T08:00:00`, a space for
     /// the `T`, fractional seconds, `Z` or an offset) counted from the run's first row.
     #[arg(long, default_value = "time_s", conflicts_with = "sample_period")]
-    time: String,
+    pub(crate) time: String,
     #[command(flatten)]
-    shape: ShapeArgs,
+    pub(crate) shape: ShapeArgs,
     /// Validation: chrono:<train fraction>, runs (leave one run out) or kfold:<k>.
     #[arg(long, default_value = "chrono:0.6")]
-    split: Split,
+    pub(crate) split: Split,
     /// Fix the model family, comma-separated to choose among several: seed-c (reference-sensor
     /// regression, needs --reference), static (temperature rises only), operating (+ filtered
     /// spindle speed), dynamic (+ filtered temperatures), dynamic-rates (+ rates of change),
-    /// dynamic-running, dynamic-rates-running (+ rises while the spindle runs). Default: chosen
-    /// automatically.
+    /// dynamic-running, dynamic-rates-running (+ rises while the spindle runs); with a machine
+    /// file also seed A/C's: prior-art, all-axes, all-axes-squared, bed-factor,
+    /// reference-sensor, and with --difference-axis own-axis and serial. Default: chosen
+    /// automatically among all of them.
     #[arg(long)]
-    family: Option<Families>,
+    pub(crate) family: Option<String>,
     /// Fix the ridge parameter(s), comma-separated, each 0–10¹². Default: chosen automatically.
     #[arg(long)]
-    ridge: Option<Ridges>,
+    pub(crate) ridge: Option<Ridges>,
     /// How inner-CV scores choose: 1se (the most regularised candidate within one standard error
     /// of the best) or min (the lowest CV error).
     #[arg(long, default_value = "1se")]
-    rule: Rule,
+    pub(crate) rule: Rule,
     /// Use at most this many temperature sensors (correlation ranking + greedy forward
     /// selection), 1–1000.
     #[arg(long, value_parser = int_in(1usize, 1000))]
-    max_sensors: Option<usize>,
+    pub(crate) max_sensors: Option<usize>,
     /// The reference sensor of the reference-sensor regression (an input temperature column,
     /// e.g. the ambient or a reference spot on the machine): adds the family seed-c,
     /// Y = Σ k_i·(t_i − t_r) + c, to the candidates.
     #[arg(long)]
-    reference: Option<String>,
+    pub(crate) reference: Option<String>,
     /// Blocks of the inner cross-validation on the training part, 2–100.
     #[arg(long, default_value_t = 8, value_parser = int_in(2usize, 100))]
-    folds: usize,
+    pub(crate) folds: usize,
     /// Which blocks train the model scored on a held-out block: blocked (all others) or rolling
     /// (only those before it, rolling origin; the first two blocks only train).
     #[arg(long, default_value = "blocked")]
-    inner_cv: InnerCv,
-    /// Machine name written into the model file.
+    pub(crate) inner_cv: InnerCv,
+    /// A machine description (a path ending in `.toml`): seed A/C's families are fitted too,
+    /// from its channels and axis positions, and targets are taken as measured. Otherwise the
+    /// machine name written into the dynamic model file.
     #[arg(long, default_value = "unnamed")]
-    machine: String,
+    pub(crate) machine: String,
     /// Write the model fitted on the (last) training part here (JSON).
     #[arg(long)]
-    model: Option<PathBuf>,
+    pub(crate) model: Option<PathBuf>,
     /// The machine axis a target compensates, `<target>=<axis>` (repeat; e.g. `ch5_um=Z`). A
     /// target named `Z`, `Z_um` or `dz_um` needs none; others without one are not applied.
     #[arg(long = "axis")]
-    axes: Vec<TargetAxis>,
+    pub(crate) axes: Vec<TargetAxis>,
     /// Write measured and predicted values of every run here (CSV), for reports: each row
     /// predicted by the model of the fold that held it out; column `held_out` says which rows
     /// no fold held out (a chronological split's training part, predicted in-sample).
     #[arg(long)]
-    predictions: Option<PathBuf>,
+    pub(crate) predictions: Option<PathBuf>,
     /// Write an HTML report of the validation here (folder): out-of-fold predictions over the
     /// runs, a table per held-out run, temperatures, the protocol.
     #[arg(long)]
-    report: Option<PathBuf>,
+    pub(crate) report: Option<PathBuf>,
     /// Write the model even when its predictions on its own training data are non-finite or
     /// more than 10 × the largest measured |error| there.
     #[arg(long)]
-    force: bool,
+    pub(crate) force: bool,
     /// Print the figures as JSON.
     #[arg(long)]
-    json: bool,
+    pub(crate) json: bool,
 }
 
 /// The runs named on the command line, as one dataset.
-fn load(args: &Args) -> Result<Dataset, CliError> {
-    let mut tables: Vec<Table> = Vec::new();
-    let shape = args.shape.shape();
-    for path in &args.runs {
-        tables.extend(read_shaped(path, args.sheet.as_deref(), &shape)?);
-    }
+pub(crate) fn load(args: &Args, inputs: &Patterns) -> Result<(Dataset, Vec<Table>), CliError> {
+    let tables = tables(args)?;
     let columns = Columns {
         time: args
             .shape
             .time(Some(&args.time))
             .unwrap_or(Time::Column(args.time.clone())),
-        inputs: args.inputs.clone(),
+        inputs: inputs.clone(),
         targets: args.target.clone(),
         operating: args.operating.clone(),
     };
-    Ok(Dataset::from_tables(&tables, &columns)?)
+    Ok((Dataset::from_tables(&tables, &columns)?, tables))
 }
 
-fn settings(args: &Args, ds: &Dataset) -> Result<Settings, CliError> {
+/// The run tables named on the command line.
+pub(crate) fn tables(args: &Args) -> Result<Vec<Table>, CliError> {
+    let mut tables: Vec<Table> = Vec::new();
+    let shape = args.shape.shape();
+    for path in &args.runs {
+        tables.extend(read_shaped(path, args.sheet.as_deref(), &shape)?);
+    }
+    Ok(tables)
+}
+
+pub(crate) fn settings(args: &Args, ds: &Dataset) -> Result<Settings, CliError> {
     let defaults = Settings::default();
+    let families = match &args.family {
+        Some(f) => {
+            f.parse::<Families>()
+                .map_err(|e| CliError::refused(format!("--family: {e}")))?
+                .0
+        }
+        None => defaults.families,
+    };
     Ok(Settings {
-        families: args.family.clone().map_or(defaults.families, |f| f.0),
+        families,
         ridges: args.ridge.clone().map_or(defaults.ridges, |r| r.0),
         folds: args.folds,
         inner: args.inner_cv,
@@ -139,16 +170,17 @@ fn settings(args: &Args, ds: &Dataset) -> Result<Settings, CliError> {
             None => None,
         },
         taus: defaults.taus,
+        absolute_targets: false,
     })
 }
 
 /// A progress bar on stderr for fits that take longer than a second.
-struct Progress {
-    start: Instant,
+pub(crate) struct Progress {
+    pub(crate) start: Instant,
 }
 
 impl Progress {
-    fn update(&mut self, done: usize, total: usize) {
+    pub(crate) fn update(&mut self, done: usize, total: usize) {
         let secs = self.start.elapsed().as_secs_f64();
         if secs < 1.0 || !std::io::stderr().is_terminal() {
             return;
@@ -171,7 +203,13 @@ impl Progress {
 
 /// Runs `truepos fit`.
 pub fn run(args: Args) -> Result<(), CliError> {
-    let ds = load(&args)?;
+    if args.machine.ends_with(".toml") {
+        return crate::fit_machine::run(args);
+    }
+    let inputs = args.inputs.clone().ok_or_else(|| {
+        CliError::refused("--inputs is required without a machine file (--machine MACHINE.toml)")
+    })?;
+    let (ds, _) = load(&args, &inputs)?;
     let settings = settings(&args, &ds)?;
     let mut progress = Progress {
         start: Instant::now(),
@@ -276,7 +314,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
 
 /// The figures of each run's held-out rows, one line per run and target: a pooled figure can
 /// hide a run the model makes worse.
-fn print_per_run(validation: &Validation) {
+pub(crate) fn print_per_run(validation: &Validation) {
     let width = validation
         .per_run
         .iter()

@@ -13,8 +13,10 @@ mod eval;
 mod evaluator;
 mod export;
 mod fit;
+mod fit_machine;
 mod fit_report;
 mod kin;
+mod reidentify;
 mod report;
 mod run;
 mod shape;
@@ -50,6 +52,9 @@ enum Command {
     /// moves at full feed and the terms are updated every T ms (seed A's timing argument).
     #[command(alias = "lag")]
     UpdatePeriod(update_period::Args),
+    /// Re-identify a model's parameters from probe measurements (the service's log or a run
+    /// CSV) and write a new model when the switch rule says so (exit 3: kept, nothing written).
+    Reidentify(reidentify::Args),
     /// Write an HTML report of a model on a run with measured errors (figures, coefficients).
     Report(report::Args),
     /// Show the event log of a running or finished service, or export its cycles as a run CSV.
@@ -86,6 +91,10 @@ fn main() -> ExitCode {
         Command::Fit(args) => fit::run(*args),
         Command::Kin(args) => kin::run(args),
         Command::UpdatePeriod(args) => update_period::run(args),
+        Command::Reidentify(args) => match reidentify::run(args) {
+            Ok(code) => return code,
+            Err(e) => Err(e),
+        },
         Command::Report(args) => report::run(args),
         Command::Log(args) => run::show_log(args),
         Command::Run(args) => run::run(args),

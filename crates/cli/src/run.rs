@@ -11,7 +11,9 @@ use crate::error::CliError;
 use truepos_io::compensation::load_set;
 use truepos_io::limits::{check_in, finite_in};
 use truepos_io::{cycles, machine_file};
+use truepos_runtime::host::{ModelLoader, ReloadSetup};
 use truepos_runtime::log;
+use truepos_runtime::probe::ProbeReplay;
 use truepos_runtime::replay::{state_name, CsvSink, Recording, ReplaySource};
 use truepos_runtime::sources::modbus::{ModbusConfig, ModbusSource};
 use truepos_runtime::sources::shdr::{ShdrConfig, ShdrSource};
@@ -33,7 +35,9 @@ pub struct RunArgs {
     /// Sources: `replay:RUN.csv[@SPEED]` (a recorded run at SPEED × real time, 0.001–10⁶), and
     /// `twin:SCENARIO[@SPEED]` (the thermal twin's sensors on a built-in scenario or scenario
     /// file; temperatures and operating state only, positions come from the other sources),
-    /// `modbus:CONFIG.toml` (temperature modules) and `shdr:CONFIG.toml` (an MTConnect adapter);
+    /// `probes:RUN.csv[@SPEED]` (the probe events of a run: its `probe_<axis>_mm` and
+    /// `probe_d<axis>_um` columns, on the replay's clock), `modbus:CONFIG.toml` (temperature
+    /// modules) and `shdr:CONFIG.toml` (an MTConnect adapter);
     /// see docs/network_sources.md for their configuration.
     #[arg(long = "source", default_value = "replay:examples/vmc3/run.csv")]
     sources: Vec<String>,
@@ -64,6 +68,11 @@ pub struct RunArgs {
     /// Interval in s between rows of a CSV sink, 0–3600 (0: every cycle).
     #[arg(long, default_value_t = 0.1, value_parser = finite_in(0.0, 3600.0))]
     sink_every_s: f64,
+    /// Reload a model file of the set without a restart when it changes (its modification
+    /// time or size, checked every 0.1 s on a thread of its own): the new model blends in like
+    /// a model switch; a file that fails to load leaves the running model and logs why.
+    #[arg(long)]
+    reload_on_change: bool,
     /// Print a summary as JSON at the end (and no status line).
     #[arg(long)]
     json: bool,
@@ -195,7 +204,20 @@ pub fn run(args: RunArgs) -> Result<(), CliError> {
         log_every_s: args.log_every_s,
         ..ServiceConfig::default()
     };
+    let reload = args.reload_on_change.then(|| {
+        let loader_machine = machine.clone();
+        ReloadSetup {
+            files: args.models.clone(),
+            loader: Box::new(move |path: &std::path::Path| {
+                load_set(&[path.to_path_buf()], &loader_machine)
+                    .map(|mut entries| entries.remove(0))
+                    .map_err(|e| e.to_string())
+            }) as ModelLoader,
+            watch: true,
+        }
+    });
     let mut host = ServiceHost::new(machine, entries)
+        .reload(reload)
         .sources(sources)
         .sinks(sinks)
         .config(config)
@@ -271,6 +293,11 @@ fn open_sources(
                 Box::new(replay)
             }
             "twin" => Box::new(twin_source(what, m, speed)?),
+            "probes" => {
+                let path = std::path::Path::new(what);
+                let (events, start) = crate::reidentify::probes_csv::read_inputs(path, m)?;
+                Box::new(ProbeReplay::new(format!("probes {what}"), events, start, speed))
+            }
             "modbus" => {
                 let cfg = ModbusConfig::load(std::path::Path::new(what))?;
                 Box::new(ModbusSource::start(&cfg, m, epoch)?)
@@ -281,7 +308,7 @@ fn open_sources(
             }
             _ => {
                 return Err(CliError::refused(format!(
-                    "--source `{spec}`: expected `replay:FILE.csv[@SPEED]`, `twin:SCENARIO[@SPEED]`, `modbus:CONFIG.toml` or `shdr:CONFIG.toml`"
+                    "--source `{spec}`: expected `replay:FILE.csv[@SPEED]`, `probes:FILE.csv[@SPEED]`, `twin:SCENARIO[@SPEED]`, `modbus:CONFIG.toml` or `shdr:CONFIG.toml`"
                 )))
             }
         };
@@ -354,6 +381,14 @@ fn cycle_loop(
         };
         if stop.load(Ordering::Relaxed) || end_s.is_some_and(|e| now_s > e) {
             break;
+        }
+        if let Some(report) = host.poll_reload() {
+            for (_, file) in &report.reloaded {
+                eprintln!("reloaded {}", file.display());
+            }
+            for (_, why) in &report.failed {
+                eprintln!("reload refused, the running model stays: {why}");
+            }
         }
         let t0 = Instant::now();
         host.service.cycle(now_s);

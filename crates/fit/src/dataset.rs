@@ -89,6 +89,16 @@ impl Run {
         self.time_s.is_empty()
     }
 
+    /// Target `k` as measured (`absolute`) or [relative to the run's first
+    /// sample](Self::relative_target).
+    pub fn target(&self, k: usize, absolute: bool) -> Vec<f64> {
+        if absolute {
+            self.targets[k].clone()
+        } else {
+            self.relative_target(k)
+        }
+    }
+
     /// Target `k` relative to the run's first measured sample: the displacement since the
     /// start, which is what a model started with the run predicts and what "uncompensated"
     /// means (NaN where the row has no measurement). A run should therefore be measured at its

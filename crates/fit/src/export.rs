@@ -11,7 +11,8 @@ use truepos_io::dynamic_model_file::{DynamicModelFile, InputEntry};
 
 use crate::dataset::Dataset;
 use crate::settings::Settings;
-use crate::validate::Outcome;
+use crate::train::Trained;
+use crate::validate::{Outcome, Predictions};
 
 /// `<target>=<axis>`: the machine axis a target compensates (`ch5_um=Z`).
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -75,7 +76,27 @@ pub fn model_file(
     axes: &[TargetAxis],
     created_by: &str,
 ) -> Result<DynamicModelFile, ExportError> {
-    let trained = &outcome.trained;
+    dynamic_model_file(
+        dataset,
+        settings,
+        &outcome.trained,
+        serde_json::to_value(&outcome.validation).unwrap_or_default(),
+        machine,
+        axes,
+        created_by,
+    )
+}
+
+/// [`model_file`] of any trained dynamic model with its validation figures (JSON).
+pub fn dynamic_model_file(
+    dataset: &Dataset,
+    settings: &Settings,
+    trained: &Trained,
+    validation: serde_json::Value,
+    machine: &str,
+    axes: &[TargetAxis],
+    created_by: &str,
+) -> Result<DynamicModelFile, ExportError> {
     let inputs = trained
         .inputs
         .iter()
@@ -96,7 +117,7 @@ pub fn model_file(
             "settings": settings,
             "choices": trained.choices,
         }),
-        serde_json::to_value(&outcome.validation).unwrap_or_default(),
+        validation,
     );
     for a in axes {
         let output = file
@@ -160,18 +181,32 @@ impl fmt::Display for Implausible {
 /// Every output of the fitted model ([`Outcome::trained`]) whose predictions on its training
 /// rows are non-finite or beyond [`PLAUSIBLE_FACTOR`] × the largest measured |error| there.
 pub fn plausible(dataset: &Dataset, outcome: &Outcome) -> Result<(), Vec<Implausible>> {
+    plausible_predictions(
+        dataset,
+        &outcome.fitted,
+        &outcome.training_rows,
+        outcome.absolute_targets,
+    )
+}
+
+/// [`plausible`] for the predictions `fitted` of any model (either form) fitted on
+/// `training_rows`; targets as measured (`absolute`) or relative to each run's first sample.
+pub fn plausible_predictions(
+    dataset: &Dataset,
+    fitted: &Predictions,
+    training_rows: &[(usize, usize)],
+    absolute: bool,
+) -> Result<(), Vec<Implausible>> {
     let mut bad = Vec::new();
     for (k, target) in dataset.target_names.iter().enumerate() {
-        let rel: Vec<Vec<f64>> = dataset.runs.iter().map(|r| r.relative_target(k)).collect();
-        let measured = outcome
-            .training_rows
+        let rel: Vec<Vec<f64>> = dataset.runs.iter().map(|r| r.target(k, absolute)).collect();
+        let measured = training_rows
             .iter()
             .fold(0.0_f64, |a, &(r, i)| a.max(rel[r][i].abs()));
         // The worst row: a non-finite prediction first, else the largest.
-        let worst = outcome
-            .training_rows
+        let worst = training_rows
             .iter()
-            .map(|&(r, i)| (r, i, outcome.fitted[r][k][i]))
+            .map(|&(r, i)| (r, i, fitted[r][k][i]))
             .max_by(|a, b| {
                 let key = |v: f64| {
                     if v.is_finite() {
@@ -206,6 +241,22 @@ pub fn plausible(dataset: &Dataset, outcome: &Outcome) -> Result<(), Vec<Implaus
 /// [`Outcome::predictions`]), and per target the measured error (relative to the run start)
 /// and the prediction.
 pub fn predictions_csv(dataset: &Dataset, outcome: &Outcome) -> String {
+    predictions_csv_of(
+        dataset,
+        &outcome.predictions,
+        &outcome.held_out,
+        outcome.absolute_targets,
+    )
+}
+
+/// [`predictions_csv`] of any model's predictions, with which rows were held out; targets as
+/// measured (`absolute`) or relative to each run's first sample.
+pub fn predictions_csv_of(
+    dataset: &Dataset,
+    predictions: &Predictions,
+    held_out: &[Vec<bool>],
+    absolute: bool,
+) -> String {
     let mut out = String::from("run,time_s,held_out");
     for t in &dataset.target_names {
         out += &format!(",{},{}", csv_field(t), csv_field(&format!("{t}_predicted")));
@@ -214,10 +265,10 @@ pub fn predictions_csv(dataset: &Dataset, outcome: &Outcome) -> String {
     for (r, run) in dataset.runs.iter().enumerate() {
         let name = csv_field(&run.name);
         let rel: Vec<Vec<f64>> = (0..dataset.target_names.len())
-            .map(|k| run.relative_target(k))
+            .map(|k| run.target(k, absolute))
             .collect();
         for i in 0..run.len() {
-            out += &format!("{name},{},{}", run.time_s[i], outcome.held_out[r][i]);
+            out += &format!("{name},{},{}", run.time_s[i], held_out[r][i]);
             for (k, measured) in rel.iter().enumerate() {
                 // A row without a measurement has an empty measured cell, not "NaN".
                 let m = if measured[i].is_nan() {
@@ -225,7 +276,7 @@ pub fn predictions_csv(dataset: &Dataset, outcome: &Outcome) -> String {
                 } else {
                     measured[i].to_string()
                 };
-                out += &format!(",{m},{}", outcome.predictions[r][k][i]);
+                out += &format!(",{m},{}", predictions[r][k][i]);
             }
             out.push('\n');
         }

@@ -20,10 +20,12 @@
 //! - [`export`]: the fit as a dynamic model file (`format = "truepos-dynamic-model"`, JSON),
 //!   whose reading and writing live in `truepos_io::dynamic_model_file`, so that the runtime
 //!   reads it without the solvers.
-//! - [`position_model`]: the position-dependent thermal model's families (seed A) fitted from
-//!   observations, the ridge chosen by blocked cross-validation, and family and input set
-//!   chosen the same way (`choose`, what `truepos demo` runs); [`reidentify`]: its parameters
-//!   re-estimated on line from probe measurements (seed C).
+//! - [`position_model`]: the position-dependent thermal model's families (seed A, and seed C's
+//!   reference-sensor form) fitted from observations, the ridge chosen by blocked or rolling
+//!   cross-validation; [`machine_fit`]: every family of a machine — dynamic and seed A/C —
+//!   chosen by the same inner CV and validated by the same outer protocol (what `truepos fit
+//!   --machine` and `truepos demo` run); [`reidentify`]: a model's parameters re-estimated on
+//!   line from probe measurements (seed C).
 //!
 //! ## Example
 //! A structure whose growth lags the spindle speed by a first-order lag of 1800 s: the
@@ -63,6 +65,7 @@ pub mod dataset;
 pub mod export;
 pub mod features;
 pub mod least_squares;
+pub mod machine_fit;
 pub mod position_model;
 pub mod reidentify;
 pub mod settings;

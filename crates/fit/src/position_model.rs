@@ -4,8 +4,10 @@
 //! A [`Family`] fixes which coefficients exist ([`structure`] builds the model with all of them
 //! zero); [`fit_structure`] estimates them by least squares through the model's own regressors
 //! (`Model::regressors`: error = Σ θ·φ), so the fitted model is exactly the model file the
-//! control evaluates. The ridge weight is chosen by blocked time-series cross-validation inside
-//! the observations given (the training part), never on data the caller holds out.
+//! control evaluates. The ridge weight is chosen by time-series cross-validation over contiguous
+//! blocks of the observations given (the training part), never on data the caller holds out
+//! ([`fit_blocks`] with the dynamic families' options; [`crate::machine_fit`] chooses among
+//! families and input sets).
 
 use std::fmt;
 
@@ -15,6 +17,7 @@ use truepos_model::{
 };
 
 use crate::least_squares::{Accumulator, Solution, SolveError, SolveOptions};
+use crate::settings::{InnerCv, Rule};
 
 /// Which coefficients a position-dependent model has.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -26,9 +29,35 @@ pub enum Family {
     AllAxes,
     /// As [`Family::AllAxes`] with r_j² terms as well (seed A example 2: the arc is not linear).
     AllAxesSquared,
+    /// Seed A embodiment 6: [`Family::AllAxes`] plus, for every axis carried on a bed, each
+    /// difference's summand ΔT_m·[K_nm0' + K_nmb'·KFA_b]·KFA_b — the bed bends, the error is
+    /// smallest in its middle and grows towards both ends (eq. 41).
+    BedFactor,
+    /// Seed A embodiment 1: the summand of a difference that belongs to axis m carries that
+    /// axis' position only, ΔT_m·[K_nm0 + K_nmm·g_m]; a difference of no axis stays prior art.
+    /// Needs the owners ([`structure_owned`]).
+    OwnAxis,
+    /// Seed A embodiment 4, N serial axes: the summand of axis m's difference carries the
+    /// positions of m and of every axis resting on it (`carried_by`, transitively),
+    /// ΔT_m·[K_nm0 + Σ_{j on m} K_nmj·g_j]. Needs the owners ([`structure_owned`]).
+    Serial,
+    /// Seed C's regression Y_n = Σ_i k_ni·(t_i − t_r) + c_n: no position, only the machine's
+    /// differences of a sensor against the reference sensor t_r ([`reference_sensor`]).
+    ReferenceSensor,
 }
 
 impl Family {
+    /// Every family, simplest first.
+    pub const ALL: [Family; 7] = [
+        Family::ReferenceSensor,
+        Family::PositionIndependent,
+        Family::OwnAxis,
+        Family::Serial,
+        Family::AllAxes,
+        Family::AllAxesSquared,
+        Family::BedFactor,
+    ];
+
     /// The name used in reports.
     pub fn name(self) -> &'static str {
         match self {
@@ -37,12 +66,85 @@ impl Family {
             Self::AllAxesSquared => {
                 "position-dependent, all axes with squares (seed A emb. 5 + ex. 2)"
             }
+            Self::BedFactor => "position-dependent with bed factor (seed A embodiments 5 + 6)",
+            Self::OwnAxis => "position-dependent, each difference its own axis (seed A emb. 1)",
+            Self::Serial => "position-dependent, serial axes (seed A embodiment 4)",
+            Self::ReferenceSensor => "reference-sensor regression (seed C)",
+        }
+    }
+
+    /// The name on the command line (`truepos fit --family`).
+    pub fn key(self) -> &'static str {
+        match self {
+            Self::PositionIndependent => "prior-art",
+            Self::AllAxes => "all-axes",
+            Self::AllAxesSquared => "all-axes-squared",
+            Self::BedFactor => "bed-factor",
+            Self::OwnAxis => "own-axis",
+            Self::Serial => "serial",
+            Self::ReferenceSensor => "reference-sensor",
         }
     }
 }
 
+impl fmt::Display for Family {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.key())
+    }
+}
+
+impl std::str::FromStr for Family {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, String> {
+        Self::ALL
+            .into_iter()
+            .find(|f| f.key() == s.trim())
+            .ok_or_else(|| {
+                let keys: Vec<&str> = Self::ALL.iter().map(|f| f.key()).collect();
+                format!("expected one of {}, got `{s}`", keys.join(", "))
+            })
+    }
+}
+
+/// The reference sensor of seed C's form on a machine: the sensor most of the machine's
+/// differences are taken against (ambient, or a reference spot on the machine), the first of
+/// equals; `None` when no difference is taken against a sensor.
+pub fn reference_sensor(machine: &Machine) -> Option<usize> {
+    let mut count = vec![0usize; machine.temperatures.len()];
+    for d in &machine.differences {
+        if let Reference::Sensor(m) = d.minus {
+            count[m] += 1;
+        }
+    }
+    let best = count.iter().copied().max().filter(|&c| c > 0)?;
+    count.iter().position(|&c| c == best)
+}
+
+/// The differences of `differences` a family reads: seed C's form only those taken against the
+/// `reference` sensor, every other family all of them.
+pub fn family_differences(
+    machine: &Machine,
+    family: Family,
+    differences: &[usize],
+    reference: Option<usize>,
+) -> Vec<usize> {
+    match family {
+        Family::ReferenceSensor => differences
+            .iter()
+            .copied()
+            .filter(|&d| {
+                matches!(machine.differences[d].minus, Reference::Sensor(m) if Some(m) == reference)
+            })
+            .collect(),
+        _ => differences.to_vec(),
+    }
+}
+
 /// The model of a family with every coefficient zero: for each target axis n and each listed
-/// difference m one summand, plus a constant per target axis when `constant` is set.
+/// difference m one summand, plus a constant per target axis when `constant` is set. Seed C's
+/// form is one regression part per target axis (as its model files state it); seed A's one
+/// position-dependent part.
 pub fn structure(
     name: &str,
     machine: &Machine,
@@ -51,15 +153,90 @@ pub fn structure(
     targets: &[usize],
     constant: bool,
 ) -> Result<Model, ModelError> {
+    structure_owned(name, machine, family, differences, targets, constant, &[])
+}
+
+/// The axes whose positions the summand of a difference owned by `owner` carries in
+/// [`Family::OwnAxis`] (the owner) and [`Family::Serial`] (the owner and every axis resting on
+/// it); none for a difference of no axis.
+fn owned_axes(machine: &Machine, family: Family, owner: Option<usize>) -> Vec<usize> {
+    let Some(o) = owner else {
+        return Vec::new();
+    };
+    let rests_on = |mut j: usize| {
+        // The chain is checked acyclic by the machine; the bound only guards the loop.
+        for _ in 0..=machine.axes.len() {
+            if j == o {
+                return true;
+            }
+            match machine.axes[j].carried_by {
+                Some(c) => j = c,
+                None => return false,
+            }
+        }
+        false
+    };
+    match family {
+        Family::OwnAxis => vec![o],
+        _ => (0..machine.axes.len()).filter(|&j| rests_on(j)).collect(),
+    }
+}
+
+/// [`structure`], with the axis each of the machine's differences belongs to (`owners`, by
+/// difference index; missing or `None`: no axis), which [`Family::OwnAxis`] and
+/// [`Family::Serial`] need.
+pub fn structure_owned(
+    name: &str,
+    machine: &Machine,
+    family: Family,
+    differences: &[usize],
+    targets: &[usize],
+    constant: bool,
+    owners: &[Option<usize>],
+) -> Result<Model, ModelError> {
+    if family == Family::ReferenceSensor {
+        let parts = targets
+            .iter()
+            .map(|&n| Part {
+                name: format!("reference-{}", machine.axes[n].name),
+                enabled: true,
+                form: PartForm::Regression,
+                summands: differences
+                    .iter()
+                    .map(|&m| Summand {
+                        axis: n,
+                        difference: m,
+                        k0_um_per_k: 0.0,
+                        position_terms: Vec::new(),
+                        bed_multiplier: None,
+                    })
+                    .collect(),
+                constants_um: if constant { vec![(n, 0.0)] } else { Vec::new() },
+            })
+            .collect();
+        return Model::new(name, machine, parts);
+    }
     let natural = |j: usize| match machine.axes[j].carriage {
         Carriage::Cantilever => PositionFactor::Ratio,
         Carriage::Bed => PositionFactor::BedFactor,
     };
+    let beds: Vec<usize> = (0..machine.axes.len())
+        .filter(|&j| machine.axes[j].carriage == Carriage::Bed)
+        .collect();
     let mut summands = Vec::new();
     for &n in targets {
         for &m in differences {
             let mut position_terms = Vec::new();
-            if family != Family::PositionIndependent {
+            if matches!(family, Family::OwnAxis | Family::Serial) {
+                let owner = owners.get(m).copied().flatten();
+                for j in owned_axes(machine, family, owner) {
+                    position_terms.push(PositionTerm {
+                        axis: j,
+                        factor: natural(j),
+                        k_um_per_k: 0.0,
+                    });
+                }
+            } else if family != Family::PositionIndependent {
                 for j in 0..machine.axes.len() {
                     position_terms.push(PositionTerm {
                         axis: j,
@@ -82,6 +259,21 @@ pub fn structure(
                 position_terms,
                 bed_multiplier: None,
             });
+            if family == Family::BedFactor {
+                for &b in &beds {
+                    summands.push(Summand {
+                        axis: n,
+                        difference: m,
+                        k0_um_per_k: 0.0,
+                        position_terms: vec![PositionTerm {
+                            axis: b,
+                            factor: PositionFactor::BedFactor,
+                            k_um_per_k: 0.0,
+                        }],
+                        bed_multiplier: Some(b),
+                    });
+                }
+            }
         }
     }
     let part = Part {
@@ -120,6 +312,8 @@ pub struct Fitted {
     pub ridge: f64,
     /// Cross-validated RMSE (µm) of each ridge weight tried, in order.
     pub cv_rmse_um: Vec<(f64, f64)>,
+    /// Cross-validated RMSE (µm) of the ridge weight chosen.
+    pub score_um: f64,
     /// Observations used.
     pub observations: usize,
     /// Observations skipped because an input was invalid.
@@ -133,6 +327,19 @@ pub const RIDGE_GRID: [f64; 6] = [0.0, 1e-8, 1e-6, 1e-4, 1e-3, 1e-2];
 /// of a thermal run are nearly identical and a random split leaks the answer.
 pub const CV_BLOCKS: usize = 5;
 
+/// How [`fit_blocks`] chooses the ridge weight: which blocks train the model scored on a
+/// held-out block, the candidates, and the rule — the same choices as the dynamic families'
+/// ([`crate::settings::Settings`]).
+#[derive(Debug, Clone, Copy)]
+pub struct CvOptions<'a> {
+    /// Blocked (all other blocks) or rolling origin (the blocks before).
+    pub inner: InnerCv,
+    /// Candidate ridge weights.
+    pub ridges: &'a [f64],
+    /// Lowest CV error, or the most regularised within one standard error of it.
+    pub rule: Rule,
+}
+
 /// Estimates the coefficients of `structure` from observations (in time order). The ridge
 /// weight is chosen from [`RIDGE_GRID`] by blocked cross-validation over [`CV_BLOCKS`]
 /// contiguous blocks of the observations, then the model is fitted on all of them.
@@ -141,80 +348,175 @@ pub fn fit_structure<'a>(
     machine: &Machine,
     observations: impl IntoIterator<Item = Observation<'a>>,
 ) -> Result<Fitted, SolveError> {
-    let n = structure.parameter_count();
-    let mut rows: Vec<(Vec<f64>, f64)> = Vec::new();
+    let mut rows = Vec::new();
     let mut skipped = 0;
     for o in observations {
-        let mut phi = vec![0.0; n];
-        if !o.error_um.is_finite() || structure.regressors(&o.input, o.axis, &mut phi).is_err() {
-            skipped += 1;
-            continue;
+        match regressor_row(structure, &o) {
+            Some(r) => rows.push(r),
+            None => skipped += 1,
         }
-        rows.push((phi, o.error_um));
     }
     if rows.len() < 2 * CV_BLOCKS {
         return Err(SolveError::Empty);
     }
-    // One QR accumulator per contiguous block; a fold's training triangle is the merge of the
-    // other blocks, factored once and solved for every ridge weight.
     let block = rows.len().div_ceil(CV_BLOCKS);
-    let mut blocks = Vec::with_capacity(CV_BLOCKS);
-    for chunk in rows.chunks(block) {
+    let blocks: Vec<Vec<(Vec<f64>, f64)>> = rows.chunks(block).map(<[_]>::to_vec).collect();
+    let options = CvOptions {
+        inner: InnerCv::Blocked,
+        ridges: &RIDGE_GRID,
+        rule: Rule::MinimumCv,
+    };
+    let mut fitted = fit_rows(structure, machine, &blocks, &options)?;
+    fitted.skipped = skipped;
+    Ok(fitted)
+}
+
+/// One observation's regressors and error, `None` when an input is invalid or the error is
+/// not a finite number (an observation the model cannot be fitted to).
+fn regressor_row(structure: &Model, o: &Observation<'_>) -> Option<(Vec<f64>, f64)> {
+    let mut phi = vec![0.0; structure.parameter_count()];
+    if !o.error_um.is_finite() || structure.regressors(&o.input, o.axis, &mut phi).is_err() {
+        return None;
+    }
+    Some((phi, o.error_um))
+}
+
+/// Estimates the coefficients of `structure` from observations already cut into contiguous
+/// blocks (in time order): the ridge weight is chosen by cross-validation over the blocks as
+/// `options` say, then the model is fitted on every block.
+pub fn fit_blocks(
+    structure: &Model,
+    machine: &Machine,
+    blocks: &[Vec<Observation<'_>>],
+    options: &CvOptions<'_>,
+) -> Result<Fitted, SolveError> {
+    let mut skipped = 0;
+    let rows: Vec<Vec<(Vec<f64>, f64)>> = blocks
+        .iter()
+        .map(|b| {
+            b.iter()
+                .filter_map(|o| {
+                    let r = regressor_row(structure, o);
+                    skipped += usize::from(r.is_none());
+                    r
+                })
+                .collect()
+        })
+        .collect();
+    let mut fitted = fit_rows(structure, machine, &rows, options)?;
+    fitted.skipped = skipped;
+    Ok(fitted)
+}
+
+/// The cross-validation and the final fit over blocks of regressor rows.
+fn fit_rows(
+    structure: &Model,
+    machine: &Machine,
+    blocks: &[Vec<(Vec<f64>, f64)>],
+    options: &CvOptions<'_>,
+) -> Result<Fitted, SolveError> {
+    let n = structure.parameter_count();
+    let observations: usize = blocks.iter().map(Vec::len).sum();
+    if blocks.len() < 2 || observations < 2 * blocks.len() {
+        return Err(SolveError::Empty);
+    }
+    // One QR accumulator per contiguous block; a fold's training triangle is the merge of the
+    // training blocks, factored once and solved for every ridge weight.
+    let mut accs = Vec::with_capacity(blocks.len());
+    for chunk in blocks {
         let mut acc = Accumulator::new(n, 1);
         for (phi, y) in chunk {
             acc.push_row(phi, &[*y], 1.0)?;
         }
-        blocks.push(acc);
+        accs.push(acc);
     }
-    let options = |ridge: f64| SolveOptions {
+    let solve = |ridge: f64| SolveOptions {
         ridge,
         unpenalized: Vec::new(),
         rcond: None,
     };
-    let mut se = vec![0.0; RIDGE_GRID.len()];
-    let mut count = 0usize;
-    for (b, held) in rows.chunks(block).enumerate() {
+    let ridges = options.ridges;
+    // Per ridge: squared errors per held-out block.
+    let mut se = vec![Vec::new(); ridges.len()];
+    let mut held = Vec::new();
+    for (b, block) in blocks.iter().enumerate() {
+        if !options.inner.holds_out(b) || block.is_empty() {
+            continue;
+        }
         let mut train = Accumulator::new(n, 1);
-        for (k, acc) in blocks.iter().enumerate() {
-            if k != b {
+        let mut any = false;
+        for (k, acc) in accs.iter().enumerate() {
+            if options.inner.trains(k, b) && !blocks[k].is_empty() {
                 train.merge(acc.clone())?;
+                any = true;
             }
         }
-        let triangle = train.finish();
-        for (r, &ridge) in RIDGE_GRID.iter().enumerate() {
-            let theta = &triangle.solve(&options(ridge))?.coefficients[0];
-            for (phi, y) in held {
-                let p: f64 = phi.iter().zip(theta).map(|(a, t)| a * t).sum();
-                se[r] += (y - p) * (y - p);
-            }
+        if !any {
+            continue;
         }
-        count += held.len();
+        held.push(block.len());
+        let path = train.finish().ridge_path(ridges);
+        for r in 0..ridges.len() {
+            let sum = match &path {
+                Ok(thetas) => block
+                    .iter()
+                    .map(|(phi, y)| {
+                        let p: f64 = phi.iter().zip(&thetas[r]).map(|(a, t)| a * t).sum();
+                        (y - p) * (y - p)
+                    })
+                    .sum(),
+                Err(_) => f64::INFINITY,
+            };
+            se[r].push(sum);
+        }
     }
-    let cv: Vec<(f64, f64)> = RIDGE_GRID
+    if held.is_empty() {
+        return Err(SolveError::Empty);
+    }
+    let count: usize = held.iter().sum();
+    let scores: Vec<(f64, f64)> = se
         .iter()
-        .zip(&se)
-        .map(|(&ridge, &e)| (ridge, (e / count.max(1) as f64).sqrt()))
+        .map(|per_block| {
+            let total: f64 = per_block.iter().sum();
+            let rmse: Vec<f64> = per_block
+                .iter()
+                .zip(&held)
+                .map(|(e, &m)| (e / m as f64).sqrt())
+                .collect();
+            let k = rmse.len() as f64;
+            let mean = rmse.iter().sum::<f64>() / k;
+            let var = rmse.iter().map(|r| (r - mean).powi(2)).sum::<f64>() / (k - 1.0).max(1.0);
+            ((total / count as f64).sqrt(), (var / k).sqrt())
+        })
         .collect();
-    let ridge = cv
-        .iter()
-        .filter(|c| c.1.is_finite())
-        .min_by(|a, b| a.1.total_cmp(&b.1))
-        .map_or(0.0, |c| c.0);
+    let best = (0..ridges.len())
+        .filter(|&r| scores[r].0.is_finite())
+        .min_by(|&a, &b| scores[a].0.total_cmp(&scores[b].0))
+        .ok_or(SolveError::NoConvergence)?;
+    let pick = match options.rule {
+        Rule::MinimumCv => best,
+        // Among ridge weights the CV cannot tell from the best, the most regularised.
+        Rule::OneStandardError => (0..ridges.len())
+            .filter(|&r| scores[r].0 <= scores[best].0 + scores[best].1)
+            .max_by(|&a, &b| ridges[a].total_cmp(&ridges[b]))
+            .unwrap_or(best),
+    };
     let mut all = Accumulator::new(n, 1);
-    for acc in blocks {
+    for acc in accs {
         all.merge(acc)?;
     }
-    let solution = all.finish().solve(&options(ridge))?;
+    let solution = all.finish().solve(&solve(ridges[pick]))?;
     let model = structure
         .with_parameters(machine, &solution.coefficients[0])
         .map_err(|_| SolveError::NoConvergence)?;
     Ok(Fitted {
         model,
         solution,
-        ridge,
-        cv_rmse_um: cv,
-        observations: rows.len(),
-        skipped,
+        ridge: ridges[pick],
+        cv_rmse_um: ridges.iter().zip(&scores).map(|(&r, s)| (r, s.0)).collect(),
+        score_um: scores[pick].0,
+        observations,
+        skipped: 0,
     })
 }
 
@@ -263,85 +565,6 @@ pub fn input_sets(machine: &Machine) -> Vec<InputSet> {
     sets
 }
 
-/// One candidate of [`choose`]: a family on an input set, fitted.
-#[derive(Debug, Clone)]
-pub struct Candidate {
-    /// The family.
-    pub family: Family,
-    /// The input set's label.
-    pub inputs: &'static str,
-    /// The lowest cross-validated RMSE over the ridge grid, µm.
-    pub cv_rmse_um: f64,
-    /// The fitted model.
-    pub fitted: Fitted,
-}
-
-/// Why no model could be chosen.
-#[derive(Debug, Clone, PartialEq)]
-pub enum ChooseError {
-    /// A structure could not be built on the machine.
-    Model(ModelError),
-    /// A fit failed.
-    Solve(SolveError),
-    /// No family or no input set was given.
-    NoCandidate,
-}
-
-impl fmt::Display for ChooseError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            Self::Model(e) => write!(f, "{e}"),
-            Self::Solve(e) => write!(f, "{e}"),
-            Self::NoCandidate => write!(f, "no family or no input set to choose from"),
-        }
-    }
-}
-
-impl std::error::Error for ChooseError {}
-
-/// Fits every family on every input set (`name`d models of every target axis, with a constant)
-/// and returns the one with the lowest cross-validated RMSE, the first of equals in the order
-/// given: the choice is made inside the observations (the training part) only. `tried` sees
-/// every candidate as it is fitted.
-pub fn choose(
-    name: &str,
-    machine: &Machine,
-    families: &[Family],
-    sets: &[InputSet],
-    targets: &[usize],
-    observations: &[Observation<'_>],
-    tried: &mut dyn FnMut(&Candidate),
-) -> Result<Candidate, ChooseError> {
-    let mut candidates = Vec::new();
-    for &family in families {
-        for set in sets {
-            let s = structure(name, machine, family, &set.differences, targets, true)
-                .map_err(ChooseError::Model)?;
-            let fitted = fit_structure(&s, machine, observations.iter().copied())
-                .map_err(ChooseError::Solve)?;
-            let cv_rmse_um = fitted
-                .cv_rmse_um
-                .iter()
-                .map(|c| c.1)
-                .fold(f64::INFINITY, f64::min);
-            let candidate = Candidate {
-                family,
-                inputs: set.label,
-                cv_rmse_um,
-                fitted,
-            };
-            tried(&candidate);
-            candidates.push(candidate);
-        }
-    }
-    // A stable sort: among equal scores the first given (the simpler) wins.
-    candidates.sort_by(|a, b| a.cv_rmse_um.total_cmp(&b.cv_rmse_um));
-    candidates
-        .into_iter()
-        .next()
-        .ok_or(ChooseError::NoCandidate)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -353,7 +576,51 @@ mod tests {
     }
 
     #[test]
-    fn input_sets_grow_and_the_choice_finds_the_position_dependent_truth() {
+    fn families_parse_by_their_command_line_names_and_build_on_the_twin() {
+        let machine = twin_machine();
+        let diffs: Vec<usize> = (0..machine.differences.len()).collect();
+        let reference = reference_sensor(&machine);
+        assert_eq!(
+            reference.map(|r| machine.temperatures[r].id.as_str()),
+            Some("ambient")
+        );
+        for f in Family::ALL {
+            assert_eq!(f.key().parse::<Family>(), Ok(f));
+            assert_eq!(f.to_string(), f.key());
+            let d = family_differences(&machine, f, &diffs, reference);
+            let m = structure("m", &machine, f, &d, &[2], true).unwrap();
+            // Per difference: K0 (+ a term per axis, + squares, + the bed summands) + constant.
+            let per = match f {
+                // Without owners no difference carries a position.
+                Family::ReferenceSensor
+                | Family::PositionIndependent
+                | Family::OwnAxis
+                | Family::Serial => 1,
+                Family::AllAxes => 4,
+                Family::AllAxesSquared => 7,
+                // X and Y ride on beds: two bed-multiplied summands of two coefficients each.
+                Family::BedFactor => 4 + 2 * 2,
+            };
+            assert_eq!(m.parameter_count(), per * d.len() + 1, "{f}");
+        }
+        // dT_y_saddle (difference 1) belongs to Y, on which X rests: embodiment 1 carries r_Y,
+        // embodiment 4 r_Y and r_X (KFA: both ride on beds).
+        let owners = [None, Some(1)];
+        for (f, n) in [(Family::OwnAxis, 2), (Family::Serial, 3)] {
+            let m = structure_owned("m", &machine, f, &[0, 1], &[2], false, &owners).unwrap();
+            assert_eq!(m.parameter_count(), 1 + n, "{f}");
+        }
+        // Seed C's form reads only the differences against the reference sensor.
+        let c = family_differences(&machine, Family::ReferenceSensor, &diffs, reference);
+        assert_eq!(c.len(), 18);
+        assert!("warm"
+            .parse::<Family>()
+            .unwrap_err()
+            .starts_with("expected one of reference-sensor, prior-art"));
+    }
+
+    #[test]
+    fn input_sets_grow_and_the_fit_finds_the_position_dependent_truth() {
         let machine = twin_machine();
         let sets = input_sets(&machine);
         assert_eq!(sets[0].label, "measured sensors");
@@ -413,20 +680,21 @@ mod tests {
                 });
             }
         }
-        let mut tried = 0;
-        let families = [Family::PositionIndependent, Family::AllAxes];
-        let best = choose(
-            "m",
-            &machine,
-            &families,
-            &sets[..1],
-            &[0, 1, 2],
-            &obs,
-            &mut |_| tried += 1,
-        )
-        .unwrap();
-        assert_eq!(tried, 2);
-        assert_eq!(best.family, Family::AllAxes);
-        assert!(best.cv_rmse_um < 1e-3, "{}", best.cv_rmse_um);
+        // Fitted on the truth's input set, the all-axes family finds it; the prior art cannot.
+        let fit = |family| {
+            let s = structure(
+                "m",
+                &machine,
+                family,
+                &sets[0].differences,
+                &[0, 1, 2],
+                true,
+            )
+            .unwrap();
+            fit_structure(&s, &machine, obs.iter().copied()).unwrap()
+        };
+        let best = fit(Family::AllAxes);
+        assert!(fit(Family::PositionIndependent).score_um > 100.0 * best.score_um);
+        assert!(best.score_um < 1e-3, "{}", best.score_um);
     }
 }

@@ -32,6 +32,12 @@ pub struct Settings {
     /// candidate and the reference is always among the sensors.
     #[serde(default)]
     pub reference: Option<usize>,
+    /// Targets as measured (error = actual − nominal, what a machine's seed A/C model predicts
+    /// at a position) rather than relative to each run's first sample (what a model started
+    /// with the run predicts). `truepos fit --machine FILE` sets it: a position-dependent error
+    /// at the first sample is part of what the model must learn, not an offset to remove.
+    #[serde(default)]
+    pub absolute_targets: bool,
 }
 
 impl Default for Settings {
@@ -45,6 +51,7 @@ impl Default for Settings {
             rule: Rule::OneStandardError,
             max_sensors: None,
             reference: None,
+            absolute_targets: false,
         }
     }
 }

@@ -45,6 +45,18 @@ pub struct Trained {
     pub choices: Vec<Choice>,
     /// Warnings (rank deficiency with culprit columns).
     pub warnings: Vec<String>,
+    /// Every family tried, with its inner-CV figures per target.
+    pub scores: Vec<FamilyScore>,
+}
+
+/// The inner-CV figures of one family: per target, its lowest CV RMSE over the ridges tried
+/// and that ridge.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct FamilyScore {
+    /// The family.
+    pub family: Family,
+    /// Per target: (CV RMSE µm, ridge).
+    pub per_target: Vec<(f64, f64)>,
 }
 
 /// Training rows: (run, row) pairs in time order.
@@ -74,6 +86,7 @@ impl<'a> Problem<'a> {
         rows: &[(usize, usize)],
         folds: usize,
         inner: InnerCv,
+        absolute: bool,
     ) -> Self {
         let nf = cand.features.len();
         let nt = dataset.target_names.len();
@@ -82,7 +95,7 @@ impl<'a> Problem<'a> {
         let rel: Vec<Vec<Vec<f64>>> = dataset
             .runs
             .iter()
-            .map(|r| (0..nt).map(|k| r.relative_target(k)).collect())
+            .map(|r| (0..nt).map(|k| r.target(k, absolute)).collect())
             .collect();
         for (i, &(run, row)) in rows.iter().enumerate() {
             for j in 0..nf {
@@ -254,23 +267,30 @@ fn best_per_target(
     p: &Problem<'_>,
     settings: &Settings,
     sensors: &[usize],
-) -> Vec<(f64, Family, f64)> {
+) -> (Vec<(f64, Family, f64)>, Vec<FamilyScore>) {
     let nt = p.y.ncols();
     // (rmse, se, family, ridge) of every candidate, per target.
     let mut all: Vec<Vec<(f64, f64, Family, f64)>> = vec![Vec::new(); nt];
     let reference = reference_input(p, settings);
+    let mut families = Vec::new();
     for &family in &settings.families {
         let Some(design) = p.design(family, sensors, reference) else {
             continue;
         };
         let scores = p.cv(&design, &settings.ridges);
+        let mut per_target = vec![(f64::INFINITY, 0.0); nt];
         for (ri, row) in scores.iter().enumerate() {
             for k in 0..nt {
                 all[k].push((row[k].0, row[k].1, family, settings.ridges[ri]));
+                if row[k].0 < per_target[k].0 {
+                    per_target[k] = (row[k].0, settings.ridges[ri]);
+                }
             }
         }
+        families.push(FamilyScore { family, per_target });
     }
-    all.iter()
+    let picks = all
+        .iter()
         .map(|cands| {
             let best = cands
                 .iter()
@@ -288,7 +308,8 @@ fn best_per_target(
             };
             (pick.0, pick.2, pick.3)
         })
-        .collect()
+        .collect();
+    (picks, families)
 }
 
 /// Chooses by inner CV on `rows` (training rows only; blocked or rolling origin, see
@@ -306,7 +327,8 @@ pub fn train(
             settings.folds
         ));
     }
-    let p = Problem::new(dataset, cand, rows, settings.folds, settings.inner);
+    let (folds, inner, absolute) = (settings.folds, settings.inner, settings.absolute_targets);
+    let p = Problem::new(dataset, cand, rows, folds, inner, absolute);
     let nt = dataset.target_names.len();
     let all_sensors: Vec<usize> = (0..cand.spec.temperatures).collect();
     let mut sensors = match settings.max_sensors {
@@ -328,7 +350,7 @@ pub fn train(
                 .into(),
         );
     }
-    let best = best_per_target(&p, settings, &sensors);
+    let (best, scores) = best_per_target(&p, settings, &sensors);
     // Final fit per target on all training rows.
     let nf = cand.features.len();
     let mut coef = vec![vec![0.0; nf]; nt];
@@ -434,6 +456,7 @@ pub fn train(
         sensors: sensors.iter().map(|&s| cand.bank_inputs[s]).collect(),
         choices,
         warnings,
+        scores,
     })
 }
 
@@ -501,6 +524,7 @@ fn greedy_sensors(p: &Problem<'_>, settings: &Settings, max: usize) -> Vec<usize
         .collect();
     let score = |sensors: &[usize]| {
         best_per_target(p, settings, sensors)
+            .0
             .iter()
             .zip(&spread)
             .map(|(b, s)| b.0 / s)
@@ -760,7 +784,7 @@ mod tests {
         let cand = candidates(&ds, &TimeConstants::default()).unwrap();
         let rows: Rows = (0..n).map(|i| (0, i)).collect();
         let score = |inner| {
-            let p = Problem::new(&ds, &cand, &rows, 8, inner);
+            let p = Problem::new(&ds, &cand, &rows, 8, inner, false);
             let d = p.design(Family::Static, &[0], None).unwrap();
             p.cv(&d, &[0.0])[0][0].0
         };

@@ -236,7 +236,7 @@ pub fn predict(dataset: &Dataset, trained: &Trained) -> Result<Predictions, Stri
 /// Every measured row of every run as (run, row), in time order run after run: a row without
 /// a measurement of every target neither trains nor scores (its inputs still step the filters,
 /// which run over whole runs).
-fn all_rows(dataset: &Dataset) -> Vec<(usize, usize)> {
+pub(crate) fn all_rows(dataset: &Dataset) -> Vec<(usize, usize)> {
     dataset
         .runs
         .iter()
@@ -277,7 +277,11 @@ pub fn outcome(
     let rel: Vec<Vec<Vec<f64>>> = dataset
         .runs
         .iter()
-        .map(|r| (0..nt).map(|k| r.relative_target(k)).collect())
+        .map(|r| {
+            (0..nt)
+                .map(|k| r.target(k, settings.absolute_targets))
+                .collect()
+        })
         .collect();
     let mut measured = vec![Vec::new(); nt];
     let mut predicted = vec![Vec::new(); nt];
@@ -354,7 +358,11 @@ pub fn outcome(
             }
         }
     }
-    let per_run = per_run(dataset, &rel, &oof, &fold_of, &choices);
+    let chosen: Vec<Vec<String>> = choices
+        .iter()
+        .map(|c| c.iter().map(|c| c.family.name().to_string()).collect())
+        .collect();
+    let per_run = per_run(dataset, &rel, &oof, &fold_of, &chosen);
     warnings.extend(worse_than_uncompensated(&per_run));
     Ok(Outcome {
         validation: Validation {
@@ -383,6 +391,7 @@ pub fn outcome(
             .collect(),
         fitted,
         training_rows,
+        absolute_targets: settings.absolute_targets,
     })
 }
 
@@ -432,12 +441,12 @@ fn fill_unmeasured(
 }
 
 /// Figures of every run's held-out rows, with the family each fold that held them out chose.
-fn per_run(
+pub(crate) fn per_run(
     dataset: &Dataset,
     rel: &[Vec<Vec<f64>>],
     oof: &Predictions,
     fold_of: &[Vec<Option<usize>>],
-    choices: &[Vec<Choice>],
+    chosen: &[Vec<String>],
 ) -> Vec<RunFigures> {
     let mut out = Vec::new();
     for (r, run) in dataset.runs.iter().enumerate() {
@@ -451,11 +460,16 @@ fn per_run(
         folds.dedup();
         let targets = (0..dataset.target_names.len())
             .map(|k| {
-                let m: Vec<f64> = rows.iter().map(|&i| rel[r][k][i]).collect();
-                let p: Vec<f64> = rows.iter().map(|&i| oof[r][k][i]).collect();
+                // A seed A/C model refuses an input it cannot read (NaN there; the pooled
+                // figures say how many); a dynamic model's predictions are always finite.
+                let (m, p): (Vec<f64>, Vec<f64>) = rows
+                    .iter()
+                    .filter(|&&i| oof[r][k][i].is_finite())
+                    .map(|&i| (rel[r][k][i], oof[r][k][i]))
+                    .unzip();
                 let mut families: Vec<&str> = Vec::new();
                 for &f in &folds {
-                    let name = choices[f][k].family.name();
+                    let name = chosen[f][k].as_str();
                     if !families.contains(&name) {
                         families.push(name);
                     }
@@ -512,6 +526,9 @@ pub struct Outcome {
     pub fitted: Predictions,
     /// The rows [`Self::trained`] was fitted on, as (run, row).
     pub training_rows: Vec<(usize, usize)>,
+    /// Whether targets were taken as measured rather than relative to each run's first sample
+    /// ([`Settings::absolute_targets`]).
+    pub absolute_targets: bool,
 }
 
 /// Candidate features of the dataset, then [`outcome`]: what `truepos fit` runs.

@@ -12,9 +12,11 @@ use std::time::Duration;
 use clap::{Parser, Subcommand};
 use truepos_hal::ffi::{self, Component, HalError};
 use truepos_hal::pacer::{keep_off_cpu, realtime_setup, Pacer};
+use truepos_hal::source::Edge;
 use truepos_hal::{pins, Error, HalSink, HalSource};
 use truepos_io::compensation::load_set;
 use truepos_io::limits::{finite_in, int_in};
+use truepos_runtime::host::ReloadSetup;
 use truepos_runtime::{MachineConfig, PathState, Running, Service, ServiceConfig, ServiceHost};
 
 #[derive(Parser)]
@@ -150,7 +152,19 @@ fn run(args: RunArgs) -> Result<(), Error> {
             eprintln!("truepos-hal: warning: {e}");
         }
     }
+    // `truepos.model.reload`: the files are read on the reload thread, never in the cycle.
+    let loader_machine = machine.clone();
+    let reload = ReloadSetup {
+        files: args.models.clone(),
+        loader: Box::new(move |path| {
+            load_set(&[path.to_path_buf()], &loader_machine)
+                .map(|mut entries| entries.remove(0))
+                .map_err(|e| e.to_string())
+        }),
+        watch: false,
+    };
     let mut host = ServiceHost::new(machine, entries)
+        .reload(Some(reload))
         .source(Box::new(source))
         .sink(Box::new(sink))
         .config(config)
@@ -211,7 +225,8 @@ fn run(args: RunArgs) -> Result<(), Error> {
 /// loop's own output pins.
 fn cycle_loop(host: &mut Running, pins: &LoopPins, period_ns: u64, stop: &AtomicBool) -> LoopStats {
     let model_count = host.model_names().len();
-    let service = &mut host.service;
+    let mut reload_edge = Edge::default();
+    let mut reloads: i32 = 0;
     let cpu_start = ffi::process_cpu_ns();
     let start = ffi::monotonic_ns();
     let mut pacer = Pacer::new(start, period_ns);
@@ -238,6 +253,20 @@ fn cycle_loop(host: &mut Running, pins: &LoopPins, period_ns: u64, stop: &Atomic
         // LinuxCNC takes offsets only with motion enabled and every joint homed (the sink holds
         // its counts meanwhile); compensation is off until then and blends in afterwards.
         let ready = pins.motion_enabled.get() && pins.all_homed.get();
+        if reload_edge.rising(pins.control.reload.get()) {
+            host.request_reload();
+        }
+        if let Some(report) = host.poll_reload() {
+            reloads = reloads.wrapping_add(report.reloaded.len() as i32);
+            pins.control.reloads.set(reloads);
+            for (_, file) in &report.reloaded {
+                eprintln!("truepos-hal: reloaded {}", file.display());
+            }
+            for (_, why) in &report.failed {
+                eprintln!("truepos-hal: reload refused, the running model stays: {why}");
+            }
+        }
+        let service = &mut host.service;
         service.set_enabled(pins.control.enable.get() && ready);
         let select = pins.control.model_select.get();
         if select != selected {

@@ -21,6 +21,12 @@
 //! | `truepos.clamped` | bit | out | the safety envelope limited an axis this cycle |
 //! | `truepos.cycle-us` | float | out | duration of the last cycle's work, µs |
 //! | `truepos.cycles` | s32 | out | cycles run (wraps) |
+//! | `truepos.probe.trigger` | bit | in | a rising edge is one probe event (seed C's probe measurement) |
+//! | `truepos.probe.pos-N` | float | in | probed position of machine axis N (0-based, machine order), mm |
+//! | `truepos.probe.dev-N` | float | in | measured error of axis N at that position, µm (actual − nominal) |
+//! | `truepos.probe.measured-N` | bit | in | axis N was measured by this event (`setp` for the probe's directions) |
+//! | `truepos.model.reload` | bit | in | a rising edge reloads the `--model` files without a restart |
+//! | `truepos.model.reloads` | s32 | out | models reloaded so far (a failed reload leaves it and the model as they were) |
 //!
 //! Axis names are lower-cased (`X` → `x`, as in LinuxCNC); channel ids are used as written.
 
@@ -77,6 +83,10 @@ pub struct ControlPins {
     pub enable: BitPin,
     /// `truepos.model-select`.
     pub model_select: S32Pin,
+    /// `truepos.model.reload`.
+    pub reload: BitPin,
+    /// `truepos.model.reloads` (output).
+    pub reloads: S32Pin,
 }
 
 /// The pin-name suffix of a path's model pin (path 1 → `path.1.model`).
@@ -96,7 +106,36 @@ pub struct InputPins {
     pub temperatures: Vec<(usize, FloatPin)>,
     /// `truepos.operating.<id>`, machine operating order.
     pub operating: Vec<FloatPin>,
+    /// The probe event pins.
+    pub probe: ProbePins,
 }
+
+/// `truepos.probe.*`: one probe event per rising edge of the trigger.
+#[derive(Debug)]
+pub struct ProbePins {
+    /// `truepos.probe.trigger`.
+    pub trigger: BitPin,
+    /// `truepos.probe.pos-N`, machine axis order.
+    pub positions: Vec<FloatPin>,
+    /// `truepos.probe.dev-N`, machine axis order.
+    pub deviations: Vec<FloatPin>,
+    /// `truepos.probe.measured-N`, machine axis order.
+    pub measured: Vec<BitPin>,
+}
+
+/// Names of axis N's probe pins: probed position, measured error, whether measured.
+pub fn probe_pins(n: usize) -> [String; 3] {
+    [
+        format!("probe.pos-{n}"),
+        format!("probe.dev-{n}"),
+        format!("probe.measured-{n}"),
+    ]
+}
+
+/// `truepos.model.reload`: a rising edge reloads the model files.
+pub const MODEL_RELOAD_PIN: &str = "model.reload";
+/// `truepos.model.reloads`: models reloaded so far.
+pub const MODEL_RELOADS_PIN: &str = "model.reloads";
 
 /// The output pins of one axis.
 #[derive(Debug)]
@@ -183,12 +222,33 @@ pub fn create(component: &Component, machine: &Machine, paths: usize) -> Result<
     let control = ControlPins {
         enable: component.bit_pin("enable", Direction::In)?,
         model_select: component.s32_pin(MODEL_SELECT_PIN, Direction::In)?,
+        reload: component.bit_pin(MODEL_RELOAD_PIN, Direction::In)?,
+        reloads: component.s32_pin(MODEL_RELOADS_PIN, Direction::Out)?,
     };
+    let mut probe = ProbePins {
+        trigger: component.bit_pin("probe.trigger", Direction::In)?,
+        positions: Vec::new(),
+        deviations: Vec::new(),
+        measured: Vec::new(),
+    };
+    for n in 0..machine.axes.len() {
+        let [pos, dev, measured] = probe_pins(n);
+        probe
+            .positions
+            .push(component.float_pin(&pos, Direction::In)?);
+        probe
+            .deviations
+            .push(component.float_pin(&dev, Direction::In)?);
+        probe
+            .measured
+            .push(component.bit_pin(&measured, Direction::In)?);
+    }
     let inputs = InputPins {
         positions,
         paths: axis_paths,
         temperatures,
         operating,
+        probe,
     };
     let outputs = OutputPins {
         axes,
@@ -221,5 +281,9 @@ mod tests {
         assert_eq!(status_code(CompensationState::Active), 1);
         assert_eq!(status_code(CompensationState::NoModel), 3);
         assert_eq!(path_model_pin(1), "path.1.model");
+        assert_eq!(
+            probe_pins(2),
+            ["probe.pos-2", "probe.dev-2", "probe.measured-2"].map(String::from)
+        );
     }
 }

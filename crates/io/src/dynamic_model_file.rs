@@ -254,6 +254,17 @@ impl DynamicModelFile {
     }
 }
 
+/// The axis a target or output named `name` serves by its name alone: `Z`, `Z_um` or `dz_um`
+/// (case-insensitive) serve axis Z.
+pub fn axis_named_like(name: &str, machine: &Machine) -> Option<usize> {
+    let lower = name.to_ascii_lowercase();
+    let stem = lower.strip_suffix("_um").unwrap_or(&lower);
+    machine.axes.iter().position(|a| {
+        let a = a.name.to_ascii_lowercase();
+        stem == a || stem.strip_prefix('d') == Some(a.as_str())
+    })
+}
+
 impl DynamicModelFile {
     /// The axis an output serves: its `axis`, else an axis named like the output (`Z`, `Z_um`,
     /// `dz_um`, case-insensitive).
@@ -272,12 +283,7 @@ impl DynamicModelFile {
                 )
             });
         }
-        let lower = o.name.to_ascii_lowercase();
-        let stem = lower.strip_suffix("_um").unwrap_or(&lower);
-        Ok(machine.axes.iter().position(|a| {
-            let a = a.name.to_ascii_lowercase();
-            stem == a || stem.strip_prefix('d') == Some(a.as_str())
-        }))
+        Ok(axis_named_like(&o.name, machine))
     }
 
     /// Binds the model to a machine: same machine name, every input a channel of the right kind,

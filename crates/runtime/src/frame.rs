@@ -28,6 +28,9 @@ pub struct Frame {
     /// indices it drives in order (seed D: path 1 = X1, Z1). Sources that know it (a control)
     /// overwrite it; it stays as configured otherwise.
     pub paths: Vec<Vec<usize>>,
+    /// A probe event seen by a source this cycle (the HAL component on a rising edge of its
+    /// trigger pin); the service takes it, checks it and logs it.
+    pub probe: Option<crate::probe::ProbeInput>,
 }
 
 impl Frame {
@@ -42,6 +45,7 @@ impl Frame {
             operating: vec![f64::NAN; operating],
             operating_stamp_s: vec![NEVER; operating],
             paths: Vec::new(),
+            probe: None,
         }
     }
 

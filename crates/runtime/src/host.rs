@@ -12,7 +12,12 @@
 //! does so after [`ServiceHost::start`] (the thread inherits neither) or keeps it off the
 //! cycle's CPU before.
 
+mod reload;
+
 use std::path::PathBuf;
+
+use reload::Reloader;
+pub use reload::{ModelLoader, ReloadSetup, POLL as RELOAD_POLL};
 
 use crate::config::MachineConfig;
 use crate::log::{self, LogError, LogHealth, LogSetup, Logger};
@@ -27,6 +32,7 @@ pub struct ServiceHost {
     sinks: Vec<Box<dyn Sink>>,
     config: ServiceConfig,
     log: Option<PathBuf>,
+    reload: Option<ReloadSetup>,
 }
 
 impl ServiceHost {
@@ -40,7 +46,15 @@ impl ServiceHost {
             sinks: Vec::new(),
             config: ServiceConfig::default(),
             log: None,
+            reload: None,
         }
+    }
+
+    /// Hot reload of the model files (default: none): see [`Running::request_reload`] and
+    /// [`Running::poll_reload`].
+    pub fn reload(mut self, setup: Option<ReloadSetup>) -> Self {
+        self.reload = setup;
+        self
     }
 
     /// Adds a source (read every cycle in the order added).
@@ -79,8 +93,9 @@ impl ServiceHost {
         self
     }
 
-    /// Builds the service and starts its logger. Fails only if the log cannot be opened or is
-    /// refused ([`Logger::start`]); nothing has run then.
+    /// Builds the service and starts its logger (and the reload thread, if asked). Fails only
+    /// if the log cannot be opened or is refused ([`Logger::start`]), or the reload thread
+    /// cannot start; nothing has run then.
     pub fn start(self) -> Result<Running, LogError> {
         let models: Vec<String> = self.models.iter().map(|e| e.name.clone()).collect();
         let sources: Vec<String> = self.sources.iter().map(|s| s.name().to_string()).collect();
@@ -93,7 +108,7 @@ impl ServiceHost {
             self.config,
         );
         let logger = match &self.log {
-            Some(path) => Some(Logger::start(
+            Some(path) => Some(Logger::start_with_probes(
                 LogSetup {
                     path,
                     machine: service.machine(),
@@ -105,13 +120,22 @@ impl ServiceHost {
                 },
                 service.events(),
                 service.records(),
+                service.probes(),
             )?),
+            None => None,
+        };
+        let reloader = match self.reload {
+            Some(setup) => Some(Reloader::start(setup).map_err(|e| LogError {
+                file: PathBuf::from("(model reload)"),
+                message: format!("cannot start the reload thread: {e}"),
+            })?),
             None => None,
         };
         Ok(Running {
             service,
             logger,
             models,
+            reloader,
         })
     }
 }
@@ -122,9 +146,77 @@ pub struct Running {
     pub service: Service,
     logger: Option<Logger>,
     models: Vec<String>,
+    reloader: Option<Reloader>,
+}
+
+/// What [`Running::poll_reload`] did with the files the reload thread loaded.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ReloadReport {
+    /// Models replaced: (index in the set, file).
+    pub reloaded: Vec<(usize, PathBuf)>,
+    /// Files that did not load or were refused, with the reason; the running model stays.
+    pub failed: Vec<(PathBuf, String)>,
 }
 
 impl Running {
+    /// Asks the reload thread to reload every model file (a no-op without
+    /// [`ServiceHost::reload`]). Sets a flag: nothing waits.
+    pub fn request_reload(&self) {
+        if let Some(r) = &self.reloader {
+            r.request();
+        }
+    }
+
+    /// Hands the models the reload thread has loaded to the service (between cycles: call it
+    /// from the loop, not inside a cycle) and logs a `model-reloaded` or `model-reload-failed`
+    /// event naming the file, and the reason of a failure. Returns `None` when nothing arrived
+    /// (one pop of a lock-free queue, no allocation). A model that fails to load or is refused
+    /// ([`Service::replace_model`]) leaves the running one untouched.
+    pub fn poll_reload(&mut self) -> Option<ReloadReport> {
+        let r = self.reloader.as_ref()?;
+        let first = r.results.pop()?;
+        let mut report = ReloadReport::default();
+        let mut next = Some(first);
+        while let Some(l) = next {
+            let time_s = self.service.frame().time_s;
+            let name = self
+                .models
+                .get(l.model)
+                .cloned()
+                .unwrap_or_else(|| format!("#{}", l.model));
+            let applied = l.entry.and_then(|e| self.service.replace_model(l.model, e));
+            let file = l.file.display().to_string();
+            match applied {
+                Ok(old) => {
+                    // Dropped on the reload thread; if its queue is full, here.
+                    let _ = r.garbage.push(old);
+                    if let Some(log) = &self.logger {
+                        log.note(time_s, "model-reloaded", name, file);
+                    }
+                    report.reloaded.push((l.model, l.file));
+                }
+                Err(why) => {
+                    let why = if why.contains(&file) {
+                        why
+                    } else {
+                        format!("{file}: {why}")
+                    };
+                    if let Some(log) = &self.logger {
+                        log.note(
+                            time_s,
+                            "model-reload-failed",
+                            name,
+                            format!("{why}; the running model stays"),
+                        );
+                    }
+                    report.failed.push((l.file, why));
+                }
+            }
+            next = r.results.pop();
+        }
+        Some(report)
+    }
+
     /// Names of the models of the set, in set order.
     pub fn model_names(&self) -> &[String] {
         &self.models

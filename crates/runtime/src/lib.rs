@@ -14,6 +14,7 @@ pub mod io_traits;
 pub mod log;
 pub mod model_set;
 pub mod output;
+pub mod probe;
 pub mod replay;
 pub mod sensor_validation;
 pub mod service;

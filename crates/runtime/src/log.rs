@@ -29,8 +29,16 @@ use std::time::{Duration, Instant};
 use crossbeam_queue::ArrayQueue;
 use rusqlite::{params_from_iter, Connection};
 
+mod probes;
+mod read;
+
+pub use probes::{axis_columns as probe_axis_columns, read_probes, ProbeRow, ProbeTable};
+use read::open_read;
+pub use read::{integrity_check, read_cycles, read_events, read_meta, CycleTable, LoggedEvent};
+
 use crate::config::MachineConfig;
 use crate::events::{Event, EventKind, EventQueue};
+use crate::probe::ProbeRecord;
 use crate::replay::state_name;
 use crate::service::{CycleRecord, MAX_LOG_OPERATING, MAX_LOG_TEMPERATURES, MAX_PATHS};
 
@@ -51,7 +59,7 @@ impl std::fmt::Display for LogError {
 
 impl std::error::Error for LogError {}
 
-fn err(file: &Path) -> impl Fn(rusqlite::Error) -> LogError + '_ {
+pub(crate) fn err(file: &Path) -> impl Fn(rusqlite::Error) -> LogError + '_ {
     move |e| LogError {
         file: file.to_path_buf(),
         message: e.to_string(),
@@ -90,7 +98,7 @@ fn cycle_columns(machine: &MachineConfig, paths: usize) -> Vec<String> {
     cols
 }
 
-fn quote(name: &str) -> String {
+pub(crate) fn quote(name: &str) -> String {
     format!("\"{}\"", name.replace('"', "\"\""))
 }
 
@@ -101,6 +109,9 @@ pub const MAX_BACKOFF: Duration = Duration::from_secs(2);
 pub const MAX_PENDING_RECORDS: usize = 1 << 16;
 /// Events the thread keeps while the log fails; more are counted as dropped.
 pub const MAX_PENDING_EVENTS: usize = 1 << 14;
+/// Probe events the thread keeps while the log fails (a probe cycle every minute for 2.7
+/// days); more are counted as dropped.
+pub const MAX_PENDING_PROBES: usize = 1 << 12;
 
 /// The interval between commits of every service's log (ARCHITECTURE.md: a SIGKILL loses at
 /// most this much, and a failing write shows within it).
@@ -117,21 +128,28 @@ pub struct LogHealth {
     pub resumed: u64,
     /// The first failure of this run: service time and reason.
     pub first_failure: Option<(f64, String)>,
-    /// Records and events waiting in the thread's buffer.
+    /// Records, events and probe events waiting in the thread's buffer.
     pub pending: usize,
     /// Records dropped because the buffer was full while the log failed.
     pub records_dropped: u64,
     /// Events dropped because the buffer was full while the log failed.
     pub events_dropped: u64,
+    /// Probe events dropped because the buffer was full while the log failed.
+    pub probes_dropped: u64,
 }
 
 /// What the logger thread shares with the rest of the process (never with the cycle).
 #[derive(Debug, Default)]
 struct Shared {
     health: Mutex<LogHealth>,
+    /// Events from outside the cycle (a model reload), with their full text.
+    notes: Mutex<Vec<Note>>,
     /// Page limit to apply (0: none asked).
     page_limit: AtomicU64,
 }
+
+/// An event the logger writes as given: (service time, kind, subject, detail).
+type Note = (f64, &'static str, String, String);
 
 /// The logger thread; stop it with [`Logger::stop`] (dropping it stops it too).
 pub struct Logger {
@@ -211,6 +229,16 @@ impl Logger {
         events: Arc<EventQueue>,
         records: Arc<ArrayQueue<CycleRecord>>,
     ) -> Result<Self, LogError> {
+        Self::start_with_probes(setup, events, records, Arc::new(ArrayQueue::new(1)))
+    }
+
+    /// [`Logger::start`], also draining the service's probe events into the `probes` table.
+    pub fn start_with_probes(
+        setup: LogSetup<'_>,
+        events: Arc<EventQueue>,
+        records: Arc<ArrayQueue<CycleRecord>>,
+        probes: Arc<ArrayQueue<ProbeRecord>>,
+    ) -> Result<Self, LogError> {
         let mut writer = Writer::open(&setup)?;
         let stop = Arc::new(AtomicBool::new(false));
         let stop_thread = Arc::clone(&stop);
@@ -219,7 +247,14 @@ impl Logger {
         let every = setup.commit_every;
         let handle = std::thread::Builder::new()
             .name("truepos-log".into())
-            .spawn(move || writer.run(&stop_thread, &shared_thread, &events, &records, every))
+            .spawn(move || {
+                let queues = Queues {
+                    events: &events,
+                    records: &records,
+                    probes: &probes,
+                };
+                writer.run(&stop_thread, &shared_thread, queues, every)
+            })
             .map_err(|e| LogError {
                 file: setup.path.to_path_buf(),
                 message: format!("cannot start the log thread: {e}"),
@@ -237,6 +272,17 @@ impl Logger {
             Ok(h) => h.clone(),
             Err(p) => p.into_inner().clone(),
         }
+    }
+
+    /// Logs an event that does not come from the cycle (a model reload, from the host's loop
+    /// between cycles), with its full text. Takes a lock the logger thread shares: never call
+    /// it inside a cycle.
+    pub fn note(&self, time_s: f64, kind: &'static str, subject: String, detail: String) {
+        let mut notes = match self.shared.notes.lock() {
+            Ok(g) => g,
+            Err(p) => p.into_inner(),
+        };
+        notes.push((time_s, kind, subject, detail));
     }
 
     /// Caps the database at `pages` pages (SQLite's `max_page_count`, applied by the thread
@@ -278,6 +324,14 @@ impl Drop for Logger {
     }
 }
 
+/// What the cycle queues for the logger.
+#[derive(Clone, Copy)]
+struct Queues<'a> {
+    events: &'a EventQueue,
+    records: &'a ArrayQueue<CycleRecord>,
+    probes: &'a ArrayQueue<ProbeRecord>,
+}
+
 struct Layout {
     axes: usize,
     temperatures: usize,
@@ -289,6 +343,7 @@ struct Writer {
     conn: Connection,
     path: PathBuf,
     insert: String,
+    probe_insert: String,
     names: Names,
     layout: Layout,
     dropped_seen: u64,
@@ -296,8 +351,9 @@ struct Writer {
     /// Drained and not yet committed (kept across failed attempts, bounded).
     records: Vec<CycleRecord>,
     events: Vec<Event>,
+    probes: Vec<ProbeRecord>,
     /// The logger's own events (failure, resumption, drops) as (time, kind, subject, detail).
-    notes: Vec<(f64, &'static str, String, String)>,
+    notes: Vec<Note>,
     /// The current failure: when, why, and when to try again after how long a wait.
     failure: Option<Failure>,
     health: LogHealth,
@@ -305,6 +361,7 @@ struct Writer {
     /// Dropped from the full buffer since the last successful write.
     records_dropped: u64,
     events_dropped: u64,
+    probes_dropped: u64,
     /// Bounds of the buffer ([`MAX_PENDING_RECORDS`], [`MAX_PENDING_EVENTS`]).
     max_records: usize,
     max_events: usize,
@@ -318,7 +375,7 @@ struct Failure {
 }
 
 /// A float for SQLite: NaN and ∞ become NULL.
-fn real(v: f64) -> rusqlite::types::Value {
+pub(crate) fn real(v: f64) -> rusqlite::types::Value {
     if v.is_finite() {
         rusqlite::types::Value::Real(v)
     } else {
@@ -364,6 +421,9 @@ impl Writer {
             defs.join(", ")
         ))
         .map_err(err(&path))?;
+        let (create_probes, probe_insert) =
+            probes::statements(&probes::columns(setup.machine, paths));
+        conn.execute_batch(&create_probes).map_err(err(&path))?;
         let names = Names {
             axes: m.axes.iter().map(|a| a.name.clone()).collect(),
             sensors: m.temperatures.iter().map(|t| t.id.clone()).collect(),
@@ -403,18 +463,21 @@ impl Writer {
             conn,
             path,
             insert,
+            probe_insert,
             names,
             layout,
             dropped_seen: 0,
             last_time: 0.0,
             records: Vec::new(),
             events: Vec::new(),
+            probes: Vec::new(),
             notes: Vec::new(),
             failure: None,
             health: LogHealth::default(),
             page_limit: 0,
             records_dropped: 0,
             events_dropped: 0,
+            probes_dropped: 0,
             max_records: MAX_PENDING_RECORDS,
             max_events: MAX_PENDING_EVENTS,
         })
@@ -426,13 +489,13 @@ impl Writer {
         &mut self,
         stop: &AtomicBool,
         shared: &Shared,
-        events: &EventQueue,
-        records: &ArrayQueue<CycleRecord>,
+        queues: Queues<'_>,
         every: Duration,
     ) -> Result<(), LogError> {
         loop {
             let stopping = stop.load(Ordering::Acquire);
-            self.collect(events, records);
+            self.collect(queues);
+            self.take_notes(shared);
             let limit = shared.page_limit.load(Ordering::Acquire);
             if limit != 0 && limit != self.page_limit {
                 // A failed pragma leaves the old cap; the next write shows what that means.
@@ -459,11 +522,12 @@ impl Writer {
                         file: self.path.clone(),
                         message: format!(
                             "writing the log failed since service time {:.1} s and never resumed: {}; \
-                             {} records and {} events not written",
+                             {} records and {} events not written, and {} probe events",
                             f.since_s,
                             f.reason,
                             self.records.len() as u64 + self.records_dropped,
-                            self.events.len() as u64 + self.events_dropped
+                            self.events.len() as u64 + self.events_dropped,
+                            self.probes.len() as u64 + self.probes_dropped
                         ),
                     }),
                 };
@@ -473,7 +537,21 @@ impl Writer {
     }
 
     /// Moves what the cycle queued into the buffer; beyond its bound, counts the drop.
-    fn collect(&mut self, events: &EventQueue, records: &ArrayQueue<CycleRecord>) {
+    fn collect(&mut self, queues: Queues<'_>) {
+        let Queues {
+            events,
+            records,
+            probes,
+        } = queues;
+        while let Some(p) = probes.pop() {
+            self.last_time = self.last_time.max(p.time_s);
+            if self.probes.len() < MAX_PENDING_PROBES {
+                self.probes.push(p);
+            } else {
+                self.health.probes_dropped += 1;
+                self.probes_dropped += 1;
+            }
+        }
         while let Some(r) = records.pop() {
             self.last_time = self.last_time.max(r.time_s);
             if self.records.len() < self.max_records {
@@ -507,6 +585,18 @@ impl Writer {
         }
     }
 
+    /// Moves the notes given from outside the cycle into the buffer.
+    fn take_notes(&mut self, shared: &Shared) {
+        let mut notes = match shared.notes.lock() {
+            Ok(g) => g,
+            Err(p) => p.into_inner(),
+        };
+        for n in notes.drain(..) {
+            self.last_time = self.last_time.max(n.0);
+            self.notes.push(n);
+        }
+    }
+
     /// One attempt to write the buffer; on failure, starts or extends the backoff.
     fn attempt(&mut self) {
         // While failing, the resumption note rides in the same transaction as the buffer, so
@@ -518,10 +608,12 @@ impl Writer {
                 "log".to_string(),
                 format!(
                     "writing resumed after failing since {:.1} s; {} records and {} events \
-                     dropped meanwhile (the buffer holds {} records and {} events)",
+                     dropped meanwhile, and {} probe events (the buffer holds {} records, {} \
+                     events and {MAX_PENDING_PROBES} probe events)",
                     f.since_s,
                     self.records_dropped,
                     self.events_dropped,
+                    self.probes_dropped,
                     self.max_records,
                     self.max_events
                 ),
@@ -536,9 +628,11 @@ impl Writer {
                 }
                 self.records.clear();
                 self.events.clear();
+                self.probes.clear();
                 self.notes.clear();
                 self.records_dropped = 0;
                 self.events_dropped = 0;
+                self.probes_dropped = 0;
             }
             Err(e) => {
                 self.notes.truncate(had);
@@ -576,7 +670,7 @@ impl Writer {
         let h = &mut self.health;
         h.failing = self.failure.as_ref().map(|f| f.reason.clone());
         h.failing_since_s = self.failure.as_ref().map(|f| f.since_s);
-        h.pending = self.records.len() + self.events.len();
+        h.pending = self.records.len() + self.events.len() + self.probes.len();
         let mut out = match shared.health.lock() {
             Ok(g) => g,
             Err(p) => p.into_inner(),
@@ -606,6 +700,11 @@ impl Writer {
                 values.extend(r.operating[..l.operating].iter().map(|&v| real(v)));
                 values.extend(r.offsets_um[..l.axes].iter().map(|&v| real(v)));
                 insert.execute(params_from_iter(values))?;
+            }
+            let mut probe = tx.prepare_cached(&self.probe_insert)?;
+            for p in &self.probes {
+                let values = probes::values(p, l.axes, l.temperatures, l.operating, l.paths);
+                probe.execute(params_from_iter(values))?;
             }
             let mut ev = tx.prepare_cached(
                 "INSERT INTO events (time_s, kind, subject, detail) VALUES (?1, ?2, ?3, ?4)",
@@ -697,107 +796,6 @@ fn describe(e: &Event, n: &Names) -> (&'static str, String, String) {
     }
 }
 
-/// One logged event.
-#[derive(Debug, Clone, PartialEq, serde::Serialize)]
-pub struct LoggedEvent {
-    /// Service time in s.
-    pub time_s: f64,
-    /// Kind (`sensor-fault`, `model-selected`, …).
-    pub kind: String,
-    /// What it concerns (a sensor id, an axis, a path).
-    pub subject: String,
-    /// Details.
-    pub detail: String,
-}
-
-fn open_read(path: &Path) -> Result<Connection, LogError> {
-    if !path.exists() {
-        return Err(LogError {
-            file: path.to_path_buf(),
-            message: "no such log".into(),
-        });
-    }
-    Connection::open_with_flags(path, rusqlite::OpenFlags::SQLITE_OPEN_READ_ONLY).map_err(err(path))
-}
-
-/// Reads the events of a log (also while the service writes it).
-pub fn read_events(path: &Path) -> Result<Vec<LoggedEvent>, LogError> {
-    let conn = open_read(path)?;
-    let mut st = conn
-        .prepare("SELECT time_s, kind, subject, detail FROM events ORDER BY rowid")
-        .map_err(err(path))?;
-    let rows = st
-        .query_map([], |r| {
-            Ok(LoggedEvent {
-                time_s: r.get::<_, Option<f64>>(0)?.unwrap_or(f64::NAN),
-                kind: r.get(1)?,
-                subject: r.get(2)?,
-                detail: r.get(3)?,
-            })
-        })
-        .map_err(err(path))?;
-    rows.collect::<Result<Vec<_>, _>>().map_err(err(path))
-}
-
-/// The `meta` a service wrote at start (machine, axes, sensors, models, sources, sinks), or
-/// `None` for a log without one.
-pub fn read_meta(path: &Path) -> Result<Option<serde_json::Value>, LogError> {
-    let conn = open_read(path)?;
-    let text: Option<String> = conn
-        .query_row("SELECT value FROM meta WHERE key = 'service'", [], |r| {
-            r.get(0)
-        })
-        .ok();
-    Ok(text.and_then(|t| serde_json::from_str(&t).ok()))
-}
-
-/// The cycles of a log as (column names, rows); NULL becomes NaN, the state column its text.
-pub type CycleTable = (Vec<String>, Vec<Vec<String>>);
-
-/// Reads the `cycles` table (optionally only the last `last` rows) as text cells.
-pub fn read_cycles(path: &Path, last: Option<usize>) -> Result<CycleTable, LogError> {
-    let conn = open_read(path)?;
-    let sql = match last {
-        Some(n) => format!(
-            "SELECT * FROM (SELECT rowid AS r, * FROM cycles ORDER BY rowid DESC LIMIT {n}) ORDER BY r"
-        ),
-        None => "SELECT 0 AS r, * FROM cycles ORDER BY rowid".to_string(),
-    };
-    let mut st = conn.prepare(&sql).map_err(err(path))?;
-    let names: Vec<String> = st
-        .column_names()
-        .iter()
-        .skip(1)
-        .map(|s| s.to_string())
-        .collect();
-    let width = names.len();
-    let rows = st
-        .query_map([], |r| {
-            (1..=width)
-                .map(|i| {
-                    let v: rusqlite::types::Value = r.get(i)?;
-                    Ok(match v {
-                        rusqlite::types::Value::Null => String::new(),
-                        rusqlite::types::Value::Integer(i) => i.to_string(),
-                        rusqlite::types::Value::Real(f) => f.to_string(),
-                        rusqlite::types::Value::Text(t) => t,
-                        rusqlite::types::Value::Blob(_) => String::new(),
-                    })
-                })
-                .collect::<Result<Vec<_>, _>>()
-        })
-        .map_err(err(path))?;
-    let rows = rows.collect::<Result<Vec<_>, _>>().map_err(err(path))?;
-    Ok((names, rows))
-}
-
-/// Runs SQLite's own consistency check; `Ok("ok")` for a sound file.
-pub fn integrity_check(path: &Path) -> Result<String, LogError> {
-    let conn = open_read(path)?;
-    conn.query_row("PRAGMA integrity_check", [], |r| r.get(0))
-        .map_err(err(path))
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -871,6 +869,12 @@ mod tests {
         w.max_events = 2;
         let events = EventQueue::new(64);
         let records = ArrayQueue::new(64);
+        let probes = ArrayQueue::new(1);
+        let queues = Queues {
+            events: &events,
+            records: &records,
+            probes: &probes,
+        };
         w.conn.pragma_update(None, "query_only", true).unwrap();
         for i in 0..8 {
             records.push(record(f64::from(i))).unwrap();
@@ -884,12 +888,12 @@ mod tests {
                 },
             });
         }
-        w.collect(&events, &records);
+        w.collect(queues);
         w.attempt();
         assert!(w.failure.is_some());
         records.push(record(8.0)).unwrap();
         records.push(record(9.0)).unwrap();
-        w.collect(&events, &records);
+        w.collect(queues);
         w.attempt();
         assert_eq!((w.health.records_dropped, w.health.events_dropped), (5, 1));
         w.conn.pragma_update(None, "query_only", false).unwrap();

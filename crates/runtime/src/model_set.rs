@@ -93,6 +93,22 @@ impl ModelSet {
         self.entries.get_mut(i)
     }
 
+    /// Puts `entry` in place of model `i` and returns the model it replaces (`None`: no model
+    /// `i`; nothing changes). The caller checks that it serves the same axis combination
+    /// ([`crate::Service::replace_model`]). A model that keeps state starts with fresh filters.
+    /// Allocates only for a dynamic model that reads more channels than any before it; call it
+    /// between cycles.
+    pub fn replace(&mut self, i: usize, entry: ModelEntry) -> Option<ModelEntry> {
+        let slot = self.entries.get_mut(i)?;
+        if let Some(d) = entry.model.as_dynamic() {
+            let channels = d.channels().temperatures;
+            self.masked
+                .reserve(channels.saturating_sub(self.masked.len()));
+        }
+        self.stepped[i] = Stepped::NEW;
+        Some(std::mem::replace(slot, entry))
+    }
+
     /// Advances the filters of every model that keeps state to service time `now_s`, from this
     /// cycle's values of the channels `good` accepts. A cycle with a bad or non-finite input
     /// leaves a model's filters untouched and the model invalid until its next good cycle (whose

@@ -16,6 +16,7 @@ use crate::frame::{Frame, NEVER};
 use crate::io_traits::{LinkError, Sink, Source};
 use crate::model_set::{ModelEntry, ModelSet};
 use crate::output::{CompensationState, Output};
+use crate::probe::{self, ProbeRecord};
 use crate::sensor_validation::SensorValidator;
 
 /// Most temperature channels a log record carries.
@@ -131,6 +132,8 @@ pub struct Service {
     events: Arc<EventQueue>,
     records: Arc<ArrayQueue<CycleRecord>>,
     records_dropped: u64,
+    probes: Arc<ArrayQueue<ProbeRecord>>,
+    probes_dropped: u64,
     enabled: bool,
     codes: Vec<u32>,
     states: Vec<PathState>,
@@ -203,6 +206,8 @@ impl Service {
             events: Arc::new(EventQueue::new(1 << 16)),
             records: Arc::new(ArrayQueue::new(1 << 14)),
             records_dropped: 0,
+            probes: Arc::new(ArrayQueue::new(1 << 8)),
+            probes_dropped: 0,
             enabled: true,
             codes,
             states: vec![PathState::Disabled; n_paths],
@@ -244,6 +249,16 @@ impl Service {
     /// The queue of cycle records, for the logger.
     pub fn records(&self) -> Arc<ArrayQueue<CycleRecord>> {
         Arc::clone(&self.records)
+    }
+
+    /// The queue of probe events, for the logger.
+    pub fn probes(&self) -> Arc<ArrayQueue<ProbeRecord>> {
+        Arc::clone(&self.probes)
+    }
+
+    /// Probe events dropped because the logger fell behind.
+    pub fn probes_dropped(&self) -> u64 {
+        self.probes_dropped
     }
 
     /// The machine.
@@ -329,6 +344,46 @@ impl Service {
         }
     }
 
+    /// Replaces model `i` of the set by a reloaded one, between cycles, without a restart: an
+    /// axis whose output comes from model `i` restarts its one blend from the output last sent,
+    /// exactly as on a change of origin, so the new model blends in through the envelope. The
+    /// new model must serve the same axis combination (seed D index) and give as many axes;
+    /// otherwise nothing changes and the error says why. Returns the model replaced, for the
+    /// caller to drop off the cycle.
+    pub fn replace_model(&mut self, i: usize, entry: ModelEntry) -> Result<ModelEntry, String> {
+        let Some(old) = self.set.entries().get(i) else {
+            return Err(format!(
+                "the model set has {} models, no model #{}",
+                self.set.entries().len(),
+                i + 1
+            ));
+        };
+        if entry.index != old.index {
+            return Err(format!(
+                "it serves the axis combination {:?}, the model it replaces (`{}`) {:?}",
+                entry.index, old.name, old.index
+            ));
+        }
+        if entry.model.axis_count() != old.model.axis_count() {
+            return Err(format!(
+                "it gives offsets for {} axes, the model it replaces (`{}`) for {}",
+                entry.model.axis_count(),
+                old.name,
+                old.model.axis_count()
+            ));
+        }
+        let Some(old) = self.set.replace(i, entry) else {
+            return Err(format!("no model #{}", i + 1));
+        };
+        let now_s = self.frame.time_s;
+        for a in 0..self.output.axes {
+            if matches!(self.origin[a], Origin::Model { model, .. } if model == i) {
+                self.envelope.restart_blend(a, now_s, self.config.blend_s);
+            }
+        }
+        Ok(old)
+    }
+
     /// Runs one cycle at service time `now_s` and returns its output.
     pub fn cycle(&mut self, now_s: f64) -> &Output {
         self.cycles += 1;
@@ -343,6 +398,7 @@ impl Service {
             self.update_path(p, now_s);
         }
         self.update_free_axes(now_s);
+        self.record_probe(now_s);
         let n = self.output.axes;
         let clamped = self.envelope.apply(
             &self.target[..n],
@@ -681,6 +737,79 @@ impl Service {
                 time_s: now_s,
                 kind,
             });
+        }
+    }
+
+    /// Takes this cycle's probe event, if a source delivered one, checks it and queues it for
+    /// the log with the inputs of the cycle and what the model in effect predicts at the
+    /// probed position. Rejected (with the reason): a value out of bounds, or a temperature a
+    /// model of the set reads that failed validation this cycle. Allocates nothing.
+    fn record_probe(&mut self, now_s: f64) {
+        let Some(p) = self.frame.probe.take() else {
+            return;
+        };
+        let n = self.output.axes;
+        let axes = &self.machine.machine.axes;
+        let mut rejected = match probe::check(&p, axes) {
+            Ok(()) => Reason::EMPTY,
+            Err(why) => why,
+        };
+        if rejected.is_empty() {
+            let health = self.validator.health();
+            let bad = self
+                .set
+                .entries()
+                .iter()
+                .flat_map(|e| e.model.used_sensors())
+                .find(|&&c| health.get(c).is_some_and(|h| h.is_some()));
+            if let Some(&c) = bad {
+                rejected = probe::reason(format_args!(
+                    "temperature `{}` failed validation this cycle",
+                    self.machine.machine.temperatures[c].id
+                ));
+            }
+        }
+        let mut r = ProbeRecord {
+            time_s: now_s,
+            rejected,
+            probe: p,
+            predicted_um: [f64::NAN; MAX_AXES],
+            state: self.output.state,
+            positions: [f64::NAN; MAX_AXES],
+            temperatures_c: [f64::NAN; MAX_LOG_TEMPERATURES],
+            operating: [f64::NAN; MAX_LOG_OPERATING],
+            model_per_path: [-1; MAX_PATHS],
+        };
+        for (d, s) in r.positions.iter_mut().zip(&self.frame.positions) {
+            *d = *s;
+        }
+        for (d, s) in r.temperatures_c.iter_mut().zip(&self.frame.temperatures_c) {
+            *d = *s;
+        }
+        for (d, s) in r.operating.iter_mut().zip(&self.frame.operating) {
+            *d = *s;
+        }
+        let input = CycleInput {
+            temperatures_c: &self.frame.temperatures_c,
+            positions: &p.position_mm[..n],
+            operating: &self.frame.operating,
+        };
+        for (path, state) in self.states.iter().enumerate().take(MAX_PATHS) {
+            let PathState::Model(m) = *state else {
+                continue;
+            };
+            r.model_per_path[path] = m as i32;
+            let mut comp = [f64::NAN; MAX_AXES];
+            if !self.set.compensation(m, &input, &mut comp) {
+                continue;
+            }
+            for a in (0..n).filter(|&a| self.axis_path[a] == Some(path)) {
+                // The model predicts the error; its compensation is the opposite.
+                r.predicted_um[a] = 0.0 - comp[a];
+            }
+        }
+        if self.probes.push(r).is_err() {
+            self.probes_dropped += 1;
         }
     }
 

@@ -99,6 +99,14 @@ enum FaultKind {
     Disabled,
     /// Z leaves the path (parked or handed over).
     AxisOut,
+    /// At the episode's start, model `model` is reloaded between cycles: a good file (its
+    /// parameters scaled by `scale`, as a re-identification changes them) or a bad one (made
+    /// for another axis combination), which must leave the running model untouched.
+    Reload {
+        model: usize,
+        scale: f64,
+        good: bool,
+    },
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -139,6 +147,8 @@ fn fault_kind(n_t: usize) -> impl Strategy<Value = FaultKind> {
         Just(FaultKind::PreferFallback),
         Just(FaultKind::Disabled),
         Just(FaultKind::AxisOut),
+        (0usize..2, 0.3..1.7f64, any::<bool>())
+            .prop_map(|(model, scale, good)| FaultKind::Reload { model, scale, good }),
     ]
 }
 
@@ -201,6 +211,7 @@ struct Campaign {
     service: Service,
     next: Arc<Mutex<Delivery>>,
     reference: Vec<Model>,
+    machine: truepos_model::Machine,
     limits: Vec<AxisConfig>,
     ranges: Vec<(f64, f64)>,
     config: ServiceConfig,
@@ -238,6 +249,7 @@ impl Campaign {
             .iter()
             .map(|t| (t.valid_min_c, t.valid_max_c))
             .collect();
+        let bound = machine.machine.clone();
         let service = Service::new(
             machine,
             entries,
@@ -249,6 +261,7 @@ impl Campaign {
             service,
             next,
             reference,
+            machine: bound,
             limits,
             ranges,
             config,
@@ -367,6 +380,57 @@ impl Campaign {
         Ok(out)
     }
 
+    /// Reloads model `m` between cycles (see [`FaultKind::Reload`]). A good reload of the model
+    /// an axis follows is a change of origin for the test's account: the blend restarts from
+    /// the output last sent, at the time of the last cycle.
+    fn reload(&mut self, m: usize, scale: f64, good: bool) -> Result<(), TestCaseError> {
+        let theta: Vec<f64> = self.reference[m]
+            .parameters()
+            .iter()
+            .map(|p| p * scale)
+            .collect();
+        let new = self.reference[m]
+            .with_parameters(&self.machine, &theta)
+            .unwrap();
+        let index = if good { [101, 102, 103] } else { [101, 102, 0] };
+        let result = self.service.replace_model(
+            m,
+            ModelEntry {
+                name: format!("reloaded {m}"),
+                model: new.clone().into(),
+                index,
+            },
+        );
+        if !good {
+            prop_assert!(
+                result.is_err(),
+                "a model for another axis combination was taken"
+            );
+            return Ok(());
+        }
+        prop_assert!(
+            result.is_ok(),
+            "a good reload was refused: {:?}",
+            result.err()
+        );
+        self.reference[m] = new;
+        let since = if self.prev_time.is_nan() {
+            0.0
+        } else {
+            self.prev_time
+        };
+        for (a, tr) in self.tracks.iter_mut().enumerate() {
+            if tr.origin == Origin::Model(m) {
+                *tr = AxisTrack {
+                    origin: tr.origin,
+                    from: self.prev_out[a],
+                    since,
+                };
+            }
+        }
+        Ok(())
+    }
+
     /// A path reported active uses a model whose inputs, as delivered, are numbers within their
     /// valid range and whose positions are usable; returns the reference compensation.
     fn check_model_inputs(&self, m: usize, t: f64) -> Result<Vec<f64>, TestCaseError> {
@@ -433,6 +497,12 @@ fn run_schedule(s: &Schedule) -> Result<(), TestCaseError> {
                     frozen[ch] = None;
                 }
             }
+            if let FaultKind::Reload { model, scale, good } = e.kind {
+                if i == e.start {
+                    c.reload(model, scale, good)?;
+                }
+                continue;
+            }
             if !active {
                 continue;
             }
@@ -476,7 +546,7 @@ fn apply_fault(e: &Episode, i: usize, temps: &[f64], frozen: &[Option<f64>], d: 
         FaultKind::PositionNan(a) => d.positions[a] = Some(f64::NAN),
         FaultKind::PositionStale => d.positions.iter_mut().for_each(|p| *p = None),
         FaultKind::AxisOut => d.path = vec![0, 1],
-        FaultKind::PreferFallback | FaultKind::Disabled => {}
+        FaultKind::PreferFallback | FaultKind::Disabled | FaultKind::Reload { .. } => {}
     }
 }
 
@@ -546,4 +616,85 @@ fn an_intermittent_nan_does_not_run_the_output_away() {
         t += 0.1;
         i += 1;
     }
+}
+
+/// Reloads at the moments that matter, on one fixed schedule: during the start-up blend, during
+/// the blend of a model switch (the fallback preferred), a refused one right after, and a
+/// reload of the model the output is blending back to; the invariant holds on every cycle.
+#[test]
+fn reloads_during_blends_keep_the_invariant() {
+    let n_t = vmc().machine.temperatures.len();
+    let episode = |start, len, kind| Episode { start, len, kind };
+    let s = Schedule {
+        cycles: 1200,
+        dt: 0.01,
+        // Every channel warms differently, so that the differences the models read move.
+        warmup: (0..n_t)
+            .map(|c| (1.0 + c as f64 * 0.4, 0.5 + c as f64 * 0.3))
+            .collect(),
+        sweep: vec![(0.2, 0.0), (0.13, 1.0), (0.07, 2.0)],
+        episodes: vec![
+            // A fifth into the start-up blend, to half the model: restarted from the output
+            // sent, the output keeps moving towards the new target; continued from zero, it
+            // would fall back, away from it.
+            episode(
+                40,
+                1,
+                FaultKind::Reload {
+                    model: 0,
+                    scale: 0.5,
+                    good: true,
+                },
+            ),
+            // Blend from model 0 to the fallback (2 s = 200 cycles) starting at cycle 300.
+            episode(300, 400, FaultKind::PreferFallback),
+            episode(
+                350,
+                1,
+                FaultKind::Reload {
+                    model: 1,
+                    scale: 1.6,
+                    good: true,
+                },
+            ),
+            episode(
+                360,
+                1,
+                FaultKind::Reload {
+                    model: 1,
+                    scale: 0.5,
+                    good: false,
+                },
+            ),
+            episode(
+                420,
+                1,
+                FaultKind::Reload {
+                    model: 0,
+                    scale: 0.4,
+                    good: true,
+                },
+            ),
+            // Back to model 0 at cycle 700, reloaded twice during that blend.
+            episode(
+                750,
+                1,
+                FaultKind::Reload {
+                    model: 0,
+                    scale: 1.7,
+                    good: true,
+                },
+            ),
+            episode(
+                760,
+                1,
+                FaultKind::Reload {
+                    model: 0,
+                    scale: 0.3,
+                    good: true,
+                },
+            ),
+        ],
+    };
+    run_schedule(&s).map_err(|e| e.to_string()).unwrap();
 }

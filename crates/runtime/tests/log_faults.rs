@@ -347,3 +347,110 @@ fn the_csv_sink_fails_steadily_on_a_full_device() {
     );
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// A probe event every `every`-th cycle beside the fixed inputs.
+struct Probing {
+    inner: Fixed,
+    every: u32,
+    count: u32,
+}
+
+impl Source for Probing {
+    fn name(&self) -> &str {
+        "probing"
+    }
+    fn read(&mut self, frame: &mut Frame) -> Result<(), LinkError> {
+        self.count += 1;
+        if self.count.is_multiple_of(self.every) {
+            let mut p = truepos_runtime::probe::ProbeInput::EMPTY;
+            p.position_mm[..3].copy_from_slice(&[100.0, 100.0, 100.0]);
+            p.deviation_um[2] = f64::from(self.count) * 1e-3;
+            p.measured[2] = true;
+            frame.probe = Some(p);
+        }
+        self.inner.read(frame)
+    }
+}
+
+/// Probe events met while the disk is full are kept and written when it resumes: every event
+/// the service saw is in the `probes` table, in order.
+#[test]
+fn probe_events_during_a_full_disk_reach_the_log_when_it_resumes() {
+    let dir = scratch("logfault-probes");
+    let db = dir.join("log.sqlite");
+    let machine = vmc();
+    let temps = Arc::new(Mutex::new(vec![21.0; machine.machine.temperatures.len()]));
+    let model = ModelEntry {
+        name: "vmc3".into(),
+        model: model_file::load(&repo("examples/vmc3/model.toml"), &machine.machine)
+            .unwrap()
+            .into(),
+        index: [101, 102, 103],
+    };
+    let source: Box<dyn Source> = Box::new(Probing {
+        inner: Fixed(temps),
+        every: 20,
+        count: 0,
+    });
+    let mut s = Service::new(
+        machine.clone(),
+        vec![model],
+        vec![source],
+        vec![],
+        ServiceConfig::default(),
+    );
+    let logger = Logger::start_with_probes(
+        LogSetup {
+            path: &db,
+            machine: &machine,
+            models: vec!["vmc3".into()],
+            sources: vec!["probing".into()],
+            sinks: vec![],
+            paths: 1,
+            commit_every: Duration::from_millis(250),
+        },
+        s.events(),
+        s.records(),
+        s.probes(),
+    )
+    .unwrap();
+    let mut t = 0.0;
+    cycle_until(&mut s, &mut t, Duration::from_millis(300), || false);
+    std::thread::sleep(Duration::from_millis(300));
+    logger.set_page_limit(page_count(&db));
+    cycle_until(&mut s, &mut t, Duration::from_secs(3), || {
+        logger.health().failing.is_some()
+    })
+    .expect("the failure shows");
+    cycle_until(&mut s, &mut t, Duration::from_millis(600), || false);
+    logger.set_page_limit(1 << 30);
+    cycle_until(&mut s, &mut t, Duration::from_secs(5), || {
+        logger.health().failing.is_none()
+    })
+    .expect("the log resumes");
+    let (result, health) = logger.stop_with_health();
+    result.unwrap();
+    assert_eq!(health.probes_dropped, 0);
+    let cycles = s.cycles();
+    let table = log::read_probes(&db).unwrap();
+    assert_eq!(
+        table.rows.len() as u64,
+        cycles / 20,
+        "every probe event is logged"
+    );
+    let dz = table
+        .columns
+        .iter()
+        .position(|c| c == "probe_dz_um")
+        .unwrap();
+    for (i, r) in table.rows.iter().enumerate() {
+        assert!(r.accepted, "{r:?}");
+        let expect = (20 * (i as u32 + 1)) as f64 * 1e-3;
+        assert!(
+            (r.values[dz].unwrap() - expect).abs() < 1e-12,
+            "row {i}: {r:?}"
+        );
+    }
+    assert_eq!(log::integrity_check(&db).unwrap(), "ok");
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -1,0 +1,341 @@
+//! `truepos fit --machine MACHINE.toml`: every family — the dynamic ones and seed A/C's
+//! position-dependent and reference-sensor forms — chosen by the same inner CV, validated by the
+//! same outer protocol, and the chosen model written in its own form (`truepos_fit::machine_fit`).
+
+use std::path::Path;
+use std::time::Instant;
+
+use crate::error::CliError;
+use crate::fit::{load, print_per_run, settings, tables, Args, Progress};
+use truepos_fit::dataset::{Dataset, Patterns};
+use truepos_fit::export::{dynamic_model_file, plausible_predictions, predictions_csv_of};
+use truepos_fit::features::candidates;
+use truepos_fit::machine_fit::{fit_machine, Chosen, MachineData, MachineOutcome};
+use truepos_fit::position_model::{reference_sensor, Family};
+use truepos_io::dynamic_model_file::axis_named_like;
+use truepos_io::model_file::ModelFile;
+use truepos_model::Machine;
+
+/// `--family` split into the dynamic families and seed A/C's; without it, all of both.
+fn families(args: &Args) -> Result<(Option<String>, Vec<Family>), CliError> {
+    let Some(list) = &args.family else {
+        return Ok((None, Family::ALL.to_vec()));
+    };
+    let (mut dynamic, mut fixed) = (Vec::new(), Vec::new());
+    for item in list.split(',').map(str::trim).filter(|s| !s.is_empty()) {
+        match item.parse::<Family>() {
+            Ok(f) => fixed.push(f),
+            Err(_) => dynamic.push(item),
+        }
+    }
+    // An empty dynamic list means "none": the parser of the dynamic families would read "" as
+    // no family at all, which is what is meant.
+    Ok((Some(dynamic.join(",")), fixed))
+}
+
+/// The default inputs of the dynamic families: the machine's measured temperature channels
+/// and operating channels that the first run holds.
+fn default_inputs(machine: &Machine, columns: &[String]) -> Patterns {
+    let ids = machine
+        .temperatures
+        .iter()
+        .filter(|t| t.lag.is_none())
+        .map(|t| &t.id)
+        .chain(machine.operating.iter().map(|o| &o.id));
+    Patterns(ids.filter(|id| columns.contains(id)).cloned().collect())
+}
+
+/// The axis of each target: `--axis`, else the axis its name implies.
+fn target_axes(args: &Args, ds: &Dataset, machine: &Machine) -> Result<Vec<usize>, CliError> {
+    let mut axes = Vec::new();
+    for t in &ds.target_names {
+        let axis = match args.axes.iter().find(|a| &a.target == t) {
+            Some(a) => machine.axis_index(&a.axis).ok_or_else(|| {
+                CliError::refused(format!(
+                    "--axis {t}={}: machine `{}` has no axis `{}`",
+                    a.axis, machine.name, a.axis
+                ))
+            })?,
+            None => axis_named_like(t, machine).ok_or_else(|| {
+                CliError::refused(format!(
+                    "target `{t}`: no axis of machine `{}` is named like it; give --axis {t}=<axis>",
+                    machine.name
+                ))
+            })?,
+        };
+        if axes.contains(&axis) {
+            return Err(CliError::refused(format!(
+                "target `{t}`: axis {} already has a target; one target per axis",
+                machine.axes[axis].name
+            )));
+        }
+        axes.push(axis);
+    }
+    Ok(axes)
+}
+
+/// `--difference-axis`: per machine difference, the axis it belongs to.
+fn owners(args: &Args, machine: &Machine) -> Result<Vec<Option<usize>>, CliError> {
+    let mut owners = vec![None; machine.differences.len()];
+    for d in &args.difference_axes {
+        let i = machine
+            .differences
+            .iter()
+            .position(|m| m.name == d.target)
+            .ok_or_else(|| {
+                let names: Vec<&str> = machine.differences.iter().map(|m| m.name.as_str()).collect();
+                CliError::refused(format!(
+                    "--difference-axis {}={}: machine `{}` has no difference `{}`; its differences are {}",
+                    d.target, d.axis, machine.name, d.target, names.join(", ")
+                ))
+            })?;
+        owners[i] = Some(machine.axis_index(&d.axis).ok_or_else(|| {
+            CliError::refused(format!(
+                "--difference-axis {}={}: machine `{}` has no axis `{}`",
+                d.target, d.axis, machine.name, d.axis
+            ))
+        })?);
+    }
+    Ok(owners)
+}
+
+/// Runs `truepos fit --machine MACHINE.toml`.
+pub fn run(mut args: Args) -> Result<(), CliError> {
+    let path = Path::new(&args.machine).to_path_buf();
+    let machine = truepos_io::machine_file::load(&path)?.machine;
+    let (dynamic, fixed) = families(&args)?;
+    args.family = dynamic;
+    let first = tables(&args)?;
+    let columns = first.first().map(|t| t.columns.clone()).unwrap_or_default();
+    let inputs = match args.inputs.clone() {
+        Some(inputs) => inputs,
+        None => {
+            // The machine says which of its channels are operating state.
+            args.operating = Patterns(machine.operating.iter().map(|o| o.id.clone()).collect());
+            default_inputs(&machine, &columns)
+        }
+    };
+    let (ds, tables) = load(&args, &inputs)?;
+    let mut settings = settings(&args, &ds)?;
+    settings.absolute_targets = true;
+    let reference = match &args.reference {
+        Some(name) => Some(
+            machine
+                .temperatures
+                .iter()
+                .position(|t| &t.id == name)
+                .ok_or_else(|| {
+                    CliError::refused(format!(
+                        "--reference {name}: not a temperature channel of machine `{}`",
+                        machine.name
+                    ))
+                })?,
+        ),
+        None => reference_sensor(&machine),
+    };
+    let positions: Option<Vec<String>> = match &args.positions {
+        Some(p) if p.0.len() != machine.axes.len() => {
+            return Err(CliError::refused(format!(
+            "--positions: expected {} columns (one per axis of machine `{}`, in its order), got {}",
+            machine.axes.len(),
+            machine.name,
+            p.0.len()
+        )))
+        }
+        Some(p) => Some(p.0.clone()),
+        None => None,
+    };
+    let axes = target_axes(&args, &ds, &machine)?;
+    let data = MachineData::from_tables(
+        &machine,
+        &tables,
+        &ds,
+        positions.as_deref(),
+        axes,
+        reference,
+    )?;
+    let mut data = data;
+    data.owners = owners(&args, &machine)?;
+    let cand = candidates(&ds, &settings.taus).map_err(|e| CliError::refused(e.to_string()))?;
+    let mut progress = Progress {
+        start: Instant::now(),
+    };
+    let outcome = fit_machine(
+        &ds,
+        &data,
+        Some(&cand),
+        args.split,
+        &settings,
+        &fixed,
+        &mut |d, t| progress.update(d, t),
+    )
+    .map_err(CliError::Refused)?;
+    let mut warnings = outcome.validation.warnings.clone();
+    if let Err(bad) = plausible_predictions(&ds, &outcome.fitted, &outcome.training_rows, true) {
+        let what: Vec<String> = bad.iter().map(ToString::to_string).collect();
+        if !args.force {
+            let out = args.model.as_ref().map_or("the model".into(), |p| {
+                format!("refusing to write {}", p.display())
+            });
+            return Err(CliError::refused(format!(
+                "{out}: {}; check the targets, or --force to write it anyway",
+                what.join("; ")
+            )));
+        }
+        warnings.extend(what.into_iter().map(|w| format!("--force: {w}")));
+    }
+    if let Some(out) = &args.model {
+        write_model(&ds, &settings, &machine, &outcome, &data.target_axes, out)?;
+    }
+    if let Some(p) = &args.predictions {
+        let csv = predictions_csv_of(&ds, &outcome.predictions, &outcome.held_out, true);
+        std::fs::write(p, csv).map_err(CliError::file(p, Some("cannot write")))?;
+    }
+    for w in &warnings {
+        eprintln!("warning: {w}");
+    }
+    let sel = &outcome.selection;
+    if args.json {
+        let report = serde_json::json!({
+            "machine": machine.name,
+            "runs": ds.runs.iter().map(|r| serde_json::json!({"name": r.name, "samples": r.len()})).collect::<Vec<_>>(),
+            "inputs": ds.input_names,
+            "targets": ds.target_names,
+            "validation": outcome.validation,
+            "selection": {
+                "form": form(&sel.chosen),
+                "chosen": sel.labels,
+                "cv_rmse_um": sel.cv_rmse_um,
+                "candidates": sel.candidates,
+            },
+            "folds": outcome.folds,
+            "warnings": warnings,
+        });
+        println!("{}", serde_json::to_string_pretty(&report)?);
+        return Ok(());
+    }
+    print_screen(&ds, &outcome);
+    Ok(())
+}
+
+fn form(chosen: &Chosen) -> &'static str {
+    match chosen {
+        Chosen::Dynamic(_) => "dynamic",
+        Chosen::Static(_) => "seed A/C",
+    }
+}
+
+fn print_screen(ds: &Dataset, outcome: &MachineOutcome) {
+    let v = &outcome.validation;
+    let sel = &outcome.selection;
+    println!("validation: {}", v.protocol_text);
+    println!(
+        "{:<12} {:>10} {:>10} {:>10} {:>10} {:>9}  chosen (inner CV on the training part)",
+        "target", "uncomp µm", "RMSE µm", "max|e| µm", "p-p µm", "reduction"
+    );
+    for (k, m) in v.metrics.iter().enumerate() {
+        println!(
+            "{:<12} {:>10.2} {:>10.2} {:>10.2} {:>10.2} {:>8.1}%  {} (CV {:.2} µm)",
+            m.target,
+            m.uncompensated_rmse_um,
+            m.rmse_um,
+            m.max_abs_um,
+            m.peak_to_peak_um,
+            m.rmse_reduction_percent,
+            sel.labels[k],
+            sel.cv_rmse_um[k]
+        );
+    }
+    println!(
+        "model written: {} form; inner-CV RMSE (µm) of every candidate on its training rows:",
+        form(&sel.chosen)
+    );
+    let mut header = format!("{:<9} {:<24} {:<32}", "form", "family", "inputs");
+    for t in &ds.target_names {
+        header += &format!(" {t:>10}");
+    }
+    println!("{header}");
+    for c in &sel.candidates {
+        let mut line = format!("{:<9} {:<24} {:<32}", c.form, c.family, c.inputs);
+        for t in &ds.target_names {
+            match c.targets.iter().find(|s| &s.target == t) {
+                Some(s) => line += &format!(" {:>10.2}", s.cv_rmse_um),
+                None => line += &format!(" {:>10}", "—"),
+            }
+        }
+        println!("{line}");
+    }
+    if ds.runs.len() > 1 {
+        print_per_run(v);
+    }
+}
+
+/// The chosen model in its own form: a seed A/C model as the model file (TOML) `eval`, `run`
+/// and the LinuxCNC component read; a dynamic model as the dynamic model file (JSON).
+fn write_model(
+    ds: &Dataset,
+    settings: &truepos_fit::settings::Settings,
+    machine: &Machine,
+    outcome: &MachineOutcome,
+    axes: &[usize],
+    out: &Path,
+) -> Result<(), CliError> {
+    let created_by = format!("truepos fit {}", env!("CARGO_PKG_VERSION"));
+    let text = match &outcome.selection.chosen {
+        Chosen::Dynamic(trained) => {
+            // Outputs name their axis explicitly: the machine fit mapped every target to one.
+            let axes: Vec<truepos_fit::export::TargetAxis> = ds
+                .target_names
+                .iter()
+                .zip(axes)
+                .map(|(t, &a)| truepos_fit::export::TargetAxis {
+                    target: t.clone(),
+                    axis: machine.axes[a].name.clone(),
+                })
+                .collect();
+            dynamic_model_file(
+                ds,
+                settings,
+                trained,
+                serde_json::to_value(&outcome.validation).unwrap_or_default(),
+                &machine.name,
+                &axes,
+                &created_by,
+            )
+            .map_err(CliError::context("--axis: "))?
+            .to_json()
+                + "\n"
+        }
+        Chosen::Static(s) => {
+            let mut file = ModelFile::from_model(&s.model, machine);
+            file.description = format!(
+                "fitted by `truepos fit --machine` on {}",
+                ds.runs
+                    .iter()
+                    .map(|r| r.name.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            );
+            file.provenance.insert("tool".into(), created_by.into());
+            file.provenance.insert(
+                "validation".into(),
+                outcome.validation.protocol_text.clone().into(),
+            );
+            for (k, (family, inputs, fitted)) in s.choices.iter().enumerate() {
+                let t = &ds.target_names[k];
+                file.provenance.insert(
+                    format!("{t}_family"),
+                    format!("{} ({})", family.key(), family.name()).into(),
+                );
+                file.provenance
+                    .insert(format!("{t}_inputs"), (*inputs).into());
+                file.provenance
+                    .insert(format!("{t}_ridge"), fitted.ridge.into());
+                file.provenance
+                    .insert(format!("{t}_inner_cv_rmse_um"), fitted.score_um.into());
+            }
+            file.to_toml()
+        }
+    };
+    std::fs::write(out, text).map_err(CliError::file(out, Some("cannot write")))
+}

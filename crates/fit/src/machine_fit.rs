@@ -1,0 +1,659 @@
+//! Every model family of a machine in one selection: the dynamic families over the dataset's
+//! columns ([`crate::train`]) and, next to them, seed A's position-dependent families and seed
+//! C's reference-sensor form ([`crate::position_model`]) over the machine's temperature
+//! channels, differences, lags and axis positions — each scored by the same inner
+//! cross-validation inside the training rows (the same contiguous blocks, blocked or rolling,
+//! the same ridge candidates and rule), and validated by the same outer protocol
+//! ([`crate::validate::Split`]). The chosen model is of one form: a fitted dynamic model, or a
+//! seed A/C [`Model`] for the model file `truepos_io::model_file` writes.
+//!
+//! Within seed A/C's form each target axis gets its own family, input set and ridge (an axis'
+//! summands never touch another axis' coefficients, so the choices are independent and one
+//! [`Model`] holds them all). The form is chosen by the pooled inner-CV RMSE over the targets.
+
+use truepos_io::run::Table;
+use truepos_io::InputError;
+use truepos_model::{CycleInput, LagSource, Machine, Model, Part, Reference};
+
+use crate::dataset::Dataset;
+use crate::features::Candidates;
+use crate::position_model::{
+    family_differences, fit_blocks, input_sets, structure_owned, CvOptions, Family, Fitted,
+    Observation,
+};
+use crate::settings::{InnerCv, Settings, ROLLING_FIRST_HELD_OUT};
+use crate::train::{train, Trained};
+use crate::validate::{
+    all_rows, per_run, predict, worse_than_uncompensated, Metrics, Predictions, Split, Validation,
+};
+
+/// What the control knew at every row of one run, in the machine's channel order.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MachineRun {
+    /// Temperatures, one per machine channel, lagged channels computed (NaN where the run has
+    /// no column).
+    pub temperatures_c: Vec<Vec<f64>>,
+    /// The axis positions at which the targets were measured.
+    pub positions: Vec<Vec<f64>>,
+    /// Operating state (NaN where the run has no column).
+    pub operating: Vec<Vec<f64>>,
+}
+
+/// The runs of a [`Dataset`] as the machine sees them, and which axis each target is the error
+/// of.
+#[derive(Debug, Clone)]
+pub struct MachineData {
+    /// The machine.
+    pub machine: Machine,
+    /// One per run of the dataset, row for row.
+    pub runs: Vec<MachineRun>,
+    /// Per dataset target, the machine axis whose error it is.
+    pub target_axes: Vec<usize>,
+    /// Seed C's reference sensor ([`crate::position_model::reference_sensor`] or a given one).
+    pub reference: Option<usize>,
+    /// The machine's differences every run holds the channels of.
+    pub differences: Vec<usize>,
+    /// Per machine difference, the axis whose part it measures, if known (seed A's
+    /// embodiments 1 and 4 need it; without any, those families are no candidates).
+    pub owners: Vec<Option<usize>>,
+}
+
+impl MachineData {
+    /// The machine's channels of every table (the dataset's runs, in order): its measured
+    /// temperature channels and operating channels by id, the lagged channels computed from
+    /// them (`truepos_io::cycles`), and the positions from `positions` (one column per axis,
+    /// e.g. a probe's coordinates) or else the machine's own position columns (`X_mm`, …).
+    /// A channel a table lacks reads NaN, and the differences that read it are left out.
+    pub fn from_tables(
+        machine: &Machine,
+        tables: &[Table],
+        dataset: &Dataset,
+        positions: Option<&[String]>,
+        target_axes: Vec<usize>,
+        reference: Option<usize>,
+    ) -> Result<Self, InputError> {
+        let position_names: Vec<String> = match positions {
+            Some(p) => p.to_vec(),
+            None => machine.axes.iter().map(|a| a.position_column()).collect(),
+        };
+        let measured: Vec<usize> = (0..machine.temperatures.len())
+            .filter(|&c| machine.temperatures[c].lag.is_none())
+            .collect();
+        let ids: Vec<String> = measured
+            .iter()
+            .map(|&c| machine.temperatures[c].id.clone())
+            .collect();
+        let mut present_t = vec![true; machine.temperatures.len()];
+        let mut present_o = vec![true; machine.operating.len()];
+        let mut runs = Vec::new();
+        for (t, run) in tables.iter().zip(&dataset.runs) {
+            let column = |name: &str| t.columns.iter().position(|c| c == name);
+            let read = |name: &str, present: &mut bool| -> Result<Vec<f64>, InputError> {
+                match column(name) {
+                    Some(c) => t.numbers(c),
+                    None => {
+                        *present = false;
+                        Ok(vec![f64::NAN; t.rows()])
+                    }
+                }
+            };
+            let mut pos_cols = Vec::new();
+            for name in &position_names {
+                pos_cols.push(t.numbers(t.select(&[name])?[0])?);
+            }
+            let mut temp_cols = Vec::new();
+            for &c in &measured {
+                temp_cols.push(read(&machine.temperatures[c].id, &mut present_t[c])?);
+            }
+            let mut op_cols = Vec::new();
+            for (o, present) in machine.operating.iter().zip(present_o.iter_mut()) {
+                op_cols.push(read(&o.id, present)?);
+            }
+            let rows = t.rows();
+            let by_row = |cols: &[Vec<f64>]| -> Vec<Vec<f64>> {
+                (0..rows)
+                    .map(|i| cols.iter().map(|c| c[i]).collect())
+                    .collect()
+            };
+            let operating = by_row(&op_cols);
+            let temp_rows = by_row(&temp_cols);
+            let temperatures_c = truepos_io::cycles::machine_temperatures(
+                machine,
+                &ids,
+                &run.time_s,
+                temp_rows.iter().map(Vec::as_slice),
+                &operating,
+            );
+            runs.push(MachineRun {
+                temperatures_c,
+                positions: by_row(&pos_cols),
+                operating,
+            });
+        }
+        // A lagged channel is there when its source is.
+        for c in 0..machine.temperatures.len() {
+            if let Some(lag) = machine.temperatures[c].lag {
+                present_t[c] = match lag.source {
+                    LagSource::Temperature(s) => present_t[s],
+                    LagSource::Operating { channel, .. } => present_o[channel],
+                };
+            }
+        }
+        let differences = (0..machine.differences.len())
+            .filter(|&d| {
+                let diff = &machine.differences[d];
+                present_t[diff.plus]
+                    && match diff.minus {
+                        Reference::Sensor(m) => present_t[m],
+                        Reference::Fixed(_) => true,
+                    }
+            })
+            .collect();
+        Ok(Self {
+            machine: machine.clone(),
+            runs,
+            target_axes,
+            reference,
+            differences,
+            owners: Vec::new(),
+        })
+    }
+
+    fn input(&self, r: usize, i: usize) -> CycleInput<'_> {
+        let run = &self.runs[r];
+        CycleInput {
+            temperatures_c: &run.temperatures_c[i],
+            positions: &run.positions[i],
+            operating: &run.operating[i],
+        }
+    }
+}
+
+/// The inner-CV figure of one candidate for one target.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct TargetScore {
+    /// The target.
+    pub target: String,
+    /// Inner-CV RMSE, µm (of the ridge chosen for a seed A/C candidate; the lowest over the
+    /// ridges for a dynamic family).
+    pub cv_rmse_um: f64,
+    /// That ridge.
+    pub ridge: f64,
+}
+
+/// One candidate of the selection and its inner-CV figures.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct CandidateFigures {
+    /// `dynamic` or `seed A/C`.
+    pub form: &'static str,
+    /// The family's name on the command line.
+    pub family: String,
+    /// The inputs it read.
+    pub inputs: String,
+    /// Per target.
+    pub targets: Vec<TargetScore>,
+}
+
+/// A seed A/C model and what was chosen for each target.
+#[derive(Debug, Clone)]
+pub struct StaticModel {
+    /// The model, every target axis' summands in it.
+    pub model: Model,
+    /// Per target: (family, input set label, fitted candidate).
+    pub choices: Vec<(Family, &'static str, Fitted)>,
+}
+
+/// The model the selection chose: one form.
+#[derive(Debug, Clone)]
+pub enum Chosen {
+    /// A fitted dynamic model.
+    Dynamic(Trained),
+    /// A seed A/C model.
+    Static(StaticModel),
+}
+
+/// The selection on one training part.
+#[derive(Debug, Clone)]
+pub struct Selection {
+    /// The model.
+    pub chosen: Chosen,
+    /// Every candidate with its inner-CV figures.
+    pub candidates: Vec<CandidateFigures>,
+    /// Per target, what was chosen, in words (`all-axes-squared on + lagged sensors, λ=1e-3`).
+    pub labels: Vec<String>,
+    /// Per target, the inner-CV RMSE of what was chosen, µm.
+    pub cv_rmse_um: Vec<f64>,
+    /// Solver warnings.
+    pub warnings: Vec<String>,
+}
+
+/// The contiguous blocks of the inner CV over `rows`, as `train` cuts them.
+fn blocks(rows: &[(usize, usize)], folds: usize, inner: InnerCv) -> Vec<&[(usize, usize)]> {
+    let min = match inner {
+        InnerCv::Blocked => 2,
+        InnerCv::Rolling => ROLLING_FIRST_HELD_OUT + 1,
+    };
+    let k = folds.clamp(min, rows.len().max(min));
+    (0..k)
+        .map(|b| &rows[b * rows.len() / k..(b + 1) * rows.len() / k])
+        .collect()
+}
+
+fn pooled(scores: &[f64]) -> f64 {
+    (scores.iter().map(|s| s * s).sum::<f64>() / scores.len().max(1) as f64).sqrt()
+}
+
+/// Seed A/C's candidates on `rows`: every family on every input set, per target; the best per
+/// target, assembled into one model. `None` when no candidate can be fitted.
+fn static_selection(
+    ds: &Dataset,
+    data: &MachineData,
+    targets: &[Vec<Vec<f64>>],
+    rows: &[(usize, usize)],
+    settings: &Settings,
+    families: &[Family],
+    candidates: &mut Vec<CandidateFigures>,
+) -> Result<Option<StaticModel>, String> {
+    let machine = &data.machine;
+    let nt = ds.target_names.len();
+    let blocks = blocks(rows, settings.folds, settings.inner);
+    let options = CvOptions {
+        inner: settings.inner,
+        ridges: &settings.ridges,
+        rule: settings.rule,
+    };
+    let sets: Vec<_> = input_sets(machine)
+        .into_iter()
+        .map(|mut s| {
+            s.differences.retain(|d| data.differences.contains(d));
+            s
+        })
+        .filter(|s| !s.differences.is_empty())
+        .collect();
+    let mut best: Vec<Option<(Family, &'static str, Fitted)>> = vec![None; nt];
+    for &family in families {
+        let owned = data.owners.iter().any(Option::is_some);
+        if matches!(family, Family::OwnAxis | Family::Serial) && !owned {
+            continue;
+        }
+        let mut seen: Vec<Vec<usize>> = Vec::new();
+        for set in &sets {
+            let diffs = family_differences(machine, family, &set.differences, data.reference);
+            // Seed C's form reads only sensor-minus-reference differences: two input sets
+            // can leave it the same, and an empty one is no candidate.
+            if diffs.is_empty() || seen.contains(&diffs) {
+                continue;
+            }
+            seen.push(diffs.clone());
+            let mut scores = Vec::new();
+            for k in 0..nt {
+                let axis = data.target_axes[k];
+                let s =
+                    structure_owned("fit", machine, family, &diffs, &[axis], true, &data.owners)
+                        .map_err(|e| e.to_string())?;
+                let obs: Vec<Vec<Observation<'_>>> = blocks
+                    .iter()
+                    .map(|b| {
+                        b.iter()
+                            .map(|&(r, i)| Observation {
+                                input: data.input(r, i),
+                                axis,
+                                error_um: targets[r][k][i],
+                            })
+                            .collect()
+                    })
+                    .collect();
+                let Ok(fitted) = fit_blocks(&s, machine, &obs, &options) else {
+                    continue;
+                };
+                scores.push(TargetScore {
+                    target: ds.target_names[k].clone(),
+                    cv_rmse_um: fitted.score_um,
+                    ridge: fitted.ridge,
+                });
+                if best[k]
+                    .as_ref()
+                    .is_none_or(|b| fitted.score_um < b.2.score_um)
+                {
+                    best[k] = Some((family, set.label, fitted));
+                }
+            }
+            candidates.push(CandidateFigures {
+                form: "seed A/C",
+                family: family.key().into(),
+                inputs: set.label.into(),
+                targets: scores,
+            });
+        }
+    }
+    let Some(choices) = best.into_iter().collect::<Option<Vec<_>>>() else {
+        return Ok(None);
+    };
+    // One model: every target's parts, named by their axis so that they stay apart.
+    let mut parts: Vec<Part> = Vec::new();
+    for (k, (_, _, fitted)) in choices.iter().enumerate() {
+        let axis = &machine.axes[data.target_axes[k]].name;
+        for p in fitted.model.parts() {
+            let mut p = p.clone();
+            if p.name == "thermal" {
+                p.name = format!("thermal-{axis}");
+            }
+            parts.push(p);
+        }
+    }
+    let model = Model::new(format!("{}-fit", machine.name), machine, parts)
+        .map_err(|e| format!("the chosen seed A/C model: {e}"))?;
+    Ok(Some(StaticModel { model, choices }))
+}
+
+/// Chooses among every family on the training `rows` by inner CV and fits the choice on them:
+/// the dynamic `settings.families` (none when empty or without `cand`, their candidate
+/// features) and the seed A/C `families`.
+pub fn select(
+    ds: &Dataset,
+    data: &MachineData,
+    cand: Option<&Candidates>,
+    rows: &[(usize, usize)],
+    settings: &Settings,
+    families: &[Family],
+) -> Result<Selection, String> {
+    if rows.len() < 4 * settings.folds.max(2) {
+        return Err(format!(
+            "only {} training samples: too few for {}-fold cross-validation",
+            rows.len(),
+            settings.folds
+        ));
+    }
+    let nt = ds.target_names.len();
+    let targets: Vec<Vec<Vec<f64>>> = ds
+        .runs
+        .iter()
+        .map(|r| {
+            (0..nt)
+                .map(|k| r.target(k, settings.absolute_targets))
+                .collect()
+        })
+        .collect();
+    let mut candidates = Vec::new();
+    let dynamic = if let Some(cand) = cand.filter(|_| !settings.families.is_empty()) {
+        let trained = train(ds, cand, rows, settings)?;
+        for s in &trained.scores {
+            candidates.push(CandidateFigures {
+                form: "dynamic",
+                family: s.family.name().into(),
+                inputs: "dataset inputs".into(),
+                targets: s
+                    .per_target
+                    .iter()
+                    .zip(&ds.target_names)
+                    .map(|(&(cv_rmse_um, ridge), t)| TargetScore {
+                        target: t.clone(),
+                        cv_rmse_um,
+                        ridge,
+                    })
+                    .collect(),
+            });
+        }
+        Some(trained)
+    } else {
+        None
+    };
+    let fixed = static_selection(
+        ds,
+        data,
+        &targets,
+        rows,
+        settings,
+        families,
+        &mut candidates,
+    )?;
+    let dynamic_score = dynamic
+        .as_ref()
+        .map(|t| pooled(&t.choices.iter().map(|c| c.cv_rmse_um).collect::<Vec<_>>()));
+    let static_score = fixed
+        .as_ref()
+        .map(|s| pooled(&s.choices.iter().map(|c| c.2.score_um).collect::<Vec<_>>()));
+    let take_static = match (dynamic_score, static_score) {
+        (Some(d), Some(s)) => s <= d,
+        (None, Some(_)) => true,
+        (Some(_), None) => false,
+        (None, None) => return Err("no candidate family could be fitted".into()),
+    };
+    let (chosen, labels, cv_rmse_um, warnings) = match (take_static, dynamic, fixed) {
+        (true, _, Some(s)) => {
+            let labels = s
+                .choices
+                .iter()
+                .map(|(f, inputs, fitted)| format!("{} on {inputs}, λ={:e}", f.key(), fitted.ridge))
+                .collect();
+            let cv = s.choices.iter().map(|c| c.2.score_um).collect();
+            let warnings = s
+                .choices
+                .iter()
+                .zip(&ds.target_names)
+                .filter(|(c, _)| c.2.skipped > 0)
+                .map(|(c, t)| {
+                    format!(
+                        "{t}: {} of {} training samples left out of the seed A/C fit (an input invalid or outside its range)",
+                        c.2.skipped,
+                        c.2.skipped + c.2.observations
+                    )
+                })
+                .collect();
+            (Chosen::Static(s), labels, cv, warnings)
+        }
+        (_, Some(t), _) => {
+            let labels = t
+                .choices
+                .iter()
+                .map(|c| format!("{} λ={:e}", c.family.name(), c.ridge))
+                .collect();
+            let cv = t.choices.iter().map(|c| c.cv_rmse_um).collect();
+            let warnings = t.warnings.clone();
+            (Chosen::Dynamic(t), labels, cv, warnings)
+        }
+        _ => return Err("internal: no chosen form".into()),
+    };
+    Ok(Selection {
+        chosen,
+        candidates,
+        labels,
+        cv_rmse_um,
+        warnings,
+    })
+}
+
+/// The predictions of a chosen model over every row of every run: a dynamic model stepped
+/// through each run, a seed A/C model evaluated at each row (NaN where it refuses an input).
+pub fn predict_chosen(
+    ds: &Dataset,
+    data: &MachineData,
+    chosen: &Chosen,
+) -> Result<Predictions, String> {
+    match chosen {
+        Chosen::Dynamic(t) => predict(ds, t),
+        Chosen::Static(s) => Ok(ds
+            .runs
+            .iter()
+            .enumerate()
+            .map(|(r, run)| {
+                let rows: Vec<Option<Vec<f64>>> = (0..run.len())
+                    .map(|i| {
+                        s.model
+                            .evaluate(&data.input(r, i))
+                            .ok()
+                            .map(|c| c.error_um().to_vec())
+                    })
+                    .collect();
+                data.target_axes
+                    .iter()
+                    .map(|&a| {
+                        rows.iter()
+                            .map(|e| e.as_ref().map_or(f64::NAN, |e| e[a]))
+                            .collect()
+                    })
+                    .collect()
+            })
+            .collect()),
+    }
+}
+
+/// What one outer fold chose.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct FoldSelection {
+    /// Every candidate's inner-CV figures.
+    pub candidates: Vec<CandidateFigures>,
+    /// Per target, what was chosen.
+    pub chosen: Vec<String>,
+    /// Per target, its inner-CV RMSE, µm.
+    pub cv_rmse_um: Vec<f64>,
+}
+
+/// A fit over every family: figures, the model to write, and the predictions behind them.
+#[derive(Debug, Clone)]
+pub struct MachineOutcome {
+    /// Figures pooled over the outer folds, and per run (`choices` holds a fold's dynamic
+    /// choices when it chose the dynamic form).
+    pub validation: Validation,
+    /// What each outer fold chose, with every candidate's inner figures.
+    pub folds: Vec<FoldSelection>,
+    /// The model to write (as [`crate::validate::Outcome::trained`]) and its selection.
+    pub selection: Selection,
+    /// Out-of-fold predictions (as [`crate::validate::Outcome::predictions`]).
+    pub predictions: Predictions,
+    /// Per run and row, whether a fold held it out.
+    pub held_out: Vec<Vec<bool>>,
+    /// The final model's predictions over every row.
+    pub fitted: Predictions,
+    /// The rows the final model was fitted on.
+    pub training_rows: Vec<(usize, usize)>,
+}
+
+fn figures(target: &str, measured: &[f64], predicted: &[f64]) -> (Metrics, usize) {
+    let (m, p): (Vec<f64>, Vec<f64>) = measured
+        .iter()
+        .zip(predicted)
+        .filter(|(_, p)| p.is_finite())
+        .map(|(m, p)| (*m, *p))
+        .unzip();
+    (Metrics::new(target, &m, &p), measured.len() - m.len())
+}
+
+/// The outer protocol over [`select`]: for each fold, select and fit on its training rows,
+/// predict its test rows; the model to write as [`crate::validate::outcome`] says.
+pub fn fit_machine(
+    ds: &Dataset,
+    data: &MachineData,
+    cand: Option<&Candidates>,
+    split: Split,
+    settings: &Settings,
+    families: &[Family],
+    progress: &mut dyn FnMut(usize, usize),
+) -> Result<MachineOutcome, String> {
+    let folds = split.folds(ds)?;
+    let nt = ds.target_names.len();
+    let rel: Vec<Vec<Vec<f64>>> = ds
+        .runs
+        .iter()
+        .map(|r| {
+            (0..nt)
+                .map(|k| r.target(k, settings.absolute_targets))
+                .collect()
+        })
+        .collect();
+    let mut measured = vec![Vec::new(); nt];
+    let mut predicted = vec![Vec::new(); nt];
+    let mut oof: Predictions = ds
+        .runs
+        .iter()
+        .map(|r| vec![vec![f64::NAN; r.len()]; nt])
+        .collect();
+    let mut fold_of: Vec<Vec<Option<usize>>> =
+        ds.runs.iter().map(|r| vec![None; r.len()]).collect();
+    let mut fold_selections = Vec::new();
+    let mut chosen_names = Vec::new();
+    let mut choices = Vec::new();
+    let mut warnings = Vec::new();
+    let mut last = None;
+    for (f, (tr, te)) in folds.iter().enumerate() {
+        progress(f, folds.len());
+        if te.is_empty() {
+            return Err(format!("fold {}: no test rows", f + 1));
+        }
+        let sel = select(ds, data, cand, tr, settings, families)?;
+        let pred = predict_chosen(ds, data, &sel.chosen)?;
+        for &(r, i) in te {
+            fold_of[r][i] = Some(f);
+            for k in 0..nt {
+                measured[k].push(rel[r][k][i]);
+                predicted[k].push(pred[r][k][i]);
+                oof[r][k][i] = pred[r][k][i];
+            }
+        }
+        choices.push(match &sel.chosen {
+            Chosen::Dynamic(t) => t.choices.clone(),
+            Chosen::Static(_) => Vec::new(),
+        });
+        chosen_names.push(sel.labels.clone());
+        fold_selections.push(FoldSelection {
+            candidates: sel.candidates.clone(),
+            chosen: sel.labels.clone(),
+            cv_rmse_um: sel.cv_rmse_um.clone(),
+        });
+        warnings.extend(sel.warnings.iter().cloned());
+        last = Some((sel, pred, tr.clone()));
+    }
+    progress(folds.len(), folds.len());
+    let mut metrics = Vec::new();
+    for k in 0..nt {
+        let (m, failed) = figures(&ds.target_names[k], &measured[k], &predicted[k]);
+        if failed > 0 {
+            warnings.push(format!(
+                "{}: {failed} held-out samples could not be predicted (an input invalid or outside its range) and are not in the figures",
+                ds.target_names[k]
+            ));
+        }
+        metrics.push(m);
+    }
+    let (mut selection, mut fitted, mut training_rows) = last.ok_or("no folds")?;
+    if fold_of.iter().flatten().all(Option::is_some) {
+        let all = all_rows(ds);
+        selection = select(ds, data, cand, &all, settings, families)?;
+        fitted = predict_chosen(ds, data, &selection.chosen)?;
+        training_rows = all;
+    }
+    for (r, run) in oof.iter_mut().enumerate() {
+        for (k, col) in run.iter_mut().enumerate() {
+            for (i, v) in col.iter_mut().enumerate() {
+                if fold_of[r][i].is_none() {
+                    *v = fitted[r][k][i];
+                }
+            }
+        }
+    }
+    let per_run = per_run(ds, &rel, &oof, &fold_of, &chosen_names);
+    warnings.extend(worse_than_uncompensated(&per_run));
+    Ok(MachineOutcome {
+        validation: Validation {
+            protocol: split,
+            protocol_text: format!(
+                "{split}; selection among every family (dynamic and seed A/C) inside each training part: {}",
+                settings.describe_selection()
+            ),
+            metrics,
+            per_run,
+            choices,
+            sensors: Vec::new(),
+            warnings,
+        },
+        folds: fold_selections,
+        selection,
+        predictions: oof,
+        held_out: fold_of
+            .iter()
+            .map(|run| run.iter().map(Option::is_some).collect())
+            .collect(),
+        fitted,
+        training_rows,
+    })
+}

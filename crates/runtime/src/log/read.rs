@@ -1,0 +1,109 @@
+//! Reading a log back (also while the service writes it): events, the service's meta, the
+//! cycles, SQLite's own consistency check.
+
+use std::path::Path;
+
+use rusqlite::Connection;
+
+use super::{err, LogError};
+
+/// One logged event.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct LoggedEvent {
+    /// Service time in s.
+    pub time_s: f64,
+    /// Kind (`sensor-fault`, `model-selected`, …).
+    pub kind: String,
+    /// What it concerns (a sensor id, an axis, a path).
+    pub subject: String,
+    /// Details.
+    pub detail: String,
+}
+
+pub(crate) fn open_read(path: &Path) -> Result<Connection, LogError> {
+    if !path.exists() {
+        return Err(LogError {
+            file: path.to_path_buf(),
+            message: "no such log".into(),
+        });
+    }
+    Connection::open_with_flags(path, rusqlite::OpenFlags::SQLITE_OPEN_READ_ONLY).map_err(err(path))
+}
+
+/// Reads the events of a log (also while the service writes it).
+pub fn read_events(path: &Path) -> Result<Vec<LoggedEvent>, LogError> {
+    let conn = open_read(path)?;
+    let mut st = conn
+        .prepare("SELECT time_s, kind, subject, detail FROM events ORDER BY rowid")
+        .map_err(err(path))?;
+    let rows = st
+        .query_map([], |r| {
+            Ok(LoggedEvent {
+                time_s: r.get::<_, Option<f64>>(0)?.unwrap_or(f64::NAN),
+                kind: r.get(1)?,
+                subject: r.get(2)?,
+                detail: r.get(3)?,
+            })
+        })
+        .map_err(err(path))?;
+    rows.collect::<Result<Vec<_>, _>>().map_err(err(path))
+}
+
+/// The `meta` a service wrote at start (machine, axes, sensors, models, sources, sinks), or
+/// `None` for a log without one.
+pub fn read_meta(path: &Path) -> Result<Option<serde_json::Value>, LogError> {
+    let conn = open_read(path)?;
+    let text: Option<String> = conn
+        .query_row("SELECT value FROM meta WHERE key = 'service'", [], |r| {
+            r.get(0)
+        })
+        .ok();
+    Ok(text.and_then(|t| serde_json::from_str(&t).ok()))
+}
+
+/// The cycles of a log as (column names, rows); NULL becomes NaN, the state column its text.
+pub type CycleTable = (Vec<String>, Vec<Vec<String>>);
+
+/// Reads the `cycles` table (optionally only the last `last` rows) as text cells.
+pub fn read_cycles(path: &Path, last: Option<usize>) -> Result<CycleTable, LogError> {
+    let conn = open_read(path)?;
+    let sql = match last {
+        Some(n) => format!(
+            "SELECT * FROM (SELECT rowid AS r, * FROM cycles ORDER BY rowid DESC LIMIT {n}) ORDER BY r"
+        ),
+        None => "SELECT 0 AS r, * FROM cycles ORDER BY rowid".to_string(),
+    };
+    let mut st = conn.prepare(&sql).map_err(err(path))?;
+    let names: Vec<String> = st
+        .column_names()
+        .iter()
+        .skip(1)
+        .map(|s| s.to_string())
+        .collect();
+    let width = names.len();
+    let rows = st
+        .query_map([], |r| {
+            (1..=width)
+                .map(|i| {
+                    let v: rusqlite::types::Value = r.get(i)?;
+                    Ok(match v {
+                        rusqlite::types::Value::Null => String::new(),
+                        rusqlite::types::Value::Integer(i) => i.to_string(),
+                        rusqlite::types::Value::Real(f) => f.to_string(),
+                        rusqlite::types::Value::Text(t) => t,
+                        rusqlite::types::Value::Blob(_) => String::new(),
+                    })
+                })
+                .collect::<Result<Vec<_>, _>>()
+        })
+        .map_err(err(path))?;
+    let rows = rows.collect::<Result<Vec<_>, _>>().map_err(err(path))?;
+    Ok((names, rows))
+}
+
+/// Runs SQLite's own consistency check; `Ok("ok")` for a sound file.
+pub fn integrity_check(path: &Path) -> Result<String, LogError> {
+    let conn = open_read(path)?;
+    conn.query_row("PRAGMA integrity_check", [], |r| r.get(0))
+        .map_err(err(path))
+}
