@@ -81,6 +81,43 @@ fn every_writer_reads_back_the_same_table() {
     ]);
     assert!(!ok);
     assert!(err.contains("no table reads axis AX2"), "{err}");
+    // A cross table (reads AX1, corrects AX3) is AX3's correction, not AX1's own error:
+    // refused unless --siemens-output-axis says the values go to AX3.
+    let cross = d.join("cross.ini");
+    let (ok, _, err) = truepos(&[
+        "kin",
+        "table",
+        "--input",
+        s(&csv),
+        "--from",
+        "csv",
+        "--to",
+        "siemens-cec",
+        "--siemens-axis",
+        "AX1",
+        "--siemens-output-axis",
+        "AX3",
+        "--out",
+        s(&cross),
+    ]);
+    assert!(ok, "{err}");
+    let read = |extra: &[&str]| {
+        let mut args = vec!["kin", "table", "--input", s(&cross), "--from", "siemens"];
+        args.extend_from_slice(extra);
+        args.extend_from_slice(&["--eval", s(&points)]);
+        truepos(&args)
+    };
+    let (ok, _, err) = read(&["--siemens-axis", "AX1"]);
+    assert!(!ok, "applied to AX1");
+    assert!(
+        err.contains("cross.ini:3:1") && err.contains("output axis AX3 (_OUTPUT_AXIS), not AX1"),
+        "{err}"
+    );
+    let (ok, _, err) = read(&[]);
+    assert!(!ok && err.contains("not AX1"), "{err}");
+    let (ok, out, err) = read(&["--siemens-axis", "AX1", "--siemens-output-axis", "AX3"]);
+    assert!(ok, "{err}");
+    assert_eq!(out.lines().count(), EVAL.lines().count());
     // One direction fits $AA_ENC_COMP; read back by its axis.
     let one = d.join("one.csv");
     std::fs::write(&one, "position,value\n0,1\n50,-1\n100,4\n").unwrap();

@@ -62,8 +62,8 @@ pub struct TableArgs {
     /// axis (`_INPUT_AXIS` of a CEC table); writing: the axis of the table (required).
     #[arg(long)]
     siemens_axis: Option<String>,
-    /// Siemens CEC writing: the axis the value corrects (`_OUTPUT_AXIS`; default
-    /// `--siemens-axis`).
+    /// Siemens CEC: the axis the values correct (`_OUTPUT_AXIS`; default `--siemens-axis`).
+    /// Reading, a CEC table correcting another axis is refused.
     #[arg(long)]
     siemens_output_axis: Option<String>,
     /// Siemens: reading, the number of the `$AN_CEC` table to use; writing, the (first) table
@@ -121,14 +121,15 @@ fn read(a: &TableArgs) -> Result<CompTable, CliError> {
     } else {
         Interpolation::Linear
     };
-    let siemens_only = a.siemens_table.is_some() || a.siemens_axis.is_some();
+    let siemens_only =
+        a.siemens_table.is_some() || a.siemens_axis.is_some() || a.siemens_output_axis.is_some();
     if a.from != From::Siemens
         && siemens_only
         && a.to
             .is_none_or(|t| !matches!(t, To::SiemensCec | To::SiemensEnc))
     {
         return Err(CliError::refused(
-            "--siemens-axis and --siemens-table are for Siemens tables (--from siemens or --to siemens-…)",
+            "--siemens-axis, --siemens-output-axis and --siemens-table are for Siemens tables (--from siemens or --to siemens-…)",
         ));
     }
     Ok(match a.from {
@@ -146,10 +147,15 @@ fn read(a: &TableArgs) -> Result<CompTable, CliError> {
         }
         From::Siemens => {
             let all = parse_siemens(path, &text, None)?;
+            let output = a
+                .siemens_output_axis
+                .as_deref()
+                .or(a.siemens_axis.as_deref());
             select_siemens(
                 path,
                 &all,
                 a.siemens_axis.as_deref(),
+                output,
                 a.siemens_table,
                 interp,
             )?
