@@ -1,7 +1,7 @@
 //! `truepos export`: a model's state at one moment of a run, projected onto a control's own
 //! compensation form and written as the file that sets it (see docs/controls.md).
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use truepos_controls::heidenhain::{offset_9231, tempcomp, PlcWord};
 use truepos_controls::projection::{project, AxisProjection, Form};
@@ -189,17 +189,6 @@ fn positions_now(machine: &Machine, run: &Cycles, k: usize) -> Vec<f64> {
         .collect()
 }
 
-pub(crate) fn write_whole(path: &Path, text: &str) -> Result<(), CliError> {
-    let mut tmp = path.as_os_str().to_owned();
-    tmp.push(".partial");
-    let tmp = PathBuf::from(tmp);
-    std::fs::write(&tmp, text).map_err(CliError::file(&tmp, Some("cannot write")))?;
-    std::fs::rename(&tmp, path).map_err(|e| {
-        let _ = std::fs::remove_file(&tmp);
-        CliError::file(path, Some("cannot write"))(e)
-    })
-}
-
 pub fn run(args: Args) -> Result<(), CliError> {
     let machine = machine_file::load(&args.machine)?.machine;
     let mut model = Evaluator::load(&args.model, &machine)?;
@@ -275,7 +264,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
             &header,
         )?,
     };
-    write_whole(&args.out, &text)?;
+    crate::write::write_whole(&args.out, &text)?;
     if args.json {
         let v = serde_json::json!({"to": format!("{:?}", args.to), "at_s": cycles.time_s[k], "axes": axes_json, "out": args.out.display().to_string()});
         println!("{v}");

@@ -236,3 +236,91 @@ fn a_table_the_format_cannot_hold_leaves_no_file() {
     );
     let _ = std::fs::remove_dir_all(&d);
 }
+
+#[test]
+fn heidenhain_com_and_cma_are_written_together_and_read_back() {
+    let d = scratch("kin-table-heidenhain");
+    let (one, points) = (d.join("one.csv"), d.join("eval.csv"));
+    std::fs::write(&one, "position,value\n-90,1\n10,-1.5\n110,4\n300,0.25\n").unwrap();
+    std::fs::write(&points, EVAL).unwrap();
+    let want = eval(s(&one), "csv", &[], s(&points));
+    // Y's sag of Z: the .COM's column is Z, the .CMA enters it in column Y.
+    let com = d.join("Y.COM");
+    let (ok, _, err) = truepos(&[
+        "kin",
+        "table",
+        "--input",
+        s(&one),
+        "--from",
+        "csv",
+        "--to",
+        "heidenhain-com",
+        "--heidenhain-axis",
+        "Y",
+        "--heidenhain-output-axis",
+        "Z",
+        "--out",
+        s(&com),
+    ]);
+    assert!(ok, "{err}");
+    let cma = std::fs::read_to_string(d.join("Y.CMA")).unwrap();
+    assert!(
+        cma.starts_with("BEGIN Y.CMA\nNR  Y      ACTIVE\n0   Y.COM  *\n[END]"),
+        "{cma}"
+    );
+    let text = std::fs::read_to_string(&com).unwrap();
+    assert!(
+        text.starts_with("BEGIN Y.COM MM\nNR  AXISPOS  Z\n0   -90      0.001\n"),
+        "{text}"
+    );
+    // Read through the .CMA (Y's table, column Z) and from the .COM itself: the same values.
+    let via_cma = eval(
+        s(&d.join("Y.CMA")),
+        "heidenhain",
+        &["--heidenhain-axis", "Y", "--heidenhain-output-axis", "Z"],
+        s(&points),
+    );
+    let via_com = eval(s(&com), "heidenhain", &[], s(&points));
+    for got in [via_cma, via_com] {
+        for ((p, a), (_, b)) in want.iter().zip(&got) {
+            assert!((a - b).abs() < 1e-9, "at {p}: {a} vs {b}");
+        }
+    }
+    // Y's own error is not in the table: refused, naming the column it has.
+    let cma_path = d.join("Y.CMA");
+    let mut args = vec![
+        "kin",
+        "table",
+        "--input",
+        s(&cma_path),
+        "--from",
+        "heidenhain",
+    ];
+    args.extend_from_slice(&["--heidenhain-axis", "Y", "--eval", s(&points)]);
+    let (ok, _, err) = truepos(&args);
+    assert!(
+        !ok && err.contains("no column Y; it compensates Z"),
+        "{err}"
+    );
+    // A directional table does not fit a .COM column: neither file is written.
+    let csv = d.join("dir.csv");
+    std::fs::write(&csv, TABLE).unwrap();
+    let out = d.join("X.COM");
+    let (ok, _, err) = truepos(&[
+        "kin",
+        "table",
+        "--input",
+        s(&csv),
+        "--from",
+        "csv",
+        "--to",
+        "heidenhain-com",
+        "--heidenhain-axis",
+        "X",
+        "--out",
+        s(&out),
+    ]);
+    assert!(!ok && err.contains("one value per point"), "{err}");
+    assert!(!out.exists() && !d.join("X.CMA").exists());
+    let _ = std::fs::remove_dir_all(&d);
+}

@@ -1,5 +1,6 @@
 //! `truepos kin table`: converts a compensation table between truepos' CSV, LinuxCNC
-//! `COMP_FILE` types 0 and 1 and Siemens `$AA_ENC_COMP` / `$AN_CEC` part programs, and
+//! `COMP_FILE` types 0 and 1, Siemens `$AA_ENC_COMP` / `$AN_CEC` part programs and HEIDENHAIN
+//! `.COM` + `.CMA` tables, and
 //! evaluates it at given positions and directions of travel (what the check against LinuxCNC,
 //! `scripts/linuxcnc_comp.sh`, compares with the running control).
 
@@ -8,8 +9,9 @@ use std::path::{Path, PathBuf};
 
 use crate::error::CliError;
 use truepos_io::comp_table::{
-    parse_csv, parse_linuxcnc, parse_siemens, select_siemens, write_csv, write_siemens,
-    LinuxCncComp, LinuxCncType, SiemensKind, SiemensTable,
+    parse_com, parse_csv, parse_linuxcnc, parse_siemens, read_heidenhain, select_siemens,
+    write_csv, write_siemens, HeidenhainCma, HeidenhainCom, LinuxCncComp, LinuxCncType,
+    SiemensKind, SiemensTable,
 };
 use truepos_io::InputError;
 use truepos_kinematics::table::{CompTable, Direction, Interpolation, Wrap};
@@ -25,6 +27,9 @@ pub enum From {
     Linuxcnc1,
     /// Siemens INI part program (`$AA_ENC_COMP`, `$AN_CEC`, mm).
     Siemens,
+    /// HEIDENHAIN: a `.CMA` assignment table (its active line's `.COM` for
+    /// `--heidenhain-axis`) or a `.COM` table itself (mm).
+    Heidenhain,
 }
 
 /// Formats a table is written in.
@@ -40,6 +45,8 @@ pub enum To {
     SiemensEnc,
     /// Siemens sag/cross table(s) `$AN_CEC` (a directional table as two, `_DIRECTION` 1/−1).
     SiemensCec,
+    /// HEIDENHAIN `.COM` table (`--out`) and the `.CMA` that activates it (`--cma`).
+    HeidenhainCom,
 }
 
 /// Arguments of `truepos kin table`.
@@ -51,7 +58,8 @@ pub struct TableArgs {
     /// Its format.
     #[arg(long, value_enum)]
     from: From,
-    /// A CSV table of a rotary axis (periodic over 360°); other formats say it themselves.
+    /// A CSV or HEIDENHAIN table of a rotary axis (periodic over 360°); other formats say it
+    /// themselves.
     #[arg(long)]
     rotary: bool,
     /// Interpolate with a monotone cubic instead of linearly (LinuxCNC and Siemens interpolate
@@ -70,6 +78,17 @@ pub struct TableArgs {
     /// number (default 1) or the encoder (default 0) of `$AA_ENC_COMP`.
     #[arg(long)]
     siemens_table: Option<u32>,
+    /// HEIDENHAIN: the axis whose position reads the table (the `.CMA` column; `AXISPOS` is
+    /// its position). Reading a `.CMA` and writing: required.
+    #[arg(long)]
+    heidenhain_axis: Option<String>,
+    /// HEIDENHAIN: the axis the values correct (the `.COM` column; default `--heidenhain-axis`).
+    #[arg(long)]
+    heidenhain_output_axis: Option<String>,
+    /// HEIDENHAIN writing: the `.CMA` to write beside the `.COM` (default: `--out` with the
+    /// extension `.CMA`). Both files are written, or neither.
+    #[arg(long)]
+    cma: Option<PathBuf>,
     /// The format to write (with `--out`).
     #[arg(long, value_enum, requires = "out")]
     to: Option<To>,
@@ -91,11 +110,16 @@ pub fn table(a: &TableArgs) -> Result<(), CliError> {
     }
     let t = read(a)?;
     if let (Some(to), Some(out)) = (a.to, &a.out) {
-        let text = write(a, &t, to).map_err(CliError::context(format!(
+        let mut files = vec![(out.clone(), String::new())];
+        files[0].1 = write(a, &t, to, &mut files).map_err(CliError::context(format!(
             "{}: cannot write the table in this format: ",
             out.display()
         )))?;
-        crate::export::write_whole(out, &text)?;
+        let whole: Vec<(&Path, &[u8])> = files
+            .iter()
+            .map(|(p, text)| (p.as_path(), text.as_bytes()))
+            .collect();
+        crate::write::write_all_whole(&whole)?;
         eprintln!(
             "wrote {} support points ({}) to {}",
             t.positions().len(),
@@ -121,6 +145,15 @@ fn read(a: &TableArgs) -> Result<CompTable, CliError> {
     } else {
         Interpolation::Linear
     };
+    let heidenhain_only = a.heidenhain_axis.is_some() || a.heidenhain_output_axis.is_some();
+    if a.from != From::Heidenhain && heidenhain_only && a.to != Some(To::HeidenhainCom) {
+        return Err(CliError::refused(
+            "--heidenhain-axis and --heidenhain-output-axis are for HEIDENHAIN tables (--from heidenhain or --to heidenhain-com)",
+        ));
+    }
+    if a.cma.is_some() && a.to != Some(To::HeidenhainCom) {
+        return Err(CliError::refused("--cma goes with --to heidenhain-com"));
+    }
     let siemens_only =
         a.siemens_table.is_some() || a.siemens_axis.is_some() || a.siemens_output_axis.is_some();
     if a.from != From::Siemens
@@ -145,6 +178,34 @@ fn read(a: &TableArgs) -> Result<CompTable, CliError> {
             };
             parse_linuxcnc(path, &text, ty)?.to_table(interp)?
         }
+        From::Heidenhain => {
+            let wrap = if a.rotary { Wrap::Rotary } else { Wrap::Hold };
+            let is_com = path
+                .extension()
+                .is_some_and(|e| e.eq_ignore_ascii_case("com"));
+            if is_com {
+                let com = parse_com(path, &text)?;
+                let column = match (&a.heidenhain_output_axis, com.columns.as_slice()) {
+                    (Some(c), _) => c.clone(),
+                    (None, [(only, _)]) => only.clone(),
+                    (None, _) => {
+                        return Err(CliError::refused(format!(
+                            "{}: the table has several columns; say which with --heidenhain-output-axis",
+                            path.display()
+                        )))
+                    }
+                };
+                com.to_table(&column, wrap, interp)?
+            } else {
+                let axis = a.heidenhain_axis.as_deref().ok_or_else(|| {
+                    CliError::refused(
+                        "reading a .CMA needs --heidenhain-axis (the axis whose table to use)",
+                    )
+                })?;
+                let output = a.heidenhain_output_axis.as_deref().unwrap_or(axis);
+                read_heidenhain(path, axis, output, wrap, interp)?
+            }
+        }
         From::Siemens => {
             let all = parse_siemens(path, &text, None)?;
             let output = a
@@ -163,7 +224,14 @@ fn read(a: &TableArgs) -> Result<CompTable, CliError> {
     })
 }
 
-fn write(a: &TableArgs, t: &CompTable, to: To) -> Result<String, CliError> {
+/// The text of `--out` in format `to`; a format of several files (HEIDENHAIN's `.COM` and
+/// `.CMA`) appends the others to `files`.
+fn write(
+    a: &TableArgs,
+    t: &CompTable,
+    to: To,
+    files: &mut Vec<(PathBuf, String)>,
+) -> Result<String, CliError> {
     let axis = || {
         a.siemens_axis
             .clone()
@@ -209,6 +277,29 @@ fn write(a: &TableArgs, t: &CompTable, to: To) -> Result<String, CliError> {
                 vec![s]
             };
             write_siemens(&tables)
+        }
+        To::HeidenhainCom => {
+            let axis = a.heidenhain_axis.as_deref().ok_or_else(|| {
+                CliError::refused(
+                    "a HEIDENHAIN table needs --heidenhain-axis (the axis that reads it)",
+                )
+            })?;
+            let output = a.heidenhain_output_axis.as_deref().unwrap_or(axis);
+            let out = &files[0].0;
+            let com_name = out
+                .file_name()
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_default();
+            let cma = a.cma.clone().unwrap_or_else(|| out.with_extension("CMA"));
+            let cma_name = cma
+                .file_name()
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_default();
+            let com = HeidenhainCom::from_table(t, &com_name, output)
+                .map_err(|e| CliError::refused(e.to_string()))?;
+            let assign = HeidenhainCma::single(&cma_name, axis, &com_name);
+            files.push((cma, assign.write()));
+            com.write()
         }
     })
 }
