@@ -324,3 +324,53 @@ fn heidenhain_com_and_cma_are_written_together_and_read_back() {
     assert!(!out.exists() && !d.join("X.CMA").exists());
     let _ = std::fs::remove_dir_all(&d);
 }
+
+#[test]
+fn fanuc_tape_round_trip_and_quantisation_refusal() {
+    let d = scratch("kin-table-fanuc");
+    let (one, points) = (d.join("one.csv"), d.join("eval.csv"));
+    // Zero at the reference position (0 mm), whole µm: the tape carries it exactly.
+    std::fs::write(&one, "position,value\n-100,3\n0,0\n100,-2\n200,4\n300,6\n").unwrap();
+    std::fs::write(&points, EVAL).unwrap();
+    let want = eval(s(&one), "csv", &[], s(&points));
+    let tape = d.join("x.prm");
+    let write = |extra: &[&str]| {
+        let mut args = vec!["kin", "table", "--input", s(&one), "--from", "csv"];
+        args.extend_from_slice(&["--to", "fanuc", "--out", s(&tape), "--fanuc-axis", "2"]);
+        args.extend_from_slice(extra);
+        truepos(&args)
+    };
+    let (ok, _, err) = write(&["--fanuc-ref-point", "20"]);
+    assert!(ok, "{err}");
+    assert!(
+        err.contains("FANUC A2: magnification 1, quantisation 0.000 µm"),
+        "{err}"
+    );
+    let text = std::fs::read_to_string(&tape).unwrap();
+    assert!(
+        text.starts_with("%\nN03620A2P20;\nN03621A2P19;\nN03622A2P23;\n"),
+        "{text}"
+    );
+    let got = eval(s(&tape), "fanuc", &["--fanuc-axis", "2"], s(&points));
+    for ((p, a), (_, b)) in want.iter().zip(&got) {
+        assert!((a - b).abs() < 1e-9, "at {p}: {a} vs {b}");
+    }
+    // A 10 µm detection unit quantises by up to 5 µm: refused without a file, then forced.
+    std::fs::remove_file(&tape).unwrap();
+    let coarse = ["--fanuc-ref-point", "20", "--fanuc-detection-unit", "0.01"];
+    let (ok, _, err) = write(&coarse);
+    assert!(!ok && err.contains("more than --max-error-um 1"), "{err}");
+    assert!(!tape.exists());
+    let mut forced = coarse.to_vec();
+    forced.push("--force");
+    let (ok, _, err) = write(&forced);
+    assert!(
+        ok && err.contains("warning: the quantisation loses"),
+        "{err}"
+    );
+    assert!(tape.exists());
+    // No reference point: refused by name.
+    let (ok, _, err) = write(&[]);
+    assert!(!ok && err.contains("--fanuc-ref-point"), "{err}");
+    let _ = std::fs::remove_dir_all(&d);
+}

@@ -1,6 +1,6 @@
 //! `truepos kin table`: converts a compensation table between truepos' CSV, LinuxCNC
-//! `COMP_FILE` types 0 and 1, Siemens `$AA_ENC_COMP` / `$AN_CEC` part programs and HEIDENHAIN
-//! `.COM` + `.CMA` tables, and
+//! `COMP_FILE` types 0 and 1, Siemens `$AA_ENC_COMP` / `$AN_CEC` part programs, HEIDENHAIN
+//! `.COM` + `.CMA` tables and FANUC pitch error compensation tapes, and
 //! evaluates it at given positions and directions of travel (what the check against LinuxCNC,
 //! `scripts/linuxcnc_comp.sh`, compares with the running control).
 
@@ -9,9 +9,9 @@ use std::path::{Path, PathBuf};
 
 use crate::error::CliError;
 use truepos_io::comp_table::{
-    parse_com, parse_csv, parse_linuxcnc, parse_siemens, read_heidenhain, select_siemens,
-    write_csv, write_siemens, HeidenhainCma, HeidenhainCom, LinuxCncComp, LinuxCncType,
-    SiemensKind, SiemensTable,
+    parse_com, parse_csv, parse_fanuc, parse_linuxcnc, parse_siemens, read_heidenhain,
+    select_siemens, write_csv, write_siemens, FanucGrid, FanucPitch, HeidenhainCma, HeidenhainCom,
+    LinuxCncComp, LinuxCncType, SiemensKind, SiemensTable,
 };
 use truepos_io::InputError;
 use truepos_kinematics::table::{CompTable, Direction, Interpolation, Wrap};
@@ -30,6 +30,9 @@ pub enum From {
     /// HEIDENHAIN: a `.CMA` assignment table (its active line's `.COM` for
     /// `--heidenhain-axis`) or a `.COM` table itself (mm).
     Heidenhain,
+    /// FANUC pitch error compensation tape (parameters 3620–3624 and the point data of
+    /// `--fanuc-axis`, detection units of `--fanuc-detection-unit`).
+    Fanuc,
 }
 
 /// Formats a table is written in.
@@ -47,6 +50,8 @@ pub enum To {
     SiemensCec,
     /// HEIDENHAIN `.COM` table (`--out`) and the `.CMA` that activates it (`--cma`).
     HeidenhainCom,
+    /// FANUC pitch error compensation tape (needs `--fanuc-ref-point`).
+    Fanuc,
 }
 
 /// Arguments of `truepos kin table`.
@@ -89,6 +94,32 @@ pub struct TableArgs {
     /// extension `.CMA`). Both files are written, or neither.
     #[arg(long)]
     cma: Option<PathBuf>,
+    /// FANUC: the axis number (`A` on the tape).
+    #[arg(long, default_value_t = 1)]
+    fanuc_axis: u32,
+    /// FANUC writing: the point number of the reference position (3620); the table's points
+    /// are numbered around it and must stay within 0–1023.
+    #[arg(long)]
+    fanuc_ref_point: Option<u32>,
+    /// FANUC writing: the interval between points in mm (3624); default the table's own step.
+    #[arg(long)]
+    fanuc_interval: Option<f64>,
+    /// FANUC writing: the magnification (3623); default the smallest that keeps every point
+    /// within `--fanuc-max-step`.
+    #[arg(long)]
+    fanuc_magnification: Option<u32>,
+    /// FANUC: the axis' detection unit in mm (0.001 for IS-B).
+    #[arg(long, default_value_t = 0.001)]
+    fanuc_detection_unit: f64,
+    /// FANUC writing: the largest value of one point (the parameter manual's ±7).
+    #[arg(long, default_value_t = 7)]
+    fanuc_max_step: i32,
+    /// FANUC writing: refuse (no file) when the quantisation loses more than this at a point.
+    #[arg(long, default_value_t = 1.0)]
+    max_error_um: f64,
+    /// Write even when the quantisation exceeds `--max-error-um` (repeated as a warning).
+    #[arg(long)]
+    force: bool,
     /// The format to write (with `--out`).
     #[arg(long, value_enum, requires = "out")]
     to: Option<To>,
@@ -178,6 +209,12 @@ fn read(a: &TableArgs) -> Result<CompTable, CliError> {
             };
             parse_linuxcnc(path, &text, ty)?.to_table(interp)?
         }
+        From::Fanuc => parse_fanuc(path, &text)?.to_table(
+            path,
+            a.fanuc_axis,
+            a.fanuc_detection_unit,
+            interp,
+        )?,
         From::Heidenhain => {
             let wrap = if a.rotary { Wrap::Rotary } else { Wrap::Hold };
             let is_com = path
@@ -278,6 +315,7 @@ fn write(
             };
             write_siemens(&tables)
         }
+        To::Fanuc => fanuc_tape(a, t)?,
         To::HeidenhainCom => {
             let axis = a.heidenhain_axis.as_deref().ok_or_else(|| {
                 CliError::refused(
@@ -302,6 +340,39 @@ fn write(
             com.write()
         }
     })
+}
+
+/// The FANUC tape of `t`, refused above `--max-error-um` of quantisation unless `--force`;
+/// what the grid loses is printed either way.
+fn fanuc_tape(a: &TableArgs, t: &CompTable) -> Result<String, CliError> {
+    let reference = a.fanuc_ref_point.ok_or_else(|| {
+        CliError::refused("a FANUC tape needs --fanuc-ref-point (parameter 3620)")
+    })?;
+    let grid = FanucGrid {
+        axis: a.fanuc_axis,
+        reference,
+        interval: a.fanuc_interval,
+        magnification: a.fanuc_magnification,
+        detection_unit: a.fanuc_detection_unit,
+        max_step: a.fanuc_max_step,
+    };
+    let (tape, loss) =
+        FanucPitch::from_table(t, &grid).map_err(|e| CliError::refused(e.to_string()))?;
+    eprintln!(
+        "FANUC A{}: magnification {}, quantisation {:.3} µm at most; the table's error at the reference position ({:.3} µm) is not carried (the control's compensation is zero there)",
+        a.fanuc_axis, loss.magnification, loss.quantisation_um, loss.at_reference_um
+    );
+    if loss.quantisation_um > a.max_error_um {
+        let msg = format!(
+            "the quantisation loses {:.3} µm at a point, more than --max-error-um {}; use a finer detection unit or magnification, or --force",
+            loss.quantisation_um, a.max_error_um
+        );
+        if !a.force {
+            return Err(CliError::refused(msg));
+        }
+        eprintln!("warning: {msg}");
+    }
+    Ok(tape.write())
 }
 
 /// `position,direction,error_um,compensation_um` at each row of `path`.

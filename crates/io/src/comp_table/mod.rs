@@ -25,6 +25,8 @@
 //! * **HEIDENHAIN** (TNC nonlinear axis error compensation): a `.COM` table (`NR`, `AXISPOS`,
 //!   one column per compensated axis, mm) selected for a reading axis by the active line of a
 //!   `.CMA` assignment table ([`HeidenhainCom`], [`HeidenhainCma`], [`read_heidenhain`]).
+//! * **FANUC** pitch error compensation: parameters 3620–3624 and incremental point values
+//!   in detection units × magnification, in the parameter tape format ([`FanucPitch`]).
 
 use std::fmt::{self, Write as _};
 use std::path::{Path, PathBuf};
@@ -33,10 +35,12 @@ use truepos_kinematics::table::{CompTable, Interpolation, TableError, Wrap};
 
 use crate::error::InputError;
 
+mod fanuc;
 mod heidenhain;
 mod linuxcnc;
 mod siemens;
 
+pub use fanuc::{parse_fanuc, FanucAxis, FanucGrid, FanucLoss, FanucPitch};
 pub use heidenhain::{
     parse_cma, parse_com, read_heidenhain, CmaLine, HeidenhainCma, HeidenhainCom,
 };
