@@ -1,6 +1,7 @@
 //! `truepos kin table`: converts a compensation table between truepos' CSV, LinuxCNC
 //! `COMP_FILE` types 0 and 1, Siemens `$AA_ENC_COMP` / `$AN_CEC` part programs, HEIDENHAIN
-//! `.COM` + `.CMA` tables and FANUC pitch error compensation tapes, and
+//! `.COM` + `.CMA` tables, FANUC pitch error compensation tapes and ISG leadscrew error
+//! compensation lists, and
 //! evaluates it at given positions and directions of travel (what the check against LinuxCNC,
 //! `scripts/linuxcnc_comp.sh`, compares with the running control).
 
@@ -9,9 +10,9 @@ use std::path::{Path, PathBuf};
 
 use crate::error::CliError;
 use truepos_io::comp_table::{
-    parse_com, parse_csv, parse_fanuc, parse_linuxcnc, parse_siemens, read_heidenhain,
+    parse_com, parse_csv, parse_fanuc, parse_isg, parse_linuxcnc, parse_siemens, read_heidenhain,
     select_siemens, write_csv, write_siemens, FanucGrid, FanucPitch, HeidenhainCma, HeidenhainCom,
-    LinuxCncComp, LinuxCncType, SiemensKind, SiemensTable,
+    IsgSsfk, LinuxCncComp, LinuxCncType, SiemensKind, SiemensTable,
 };
 use truepos_io::InputError;
 use truepos_kinematics::table::{CompTable, Direction, Interpolation, Wrap};
@@ -33,6 +34,8 @@ pub enum From {
     /// FANUC pitch error compensation tape (parameters 3620–3624 and the point data of
     /// `--fanuc-axis`, detection units of `--fanuc-detection-unit`).
     Fanuc,
+    /// ISG (Beckhoff TwinCAT CNC) leadscrew error compensation list `kw.ssfk.*` (0.1 µm).
+    Isg,
 }
 
 /// Formats a table is written in.
@@ -52,6 +55,8 @@ pub enum To {
     HeidenhainCom,
     /// FANUC pitch error compensation tape (needs `--fanuc-ref-point`).
     Fanuc,
+    /// ISG leadscrew error compensation list (`--isg-axis`, a directional table bilateral).
+    Isg,
 }
 
 /// Arguments of `truepos kin table`.
@@ -94,6 +99,12 @@ pub struct TableArgs {
     /// extension `.CMA`). Both files are written, or neither.
     #[arg(long)]
     cma: Option<PathBuf>,
+    /// ISG writing: the logical axis number (`kopf.achs_nr`).
+    #[arg(long, default_value_t = 1)]
+    isg_axis: i64,
+    /// ISG writing: the axis name (`kopf.log_achs_name`).
+    #[arg(long)]
+    isg_axis_name: Option<String>,
     /// FANUC: the axis number (`A` on the tape).
     #[arg(long, default_value_t = 1)]
     fanuc_axis: u32,
@@ -209,6 +220,7 @@ fn read(a: &TableArgs) -> Result<CompTable, CliError> {
             };
             parse_linuxcnc(path, &text, ty)?.to_table(interp)?
         }
+        From::Isg => parse_isg(path, &text)?.to_table(interp)?,
         From::Fanuc => parse_fanuc(path, &text)?.to_table(
             path,
             a.fanuc_axis,
@@ -316,6 +328,9 @@ fn write(
             write_siemens(&tables)
         }
         To::Fanuc => fanuc_tape(a, t)?,
+        To::Isg => IsgSsfk::from_table(t, a.isg_axis, a.isg_axis_name.as_deref())
+            .map_err(|e| CliError::refused(e.to_string()))?
+            .write(),
         To::HeidenhainCom => {
             let axis = a.heidenhain_axis.as_deref().ok_or_else(|| {
                 CliError::refused(

@@ -25,6 +25,8 @@
 //! * **HEIDENHAIN** (TNC nonlinear axis error compensation): a `.COM` table (`NR`, `AXISPOS`,
 //!   one column per compensated axis, mm) selected for a reading axis by the active line of a
 //!   `.CMA` assignment table ([`HeidenhainCom`], [`HeidenhainCma`], [`read_heidenhain`]).
+//! * **ISG** (Beckhoff TwinCAT CNC) leadscrew error compensation lists `kw.ssfk.*` (0.1 µm,
+//!   unilateral or bilateral, equidistant or with set-points) ([`IsgSsfk`]).
 //! * **FANUC** pitch error compensation: parameters 3620–3624 and incremental point values
 //!   in detection units × magnification, in the parameter tape format ([`FanucPitch`]).
 
@@ -37,6 +39,7 @@ use crate::error::InputError;
 
 mod fanuc;
 mod heidenhain;
+mod isg;
 mod linuxcnc;
 mod siemens;
 
@@ -44,6 +47,7 @@ pub use fanuc::{parse_fanuc, FanucAxis, FanucGrid, FanucLoss, FanucPitch};
 pub use heidenhain::{
     parse_cma, parse_com, read_heidenhain, CmaLine, HeidenhainCma, HeidenhainCom,
 };
+pub use isg::{parse_isg, IsgSsfk};
 pub use linuxcnc::{parse_linuxcnc, LinuxCncComp, LinuxCncType, LINUXCNC_MAX_ROWS};
 pub use siemens::{parse_siemens, select_siemens, write_siemens, SiemensKind, SiemensTable};
 
@@ -125,6 +129,8 @@ pub enum ExportError {
     DirectionalHeidenhain,
     /// A FANUC pitch-error table: the reason (interval, range, quantisation).
     Fanuc(String),
+    /// An ISG compensation list: the reason (a position off the 0.1 µm grid, a 32-bit range).
+    Isg(String),
     /// A column of the table did not make a table on its own.
     Table(TableError),
 }
@@ -154,7 +160,7 @@ impl fmt::Display for ExportError {
             Self::DirectionalHeidenhain => f.write_str(
                 "a directional (forward/reverse) table cannot be written as a HEIDENHAIN .COM column, which holds one value per point; write one direction, or a LinuxCNC COMP_FILE or two Siemens $AN_CEC tables",
             ),
-            Self::Fanuc(why) => f.write_str(why),
+            Self::Fanuc(why) | Self::Isg(why) => f.write_str(why),
             Self::Table(e) => write!(f, "{e}"),
         }
     }
