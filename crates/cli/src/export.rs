@@ -4,6 +4,7 @@
 use std::path::PathBuf;
 
 use truepos_controls::heidenhain::{offset_9231, tempcomp, PlcWord};
+use truepos_controls::isg::{write_parameters, IsgTempComp};
 use truepos_controls::projection::{project, AxisProjection, Form};
 use truepos_controls::siemens::write_program;
 use truepos_io::cycles::Cycles;
@@ -24,6 +25,9 @@ pub enum To {
     /// HEIDENHAIN kinematics `TEMPCOMP` formulas over PLC words (static models linear in the
     /// temperatures).
     HeidenhainTempcomp,
+    /// Beckhoff/ISG: axis parameter list entries P-AXIS-00271…00274 per axis (the error line
+    /// in 0.1 µm and µm/m).
+    Isg,
 }
 
 /// Arguments of `truepos export`.
@@ -50,6 +54,9 @@ pub struct Args {
     /// The moment, s of the run's time (the first row at or after it); default: the last row.
     #[arg(long, value_parser = truepos_io::limits::finite_in(-1e10, 1e10))]
     at_s: Option<f64>,
+    /// ISG: the logical axis number of an axis, AXIS=N (default its place in the machine, 1…).
+    #[arg(long = "isg-axis", value_delimiter = ',')]
+    isg_axes: Vec<String>,
     /// Reference position P0 of an axis, AXIS=mm (repeat or comma-separate); default 0.
     #[arg(long, value_delimiter = ',')]
     p0: Vec<String>,
@@ -238,22 +245,26 @@ pub fn run(args: Args) -> Result<(), CliError> {
         }
     };
     let (text, axes_json) = match args.to {
-        To::Siemens | To::Heidenhain9231 => {
-            let form = if args.to == To::Siemens {
-                Form::Linear
-            } else {
+        To::Siemens | To::Heidenhain9231 | To::Isg => {
+            let form = if args.to == To::Heidenhain9231 {
                 Form::Constant
+            } else {
+                Form::Linear
             };
             let p0 = per_axis(&machine, &args.p0, "--p0")?;
             let proj = project(&machine, &at_positions, &now, form, &p0)
                 .map_err(|e| CliError::refused(e.to_string()))?;
-            check_error(&args, &proj)?;
-            let text = if args.to == To::Siemens {
-                write_program(&proj, &header)
+            if args.to == To::Isg {
+                isg_file(&args, &machine, &proj, &header)?
             } else {
-                module_9231_csv(&proj)?
-            };
-            (text, projection_json(&proj))
+                check_error(&args, &proj, &vec![0.0; proj.len()])?;
+                let text = if args.to == To::Siemens {
+                    write_program(&proj, &header)
+                } else {
+                    module_9231_csv(&proj)?
+                };
+                (text, projection_json(&proj))
+            }
         }
         To::HeidenhainTempcomp => tempcomp_file(
             &args,
@@ -281,15 +292,18 @@ fn evaluate(m: &Model, input: &CycleInput<'_>) -> Result<Vec<f64>, String> {
         .map_err(|e| e.to_string())
 }
 
-fn check_error(args: &Args, proj: &[AxisProjection]) -> Result<(), CliError> {
-    for p in proj {
-        if p.worst_um() > args.max_error_um {
+/// Refuses (unless `--force`) an axis whose form misses the model by more than
+/// `--max-error-um`, `extra` µm per axis added (what the control's units lose).
+fn check_error(args: &Args, proj: &[AxisProjection], extra: &[f64]) -> Result<(), CliError> {
+    for (p, x) in proj.iter().zip(extra) {
+        if p.worst_um() + x > args.max_error_um {
             let what = format!(
-                "axis {}: the control's form misses the model by up to {:.3} µm ({:.3} along its travel{}), more than --max-error-um {}",
+                "axis {}: the control's form misses the model by up to {:.3} µm ({:.3} along its travel{}{}), more than --max-error-um {}",
                 p.name,
-                p.worst_um(),
+                p.worst_um() + x,
                 p.along_error_um,
                 p.cross_axis.iter().map(|c| format!(", {:.3} when {} travels", c.change_um, c.axis)).collect::<String>(),
+                if *x > 0.0 { format!(", {x:.3} from the parameters' whole units") } else { String::new() },
                 args.max_error_um
             );
             if !args.force {
@@ -301,6 +315,47 @@ fn check_error(args: &Args, proj: &[AxisProjection]) -> Result<(), CliError> {
         }
     }
     Ok(())
+}
+
+/// ISG: the parameter blocks per axis, the whole units' loss added to the projection error.
+fn isg_file(
+    args: &Args,
+    machine: &Machine,
+    proj: &[AxisProjection],
+    header: &[String],
+) -> Result<(String, Vec<serde_json::Value>), CliError> {
+    let mut numbers: Vec<i64> = (1..=machine.axes.len() as i64).collect();
+    for s in &args.isg_axes {
+        let bad = || {
+            CliError::refused(format!(
+                "--isg-axis `{s}`: expected AXIS=N, N ≥ 1 an axis of the machine"
+            ))
+        };
+        let (axis, n) = s.split_once('=').ok_or_else(bad)?;
+        let a = machine.axis_index(axis).ok_or_else(bad)?;
+        numbers[a] = n
+            .trim()
+            .parse()
+            .ok()
+            .filter(|&n: &i64| n >= 1)
+            .ok_or_else(bad)?;
+    }
+    let mut blocks = Vec::new();
+    for p in proj {
+        let ax = &machine.axes[p.axis];
+        let (t, loss) =
+            IsgTempComp::from_projection(p, numbers[p.axis], (ax.travel_min, ax.travel_max))
+                .map_err(|e| CliError::refused(e.to_string()))?;
+        blocks.push((t, p, loss));
+    }
+    let losses: Vec<f64> = blocks.iter().map(|b| b.2).collect();
+    check_error(args, proj, &losses)?;
+    let mut json = projection_json(proj);
+    for (j, (t, _, loss)) in json.iter_mut().zip(&blocks) {
+        j["worst_um"] = serde_json::json!(j["worst_um"].as_f64().unwrap_or(f64::NAN) + loss);
+        j["isg"] = serde_json::json!({"axis_nr": t.axis_nr, "position_0_0_1um": t.position_0, "offset_0_0_1um": t.offset_0, "coefficient_um_per_m": t.coefficient, "units_loss_um": loss});
+    }
+    Ok((write_parameters(&blocks, header), json))
 }
 
 fn module_9231_csv(proj: &[AxisProjection]) -> Result<String, CliError> {

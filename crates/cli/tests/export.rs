@@ -298,3 +298,89 @@ fn tempcomp_is_the_position_independent_model_at_any_temperature() {
     }
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// The ISG parameter blocks, read back, give a compensation that matches `truepos eval` of the
+/// model within the stated error (projection plus the parameters' whole units) along every
+/// axis' travel and at the corners.
+#[test]
+fn the_isg_parameters_apply_the_model_within_the_stated_error() {
+    use truepos_controls::isg::read_parameters;
+    let dir = scratch("export-isg");
+    let out = dir.join("temp_comp.lis");
+    let (ok, stdout, err) = run(&[
+        "export",
+        "--to",
+        "isg",
+        "--machine",
+        M,
+        "--model",
+        "examples/vmc3/model.toml",
+        "--run",
+        "examples/vmc3/run.csv",
+        "--p0",
+        "X=400",
+        "--isg-axis",
+        "Z=7",
+        "--max-error-um",
+        "5",
+        "--json",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(ok, "{err}");
+    let v: serde_json::Value = serde_json::from_str(&stdout).unwrap();
+    let text = std::fs::read_to_string(&out).unwrap();
+    let params = read_parameters("temp_comp.lis", &text).unwrap();
+    assert_eq!(
+        params.iter().map(|p| p.axis_nr).collect::<Vec<_>>(),
+        [1, 2, 7]
+    );
+    assert_eq!(params[0].position_0, 4_000_000, "P0 400 mm in 0.1 µm");
+    let mut grid = Vec::new();
+    for k in 0..=10 {
+        let f = f64::from(k) / 10.0;
+        grid.push([800.0 * f, 250.0, 250.0]);
+        grid.push([400.0, 500.0 * f, 250.0]);
+        grid.push([400.0, 250.0, 500.0 * f]);
+    }
+    for c in 0..8 {
+        grid.push([
+            800.0 * f64::from(c & 1),
+            500.0 * f64::from(c >> 1 & 1),
+            500.0 * f64::from(c >> 2 & 1),
+        ]);
+    }
+    let comp = eval_comp(
+        "examples/vmc3/model.toml",
+        &rows_at(&dir, &grid, None),
+        &dir.join("eval.csv"),
+    );
+    for (p, c) in grid.iter().zip(&comp) {
+        for a in 0..3 {
+            let control_um = 1000.0 * params[a].compensation_mm(p[a]);
+            let stated = v["axes"][a]["worst_um"].as_f64().unwrap();
+            assert!(
+                (control_um - c[a]).abs() <= stated + 1e-3,
+                "axis {a} at {p:?}: control {control_um} µm, model {} µm, stated {stated}",
+                c[a]
+            );
+        }
+    }
+    // Malformed blocks are located.
+    let e = read_parameters(
+        "t.lis",
+        &text.replace("coefficient       ", "coefficient       x"),
+    )
+    .unwrap_err();
+    assert!(e.to_string().starts_with("t.lis:9:38:"), "{e}");
+    let e = read_parameters(
+        "t.lis",
+        &text.replace(
+            "lr_param.temp_comp_offset_0 ",
+            "lr_param.temp_comp_ofset_0  ",
+        ),
+    )
+    .unwrap_err();
+    assert!(e.to_string().contains("unknown name"), "{e}");
+    let _ = std::fs::remove_dir_all(&dir);
+}

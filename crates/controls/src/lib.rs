@@ -9,7 +9,8 @@
 //!   temperature compensation) or a constant per axis, fitted along each axis' travel with the
 //!   other axes where they are, with the error along the travel and per other axis;
 //! - [`siemens`]: the part program setting the three setting data, and its reader;
-//! - [`heidenhain`]: PLC module 9231 offsets and `TEMPCOMP` formulas over PLC words.
+//! - [`heidenhain`]: PLC module 9231 offsets and `TEMPCOMP` formulas over PLC words;
+//! - [`isg`]: Beckhoff/ISG axis parameter list entries P-AXIS-00271…00274, and their reader.
 //!
 //! Sign: a model predicts the error (actual − nominal); every value here is the compensation,
 //! its negative, which the control adds to the set-point.
@@ -40,6 +41,7 @@
 #![warn(missing_docs)]
 
 pub mod heidenhain;
+pub mod isg;
 pub mod projection;
 pub mod siemens;
 
