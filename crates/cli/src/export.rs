@@ -3,6 +3,7 @@
 
 use std::path::PathBuf;
 
+use truepos_controls::fanuc::{macro_axes, write_macro_program};
 use truepos_controls::heidenhain::{offset_9231, tempcomp, PlcWord};
 use truepos_controls::isg::{write_parameters, IsgTempComp};
 use truepos_controls::projection::{project, AxisProjection, Form};
@@ -28,6 +29,9 @@ pub enum To {
     /// Beckhoff/ISG: axis parameter list entries P-AXIS-00271…00274 per axis (the error line
     /// in 0.1 µm and µm/m).
     Isg,
+    /// FANUC: the line per axis as custom macro variables (K0 µm, slope µm/m, P0 mm): a macro
+    /// program setting them, and the FOCAS `cnc_wrmacro` arguments in `--json`.
+    Fanuc,
 }
 
 /// Arguments of `truepos export`.
@@ -57,6 +61,12 @@ pub struct Args {
     /// ISG: the logical axis number of an axis, AXIS=N (default its place in the machine, 1…).
     #[arg(long = "isg-axis", value_delimiter = ',')]
     isg_axes: Vec<String>,
+    /// FANUC: the first macro variable (three per axis: K0, slope, P0).
+    #[arg(long, default_value_t = 500)]
+    fanuc_macro_base: u32,
+    /// FANUC: the macro program's number (`O` word).
+    #[arg(long, default_value_t = 9500, value_parser = clap::value_parser!(u32).range(1..=9999))]
+    fanuc_program: u32,
     /// Reference position P0 of an axis, AXIS=mm (repeat or comma-separate); default 0.
     #[arg(long, value_delimiter = ',')]
     p0: Vec<String>,
@@ -220,10 +230,15 @@ pub fn run(args: Args) -> Result<(), CliError> {
             machine.name
         ),
         format!(
-            "at t = {} s of {} (row {}); compensation = −error, mm",
+            "at t = {} s of {} (row {}); {}",
             cycles.time_s[k],
             args.run.display(),
-            k + 1
+            k + 1,
+            match args.to {
+                To::Isg => "the error line (actual − nominal), 0.1 µm and µm/m",
+                To::Fanuc => "compensation = −error, µm, µm/m and mm",
+                _ => "compensation = −error, mm",
+            }
         ),
     ];
     let static_model = model.model().as_static().cloned();
@@ -245,7 +260,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
         }
     };
     let (text, axes_json) = match args.to {
-        To::Siemens | To::Heidenhain9231 | To::Isg => {
+        To::Siemens | To::Heidenhain9231 | To::Isg | To::Fanuc => {
             let form = if args.to == To::Heidenhain9231 {
                 Form::Constant
             } else {
@@ -256,6 +271,8 @@ pub fn run(args: Args) -> Result<(), CliError> {
                 .map_err(|e| CliError::refused(e.to_string()))?;
             if args.to == To::Isg {
                 isg_file(&args, &machine, &proj, &header)?
+            } else if args.to == To::Fanuc {
+                fanuc_file(&args, &machine, &proj, &header)?
             } else {
                 check_error(&args, &proj, &vec![0.0; proj.len()])?;
                 let text = if args.to == To::Siemens {
@@ -356,6 +373,44 @@ fn isg_file(
         j["isg"] = serde_json::json!({"axis_nr": t.axis_nr, "position_0_0_1um": t.position_0, "offset_0_0_1um": t.offset_0, "coefficient_um_per_m": t.coefficient, "units_loss_um": loss});
     }
     Ok((write_parameters(&blocks, header), json))
+}
+
+/// FANUC: the macro program and, per axis, its variables and `cnc_wrmacro` arguments; the
+/// values' decimals are added to the projection error.
+fn fanuc_file(
+    args: &Args,
+    machine: &Machine,
+    proj: &[AxisProjection],
+    header: &[String],
+) -> Result<(String, Vec<serde_json::Value>), CliError> {
+    let axes =
+        macro_axes(proj, args.fanuc_macro_base).map_err(|e| CliError::refused(e.to_string()))?;
+    let losses: Vec<f64> = axes
+        .iter()
+        .zip(proj)
+        .map(|(a, p)| {
+            let ax = &machine.axes[p.axis];
+            [ax.travel_min, ax.travel_max]
+                .iter()
+                .map(|&x| (a.quantised().compensation_um(x) - a.compensation_um(x)).abs())
+                .fold(0.0, f64::max)
+        })
+        .collect();
+    check_error(args, proj, &losses)?;
+    let mut json = projection_json(proj);
+    for ((j, a), loss) in json.iter_mut().zip(&axes).zip(&losses) {
+        let calls = a.wrmacro().map_err(|e| CliError::refused(e.to_string()))?;
+        j["worst_um"] = serde_json::json!(j["worst_um"].as_f64().unwrap_or(f64::NAN) + loss);
+        j["fanuc"] = serde_json::json!({
+            "k0_um": a.k0_um, "slope_um_per_m": a.slope_um_per_m, "p0_mm": a.p0_mm,
+            "cnc_wrmacro": calls.iter().map(|(n, m, d)| serde_json::json!({"number": n, "mcr_val": m, "dec_val": d})).collect::<Vec<_>>(),
+        });
+    }
+    let pairs: Vec<_> = axes.iter().copied().zip(proj).collect();
+    Ok((
+        write_macro_program(args.fanuc_program, &pairs, header),
+        json,
+    ))
 }
 
 fn module_9231_csv(proj: &[AxisProjection]) -> Result<String, CliError> {
