@@ -125,6 +125,22 @@ fn quantisation_magnification_and_the_reference_are_reported() {
     .unwrap();
     let e = FanucPitch::from_table(&dir, &grid(10)).unwrap_err();
     assert!(e.to_string().contains("bidirectional"), "{e}");
+    // A detection unit or range that makes no tape is refused, writing and reading.
+    let e = FanucPitch::from_table(
+        &uneven,
+        &FanucGrid {
+            detection_unit: 0.0,
+            ..g
+        },
+    )
+    .unwrap_err();
+    assert!(e.to_string().contains("detection unit"), "{e}");
+    let e = FanucPitch::from_table(&uneven, &FanucGrid { max_step: 0, ..g }).unwrap_err();
+    assert!(e.to_string().contains("at least 1"), "{e}");
+    let e = tape
+        .to_table(p(), 1, f64::NAN, Interpolation::Linear)
+        .unwrap_err();
+    assert!(e.to_string().contains("detection unit NaN"), "{e}");
 }
 
 #[test]

@@ -184,6 +184,19 @@ fn directional_tables_are_refused() {
     .unwrap();
     let e = HeidenhainCom::from_table(&t, "X.COM", "X").unwrap_err();
     assert!(e.to_string().contains("one value per point"), "{e}");
+    // Names the table cannot hold: a blank in the BEGIN line's name, an axis no column can be.
+    let one = CompTable::new(
+        vec![0.0, 10.0],
+        vec![1.0, 2.0],
+        Wrap::Hold,
+        Interpolation::Linear,
+    )
+    .unwrap();
+    let e = HeidenhainCom::from_table(&one, "my X.COM", "X").unwrap_err();
+    assert!(e.to_string().contains("without blanks"), "{e}");
+    let e = HeidenhainCom::from_table(&one, "X.COM", "X Y").unwrap_err();
+    assert!(e.to_string().contains("expected an axis name"), "{e}");
+    assert!(HeidenhainCma::single("C.CMA", "X", "a b.COM").is_err());
 }
 
 fn mutate(text: &str, at: usize, with: char, delete: bool) -> String {
@@ -221,7 +234,7 @@ proptest! {
         for (a, b) in t2.forward().iter().zip(t.forward()) {
             prop_assert!((a - b).abs() <= 1e-12 * (1.0 + b.abs()), "{} vs {}", a, b);
         }
-        let cma = HeidenhainCma::single("CONFIG.CMA", axis, "T.COM");
+        let cma = HeidenhainCma::single("CONFIG.CMA", axis, "T.COM").unwrap();
         let cback = parse_cma(p(), &cma.write()).unwrap();
         prop_assert_eq!(cback.active_for(p(), axis).unwrap().0, "T.COM");
         prop_assert_eq!(cback, cma);

@@ -350,7 +350,8 @@ fn write(
                 .unwrap_or_default();
             let com = HeidenhainCom::from_table(t, &com_name, output)
                 .map_err(|e| CliError::refused(e.to_string()))?;
-            let assign = HeidenhainCma::single(&cma_name, axis, &com_name);
+            let assign = HeidenhainCma::single(&cma_name, axis, &com_name)
+                .map_err(|e| CliError::refused(e.to_string()))?;
             files.push((cma, assign.write()));
             com.write()
         }

@@ -101,6 +101,12 @@ impl FanucPitch {
         if t.reverse().is_some() {
             return bad("a directional (forward/reverse) table needs FANUC's bidirectional pitch error compensation (3605#0, 3626, 3627), which truepos does not write; write one direction".into());
         }
+        if grid.max_step < 1 {
+            return bad(format!(
+                "largest value per point {}; expected at least 1",
+                grid.max_step
+            ));
+        }
         if !(grid.detection_unit > 0.0 && grid.detection_unit.is_finite()) {
             return bad(format!(
                 "detection unit {} mm; expected a positive number",
@@ -208,6 +214,12 @@ impl FanucPitch {
         detection_unit: f64,
         interpolation: Interpolation,
     ) -> Result<CompTable, InputError> {
+        if !(detection_unit > 0.0 && detection_unit.is_finite()) {
+            return Err(InputError::file(
+                path,
+                format!("detection unit {detection_unit} mm; expected a positive number"),
+            ));
+        }
         let Some(a) = self.axes.get(&axis) else {
             let have: Vec<String> = self.axes.keys().map(|k| format!("A{k}")).collect();
             return Err(InputError::file(

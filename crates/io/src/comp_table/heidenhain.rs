@@ -92,6 +92,22 @@ fn is_file_name(s: &str) -> bool {
             .all(|ch| ch.is_ascii_alphanumeric() || "_-.:\\/".contains(ch))
 }
 
+/// A table name without blanks (it stands on the `BEGIN` line) and an axis name that can be a
+/// column name.
+fn check_names(name: &str, axis: &str) -> Result<(), ExportError> {
+    if name.is_empty() || name.chars().any(char::is_whitespace) {
+        return Err(ExportError::Heidenhain(format!(
+            "table name `{name}`: expected a name without blanks (it stands on the BEGIN line)"
+        )));
+    }
+    if !is_name(axis) {
+        return Err(ExportError::Heidenhain(format!(
+            "axis `{axis}`: expected an axis name (a letter, then letters, digits or `_`)"
+        )));
+    }
+    Ok(())
+}
+
 /// A TNC table's text: its name, its column names with their 0-based character positions,
 /// and its rows' cells (trimmed, with their 1-based columns), each with its line.
 struct TncTable<'a> {
@@ -325,6 +341,7 @@ impl HeidenhainCom {
         if table.reverse().is_some() {
             return Err(ExportError::DirectionalHeidenhain);
         }
+        check_names(name, axis)?;
         Ok(Self {
             name: name.to_string(),
             axispos: table.positions().to_vec(),
@@ -485,9 +502,16 @@ pub fn parse_cma(path: &Path, text: &str) -> Result<HeidenhainCma, InputError> {
 }
 
 impl HeidenhainCma {
-    /// One active line assigning `com` to the reading axis `axis`.
-    pub fn single(name: &str, axis: &str, com: &str) -> Self {
-        Self {
+    /// One active line assigning `com` to the reading axis `axis`; names the table format
+    /// cannot hold (blanks, an axis that is no column name) are refused.
+    pub fn single(name: &str, axis: &str, com: &str) -> Result<Self, ExportError> {
+        check_names(name, axis)?;
+        if !is_file_name(com) {
+            return Err(ExportError::Heidenhain(format!(
+                "`{com}` cannot be a .CMA entry; expected letters, digits, `_-.:\\/`"
+            )));
+        }
+        Ok(Self {
             name: name.to_string(),
             axes: vec![axis.to_string()],
             lines: vec![CmaLine {
@@ -496,7 +520,7 @@ impl HeidenhainCma {
                 active: true,
                 line: 0,
             }],
-        }
+        })
     }
 
     /// The file's text.

@@ -131,6 +131,8 @@ pub enum ExportError {
     Fanuc(String),
     /// An ISG compensation list: the reason (a position off the 0.1 µm grid, a 32-bit range).
     Isg(String),
+    /// A HEIDENHAIN table: a name the table cannot hold.
+    Heidenhain(String),
     /// A column of the table did not make a table on its own.
     Table(TableError),
 }
@@ -160,7 +162,7 @@ impl fmt::Display for ExportError {
             Self::DirectionalHeidenhain => f.write_str(
                 "a directional (forward/reverse) table cannot be written as a HEIDENHAIN .COM column, which holds one value per point; write one direction, or a LinuxCNC COMP_FILE or two Siemens $AN_CEC tables",
             ),
-            Self::Fanuc(why) | Self::Isg(why) => f.write_str(why),
+            Self::Fanuc(why) | Self::Isg(why) | Self::Heidenhain(why) => f.write_str(why),
             Self::Table(e) => write!(f, "{e}"),
         }
     }
