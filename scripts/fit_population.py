@@ -30,6 +30,7 @@ KEYS = {
     "uncompensated": "uncompensated_rmse_um",
     "reduction": "rmse_reduction_percent",
     "per_run": "per_run",  # validation.per_run[].targets[]: each held-out run on its own
+    "run": "run",
     "targets": "targets",
     "choices": "choices",  # validation.choices[fold][target]: what each fold's selection chose
     "inner_cv": "cv_rmse_um",  # ... and its inner-CV estimate of its own error
@@ -285,10 +286,13 @@ def figures(fitted):
     # procedure's estimate of the test error (one fold after a chronological split).
     inner = [fold[0][KEYS["inner_cv"]] for fold in v[KEYS["choices"]]]
     inner_rms = math.sqrt(sum(x * x for x in inner) / len(inner))
-    worse = 0
+    worse = []
     for r in v[KEYS["per_run"]]:
         t = r[KEYS["targets"]][0]
-        worse += t[KEYS["rmse"]] > t[KEYS["uncompensated"]]
+        if t[KEYS["rmse"]] > t[KEYS["uncompensated"]]:
+            worse.append({"run": os.path.basename(r[KEYS["run"]]),
+                          "test_rmse_um": round(t[KEYS["rmse"]], 3),
+                          "uncompensated_rmse_um": round(t[KEYS["uncompensated"]], 3)})
     families = []
     for fold in v[KEYS["choices"]]:
         if fold[0][KEYS["family"]] not in families:
@@ -307,7 +311,8 @@ def figures(fitted):
         "reduction_percent": round(m[KEYS["reduction"]], 1),
         "inner_cv_rmse_um": round(inner_rms, 3),
         "inner_test_ratio": round(inner_rms / test, 3) if test > 0 else None,
-        "runs_worse": worse,
+        "runs_worse": len(worse),
+        "worse": worse,
         "runs_held_out": len(v[KEYS["per_run"]]),
         "families": families,
     }
@@ -380,6 +385,10 @@ def main():
     print(f"median reduction {s['median_reduction_percent']} %, median inner/test "
           f"{s['median_inner_test_ratio']}, runs made worse {s['runs_worse']} of "
           f"{s['runs_held_out']} ({s['cases']} cases, {s['seconds']} s)")
+    for r in rows:
+        for w in r["worse"]:
+            print(f"made worse: {r['case']} {w['run']}: {w['test_rmse_um']:.2f} µm compensated, "
+                  f"{w['uncompensated_rmse_um']:.2f} µm uncompensated")
     print(json.dumps(s, ensure_ascii=False))
     if a.check and not all(s["bars_met"].values()):
         failed = [k for k, ok in s["bars_met"].items() if not ok]
