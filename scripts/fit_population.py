@@ -239,8 +239,10 @@ def population(size):
 # Running a case
 # ---------------------------------------------------------------------------------------------
 
-def run_case(c, binary, work):
-    """Simulates the case's runs and fits them; returns the table row."""
+def run_case(c, binary, work, static=False):
+    """Simulates the case's runs and fits them; returns the table row. With `static`, also the
+    static regression's test RMSE (seed A's prior art, `--family static --ridge 0`) as a
+    reference — the one fit that is not at the defaults, and not part of the bars."""
     d = os.path.join(work, c["name"])
     os.makedirs(d, exist_ok=True)
     twin = os.path.join(d, "twin.toml")
@@ -268,6 +270,9 @@ def run_case(c, binary, work):
     row = figures(fitted)
     row.update(case=c["name"], kind=c["kind"], runs=len(csvs), split=c["split"],
                inputs=len(c["inputs"]), sim_s=round(t1 - t0, 1), fit_s=round(t2 - t1, 1))
+    if static:
+        ref = json.loads(call(cmd + ["--family", "static", "--ridge", "0"]))
+        row["static_rmse_um"] = round(ref[KEYS["validation"]][KEYS["metrics"]][0][KEYS["rmse"]], 3)
     return row
 
 
@@ -323,15 +328,18 @@ def figures(fitted):
 # ---------------------------------------------------------------------------------------------
 
 def table(rows):
+    static = all("static_rmse_um" in r for r in rows)
     out = ["| case | split | runs | inputs | test RMSE µm | uncompensated µm | reduction % "
-           "| inner CV µm | inner / test | runs worse | chosen |",
-           "|---|---|---|---|---|---|---|---|---|---|---|"]
+           "| inner CV µm | inner / test | runs worse | chosen |"
+           + (" static µm |" if static else ""),
+           "|---|---|---|---|---|---|---|---|---|---|---|" + ("---|" if static else "")]
     for r in rows:
         out.append(f"| {r['case']} | {r['split']} | {r['runs']} | {r['inputs']} "
                    f"| {r['test_rmse_um']:.2f} | {r['uncompensated_rmse_um']:.2f} "
                    f"| {r['reduction_percent']:.1f} | {r['inner_cv_rmse_um']:.2f} "
                    f"| {r['inner_test_ratio']:.2f} | {r['runs_worse']} of {r['runs_held_out']} "
-                   f"| {' / '.join(r['families'])} |")
+                   f"| {' / '.join(r['families'])} |"
+                   + (f" {r['static_rmse_um']:.2f} |" if static else ""))
     return "\n".join(out)
 
 
@@ -356,6 +364,8 @@ def summary(rows, size, seconds):
         "runs_worse": s["runs_worse"] <= BAR_RUNS_WORSE,
         "inner_test_ratio": 1 / BAR_RATIO <= s["median_inner_test_ratio"] <= BAR_RATIO,
     }
+    if rows and all("static_rmse_um" in r for r in rows):
+        s["static_better"] = sum(r["static_rmse_um"] < r["test_rmse_um"] for r in rows)
     s["rows"] = rows
     return s
 
@@ -368,6 +378,8 @@ def main():
     ap.add_argument("--assert", dest="check", action="store_true",
                     help="exit 1 unless the issue's bars hold")
     ap.add_argument("--only", help="run only the cases whose name contains this")
+    ap.add_argument("--static", action="store_true",
+                    help="add the static regression's test RMSE per case (a second fit each)")
     a = ap.parse_args()
     t0 = time.monotonic()
     rows = []
@@ -376,7 +388,7 @@ def main():
             continue
         print(f"{c['name']}: simulating {len(c['runs'])} run(s), fitting", file=sys.stderr)
         try:
-            rows.append(run_case(c, a.binary, a.work))
+            rows.append(run_case(c, a.binary, a.work, a.static))
         except (RuntimeError, KeyError, IndexError, ValueError) as e:
             sys.exit(f"fit_population: case {c['name']}: {e}")
     s = summary(rows, a.size, time.monotonic() - t0)
@@ -384,7 +396,9 @@ def main():
     print()
     print(f"median reduction {s['median_reduction_percent']} %, median inner/test "
           f"{s['median_inner_test_ratio']}, runs made worse {s['runs_worse']} of "
-          f"{s['runs_held_out']} ({s['cases']} cases, {s['seconds']} s)")
+          f"{s['runs_held_out']} ({s['cases']} cases, {s['seconds']} s)"
+          + (f"; the static regression better in {s['static_better']}" if "static_better" in s
+             else ""))
     for r in rows:
         for w in r["worse"]:
             print(f"made worse: {r['case']} {w['run']}: {w['test_rmse_um']:.2f} µm compensated, "

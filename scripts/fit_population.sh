@@ -5,10 +5,11 @@
 # (per case: test RMSE, uncompensated, reduction, inner-CV estimate / test, runs made worse)
 # and one JSON summary line. docs/fitting.md ("Development benchmark: the twin population").
 #
-#   bash scripts/fit_population.sh [--size ci|full] [--assert] [--only NAME]
+#   bash scripts/fit_population.sh [--size ci|full] [--assert] [--static] [--only NAME]
 #
-# --size ci (default): one case of most kinds, shorter days (the test command runs it);
-# full: the whole population (docs/fitting.md's table). --assert exits 1 unless the issue's
+# --size ci (default): 25 cases, shorter days (the test command runs it);
+# full: 47 cases (docs/fitting.md's table). --static adds the static regression's test RMSE per
+# case as a reference (a second fit each, not at the defaults). --assert exits 1 unless the issue's
 # bars hold (median reduction ≥ 85 %, no run made worse, median inner/test within 1.5); it is
 # off by default until the selection meets them (FIT_POPULATION_ASSERT=1 in the environment
 # is the same as --assert). The generated runs go to
