@@ -54,6 +54,8 @@ pub struct Folds {
     pub folds: Vec<Fold>,
     /// The gap applied (s), after the cap.
     pub gap_s: f64,
+    /// Whether every block is a set of whole runs.
+    pub whole_runs: bool,
 }
 
 impl Folds {
@@ -63,7 +65,7 @@ impl Folds {
     pub fn new(rows: &[Row], blocks: usize, inner: InnerCv, gap_s: f64) -> Self {
         let n = rows.len();
         let k = blocks.clamp(1, n.max(1));
-        let ranges = block_ranges(rows, k);
+        let (ranges, whole_runs) = block_ranges(rows, k);
         let mut cuts = vec![0, n];
         let mut zones = Vec::new();
         for (f, held) in ranges.iter().enumerate() {
@@ -94,6 +96,7 @@ impl Folds {
             segments,
             folds,
             gap_s,
+            whole_runs,
         }
     }
 
@@ -120,13 +123,13 @@ impl Folds {
 /// runs (as many blocks as runs at most): a run is one thermal excursion, and a block that cut
 /// one would be predicted from the rest of the same excursion — the inner validation then
 /// mirrors leave-one-run-out.
-fn block_ranges(rows: &[Row], k: usize) -> Vec<Range<usize>> {
+fn block_ranges(rows: &[Row], k: usize) -> (Vec<Range<usize>>, bool) {
     let n = rows.len();
     let starts: Vec<usize> = (0..n)
         .filter(|&i| i == 0 || rows[i].run != rows[i - 1].run)
         .collect();
     if starts.len() < 3 {
-        return (0..k).map(|b| b * n / k..(b + 1) * n / k).collect();
+        return ((0..k).map(|b| b * n / k..(b + 1) * n / k).collect(), false);
     }
     let k = k.min(starts.len());
     let mut ranges: Vec<Range<usize>> = Vec::new();
@@ -142,7 +145,7 @@ fn block_ranges(rows: &[Row], k: usize) -> Vec<Range<usize>> {
             ranges.push(start..end);
         }
     }
-    ranges
+    (ranges, true)
 }
 
 /// The rows a held-out block excludes from its training: the block, and on each side the rows
@@ -288,7 +291,9 @@ mod tests {
         let mut x = vec![0.0; 20_000];
         let mut state = 12345u64;
         for i in 1..x.len() {
-            state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
             let u = ((state >> 11) as f64 / (1u64 << 53) as f64) - 0.5;
             x[i] = phi * x[i - 1] + u;
         }

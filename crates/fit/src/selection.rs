@@ -1,7 +1,8 @@
 //! The automatic selection of one target's model: every family scored by the gap-separated inner
 //! validation ([`crate::inner_cv`]), its ridge chosen within the family, the families combined
-//! by their out-of-fold predictions ([`crate::stacking`]), and a guard that writes no
-//! compensation when the result is not clearly better than none.
+//! by their out-of-fold predictions ([`crate::stacking`]), and a guard: no compensation when the
+//! blend is not clearly better than none, the static model alone when the blend is not clearly
+//! better than it ([`CLEARLY_BETTER`]); each fallback is a warning naming the figures.
 
 use crate::features::Family;
 use crate::least_squares::{Accumulator, SolveOptions};
@@ -9,9 +10,11 @@ use crate::settings::{Rule, Settings};
 use crate::stacking;
 use crate::train::{Design, FamilyScore, Problem};
 
-/// A blend must beat "no compensation" by this factor in the inner validation (RMSE ratio)
-/// to be written: a model that removes less than a tenth of the error is not worth an axis'
-/// risk, and the inner estimate itself is uncertain by more than that.
+/// A blend must beat "no compensation", and the static model, by this factor in the inner
+/// validation (RMSE ratio) to be written: a model that removes less than a tenth of the error
+/// is not worth an axis' risk, a dynamic blend that is not a tenth better than the static model
+/// does not earn the extrapolation risk of its filters, and the inner estimate itself (its
+/// weights fitted on the same out-of-fold predictions) is uncertain by about that much.
 pub const CLEARLY_BETTER: f64 = 0.9;
 
 /// One member of a blend.
@@ -29,6 +32,9 @@ pub struct Member {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub tau_s: Option<f64>,
 }
+
+/// A family's candidacy for one target: (family, ridge, inner RMSE µm, held-out predictions).
+type Candidate = (Family, f64, f64, Vec<f64>);
 
 /// What the selection chose for one target.
 #[derive(Debug, Clone, PartialEq)]
@@ -142,7 +148,7 @@ pub(crate) fn select(
     let nt = p.y.ncols();
     let reference = p.reference(settings);
     // Per target, the candidate members: (family, ridge, rmse, held-out predictions).
-    let mut members: Vec<Vec<(Family, f64, f64, Vec<f64>)>> = vec![Vec::new(); nt];
+    let mut members: Vec<Vec<Candidate>> = vec![Vec::new(); nt];
     let mut families = Vec::new();
     for &family in &settings.families {
         let Some(design) = p.design(family, sensors, reference) else {
@@ -166,12 +172,13 @@ pub(crate) fn select(
         families.push(FamilyScore { family, per_target });
     }
     let held = p.held_targets();
-    let ranges = p.held_ranges();
     let picks = (0..nt)
         .map(|k| {
-            let mut pick = pick(&members[k], &held[k], &ranges);
+            let mut pick = pick(&members[k], &held[k]);
             for m in &mut pick.members {
-                m.tau_s = (m.family == Family::Transfer).then_some(p.transfer_tau).flatten();
+                m.tau_s = (m.family == Family::Transfer)
+                    .then_some(p.transfer_tau)
+                    .flatten();
             }
             pick
         })
@@ -180,11 +187,7 @@ pub(crate) fn select(
 }
 
 /// Blend, guard and fallback for one target.
-fn pick(
-    members: &[(Family, f64, f64, Vec<f64>)],
-    y: &[f64],
-    ranges: &[std::ops::Range<usize>],
-) -> Pick {
+fn pick(members: &[Candidate], y: &[f64]) -> Pick {
     let zero = stacking::rmse(y, &vec![0.0; y.len()]);
     let none = |reason: String| Pick {
         members: Vec::new(),
@@ -200,46 +203,29 @@ fn pick(
     let blended: Vec<f64> = (0..y.len())
         .map(|i| preds.iter().zip(&w).map(|(p, wm)| wm * p[i]).sum())
         .collect();
-    let score = if std::env::var("TRUEPOS_XFIT").is_ok() {
-        stacking::rmse(y, &stacking::cross_fitted(&preds, y, ranges))
-    } else {
-        stacking::rmse(y, &blended)
-    };
-    if std::env::var("TRUEPOS_DEBUG_SELECT").is_ok() {
-        let per: Vec<String> = members.iter().zip(&w).map(|(m, wm)| format!("{}@{:e}={:.3} w{:.2}", m.0, m.1, m.2, wm)).collect();
-        eprintln!("zero {zero:.3} stack {score:.3} in-sample {:.3} | {}", stacking::rmse(y, &(0..y.len()).map(|i| preds.iter().zip(&w).map(|(p, wm)| wm * p[i]).sum()).collect::<Vec<f64>>()), per.join(" "));
-    }
-    let single = |i: usize, why: Option<String>| Pick {
-        members: vec![Member {
-            family: members[i].0,
-            ridge: members[i].1,
-            weight: 1.0,
-            cv_rmse_um: members[i].2,
-            tau_s: None,
-        }],
-        cv_rmse_um: members[i].2,
-        uncompensated_um: zero,
-        fallback: why,
-    };
-    let mode = std::env::var("TRUEPOS_SEL").unwrap_or_default();
-    if mode == "single" {
-        let b = (0..members.len()).min_by(|&a, &b| members[a].2.total_cmp(&members[b].2)).unwrap();
-        return single(b, None);
-    }
+    let score = stacking::rmse(y, &blended);
     if score > CLEARLY_BETTER * zero {
         return none(format!(
-            "no compensation: the best blend's inner-validation RMSE {score:.3} µm is not clearly below no compensation's {zero:.3} µm"
+            "no compensation: the blend's inner-validation RMSE {score:.3} µm is not clearly below no compensation's {zero:.3} µm"
         ));
     }
     if let Some(s) = members.iter().position(|m| m.0 == Family::Static) {
-        if members[s].2 <= CLEARLY_BETTER * score {
-            return single(
-                s,
-                Some(format!(
-                    "static: its inner-validation RMSE {:.3} µm is clearly below the blend's {score:.3} µm (the blend's weights do not hold up out of fold)",
+        if score > CLEARLY_BETTER * members[s].2 {
+            return Pick {
+                members: vec![Member {
+                    family: Family::Static,
+                    ridge: members[s].1,
+                    weight: 1.0,
+                    cv_rmse_um: members[s].2,
+                    tau_s: None,
+                }],
+                cv_rmse_um: members[s].2,
+                uncompensated_um: zero,
+                fallback: Some(format!(
+                    "static: the blend's inner-validation RMSE {score:.3} µm is not clearly below the static model's {:.3} µm",
                     members[s].2
                 )),
-            );
+            };
         }
     }
     let chosen: Vec<Member> = members
@@ -254,9 +240,6 @@ fn pick(
             tau_s: None,
         })
         .collect();
-    if chosen.is_empty() {
-        return none("no compensation: every family's weight is zero".into());
-    }
     Pick {
         members: chosen,
         cv_rmse_um: score,
@@ -266,7 +249,11 @@ fn pick(
 }
 
 /// A design fitted on every training row (each member of the final blend once).
-pub(crate) fn fit_all(p: &Problem<'_>, d: &Design, ridge: f64) -> Result<crate::least_squares::Solution, String> {
+pub(crate) fn fit_all(
+    p: &Problem<'_>,
+    d: &Design,
+    ridge: f64,
+) -> Result<crate::least_squares::Solution, String> {
     p.accumulate(d, 0..p.x.nrows())
         .finish()
         .solve(&SolveOptions {
@@ -275,4 +262,65 @@ pub(crate) fn fit_all(p: &Problem<'_>, d: &Design, ridge: f64) -> Result<crate::
             rcond: None,
         })
         .map_err(|e| e.to_string())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn member(family: Family, rmse: f64, pred: Vec<f64>) -> Candidate {
+        (family, 1e-3, rmse, pred)
+    }
+
+    #[test]
+    fn a_good_blend_is_kept_and_its_weights_sum_to_at_most_one() {
+        let y: Vec<f64> = (0..100).map(|i| (i as f64 / 9.0).sin() * 5.0).collect();
+        let good: Vec<f64> = y.iter().map(|v| 0.95 * v).collect();
+        let flat = vec![0.5; 100];
+        let p = pick(
+            &[
+                member(Family::Static, 3.0, flat),
+                member(Family::Dynamic, 0.2, good),
+            ],
+            &y,
+        );
+        assert_eq!(p.fallback, None);
+        assert_eq!(p.members.len(), 1);
+        assert_eq!(p.members[0].family, Family::Dynamic);
+        assert!(p.members[0].weight <= 1.0 + 1e-12);
+        assert!(p.cv_rmse_um < 0.3 && p.uncompensated_um > 3.0);
+    }
+
+    #[test]
+    fn nothing_clearly_better_than_none_gives_no_compensation() {
+        let y: Vec<f64> = (0..100).map(|i| (i as f64 / 9.0).sin()).collect();
+        let noise: Vec<f64> = (0..100)
+            .map(|i| ((i * 7919) % 13) as f64 / 13.0 - 0.5)
+            .collect();
+        let p = pick(&[member(Family::Dynamic, 1.2, noise)], &y);
+        assert!(p.members.is_empty());
+        assert!(p.fallback.unwrap().starts_with("no compensation"));
+    }
+
+    #[test]
+    fn a_blend_hardly_better_than_static_falls_back_to_static() {
+        let y: Vec<f64> = (0..100).map(|i| (i as f64 / 9.0).sin() * 5.0).collect();
+        let stat: Vec<f64> = y.iter().map(|v| 0.8 * v).collect();
+        let dynamic: Vec<f64> = y
+            .iter()
+            .enumerate()
+            .map(|(i, v)| 0.81 * v + 0.001 * (i % 3) as f64)
+            .collect();
+        let static_rmse = stacking::rmse(&y, &stat);
+        let p = pick(
+            &[
+                member(Family::Static, static_rmse, stat),
+                member(Family::Dynamic, 0.9, dynamic),
+            ],
+            &y,
+        );
+        assert_eq!(p.members.len(), 1);
+        assert_eq!(p.members[0].family, Family::Static);
+        assert!(p.fallback.unwrap().starts_with("static"));
+    }
 }

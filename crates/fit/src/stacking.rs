@@ -16,8 +16,6 @@
 //! assert!((w[0] - 1.0).abs() < 1e-9 && w[1].abs() < 1e-9);
 //! ```
 
-use std::ops::Range;
-
 use faer::linalg::solvers::Solve;
 use faer::Mat;
 
@@ -97,28 +95,6 @@ fn face(g: &[Vec<f64>], b: &[f64], idx: &[usize], sum_active: bool, tiny: f64) -
     w.iter().all(|v| v.is_finite()).then_some(w)
 }
 
-/// The blend's own out-of-fold predictions: the rows of each fold (`folds`, ranges into `y` and
-/// every `p[m]`) predicted with weights fitted on the other folds' rows only, so that the
-/// blend's score is as honest as its members'. Returns the predictions.
-pub fn cross_fitted(p: &[Vec<f64>], y: &[f64], folds: &[Range<usize>]) -> Vec<f64> {
-    let mut out = vec![0.0; y.len()];
-    for held in folds {
-        let keep = |v: &[f64]| -> Vec<f64> {
-            v.iter()
-                .enumerate()
-                .filter(|(i, _)| !held.contains(i))
-                .map(|(_, x)| *x)
-                .collect()
-        };
-        let pt: Vec<Vec<f64>> = p.iter().map(|v| keep(v)).collect();
-        let w = weights(&pt, &keep(y));
-        for i in held.clone() {
-            out[i] = p.iter().zip(&w).map(|(v, wm)| wm * v[i]).sum();
-        }
-    }
-    out
-}
-
 /// Root mean square of `a − b`.
 pub fn rmse(a: &[f64], b: &[f64]) -> f64 {
     let n = a.len().max(1) as f64;
@@ -143,20 +119,16 @@ mod tests {
     fn the_sum_constraint_binds_and_mixes_two_halves() {
         // y = a + b; candidates a+b+noise-ish pieces: p0 = y + d, p1 = y − d → w = ½, ½.
         let y: Vec<f64> = (0..40).map(|i| i as f64 * 0.1).collect();
-        let d: Vec<f64> = (0..40).map(|i| if i % 2 == 0 { 1.0 } else { -1.0 }).collect();
+        let d: Vec<f64> = (0..40)
+            .map(|i| if i % 2 == 0 { 1.0 } else { -1.0 })
+            .collect();
         let p0: Vec<f64> = y.iter().zip(&d).map(|(a, b)| a + b).collect();
         let p1: Vec<f64> = y.iter().zip(&d).map(|(a, b)| a - b).collect();
         let w = weights(&[p0, p1], &y);
-        assert!((w[0] - 0.5).abs() < 1e-6 && (w[1] - 0.5).abs() < 1e-6, "{w:?}");
-    }
-
-    #[test]
-    fn a_useless_candidate_gets_nothing_out_of_fold() {
-        // A candidate anticorrelated with y in every fold: zero weight, zero prediction.
-        let y: Vec<f64> = (0..30).map(|i| (i as f64).cos()).collect();
-        let p = vec![y.iter().map(|v| -v).collect::<Vec<_>>()];
-        let out = cross_fitted(&p, &y, &[0..10, 10..20, 20..30]);
-        assert!(out.iter().all(|v| *v == 0.0));
+        assert!(
+            (w[0] - 0.5).abs() < 1e-6 && (w[1] - 0.5).abs() < 1e-6,
+            "{w:?}"
+        );
     }
 
     proptest! {

@@ -16,11 +16,11 @@ use truepos_model::{DynamicModel, FeatureBank, FeatureKind};
 
 use crate::dataset::{Dataset, InputKind};
 use crate::features::{bank_for, candidates, Candidates, Family};
-use crate::transfer::identify_tau;
 use crate::inner_cv::{decorrelation_time, Folds, Row};
 use crate::least_squares::Accumulator;
 use crate::selection::{fit_all, select, Member};
 use crate::settings::Settings;
+use crate::transfer::identify_tau;
 
 /// What was chosen for one target.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -228,19 +228,6 @@ impl<'a> Problem<'a> {
                     .flat_map(|f| f.held.clone().map(move |i| (i, k)))
                     .map(|(i, k)| self.y[(i, k)])
                     .collect()
-            })
-            .collect()
-    }
-
-    /// Each fold's rows as a range into [`Self::held_targets`].
-    pub fn held_ranges(&self) -> Vec<std::ops::Range<usize>> {
-        let mut at = 0;
-        self.folds
-            .folds
-            .iter()
-            .map(|f| {
-                at += f.held.len();
-                at - f.held.len()..at
             })
             .collect()
     }

@@ -132,8 +132,8 @@ fn reduced_residual(
             };
             if next < end && rows[next].1 == row {
                 a[1..].copy_from_slice(values);
-                for k in 0..nt {
-                    b[k] = targets[k][row];
+                for (k, target) in targets.iter().enumerate() {
+                    b[k] = target[row];
                     sum[k] += b[k];
                     sum2[k] += b[k] * b[k];
                 }

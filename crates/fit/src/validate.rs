@@ -207,7 +207,11 @@ pub fn inner_vs_test(metrics: &[Metrics], inner: &[Vec<f64>]) -> Vec<InnerVsTest
                 target: m.target.clone(),
                 inner_cv_rmse_um: inner,
                 test_rmse_um: m.rmse_um,
-                test_to_inner: if inner > 0.0 { m.rmse_um / inner } else { f64::INFINITY },
+                test_to_inner: if inner > 0.0 {
+                    m.rmse_um / inner
+                } else {
+                    f64::INFINITY
+                },
             }
         })
         .collect()
