@@ -174,7 +174,11 @@ pub(crate) fn select(
     let held = p.held_targets();
     let picks = (0..nt)
         .map(|k| {
-            let mut pick = pick(&members[k], &held[k]);
+            let mut pick = if settings.families.len() == 1 && members[k].len() == 1 {
+                as_given(&members[k][0], &held[k])
+            } else {
+                pick(&members[k], &held[k])
+            };
             for m in &mut pick.members {
                 m.tau_s = (m.family == Family::Transfer)
                     .then_some(p.transfer_tau)
@@ -184,6 +188,22 @@ pub(crate) fn select(
         })
         .collect();
     (picks, families)
+}
+
+/// One family named by the user is fitted as it is: nothing to blend, nothing to guard.
+fn as_given(m: &Candidate, y: &[f64]) -> Pick {
+    Pick {
+        members: vec![Member {
+            family: m.0,
+            ridge: m.1,
+            weight: 1.0,
+            cv_rmse_um: m.2,
+            tau_s: None,
+        }],
+        cv_rmse_um: m.2,
+        uncompensated_um: stacking::rmse(y, &vec![0.0; y.len()]),
+        fallback: None,
+    }
 }
 
 /// Blend, guard and fallback for one target.

@@ -399,7 +399,7 @@ pub fn outcome(
     }
     let chosen: Vec<Vec<String>> = choices
         .iter()
-        .map(|c| c.iter().map(|c| c.describe()).collect())
+        .map(|c| c.iter().map(|c| c.label()).collect())
         .collect();
     let per_run = per_run(dataset, &rel, &oof, &fold_of, &chosen);
     warnings.extend(worse_than_uncompensated(&per_run));
@@ -704,7 +704,7 @@ pub(crate) mod tests {
         assert!((c.metrics.uncompensated_rmse_um - rms).abs() < 1e-9);
         assert!((c.metrics.rmse_um - 3.0 * rms).abs() < 1e-6, "{c:?}");
         assert!((c.metrics.rmse_reduction_percent + 200.0).abs() < 1e-4);
-        assert_eq!(c.family, "static λ=0e0");
+        assert_eq!(c.family, "static");
         let worse: Vec<&String> = v.warnings.iter().filter(|w| w.contains("worse")).collect();
         assert!(
             worse.iter().any(|w| w.contains("run c.csv, dz_um")
