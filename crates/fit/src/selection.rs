@@ -5,7 +5,7 @@
 //! better than it ([`CLEARLY_BETTER`]); each fallback is a warning naming the figures.
 
 use crate::features::Family;
-use crate::least_squares::{Accumulator, SolveOptions};
+use crate::least_squares::{Accumulator, SolveOptions, Triangle};
 use crate::settings::{Rule, Settings};
 use crate::stacking;
 use crate::train::{Design, FamilyScore, Problem};
@@ -50,10 +50,35 @@ pub struct Pick {
 }
 
 /// The inner validation of one design: per ridge, per target, the RMSE over all held-out rows
-/// with the standard error of the per-fold RMSEs, and the held-out predictions (fold order).
+/// with the standard error of the per-fold RMSEs; and each fold's factor, to predict the
+/// held-out rows again at the one ridge kept (storing every ridge's predictions would cost
+/// ridges × targets × rows).
 pub(crate) struct FamilyCv {
     pub scores: Vec<Vec<(f64, f64)>>,
-    pub oof: Vec<Vec<Vec<f64>>>,
+    tris: Vec<Triangle>,
+}
+
+impl FamilyCv {
+    /// Target `k`'s held-out predictions (fold order) at `ridge`.
+    fn predictions(&self, p: &Problem<'_>, d: &Design, k: usize, ridge: f64) -> Vec<f64> {
+        let opts = SolveOptions {
+            ridge,
+            unpenalized: vec![0],
+            rcond: None,
+        };
+        let mut out = Vec::with_capacity(p.folds.held_rows());
+        for (fold, tri) in p.folds.folds.iter().zip(&self.tris) {
+            match tri.solve(&opts) {
+                Ok(sol) => out.extend(
+                    fold.held
+                        .clone()
+                        .map(|i| p.predict(d, &sol.coefficients[k], i)),
+                ),
+                Err(_) => out.extend(fold.held.clone().map(|_| f64::INFINITY)),
+            }
+        }
+        out
+    }
 }
 
 /// Scores a design by the problem's folds (each trains on whole segments, one accumulator each).
@@ -66,9 +91,8 @@ pub(crate) fn cv(p: &Problem<'_>, d: &Design, ridges: &[f64]) -> FamilyCv {
         .map(|r| p.accumulate(d, r.clone()))
         .collect();
     let held_n = folds.held_rows();
-    let mut oof = vec![vec![vec![0.0; held_n]; nt]; ridges.len()];
     let mut sse = vec![vec![vec![0.0; folds.folds.len()]; nt]; ridges.len()];
-    let mut offset = 0;
+    let mut tris = Vec::with_capacity(folds.folds.len());
     for (f, fold) in folds.folds.iter().enumerate() {
         let mut acc = Accumulator::new(d.cols.len() + 1, nt);
         for &s in &fold.train {
@@ -82,18 +106,17 @@ pub(crate) fn cv(p: &Problem<'_>, d: &Design, ridges: &[f64]) -> FamilyCv {
                 rcond: None,
             };
             let sol = tri.solve(&opts).ok();
-            for (o, i) in fold.held.clone().enumerate() {
+            for i in fold.held.clone() {
                 for k in 0..nt {
                     let pred = match &sol {
                         Some(sol) => p.predict(d, &sol.coefficients[k], i),
                         None => f64::INFINITY,
                     };
-                    oof[ri][k][offset + o] = pred;
                     sse[ri][k][f] += (p.y[(i, k)] - pred).powi(2);
                 }
             }
         }
-        offset += fold.held.len();
+        tris.push(tri);
     }
     let used = folds.folds.len() as f64;
     let scores = sse
@@ -116,7 +139,7 @@ pub(crate) fn cv(p: &Problem<'_>, d: &Design, ridges: &[f64]) -> FamilyCv {
                 .collect()
         })
         .collect();
-    FamilyCv { scores, oof }
+    FamilyCv { scores, tris }
 }
 
 /// The ridge index a family keeps for target `k`: the lowest CV RMSE, or with
@@ -154,7 +177,7 @@ pub(crate) fn select(
         let Some(design) = p.design(family, sensors, reference) else {
             continue;
         };
-        let mut fam = cv(p, &design, &settings.ridges);
+        let fam = cv(p, &design, &settings.ridges);
         let mut per_target = vec![(f64::INFINITY, 0.0); nt];
         for k in 0..nt {
             for (ri, row) in fam.scores.iter().enumerate() {
@@ -165,7 +188,7 @@ pub(crate) fn select(
             let ri = ridge_index(&fam.scores, &settings.ridges, k, settings.rule);
             let rmse = fam.scores[ri][k].0;
             if rmse.is_finite() {
-                let pred = std::mem::take(&mut fam.oof[ri][k]);
+                let pred = fam.predictions(p, &design, k, settings.ridges[ri]);
                 members[k].push((family, settings.ridges[ri], rmse, pred));
             }
         }
