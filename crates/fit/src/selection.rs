@@ -107,12 +107,12 @@ pub(crate) fn cv(p: &Problem<'_>, d: &Design, ridges: &[f64]) -> FamilyCv {
             };
             let sol = tri.solve(&opts).ok();
             for i in fold.held.clone() {
-                for k in 0..nt {
+                for (k, per_fold) in sse[ri].iter_mut().enumerate() {
                     let pred = match &sol {
                         Some(sol) => p.predict(d, &sol.coefficients[k], i),
                         None => f64::INFINITY,
                     };
-                    sse[ri][k][f] += (p.y[(i, k)] - pred).powi(2);
+                    per_fold[f] += (p.y[(i, k)] - pred).powi(2);
                 }
             }
         }
