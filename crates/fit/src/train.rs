@@ -337,7 +337,6 @@ pub fn train(
         _ => cand,
     };
     let p = Problem::new(dataset, cand, rows, settings, transfer_tau);
-    let nt = dataset.target_names.len();
     let all_sensors: Vec<usize> = (0..cand.spec.temperatures).collect();
     let mut sensors = match settings.max_sensors {
         Some(max) if max < all_sensors.len() => {
@@ -361,74 +360,13 @@ pub fn train(
         );
     }
     let (picks, scores) = select(&p, settings, &sensors);
-    // Final fit of every member on all training rows, each (family, ridge) once.
+    let Blended {
+        coef,
+        intercepts,
+        warnings,
+        choices,
+    } = blend(dataset, &p, &picks, &sensors, reference)?;
     let nf = cand.features.len();
-    let mut coef = vec![vec![0.0; nf]; nt];
-    let mut intercepts = vec![0.0; nt];
-    let mut warnings = Vec::new();
-    let mut choices = Vec::new();
-    let mut fitted: Vec<(Family, f64, Design, crate::least_squares::Solution)> = Vec::new();
-    for k in 0..nt {
-        let pick = &picks[k];
-        for m in &pick.members {
-            let at = match fitted
-                .iter()
-                .position(|f| f.0 == m.family && f.1 == m.ridge)
-            {
-                Some(at) => at,
-                None => {
-                    let design = p
-                        .design(m.family, &sensors, reference)
-                        .ok_or("internal: the chosen family has no design")?;
-                    let sol = fit_all(&p, &design, m.ridge)?;
-                    fitted.push((m.family, m.ridge, design, sol));
-                    fitted.len() - 1
-                }
-            };
-            let (_, _, design, sol) = &fitted[at];
-            let names: Vec<String> = std::iter::once("intercept".to_string())
-                .chain(design.cols.iter().map(|&c| match design.minus {
-                    Some(r) => format!("{} − {}", cand.names[c], cand.names[r]),
-                    None => cand.names[c].clone(),
-                }))
-                .collect();
-            for d in &sol.rank_deficiencies {
-                let w = format!("{}: {}", dataset.target_names[k], d.describe(&names));
-                if !warnings.contains(&w) {
-                    warnings.push(w);
-                }
-            }
-            let c = &sol.coefficients[k];
-            let mut b0 = c[0];
-            for (cj, &col) in c[1..].iter().zip(&design.cols) {
-                coef[k][col] += m.weight * cj;
-                b0 -= cj * p.means[col];
-                // k·(x_i − x_r) = k·x_i − k·x_r: the reference's rise carries −Σk.
-                if let Some(r) = design.minus {
-                    coef[k][r] -= m.weight * cj;
-                    b0 += cj * p.means[r];
-                }
-            }
-            intercepts[k] += m.weight * b0;
-        }
-        if let Some(why) = &pick.fallback {
-            warnings.push(format!("{}: {why}", dataset.target_names[k]));
-        }
-        let head = pick
-            .members
-            .iter()
-            .max_by(|a, b| a.weight.total_cmp(&b.weight))
-            .copied();
-        choices.push(Choice {
-            target: dataset.target_names[k].clone(),
-            family: head.map_or(Family::Static, |m| m.family),
-            ridge: head.map_or(0.0, |m| m.ridge),
-            cv_rmse_um: pick.cv_rmse_um,
-            blend: pick.members.clone(),
-            uncompensated_cv_rmse_um: pick.uncompensated_um,
-            fallback: pick.fallback.clone(),
-        });
-    }
     // Export: inputs = the chosen sensors, plus operating inputs if any target reads them.
     let uses = |pred: &dyn Fn(FeatureKind) -> bool| {
         (0..nf).any(|j| pred(cand.features[j].kind) && coef.iter().any(|c| c[j] != 0.0))
@@ -483,6 +421,100 @@ pub fn train(
         choices,
         warnings,
         scores,
+    })
+}
+
+/// The blends fitted: per target, coefficients over the candidate features and an intercept.
+struct Blended {
+    coef: Vec<Vec<f64>>,
+    intercepts: Vec<f64>,
+    warnings: Vec<String>,
+    choices: Vec<Choice>,
+}
+
+/// Fits every member of every target's blend on all training rows (each family and ridge once)
+/// and sums them with their weights; a fallback becomes a warning naming the target.
+fn blend(
+    dataset: &Dataset,
+    p: &Problem<'_>,
+    picks: &[crate::selection::Pick],
+    sensors: &[usize],
+    reference: Option<usize>,
+) -> Result<Blended, String> {
+    let cand = p.cand;
+    let nt = picks.len();
+    let nf = cand.features.len();
+    let mut coef = vec![vec![0.0; nf]; nt];
+    let mut intercepts = vec![0.0; nt];
+    let mut warnings = Vec::new();
+    let mut choices = Vec::new();
+    let mut fitted: Vec<(Family, f64, Design, crate::least_squares::Solution)> = Vec::new();
+    for k in 0..nt {
+        let pick = &picks[k];
+        for m in &pick.members {
+            let at = match fitted
+                .iter()
+                .position(|f| f.0 == m.family && f.1 == m.ridge)
+            {
+                Some(at) => at,
+                None => {
+                    let design = p
+                        .design(m.family, sensors, reference)
+                        .ok_or("internal: the chosen family has no design")?;
+                    let sol = fit_all(p, &design, m.ridge)?;
+                    fitted.push((m.family, m.ridge, design, sol));
+                    fitted.len() - 1
+                }
+            };
+            let (_, _, design, sol) = &fitted[at];
+            let names: Vec<String> = std::iter::once("intercept".to_string())
+                .chain(design.cols.iter().map(|&c| match design.minus {
+                    Some(r) => format!("{} − {}", cand.names[c], cand.names[r]),
+                    None => cand.names[c].clone(),
+                }))
+                .collect();
+            for d in &sol.rank_deficiencies {
+                let w = format!("{}: {}", dataset.target_names[k], d.describe(&names));
+                if !warnings.contains(&w) {
+                    warnings.push(w);
+                }
+            }
+            let c = &sol.coefficients[k];
+            let mut b0 = c[0];
+            for (cj, &col) in c[1..].iter().zip(&design.cols) {
+                coef[k][col] += m.weight * cj;
+                b0 -= cj * p.means[col];
+                // k·(x_i − x_r) = k·x_i − k·x_r: the reference's rise carries −Σk.
+                if let Some(r) = design.minus {
+                    coef[k][r] -= m.weight * cj;
+                    b0 += cj * p.means[r];
+                }
+            }
+            intercepts[k] += m.weight * b0;
+        }
+        if let Some(why) = &pick.fallback {
+            warnings.push(format!("{}: {why}", dataset.target_names[k]));
+        }
+        let head = pick
+            .members
+            .iter()
+            .max_by(|a, b| a.weight.total_cmp(&b.weight))
+            .copied();
+        choices.push(Choice {
+            target: dataset.target_names[k].clone(),
+            family: head.map_or(Family::Static, |m| m.family),
+            ridge: head.map_or(0.0, |m| m.ridge),
+            cv_rmse_um: pick.cv_rmse_um,
+            blend: pick.members.clone(),
+            uncompensated_cv_rmse_um: pick.uncompensated_um,
+            fallback: pick.fallback.clone(),
+        });
+    }
+    Ok(Blended {
+        coef,
+        intercepts,
+        warnings,
+        choices,
     })
 }
 
