@@ -25,7 +25,9 @@ as the server announces it (conforming clients refuse a mismatch), and the host 
 the clients connect to. Users: --user NAME:PASSWORD
 (may write), --reader NAME:PASSWORD (may open a session and read; writes are refused with
 BadUserAccessDenied, like a SINUMERIK user without the SeaWrite realm); anonymous sessions only
-with --anonymous. --slow-ms delays every Write by that much (a slow server).
+with --anonymous. --slow-ms delays every Write by that much (a slow server). --bad-temp
+NAME@SECONDS gives temperature NAME the status BadSensorFailure from that time on (its value
+stays as it was, as a server keeps a failed sensor's last value).
 """
 
 import argparse
@@ -115,9 +117,14 @@ async def main(args) -> None:
         ]
         pos[axis] = await var(f"/Channel/MachineAxis/actToolBasePos[u1,{u}]", 0.0)
     await var(f"{SEA}$SA_INT_NODE[u1]", 0, ua.VariantType.Int32, writable=True)
+    temps = {}
     for t in args.temp:
         name, _, value = t.partition("=")
-        await var(f"/Plc/Temp/{name}", float(value))
+        temps[name] = (await var(f"/Plc/Temp/{name}", float(value)), float(value))
+    bad = {}
+    for b in args.bad_temp:
+        name, _, at = b.partition("@")
+        bad[name] = float(at)
 
     # Writes: a reader's are refused (no write realm); a slow server answers late.
     service = server.iserver.attribute_service
@@ -145,6 +152,12 @@ async def main(args) -> None:
             span = hi - lo
             phase = (t * args.speed) % (2 * span) if span > 0 else 0.0
             p = {"X": lo + (phase if phase <= span else 2 * span - phase), **fixed}
+            for name, at in list(bad.items()):
+                if t >= at:
+                    node, value = temps[name]
+                    status = ua.StatusCode(ua.StatusCodes.BadSensorFailure)
+                    await node.write_value(ua.DataValue(ua.Variant(value, ua.VariantType.Double), StatusCode=status))
+                    del bad[name]
             row = [f"{t:.4f}"]
             for axis in AXES:
                 await pos[axis].write_value(ua.Variant(p[axis], ua.VariantType.Double))
@@ -171,5 +184,6 @@ if __name__ == "__main__":
     parser.add_argument("--pos-z", type=float, default=300.0)
     parser.add_argument("--tick-ms", type=float, default=20.0)
     parser.add_argument("--slow-ms", type=float, default=0.0)
+    parser.add_argument("--bad-temp", action="append", default=[])
     parser.add_argument("--duration-s", type=float, default=0.0)
     sys.exit(asyncio.run(main(parser.parse_args())))

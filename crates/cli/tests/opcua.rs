@@ -652,3 +652,79 @@ fn a_slow_server_delays_writes_not_the_cycle_and_a_wrong_certificate_is_refused(
     );
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// A temperature the model reads turns Bad on the server (BadSensorFailure, its last value
+/// kept): the source stops updating it, the service's validation calls it stale, compensation
+/// holds and ramps down — and the sink writes that as a constant (tanβ 0), never a NaN.
+#[test]
+fn a_bad_status_on_a_sensor_node_is_an_invalid_input_never_a_number() {
+    let dir = scratch("opcua-bad-sensor");
+    // Control time: the first (refused) run and the trust take about 3 s; the fault at 9 s.
+    let control = start_control(
+        free_port(),
+        &dir.join("server"),
+        &dir.join("record.csv"),
+        &["--bad-temp", "x_slide_top@9"],
+    );
+    let client_pki = trusted_client(&dir, &control);
+    let (sink, source) = configs(
+        &dir,
+        control.port,
+        &client_pki,
+        USER,
+        &format!("{SEA}$SA_TEMP_COMP_SLOPE[u2]"),
+    );
+    // x_slide_top is stale 1 s after its last Good reading (default 10 s).
+    let machine = dir.join("machine.toml");
+    let toml = std::fs::read_to_string(repo("examples/vmc3/machine.toml")).unwrap();
+    let toml = toml.replacen(
+        "id = \"x_slide_top\"\n",
+        "id = \"x_slide_top\"\nmax_age_s = 1.0\n",
+        1,
+    );
+    std::fs::write(&machine, toml).unwrap();
+    let log = dir.join("log.sqlite");
+    let out = truepos()
+        .args([
+            "run",
+            "--models",
+            "examples/vmc3/model.toml",
+            "--blend-s",
+            "0",
+            "--hold-ramp-s",
+            "2",
+        ])
+        .args(["--duration-s", "12", "--json", "--machine"])
+        .arg(&machine)
+        .arg("--log")
+        .arg(&log)
+        .arg("--source")
+        .arg(format!("opcua:{}", source.display()))
+        .arg("--sink")
+        .arg(format!("opcua:{}", sink.display()))
+        .output()
+        .unwrap();
+    let (json, err) = text(&out);
+    assert!(out.status.success(), "{err}\n{json}");
+    assert!(
+        err.contains("/Plc/Temp/x_slide_top: status BadSensorFailure"),
+        "{err}"
+    );
+    let events = truepos_runtime::log::read_events(&log).unwrap();
+    assert!(
+        events
+            .iter()
+            .any(|e| e.kind == "sensor-fault" && e.subject == "x_slide_top"),
+        "{events:?}"
+    );
+    let v: serde_json::Value = serde_json::from_str(json.trim()).unwrap();
+    assert_ne!(v["state"], "active", "{json}");
+    // What the control holds at the end: finite, the slope gone (a constant while holding).
+    let (h, rows) = record(&control.record);
+    let last = rows.last().unwrap();
+    for axis in ["X", "Y", "Z"] {
+        assert!(last[col(&h, &format!("{axis}_dk_mm"))].is_finite());
+    }
+    assert_eq!(last[col(&h, "X_tan_beta")], 0.0, "{last:?}");
+    std::fs::remove_dir_all(&dir).ok();
+}
