@@ -93,7 +93,7 @@ impl Connection {
         let host_port = url.split('/').next().unwrap_or("");
         if host_port
             .rsplit_once(':')
-            .map_or(true, |(h, p)| h.is_empty() || p.parse::<u16>().is_err())
+            .is_none_or(|(h, p)| h.is_empty() || p.parse::<u16>().is_err())
         {
             return Err(ConfigError::new(
                 "endpoint",

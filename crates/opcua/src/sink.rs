@@ -340,7 +340,7 @@ impl Writer {
         let num = |i: usize| -> f64 {
             values
                 .get(i)
-                .filter(|v| v.status.map_or(true, |s| s.is_good()))
+                .filter(|v| v.status.is_none_or(|s| s.is_good()))
                 .and_then(|v| v.value.as_ref())
                 .and_then(|v| match v {
                     Variant::Double(x) => Some(*x),
