@@ -295,8 +295,9 @@ fn projection_error(machine: &truepos_model::Machine, model: &Model) -> Vec<f64>
 /// The control's speed along X, mm/s (the script's default).
 const SPEED_X: f64 = 200.0;
 /// How old the values the control applies may be: a write period (100 ms), the source's
-/// sampling of the position (100 ms), the control's tick (20 ms) and round trips, with margin.
-const LATENCY_S: f64 = 0.3;
+/// sampling of the position (100 ms), the control's tick (20 ms) and round trips, with margin
+/// for a loaded host (measured: 0.63 µm of Z, i.e. about 0.2 s of X's motion).
+const LATENCY_S: f64 = 0.5;
 
 /// What the applied compensation of each axis may miss the model by, µm: the projection error
 /// along the axis' own travel, and for Y and Z the change of their compensation while X moves
