@@ -7,7 +7,7 @@ cd "$(dirname "$0")/.."
 
 echo "== what the tests need"
 bash scripts/install_system_deps.sh   # SQLite headers (Debian)
-bash scripts/setup_python.sh          # .venv with pymodbus, for the Modbus source tests
+bash scripts/setup_python.sh          # .venv with pymodbus and asyncua, for the Modbus and OPC UA tests
 bash scripts/install_linuxcnc.sh      # LinuxCNC 2.9 (Debian), for the HAL component
 bash scripts/install_chromium.sh      # Chromium (Debian), to render the HTML reports in a real browser
 

@@ -41,7 +41,8 @@ pub struct RunArgs {
     /// see docs/network_sources.md for their configuration.
     #[arg(long = "source", default_value = "replay:examples/vmc3/run.csv")]
     sources: Vec<String>,
-    /// Sinks: `csv:OUT.csv` (one row per `--sink-every-s`).
+    /// Sinks: `csv:OUT.csv` (one row per `--sink-every-s`) and `opcua:MAPPING.toml` (the model's
+    /// per-axis line K0/tanβ/P0 written to a control's nodes; docs/controls.md).
     #[arg(long = "sink")]
     sinks: Vec<String>,
     /// SQLite log of inputs, outputs and events (WAL mode).
@@ -197,7 +198,7 @@ pub fn run(args: RunArgs) -> Result<(), CliError> {
     // The service clock's zero, shared with network sources that stamp values themselves.
     let epoch = Instant::now();
     let (sources, replay_end_s) = open_sources(&args, &machine.machine, epoch)?;
-    let sinks = open_sinks(&args, &machine.machine)?;
+    let sinks = open_sinks(&args, &machine, &entries)?;
     let config = ServiceConfig {
         blend_s: args.blend_s,
         hold_ramp_s: args.hold_ramp_s,
@@ -306,9 +307,16 @@ fn open_sources(
                 let cfg = ShdrConfig::load(std::path::Path::new(what))?;
                 Box::new(ShdrSource::start(&cfg, m, epoch)?)
             }
+            "opcua" => {
+                let (cfg, identity, targets) =
+                    truepos_opcua::SourceConfig::load(std::path::Path::new(rest), m)?;
+                Box::new(truepos_opcua::OpcUaSource::start(
+                    &cfg, identity, targets, epoch,
+                )?)
+            }
             _ => {
                 return Err(CliError::refused(format!(
-                    "--source `{spec}`: expected `replay:FILE.csv[@SPEED]`, `probes:FILE.csv[@SPEED]`, `twin:SCENARIO[@SPEED]`, `modbus:CONFIG.toml` or `shdr:CONFIG.toml`"
+                    "--source `{spec}`: expected `replay:FILE.csv[@SPEED]`, `probes:FILE.csv[@SPEED]`, `twin:SCENARIO[@SPEED]`, `modbus:CONFIG.toml`, `shdr:CONFIG.toml` or `opcua:CONFIG.toml`"
                 )))
             }
         };
@@ -317,14 +325,33 @@ fn open_sources(
     Ok((sources, replay_end_s))
 }
 
-/// The sinks of `--sink`.
-fn open_sinks(args: &RunArgs, m: &truepos_model::Machine) -> Result<Vec<Box<dyn Sink>>, CliError> {
+/// The sinks of `--sink`. An OPC UA sink projects the model when the set is one seed A/C
+/// model (then an active service runs exactly it); a fitted dynamic model's form, and that of a
+/// set of several models (which one runs is the service's choice, cycle by cycle), is the
+/// service's output as a constant.
+fn open_sinks(
+    args: &RunArgs,
+    machine: &truepos_runtime::MachineConfig,
+    entries: &[truepos_runtime::model_set::ModelEntry],
+) -> Result<Vec<Box<dyn Sink>>, CliError> {
+    let m = &machine.machine;
     let axis_names: Vec<String> = m.axes.iter().map(|a| a.name.clone()).collect();
     let mut sinks: Vec<Box<dyn Sink>> = Vec::new();
     for spec in &args.sinks {
+        if let Some(file) = spec.strip_prefix("opcua:") {
+            let (cfg, identity, axes) =
+                truepos_opcua::SinkConfig::load(std::path::Path::new(file), m)?;
+            let model = match entries {
+                [one] => one.model.as_static().cloned(),
+                _ => None,
+            };
+            let sink = truepos_opcua::OpcUaSink::start(&cfg, identity, &axes, machine, model)?;
+            sinks.push(Box::new(sink));
+            continue;
+        }
         let Some(file) = spec.strip_prefix("csv:") else {
             return Err(CliError::refused(format!(
-                "--sink `{spec}`: expected `csv:FILE.csv`"
+                "--sink `{spec}`: expected `csv:FILE.csv` or `opcua:MAPPING.toml`"
             )));
         };
         let sink = CsvSink::create(std::path::Path::new(file), &axis_names, args.sink_every_s)?;

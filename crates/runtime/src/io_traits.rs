@@ -53,6 +53,13 @@ pub trait Sink: Send {
     fn name(&self) -> &str;
     /// Applies or records one cycle's output. Must not block.
     fn write(&mut self, output: &Output) -> Result<(), LinkError>;
+    /// What the service calls every cycle: the output and the cycle's inputs (lagged channels
+    /// computed), for a sink that needs more than the offsets — the OPC UA sink projects the
+    /// model at these temperatures onto the control's per-axis form. Must not block or allocate.
+    /// By default the inputs are not looked at.
+    fn write_cycle(&mut self, output: &Output, _frame: &Frame) -> Result<(), LinkError> {
+        self.write(output)
+    }
     /// Whether the offsets reach the axes through this sink (LinuxCNC's external offsets)
     /// rather than being recorded (a CSV file). When such a sink fails, nothing the service
     /// computes reaches the axes and it cannot resume bumplessly: the run stops with an alarm

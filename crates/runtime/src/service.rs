@@ -709,7 +709,7 @@ impl Service {
     fn write_sinks(&mut self, now_s: f64) {
         for (i, s) in self.sinks.iter_mut().enumerate() {
             let h = &mut self.sink_health[i];
-            let kind = match s.write(&self.output) {
+            let kind = match s.write_cycle(&self.output, &self.frame) {
                 Ok(()) => match h.failing_since_s.take() {
                     Some(_) => EventKind::SinkBack { sink: i },
                     None => continue,
