@@ -13,8 +13,8 @@ compensated by truepos-hal with a model fitted on the reference twin. This scrip
   tool tip, as the joints place it, meets the displaced block;
 - runs probe_loop.ngc and reads every G38.2 touch from LinuxCNC's probed position (where the
   joints stood, the external offset included), takes off the probe's trigger delay at its feed,
-  and hands the measured error (nominal face − touched position, the
-  model's sign: actual − nominal) to truepos's probe pins with a trigger pulse;
+  and hands the measured error (nominal face − touched position, the model's sign: actual −
+  nominal) to truepos's probe pins with a trigger pulse;
 - after REIDENTIFY_AFTER touches runs `truepos reidentify --log` on truepos's log, writes the
   new model over the file the component runs, and pulses truepos.model.reload: the component
   switches mid-program, blending;
