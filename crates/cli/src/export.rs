@@ -1,9 +1,11 @@
 //! `truepos export`: a model's state at one moment of a run, projected onto a control's own
 //! compensation form and written as the file that sets it (see docs/controls.md).
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
+use truepos_controls::fanuc::{macro_axes, write_macro_program};
 use truepos_controls::heidenhain::{offset_9231, tempcomp, PlcWord};
+use truepos_controls::isg::{write_parameters, IsgTempComp};
 use truepos_controls::projection::{project, AxisProjection, Form};
 use truepos_controls::siemens::write_program;
 use truepos_io::cycles::Cycles;
@@ -24,6 +26,12 @@ pub enum To {
     /// HEIDENHAIN kinematics `TEMPCOMP` formulas over PLC words (static models linear in the
     /// temperatures).
     HeidenhainTempcomp,
+    /// Beckhoff/ISG: axis parameter list entries P-AXIS-00271…00274 per axis (the error line
+    /// in 0.1 µm and µm/m).
+    Isg,
+    /// FANUC: the line per axis as custom macro variables (K0 µm, slope µm/m, P0 mm): a macro
+    /// program setting them, and the FOCAS `cnc_wrmacro` arguments in `--json`.
+    Fanuc,
 }
 
 /// Arguments of `truepos export`.
@@ -50,6 +58,15 @@ pub struct Args {
     /// The moment, s of the run's time (the first row at or after it); default: the last row.
     #[arg(long, value_parser = truepos_io::limits::finite_in(-1e10, 1e10))]
     at_s: Option<f64>,
+    /// ISG: the logical axis number of an axis, AXIS=N (default its place in the machine, 1…).
+    #[arg(long = "isg-axis", value_delimiter = ',')]
+    isg_axes: Vec<String>,
+    /// FANUC: the first macro variable (three per axis: K0, slope, P0).
+    #[arg(long, default_value_t = 500)]
+    fanuc_macro_base: u32,
+    /// FANUC: the macro program's number (`O` word).
+    #[arg(long, default_value_t = 9500, value_parser = clap::value_parser!(u32).range(1..=9999))]
+    fanuc_program: u32,
     /// Reference position P0 of an axis, AXIS=mm (repeat or comma-separate); default 0.
     #[arg(long, value_delimiter = ',')]
     p0: Vec<String>,
@@ -189,17 +206,6 @@ fn positions_now(machine: &Machine, run: &Cycles, k: usize) -> Vec<f64> {
         .collect()
 }
 
-pub(crate) fn write_whole(path: &Path, text: &str) -> Result<(), CliError> {
-    let mut tmp = path.as_os_str().to_owned();
-    tmp.push(".partial");
-    let tmp = PathBuf::from(tmp);
-    std::fs::write(&tmp, text).map_err(CliError::file(&tmp, Some("cannot write")))?;
-    std::fs::rename(&tmp, path).map_err(|e| {
-        let _ = std::fs::remove_file(&tmp);
-        CliError::file(path, Some("cannot write"))(e)
-    })
-}
-
 pub fn run(args: Args) -> Result<(), CliError> {
     let machine = machine_file::load(&args.machine)?.machine;
     let mut model = Evaluator::load(&args.model, &machine)?;
@@ -224,10 +230,15 @@ pub fn run(args: Args) -> Result<(), CliError> {
             machine.name
         ),
         format!(
-            "at t = {} s of {} (row {}); compensation = −error, mm",
+            "at t = {} s of {} (row {}); {}",
             cycles.time_s[k],
             args.run.display(),
-            k + 1
+            k + 1,
+            match args.to {
+                To::Isg => "the error line (actual − nominal), 0.1 µm and µm/m",
+                To::Fanuc => "compensation = −error, µm, µm/m and mm",
+                _ => "compensation = −error, mm",
+            }
         ),
     ];
     let static_model = model.model().as_static().cloned();
@@ -249,22 +260,28 @@ pub fn run(args: Args) -> Result<(), CliError> {
         }
     };
     let (text, axes_json) = match args.to {
-        To::Siemens | To::Heidenhain9231 => {
-            let form = if args.to == To::Siemens {
-                Form::Linear
-            } else {
+        To::Siemens | To::Heidenhain9231 | To::Isg | To::Fanuc => {
+            let form = if args.to == To::Heidenhain9231 {
                 Form::Constant
+            } else {
+                Form::Linear
             };
             let p0 = per_axis(&machine, &args.p0, "--p0")?;
             let proj = project(&machine, &at_positions, &now, form, &p0)
                 .map_err(|e| CliError::refused(e.to_string()))?;
-            check_error(&args, &proj)?;
-            let text = if args.to == To::Siemens {
-                write_program(&proj, &header)
+            if args.to == To::Isg {
+                isg_file(&args, &machine, &proj, &header)?
+            } else if args.to == To::Fanuc {
+                fanuc_file(&args, &machine, &proj, &header)?
             } else {
-                module_9231_csv(&proj)?
-            };
-            (text, projection_json(&proj))
+                check_error(&args, &proj, &vec![0.0; proj.len()])?;
+                let text = if args.to == To::Siemens {
+                    write_program(&proj, &header)
+                } else {
+                    module_9231_csv(&proj)?
+                };
+                (text, projection_json(&proj))
+            }
         }
         To::HeidenhainTempcomp => tempcomp_file(
             &args,
@@ -275,7 +292,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
             &header,
         )?,
     };
-    write_whole(&args.out, &text)?;
+    crate::write::write_whole(&args.out, &text)?;
     if args.json {
         let v = serde_json::json!({"to": format!("{:?}", args.to), "at_s": cycles.time_s[k], "axes": axes_json, "out": args.out.display().to_string()});
         println!("{v}");
@@ -292,15 +309,18 @@ fn evaluate(m: &Model, input: &CycleInput<'_>) -> Result<Vec<f64>, String> {
         .map_err(|e| e.to_string())
 }
 
-fn check_error(args: &Args, proj: &[AxisProjection]) -> Result<(), CliError> {
-    for p in proj {
-        if p.worst_um() > args.max_error_um {
+/// Refuses (unless `--force`) an axis whose form misses the model by more than
+/// `--max-error-um`, `extra` µm per axis added (what the control's units lose).
+fn check_error(args: &Args, proj: &[AxisProjection], extra: &[f64]) -> Result<(), CliError> {
+    for (p, x) in proj.iter().zip(extra) {
+        if p.worst_um() + x > args.max_error_um {
             let what = format!(
-                "axis {}: the control's form misses the model by up to {:.3} µm ({:.3} along its travel{}), more than --max-error-um {}",
+                "axis {}: the control's form misses the model by up to {:.3} µm ({:.3} along its travel{}{}), more than --max-error-um {}",
                 p.name,
-                p.worst_um(),
+                p.worst_um() + x,
                 p.along_error_um,
                 p.cross_axis.iter().map(|c| format!(", {:.3} when {} travels", c.change_um, c.axis)).collect::<String>(),
+                if *x > 0.0 { format!(", {x:.3} from the parameters' whole units") } else { String::new() },
                 args.max_error_um
             );
             if !args.force {
@@ -312,6 +332,85 @@ fn check_error(args: &Args, proj: &[AxisProjection]) -> Result<(), CliError> {
         }
     }
     Ok(())
+}
+
+/// ISG: the parameter blocks per axis, the whole units' loss added to the projection error.
+fn isg_file(
+    args: &Args,
+    machine: &Machine,
+    proj: &[AxisProjection],
+    header: &[String],
+) -> Result<(String, Vec<serde_json::Value>), CliError> {
+    let mut numbers: Vec<i64> = (1..=machine.axes.len() as i64).collect();
+    for s in &args.isg_axes {
+        let bad = || {
+            CliError::refused(format!(
+                "--isg-axis `{s}`: expected AXIS=N, N ≥ 1 an axis of the machine"
+            ))
+        };
+        let (axis, n) = s.split_once('=').ok_or_else(bad)?;
+        let a = machine.axis_index(axis).ok_or_else(bad)?;
+        numbers[a] = n
+            .trim()
+            .parse()
+            .ok()
+            .filter(|&n: &i64| n >= 1)
+            .ok_or_else(bad)?;
+    }
+    let mut blocks = Vec::new();
+    for p in proj {
+        let ax = &machine.axes[p.axis];
+        let (t, loss) =
+            IsgTempComp::from_projection(p, numbers[p.axis], (ax.travel_min, ax.travel_max))
+                .map_err(|e| CliError::refused(e.to_string()))?;
+        blocks.push((t, p, loss));
+    }
+    let losses: Vec<f64> = blocks.iter().map(|b| b.2).collect();
+    check_error(args, proj, &losses)?;
+    let mut json = projection_json(proj);
+    for (j, (t, _, loss)) in json.iter_mut().zip(&blocks) {
+        j["worst_um"] = serde_json::json!(j["worst_um"].as_f64().unwrap_or(f64::NAN) + loss);
+        j["isg"] = serde_json::json!({"axis_nr": t.axis_nr, "position_0_0_1um": t.position_0, "offset_0_0_1um": t.offset_0, "coefficient_um_per_m": t.coefficient, "units_loss_um": loss});
+    }
+    Ok((write_parameters(&blocks, header), json))
+}
+
+/// FANUC: the macro program and, per axis, its variables and `cnc_wrmacro` arguments; the
+/// values' decimals are added to the projection error.
+fn fanuc_file(
+    args: &Args,
+    machine: &Machine,
+    proj: &[AxisProjection],
+    header: &[String],
+) -> Result<(String, Vec<serde_json::Value>), CliError> {
+    let axes =
+        macro_axes(proj, args.fanuc_macro_base).map_err(|e| CliError::refused(e.to_string()))?;
+    let losses: Vec<f64> = axes
+        .iter()
+        .zip(proj)
+        .map(|(a, p)| {
+            let ax = &machine.axes[p.axis];
+            [ax.travel_min, ax.travel_max]
+                .iter()
+                .map(|&x| (a.quantised().compensation_um(x) - a.compensation_um(x)).abs())
+                .fold(0.0, f64::max)
+        })
+        .collect();
+    check_error(args, proj, &losses)?;
+    let mut json = projection_json(proj);
+    for ((j, a), loss) in json.iter_mut().zip(&axes).zip(&losses) {
+        let calls = a.wrmacro().map_err(|e| CliError::refused(e.to_string()))?;
+        j["worst_um"] = serde_json::json!(j["worst_um"].as_f64().unwrap_or(f64::NAN) + loss);
+        j["fanuc"] = serde_json::json!({
+            "k0_um": a.k0_um, "slope_um_per_m": a.slope_um_per_m, "p0_mm": a.p0_mm,
+            "cnc_wrmacro": calls.iter().map(|(n, m, d)| serde_json::json!({"number": n, "mcr_val": m, "dec_val": d})).collect::<Vec<_>>(),
+        });
+    }
+    let pairs: Vec<_> = axes.iter().copied().zip(proj).collect();
+    Ok((
+        write_macro_program(args.fanuc_program, &pairs, header),
+        json,
+    ))
 }
 
 fn module_9231_csv(proj: &[AxisProjection]) -> Result<String, CliError> {

@@ -281,18 +281,28 @@ pub fn run(args: Args) -> Result<(), CliError> {
     );
     for (m, c) in validation.metrics.iter().zip(&trained.choices) {
         println!(
-            "{:<12} {:>10.2} {:>10.2} {:>10.2} {:>10.2} {:>8.1}%  {} λ={:e} (CV {:.2} µm)",
+            "{:<12} {:>10.2} {:>10.2} {:>10.2} {:>10.2} {:>8.1}%  {} (CV {:.2} µm)",
             m.target,
             m.uncompensated_rmse_um,
             m.rmse_um,
             m.max_abs_um,
             m.peak_to_peak_um,
             m.rmse_reduction_percent,
-            c.family.name(),
-            c.ridge,
+            c.describe(),
             c.cv_rmse_um
         );
     }
+    let ratios: Vec<String> = validation
+        .inner_vs_test
+        .iter()
+        .map(|r| {
+            format!(
+                "{} {:.2}/{:.2} = {:.2}",
+                r.target, r.test_rmse_um, r.inner_cv_rmse_um, r.test_to_inner
+            )
+        })
+        .collect();
+    println!("test / inner-CV RMSE: {}", ratios.join(", "));
     let sensors = validation.sensors.last().cloned().unwrap_or_default();
     println!("temperature sensors used: {}", sensors.join(", "));
     if ds.runs.iter().any(|r| r.measured_rows() < r.len()) {

@@ -23,6 +23,7 @@ mod shape;
 mod sim;
 mod update_period;
 mod volume_map;
+mod write;
 
 /// truepos keeps the tool tip of a CNC machine tool where the program says it is, while the
 /// machine warms up, bends and carries geometric errors.

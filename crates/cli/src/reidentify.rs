@@ -211,29 +211,8 @@ fn write_model(
     compensation::parse(&args.out, &text, machine).map_err(CliError::context(
         "the re-identified model does not load back (a bug; nothing written): ",
     ))?;
-    write_atomically(&args.out, text.as_bytes())?;
+    crate::write::write_whole(&args.out, text.as_bytes())?;
     Ok(generation)
-}
-
-/// Writes `bytes` to a temporary file in `path`'s directory, syncs it and renames it over
-/// `path`; on any failure the temporary file is removed and `path` is untouched.
-pub fn write_atomically(path: &Path, bytes: &[u8]) -> Result<(), CliError> {
-    use std::io::Write;
-    let name = path
-        .file_name()
-        .map_or_else(|| "model".into(), |n| n.to_string_lossy().into_owned());
-    let tmp = path.with_file_name(format!(".{name}.{}.tmp", std::process::id()));
-    let result = (|| {
-        let mut f = std::fs::File::create(&tmp)?;
-        f.write_all(bytes)?;
-        f.sync_all()?;
-        std::fs::rename(&tmp, path)
-    })();
-    if let Err(e) = result {
-        let _ = std::fs::remove_file(&tmp);
-        return Err(CliError::file(path, Some("cannot write"))(e));
-    }
-    Ok(())
 }
 
 fn print(

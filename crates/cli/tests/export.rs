@@ -298,3 +298,164 @@ fn tempcomp_is_the_position_independent_model_at_any_temperature() {
     }
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// The grid of `the_isg_…` and `the_fanuc_…`: every axis along its travel (the others at
+/// mid-travel) and the 8 corners; per point, `control(axis, position)` must match `truepos
+/// eval`'s compensation within the axis' stated `worst_um`.
+fn within_stated(dir: &Path, v: &serde_json::Value, control: &dyn Fn(usize, f64) -> f64) {
+    let mut grid = Vec::new();
+    for k in 0..=10 {
+        let f = f64::from(k) / 10.0;
+        grid.push([800.0 * f, 250.0, 250.0]);
+        grid.push([400.0, 500.0 * f, 250.0]);
+        grid.push([400.0, 250.0, 500.0 * f]);
+    }
+    for c in 0..8 {
+        grid.push([
+            800.0 * f64::from(c & 1),
+            500.0 * f64::from(c >> 1 & 1),
+            500.0 * f64::from(c >> 2 & 1),
+        ]);
+    }
+    let comp = eval_comp(
+        "examples/vmc3/model.toml",
+        &rows_at(dir, &grid, None),
+        &dir.join("eval.csv"),
+    );
+    for (p, c) in grid.iter().zip(&comp) {
+        for a in 0..3 {
+            let control_um = control(a, p[a]);
+            let stated = v["axes"][a]["worst_um"].as_f64().unwrap();
+            assert!(
+                (control_um - c[a]).abs() <= stated + 1e-3,
+                "axis {a} at {p:?}: control {control_um} µm, model {} µm, stated {stated}",
+                c[a]
+            );
+        }
+    }
+}
+
+fn export_json(to: &str, out: &Path, extra: &[&str]) -> serde_json::Value {
+    let mut args = vec![
+        "export",
+        "--to",
+        to,
+        "--machine",
+        M,
+        "--model",
+        "examples/vmc3/model.toml",
+        "--run",
+        "examples/vmc3/run.csv",
+        "--p0",
+        "X=400",
+        "--max-error-um",
+        "5",
+        "--json",
+        "--out",
+        out.to_str().unwrap(),
+    ];
+    args.extend_from_slice(extra);
+    let (ok, stdout, err) = run(&args);
+    assert!(ok, "{err}");
+    serde_json::from_str(&stdout).unwrap()
+}
+
+/// The ISG parameter blocks, read back, give a compensation that matches `truepos eval` of the
+/// model within the stated error (projection plus the parameters' whole units) along every
+/// axis' travel and at the corners.
+#[test]
+fn the_isg_parameters_apply_the_model_within_the_stated_error() {
+    use truepos_controls::isg::read_parameters;
+    let dir = scratch("export-isg");
+    let out = dir.join("temp_comp.lis");
+    let v = export_json("isg", &out, &["--isg-axis", "Z=7"]);
+    let text = std::fs::read_to_string(&out).unwrap();
+    let params = read_parameters("temp_comp.lis", &text).unwrap();
+    assert_eq!(
+        params.iter().map(|p| p.axis_nr).collect::<Vec<_>>(),
+        [1, 2, 7]
+    );
+    assert_eq!(params[0].position_0, 4_000_000, "P0 400 mm in 0.1 µm");
+    within_stated(&dir, &v, &|a, p| 1000.0 * params[a].compensation_mm(p));
+    // Malformed blocks are located.
+    let e = read_parameters(
+        "t.lis",
+        &text.replace("coefficient       ", "coefficient       x"),
+    )
+    .unwrap_err();
+    assert!(e.to_string().starts_with("t.lis:9:38:"), "{e}");
+    let e = read_parameters(
+        "t.lis",
+        &text.replace(
+            "lr_param.temp_comp_offset_0 ",
+            "lr_param.temp_comp_ofset_0  ",
+        ),
+    )
+    .unwrap_err();
+    assert!(e.to_string().contains("unknown name"), "{e}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// The FANUC macro program, read back and applied as its comment says (ΔK = K0 + slope ·
+/// (P − P0) / 1000 from three variables per axis), matches `truepos eval` within the stated
+/// error; the `cnc_wrmacro` arguments in `--json` are the same numbers.
+#[test]
+fn the_fanuc_macro_variables_apply_the_model_within_the_stated_error() {
+    use truepos_controls::fanuc::read_macro_program;
+    let dir = scratch("export-fanuc");
+    let out = dir.join("O9123.nc");
+    let v = export_json(
+        "fanuc",
+        &out,
+        &["--fanuc-macro-base", "510", "--fanuc-program", "9123"],
+    );
+    let text = std::fs::read_to_string(&out).unwrap();
+    assert!(
+        text.starts_with("%\nO9123 (TRUEPOS THERMAL COMPENSATION)\n"),
+        "{text}"
+    );
+    let vars = read_macro_program("O9123.nc", &text).unwrap();
+    assert_eq!(vars.len(), 9);
+    let var = |n: u32| vars.iter().find(|(k, _)| *k == n).unwrap().1;
+    within_stated(&dir, &v, &|a, p| {
+        let b = 510 + 3 * a as u32;
+        var(b) + var(b + 1) * (p - var(b + 2)) / 1000.0
+    });
+    for a in 0..3 {
+        for (i, call) in v["axes"][a]["fanuc"]["cnc_wrmacro"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .enumerate()
+        {
+            let n = call["number"].as_u64().unwrap() as u32;
+            assert_eq!(n, 510 + 3 * a as u32 + i as u32);
+            let value = call["mcr_val"].as_i64().unwrap() as f64
+                / 10f64.powi(call["dec_val"].as_i64().unwrap() as i32);
+            assert!((value - var(n)).abs() < 1e-9, "#{n}: {value} vs {}", var(n));
+        }
+    }
+    // Malformed programs are located; a base beyond the common variables is refused.
+    let e = read_macro_program("p.nc", &text.replace("#511=", "#511=x")).unwrap_err();
+    assert!(e.to_string().starts_with("p.nc:7:6:"), "{e}");
+    let e = read_macro_program("p.nc", &text.replace("M99\n%\n", "M99\n")).unwrap_err();
+    assert!(e.to_string().contains("cut short"), "{e}");
+    let (ok, _, err) = run(&[
+        "export",
+        "--to",
+        "fanuc",
+        "--machine",
+        M,
+        "--model",
+        "examples/vmc3/model.toml",
+        "--run",
+        "examples/vmc3/run.csv",
+        "--fanuc-macro-base",
+        "998",
+        "--out",
+        dir.join("bad.nc").to_str().unwrap(),
+    ]);
+    assert!(!ok && err.contains("#998 to #1006"), "{err}");
+    assert!(!dir.join("bad.nc").exists());
+    let _ = std::fs::remove_dir_all(&dir);
+}

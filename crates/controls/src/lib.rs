@@ -9,7 +9,10 @@
 //!   temperature compensation) or a constant per axis, fitted along each axis' travel with the
 //!   other axes where they are, with the error along the travel and per other axis;
 //! - [`siemens`]: the part program setting the three setting data, and its reader;
-//! - [`heidenhain`]: PLC module 9231 offsets and `TEMPCOMP` formulas over PLC words.
+//! - [`heidenhain`]: PLC module 9231 offsets and `TEMPCOMP` formulas over PLC words;
+//! - [`isg`]: Beckhoff/ISG axis parameter list entries P-AXIS-00271…00274, and their reader;
+//! - [`fanuc`]: the line as custom macro variables (FOCAS `cnc_wrmacro` arguments and a macro
+//!   program), and the program's reader.
 //!
 //! Sign: a model predicts the error (actual − nominal); every value here is the compensation,
 //! its negative, which the control adds to the set-point.
@@ -39,7 +42,9 @@
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
+pub mod fanuc;
 pub mod heidenhain;
+pub mod isg;
 pub mod projection;
 pub mod siemens;
 

@@ -141,6 +141,9 @@ pub enum Family {
     DynamicRunning,
     /// [`Family::DynamicRates`] plus the rises while running.
     DynamicRatesRunning,
+    /// First-order transfer functions from every temperature to the error: the rises and their
+    /// low-pass at one time constant identified from the training data ([`crate::transfer`]).
+    Transfer,
     /// Seed C's regression: Y = Σ k_i·(t_i − t_r) + c, every selected sensor against one
     /// reference sensor (`Settings::reference`); a candidate only when a reference is given.
     SeedC,
@@ -148,9 +151,10 @@ pub enum Family {
 
 impl Family {
     /// Every family, simplest first.
-    pub const ALL: [Family; 7] = [
+    pub const ALL: [Family; 8] = [
         Family::SeedC,
         Family::Static,
+        Family::Transfer,
         Family::Operating,
         Family::Dynamic,
         Family::DynamicRates,
@@ -168,6 +172,7 @@ impl Family {
             Self::DynamicRunning => "dynamic-running",
             Self::DynamicRatesRunning => "dynamic-rates-running",
             Self::SeedC => "seed-c",
+            Self::Transfer => "transfer",
         }
     }
 
@@ -181,8 +186,9 @@ impl Family {
         match kind {
             FeatureKind::Rise => true,
             FeatureKind::Operating { .. } | FeatureKind::OperatingSquared { .. } => {
-                !matches!(self, Self::Static | Self::SeedC)
+                !matches!(self, Self::Static | Self::SeedC | Self::Transfer)
             }
+            // The transfer family keeps only the low-pass at its identified τ (`train`).
             FeatureKind::LowPass { .. } => {
                 !matches!(self, Self::Static | Self::SeedC | Self::Operating)
             }

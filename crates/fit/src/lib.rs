@@ -13,7 +13,10 @@
 //! - [`least_squares`]: Householder QR of row blocks (TSQR, parallel), column scaling, weights,
 //!   ridge, SVD-based rank decisions that name the culprit columns. Never the normal equations.
 //! - [`train`]: family, sensors and ridge chosen by blocked time-series cross-validation inside
-//!   the training rows only; export to a [`truepos_model::DynamicModel`].
+//!   the training rows only, each held-out block separated from its training rows by a gap
+//!   ([`inner_cv`]), the families blended by their out-of-fold predictions ([`stacking`]) and
+//!   guarded against doing worse than no compensation ([`selection`]); export to a
+//!   [`truepos_model::DynamicModel`].
 //! - [`validate`]: chronological split, leave one run out, blocked k-fold; RMSE, max |e|,
 //!   peak-to-peak and reduction versus uncompensated, per target channel; [`validate::fit`]
 //!   runs features and validation in one call.
@@ -64,10 +67,14 @@
 pub mod dataset;
 pub mod export;
 pub mod features;
+pub mod inner_cv;
 pub mod least_squares;
 pub mod machine_fit;
 pub mod position_model;
 pub mod reidentify;
+pub mod selection;
 pub mod settings;
+pub mod stacking;
 pub mod train;
+pub mod transfer;
 pub mod validate;

@@ -633,6 +633,11 @@ pub fn fit_machine(
     }
     let per_run = per_run(ds, &rel, &oof, &fold_of, &chosen_names);
     warnings.extend(worse_than_uncompensated(&per_run));
+    let inner: Vec<Vec<f64>> = fold_selections
+        .iter()
+        .map(|f| f.cv_rmse_um.clone())
+        .collect();
+    let inner_vs_test = crate::validate::inner_vs_test(&metrics, &inner);
     Ok(MachineOutcome {
         validation: Validation {
             protocol: split,
@@ -644,6 +649,7 @@ pub fn fit_machine(
             per_run,
             choices,
             sensors: Vec::new(),
+            inner_vs_test,
             warnings,
         },
         folds: fold_selections,

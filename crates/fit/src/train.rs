@@ -1,13 +1,13 @@
-//! Training: choose family, sensors and ridge by blocked time-series cross-validation inside the
-//! training rows only, then fit and export a [`DynamicModel`].
+//! Training: choose family, sensors and ridge by cross-validation inside the training rows only,
+//! then fit and export a [`DynamicModel`].
 //!
-//! Blocked CV: the training rows (in time order, run after run) are cut into k contiguous blocks;
-//! each block is predicted by a model fitted on the other blocks. Contiguous blocks keep
-//! neighbouring, nearly identical samples on the same side, which a random split would not.
-//! Every block's QR factor is computed once; a fold's factor is the merge of the others'.
-//! [`InnerCv::Rolling`] is the forecaster's variant (rolling origin, forward chaining): each block
-//! from the third on is predicted by a model fitted on the blocks before it only, as the model
-//! will be used — it never learns from the future it is scored on.
+//! The training rows (in time order, run after run) are cut into k contiguous blocks; each block
+//! is predicted by a model fitted on the rows outside it and outside a gap around it
+//! ([`crate::inner_cv`]): contiguous blocks keep neighbouring, nearly identical samples on the same
+//! side, which a random split would not, and the gap keeps the rows that share the block's
+//! thermal excursion out of its fit. [`InnerCv::Rolling`] is the forecaster's variant (rolling
+//! origin): each block from the third on is predicted from the rows before it only. Every
+//! family's out-of-fold predictions are then combined ([`crate::selection`]).
 
 #![allow(clippy::needless_range_loop)] // index loops mirror the matrix formulas
 
@@ -15,9 +15,12 @@ use faer::Mat;
 use truepos_model::{DynamicModel, FeatureBank, FeatureKind};
 
 use crate::dataset::{Dataset, InputKind};
-use crate::features::{bank_for, Candidates, Family};
-use crate::least_squares::{Accumulator, SolveOptions};
-use crate::settings::{InnerCv, Rule, Settings, ROLLING_FIRST_HELD_OUT};
+use crate::features::{bank_for, candidates, Candidates, Family};
+use crate::inner_cv::{decorrelation_time, Folds, Row};
+use crate::least_squares::Accumulator;
+use crate::selection::{fit_all, select, Member};
+use crate::settings::Settings;
+use crate::transfer::identify_tau;
 
 /// What was chosen for one target.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -28,8 +31,50 @@ pub struct Choice {
     pub family: Family,
     /// Ridge parameter.
     pub ridge: f64,
-    /// Inner-CV RMSE of the choice (µm).
+    /// Inner-CV RMSE of the choice (µm): of the blend, its weights fitted out of fold.
     pub cv_rmse_um: f64,
+    /// The blend written: members with their weights (empty: no compensation). `family` and
+    /// `ridge` above are its heaviest member's.
+    #[serde(default)]
+    pub blend: Vec<Member>,
+    /// Inner-CV RMSE of no compensation (µm).
+    #[serde(default)]
+    pub uncompensated_cv_rmse_um: f64,
+    /// Why the choice is not the blend of every family (no compensation, or the static family
+    /// alone), if it is not.
+    #[serde(default)]
+    pub fallback: Option<String>,
+}
+
+impl Choice {
+    /// Short: the family, the members' families joined by `+` for a blend, or `no compensation`.
+    pub fn label(&self) -> String {
+        if self.blend.is_empty() {
+            return "no compensation".into();
+        }
+        let names: Vec<&str> = self.blend.iter().map(|m| m.family.name()).collect();
+        names.join("+")
+    }
+
+    /// In words: `dynamic-running 0.57 λ=3e-2 + operating 0.30 λ=1e-1`, or `no compensation`.
+    pub fn describe(&self) -> String {
+        if self.blend.is_empty() {
+            return "no compensation".into();
+        }
+        let parts: Vec<String> = self
+            .blend
+            .iter()
+            .map(|m| {
+                let tau = m.tau_s.map(|t| format!(" τ={t:.0} s")).unwrap_or_default();
+                if self.blend.len() == 1 {
+                    format!("{}{tau} λ={:e}", m.family.name(), m.ridge)
+                } else {
+                    format!("{} {:.2}{tau} λ={:e}", m.family.name(), m.weight, m.ridge)
+                }
+            })
+            .collect();
+        parts.join(" + ")
+    }
 }
 
 /// A trained model with what was chosen.
@@ -65,18 +110,21 @@ pub type Rows = Vec<(usize, usize)>;
 /// The regressors of one candidate: feature columns, each minus an optional reference column
 /// (seed C: t_i − t_r is rise_i − rise_r, the rises being taken from the same first sample).
 #[derive(Debug, Clone)]
-struct Design {
-    cols: Vec<usize>,
-    minus: Option<usize>,
+pub(crate) struct Design {
+    pub cols: Vec<usize>,
+    pub minus: Option<usize>,
 }
 
-struct Problem<'a> {
-    cand: &'a Candidates,
-    x: Mat<f64>,
-    y: Mat<f64>,
-    means: Vec<f64>,
-    blocks: Vec<std::ops::Range<usize>>,
-    inner: InnerCv,
+pub(crate) struct Problem<'a> {
+    pub cand: &'a Candidates,
+    /// The transfer family's identified time constant (s), if it is a candidate.
+    pub transfer_tau: Option<f64>,
+    /// The fixed grid of temperature low-pass time constants the other families use.
+    pub grid_taus: Vec<f64>,
+    pub x: Mat<f64>,
+    pub y: Mat<f64>,
+    pub means: Vec<f64>,
+    pub folds: Folds,
 }
 
 impl<'a> Problem<'a> {
@@ -84,9 +132,8 @@ impl<'a> Problem<'a> {
         dataset: &Dataset,
         cand: &'a Candidates,
         rows: &[(usize, usize)],
-        folds: usize,
-        inner: InnerCv,
-        absolute: bool,
+        settings: &Settings,
+        transfer_tau: Option<f64>,
     ) -> Self {
         let nf = cand.features.len();
         let nt = dataset.target_names.len();
@@ -95,7 +142,11 @@ impl<'a> Problem<'a> {
         let rel: Vec<Vec<Vec<f64>>> = dataset
             .runs
             .iter()
-            .map(|r| (0..nt).map(|k| r.target(k, absolute)).collect())
+            .map(|r| {
+                (0..nt)
+                    .map(|k| r.target(k, settings.absolute_targets))
+                    .collect()
+            })
             .collect();
         for (i, &(run, row)) in rows.iter().enumerate() {
             for j in 0..nf {
@@ -112,31 +163,91 @@ impl<'a> Problem<'a> {
                 x[(i, j)] -= *mean;
             }
         }
-        let min_folds = match inner {
-            InnerCv::Blocked => 2,
-            InnerCv::Rolling => ROLLING_FIRST_HELD_OUT + 1,
-        };
-        let folds = folds.clamp(min_folds, rows.len().max(min_folds));
-        let blocks = (0..folds)
-            .map(|b| b * rows.len() / folds..(b + 1) * rows.len() / folds)
+        let at: Vec<Row> = rows
+            .iter()
+            .map(|&(run, row)| Row {
+                run,
+                time_s: dataset.runs[run].time_s[row],
+            })
             .collect();
-        Self {
+        let mut p = Self {
             cand,
+            transfer_tau,
+            grid_taus: settings.taus.temperature_s.clone(),
             x,
             y,
             means,
-            blocks,
-            inner,
+            folds: Folds::new(&at, 1, settings.inner, 0.0),
+        };
+        p.folds = p.inner_folds(&at, settings);
+        p
+    }
+
+    /// The folds of the inner validation. The gap is the slowest time constant of any candidate
+    /// feature and the decorrelation time of the static model's residual, whichever is longer
+    /// (capped at a block per side by [`Folds::new`]); without any row left to train a fold,
+    /// no gap.
+    fn inner_folds(&self, at: &[Row], settings: &Settings) -> Folds {
+        let slowest = self
+            .cand
+            .features
+            .iter()
+            .filter(|f| settings.families.iter().any(|fam| fam.includes(f.kind)))
+            .filter_map(|f| tau_of(f.kind))
+            .fold(0.0, f64::max);
+        let all: Vec<usize> = (0..self.cand.spec.temperatures).collect();
+        let residual = self
+            .design(Family::Static, &all, None)
+            .and_then(|d| fit_all(self, &d, 1e-3).ok().map(|sol| (d, sol)))
+            .map(|(d, sol)| {
+                let series: Vec<Vec<f64>> = (0..self.y.ncols())
+                    .map(|k| {
+                        (0..self.y.nrows())
+                            .map(|i| self.y[(i, k)] - self.predict(&d, &sol.coefficients[k], i))
+                            .collect()
+                    })
+                    .collect();
+                decorrelation_time(at, &series)
+            })
+            .unwrap_or(0.0);
+        let folds = Folds::new(at, settings.folds, settings.inner, slowest.max(residual));
+        if folds.folds.iter().any(|f| f.train.is_empty()) {
+            Folds::new(at, settings.folds, settings.inner, 0.0)
+        } else {
+            folds
         }
+    }
+
+    /// The prediction of `coef` (intercept first) at row i.
+    pub fn predict(&self, d: &Design, coef: &[f64], i: usize) -> f64 {
+        let mut p = coef[0];
+        for (j, cj) in coef[1..].iter().enumerate() {
+            p += cj * self.value(d, i, j);
+        }
+        p
+    }
+
+    /// Per target, the held-out rows' targets in fold order.
+    pub fn held_targets(&self) -> Vec<Vec<f64>> {
+        (0..self.y.ncols())
+            .map(|k| {
+                self.folds
+                    .folds
+                    .iter()
+                    .flat_map(|f| f.held.clone().map(move |i| (i, k)))
+                    .map(|(i, k)| self.y[(i, k)])
+                    .collect()
+            })
+            .collect()
     }
 
     /// Value of design column j at row i.
     #[inline]
-    fn value(&self, d: &Design, i: usize, j: usize) -> f64 {
+    pub fn value(&self, d: &Design, i: usize, j: usize) -> f64 {
         self.x[(i, d.cols[j])] - d.minus.map_or(0.0, |m| self.x[(i, m)])
     }
 
-    fn accumulate(&self, d: &Design, range: std::ops::Range<usize>) -> Accumulator {
+    pub fn accumulate(&self, d: &Design, range: std::ops::Range<usize>) -> Accumulator {
         let n = d.cols.len() + 1;
         let nt = self.y.ncols();
         let mut acc = Accumulator::new(n, nt);
@@ -156,80 +267,9 @@ impl<'a> Problem<'a> {
         acc
     }
 
-    /// Per ridge, per target: (CV RMSE over all held-out rows, standard error of the per-fold
-    /// RMSEs of the held-out blocks).
-    fn cv(&self, d: &Design, ridges: &[f64]) -> Vec<Vec<(f64, f64)>> {
-        let nt = self.y.ncols();
-        let folds = self.blocks.len();
-        let parts: Vec<Accumulator> = self
-            .blocks
-            .iter()
-            .map(|r| self.accumulate(d, r.clone()))
-            .collect();
-        // sse[ridge][target][fold]
-        let mut sse = vec![vec![vec![0.0; folds]; nt]; ridges.len()];
-        let held: Vec<usize> = (0..folds).filter(|&f| self.inner.holds_out(f)).collect();
-        for &f in &held {
-            let block = &self.blocks[f];
-            let mut acc = Accumulator::new(d.cols.len() + 1, nt);
-            for (g, p) in parts.iter().enumerate() {
-                if self.inner.trains(g, f) {
-                    let _ = acc.merge(p.clone());
-                }
-            }
-            let tri = acc.finish();
-            for (ri, &ridge) in ridges.iter().enumerate() {
-                let opts = SolveOptions {
-                    ridge,
-                    unpenalized: vec![0],
-                    rcond: None,
-                };
-                let Ok(sol) = tri.solve(&opts) else {
-                    sse[ri].iter_mut().for_each(|s| s[f] = f64::INFINITY);
-                    continue;
-                };
-                for i in block.clone() {
-                    for k in 0..nt {
-                        let c = &sol.coefficients[k];
-                        let mut p = c[0];
-                        for (j, cj) in c[1..].iter().enumerate() {
-                            p += cj * self.value(d, i, j);
-                        }
-                        let e = self.y[(i, k)] - p;
-                        sse[ri][k][f] += e * e;
-                    }
-                }
-            }
-        }
-        let n = held
-            .iter()
-            .map(|&f| self.blocks[f].len())
-            .sum::<usize>()
-            .max(1) as f64;
-        let used = held.len() as f64;
-        sse.into_iter()
-            .map(|per_target| {
-                per_target
-                    .into_iter()
-                    .map(|per_fold| {
-                        let total: f64 = held.iter().map(|&f| per_fold[f]).sum();
-                        let rmse: Vec<f64> = held
-                            .iter()
-                            .map(|&f| (per_fold[f] / self.blocks[f].len().max(1) as f64).sqrt())
-                            .collect();
-                        let m = rmse.iter().sum::<f64>() / used;
-                        let var = rmse.iter().map(|r| (r - m).powi(2)).sum::<f64>()
-                            / (used - 1.0).max(1.0);
-                        ((total / n).sqrt(), (var / used).sqrt())
-                    })
-                    .collect()
-            })
-            .collect()
-    }
-
     /// The design of a family on a sensor set; `None` when the family cannot be built (seed C
     /// without a reference, or with nothing left to regress on).
-    fn design(
+    pub fn design(
         &self,
         family: Family,
         sensors: &[usize],
@@ -248,68 +288,21 @@ impl<'a> Problem<'a> {
             .filter(|&j| {
                 let f = self.cand.features[j];
                 let is_temp = f.input < self.cand.spec.temperatures;
+                let tau_ok = match (f.kind, family) {
+                    (FeatureKind::LowPass { tau_s }, Family::Transfer) => {
+                        Some(tau_s) == self.transfer_tau
+                    }
+                    (FeatureKind::LowPass { tau_s }, _) => self.grid_taus.contains(&tau_s),
+                    _ => true,
+                };
                 family.includes(f.kind)
+                    && tau_ok
                     && (!is_temp || sensors.contains(&f.input))
                     && Some(j) != minus
             })
             .collect();
         (!cols.is_empty()).then_some(Design { cols, minus })
     }
-}
-
-/// Best (family, ridge) per target for a sensor set: (CV RMSE, family, ridge).
-///
-/// With [`Rule::OneStandardError`] the choice is the largest ridge of the best family whose CV
-/// RMSE lies within one standard error of the best (Hastie, Tibshirani & Friedman, *The Elements
-/// of Statistical Learning*, 2nd ed., §7.10): among models the CV cannot tell apart, the most
-/// regularised one, which extrapolates into unseen operating regimes more gently.
-fn best_per_target(
-    p: &Problem<'_>,
-    settings: &Settings,
-    sensors: &[usize],
-) -> (Vec<(f64, Family, f64)>, Vec<FamilyScore>) {
-    let nt = p.y.ncols();
-    // (rmse, se, family, ridge) of every candidate, per target.
-    let mut all: Vec<Vec<(f64, f64, Family, f64)>> = vec![Vec::new(); nt];
-    let reference = reference_input(p, settings);
-    let mut families = Vec::new();
-    for &family in &settings.families {
-        let Some(design) = p.design(family, sensors, reference) else {
-            continue;
-        };
-        let scores = p.cv(&design, &settings.ridges);
-        let mut per_target = vec![(f64::INFINITY, 0.0); nt];
-        for (ri, row) in scores.iter().enumerate() {
-            for k in 0..nt {
-                all[k].push((row[k].0, row[k].1, family, settings.ridges[ri]));
-                if row[k].0 < per_target[k].0 {
-                    per_target[k] = (row[k].0, settings.ridges[ri]);
-                }
-            }
-        }
-        families.push(FamilyScore { family, per_target });
-    }
-    let picks = all
-        .iter()
-        .map(|cands| {
-            let best = cands
-                .iter()
-                .copied()
-                .min_by(|a, b| a.0.total_cmp(&b.0))
-                .unwrap_or((f64::INFINITY, 0.0, Family::Static, 0.0));
-            let pick = match settings.rule {
-                Rule::MinimumCv => best,
-                Rule::OneStandardError => cands
-                    .iter()
-                    .copied()
-                    .filter(|c| c.2 == best.2 && c.0 <= best.0 + best.1)
-                    .max_by(|a, b| a.3.total_cmp(&b.3))
-                    .unwrap_or(best),
-            };
-            (pick.0, pick.2, pick.3)
-        })
-        .collect();
-    (picks, families)
 }
 
 /// Chooses by inner CV on `rows` (training rows only; blocked or rolling origin, see
@@ -327,12 +320,29 @@ pub fn train(
             settings.folds
         ));
     }
-    let (folds, inner, absolute) = (settings.folds, settings.inner, settings.absolute_targets);
-    let p = Problem::new(dataset, cand, rows, folds, inner, absolute);
+    // The transfer family's τ, identified on the training rows only, joins the bank.
+    let transfer_tau = if settings.families.contains(&Family::Transfer) {
+        identify_tau(dataset, rows, settings.absolute_targets)
+    } else {
+        None
+    };
+    let mut taus = settings.taus.clone();
+    let extended;
+    let cand = match transfer_tau {
+        Some(tau) if !taus.temperature_s.contains(&tau) => {
+            taus.temperature_s.push(tau);
+            extended = candidates(dataset, &taus).map_err(|e| e.to_string())?;
+            &extended
+        }
+        _ => cand,
+    };
+    let p = Problem::new(dataset, cand, rows, settings, transfer_tau);
     let nt = dataset.target_names.len();
     let all_sensors: Vec<usize> = (0..cand.spec.temperatures).collect();
     let mut sensors = match settings.max_sensors {
-        Some(max) if max < all_sensors.len() => greedy_sensors(&p, settings, max),
+        Some(max) if max < all_sensors.len() => {
+            stable_sensors(dataset, cand, rows, settings, transfer_tau, max)
+        }
         _ => all_sensors,
     };
     let reference = reference_input(&p, settings);
@@ -350,57 +360,73 @@ pub fn train(
                 .into(),
         );
     }
-    let (best, scores) = best_per_target(&p, settings, &sensors);
-    // Final fit per target on all training rows.
+    let (picks, scores) = select(&p, settings, &sensors);
+    // Final fit of every member on all training rows, each (family, ridge) once.
     let nf = cand.features.len();
     let mut coef = vec![vec![0.0; nf]; nt];
     let mut intercepts = vec![0.0; nt];
     let mut warnings = Vec::new();
     let mut choices = Vec::new();
+    let mut fitted: Vec<(Family, f64, Design, crate::least_squares::Solution)> = Vec::new();
     for k in 0..nt {
-        let (score, family, ridge) = best[k];
-        let design = p
-            .design(family, &sensors, reference)
-            .ok_or("internal: the chosen family has no design")?;
-        let acc = p.accumulate(&design, 0..p.x.nrows());
-        let sol = acc
-            .finish()
-            .solve(&SolveOptions {
-                ridge,
-                unpenalized: vec![0],
-                rcond: None,
-            })
-            .map_err(|e| e.to_string())?;
-        let names: Vec<String> = std::iter::once("intercept".to_string())
-            .chain(design.cols.iter().map(|&c| match design.minus {
-                Some(m) => format!("{} − {}", cand.names[c], cand.names[m]),
-                None => cand.names[c].clone(),
-            }))
-            .collect();
-        for d in &sol.rank_deficiencies {
-            warnings.push(format!(
-                "{}: {}",
-                dataset.target_names[k],
-                d.describe(&names)
-            ));
-        }
-        let c = &sol.coefficients[k];
-        let mut b0 = c[0];
-        for (cj, &col) in c[1..].iter().zip(&design.cols) {
-            coef[k][col] += *cj;
-            b0 -= cj * p.means[col];
-            // k·(x_i − x_r) = k·x_i − k·x_r: the reference's rise carries −Σk.
-            if let Some(m) = design.minus {
-                coef[k][m] -= *cj;
-                b0 += cj * p.means[m];
+        let pick = &picks[k];
+        for m in &pick.members {
+            let at = match fitted
+                .iter()
+                .position(|f| f.0 == m.family && f.1 == m.ridge)
+            {
+                Some(at) => at,
+                None => {
+                    let design = p
+                        .design(m.family, &sensors, reference)
+                        .ok_or("internal: the chosen family has no design")?;
+                    let sol = fit_all(&p, &design, m.ridge)?;
+                    fitted.push((m.family, m.ridge, design, sol));
+                    fitted.len() - 1
+                }
+            };
+            let (_, _, design, sol) = &fitted[at];
+            let names: Vec<String> = std::iter::once("intercept".to_string())
+                .chain(design.cols.iter().map(|&c| match design.minus {
+                    Some(r) => format!("{} − {}", cand.names[c], cand.names[r]),
+                    None => cand.names[c].clone(),
+                }))
+                .collect();
+            for d in &sol.rank_deficiencies {
+                let w = format!("{}: {}", dataset.target_names[k], d.describe(&names));
+                if !warnings.contains(&w) {
+                    warnings.push(w);
+                }
             }
+            let c = &sol.coefficients[k];
+            let mut b0 = c[0];
+            for (cj, &col) in c[1..].iter().zip(&design.cols) {
+                coef[k][col] += m.weight * cj;
+                b0 -= cj * p.means[col];
+                // k·(x_i − x_r) = k·x_i − k·x_r: the reference's rise carries −Σk.
+                if let Some(r) = design.minus {
+                    coef[k][r] -= m.weight * cj;
+                    b0 += cj * p.means[r];
+                }
+            }
+            intercepts[k] += m.weight * b0;
         }
-        intercepts[k] = b0;
+        if let Some(why) = &pick.fallback {
+            warnings.push(format!("{}: {why}", dataset.target_names[k]));
+        }
+        let head = pick
+            .members
+            .iter()
+            .max_by(|a, b| a.weight.total_cmp(&b.weight))
+            .copied();
         choices.push(Choice {
             target: dataset.target_names[k].clone(),
-            family,
-            ridge,
-            cv_rmse_um: score,
+            family: head.map_or(Family::Static, |m| m.family),
+            ridge: head.map_or(0.0, |m| m.ridge),
+            cv_rmse_um: pick.cv_rmse_um,
+            blend: pick.members.clone(),
+            uncompensated_cv_rmse_um: pick.uncompensated_um,
+            fallback: pick.fallback.clone(),
         });
     }
     // Export: inputs = the chosen sensors, plus operating inputs if any target reads them.
@@ -423,7 +449,7 @@ pub fn train(
                 .filter(|&i| dataset.input_kinds[i] == InputKind::Operating),
         );
     }
-    let (spec, order) = bank_for(dataset, &inputs, &settings.taus, uses_running);
+    let (spec, order) = bank_for(dataset, &inputs, &taus, uses_running);
     let bank = FeatureBank::new(spec).map_err(|e| e.to_string())?;
     // The same feature in the candidate bank: same dataset input, same kind (a rise while
     // running names its operating input by bank index, which differs between the two banks).
@@ -460,14 +486,74 @@ pub fn train(
     })
 }
 
+/// The time constant of a filtered feature.
+fn tau_of(kind: FeatureKind) -> Option<f64> {
+    match kind {
+        FeatureKind::LowPass { tau_s }
+        | FeatureKind::Rate { tau_s }
+        | FeatureKind::Operating { tau_s }
+        | FeatureKind::OperatingSquared { tau_s } => Some(tau_s),
+        FeatureKind::Rise | FeatureKind::RiseWhileRunning { .. } => None,
+    }
+}
+
 /// The bank index of the reference sensor, if one is set and is a temperature input.
 fn reference_input(p: &Problem<'_>, settings: &Settings) -> Option<usize> {
-    let r = settings.reference?;
-    p.cand
-        .bank_inputs
-        .iter()
-        .position(|&d| d == r)
-        .filter(|&b| b < p.cand.spec.temperatures)
+    p.reference(settings)
+}
+
+impl Problem<'_> {
+    /// The bank index of the reference sensor, if one is set and is a temperature input.
+    pub fn reference(&self, settings: &Settings) -> Option<usize> {
+        let r = settings.reference?;
+        self.cand
+            .bank_inputs
+            .iter()
+            .position(|&d| d == r)
+            .filter(|&b| b < self.cand.spec.temperatures)
+    }
+}
+
+/// Sub-samples of the stability selection.
+const STABILITY_DRAWS: usize = 4;
+
+/// Stability selection (Meinshausen & Bühlmann, *J. R. Stat. Soc. B* 72, 2010): the greedy search
+/// runs on [`STABILITY_DRAWS`] sub-samples — the training rows without one contiguous share of
+/// them — and the sensors chosen in at least half of them are kept (most often chosen first, at
+/// most `max`). A sensor that one stretch of data happens to favour does not make it, so the set
+/// changes less from one outer fold to the next than a single greedy search's.
+fn stable_sensors(
+    dataset: &Dataset,
+    cand: &Candidates,
+    rows: &[(usize, usize)],
+    settings: &Settings,
+    transfer_tau: Option<f64>,
+    max: usize,
+) -> Vec<usize> {
+    let mut count = vec![0usize; cand.spec.temperatures];
+    for d in 0..STABILITY_DRAWS {
+        let sub: Vec<(usize, usize)> = rows
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| i * STABILITY_DRAWS / rows.len() != d)
+            .map(|(_, r)| *r)
+            .collect();
+        let p = Problem::new(dataset, cand, &sub, settings, transfer_tau);
+        for s in greedy_sensors(&p, settings, max) {
+            count[s] += 1;
+        }
+    }
+    let mut kept: Vec<usize> = (0..count.len())
+        .filter(|&s| 2 * count[s] >= STABILITY_DRAWS)
+        .collect();
+    kept.sort_by(|a, b| count[*b].cmp(&count[*a]).then(a.cmp(b)));
+    kept.truncate(max);
+    if kept.is_empty() {
+        let p = Problem::new(dataset, cand, rows, settings, transfer_tau);
+        return greedy_sensors(&p, settings, max);
+    }
+    kept.sort_unstable();
+    kept
 }
 
 /// Correlation ranking, then greedy forward selection by CV score (mean over targets of the
@@ -523,11 +609,11 @@ fn greedy_sensors(p: &Problem<'_>, settings: &Settings, max: usize) -> Vec<usize
         .map(|&(_, s)| s)
         .collect();
     let score = |sensors: &[usize]| {
-        best_per_target(p, settings, sensors)
+        select(p, settings, sensors)
             .0
             .iter()
             .zip(&spread)
-            .map(|(b, s)| b.0 / s)
+            .map(|(b, s)| b.cv_rmse_um / s)
             .sum::<f64>()
             / nt as f64
     };
@@ -560,6 +646,7 @@ mod tests {
     use super::*;
     use crate::dataset::Run;
     use crate::features::{candidates, TimeConstants};
+    use crate::settings::InnerCv;
     use crate::validate::predict;
 
     /// Two runs of a machine whose growth lags the spindle and one of two sensors.
@@ -622,8 +709,14 @@ mod tests {
         let trained = train(&ds, &cand, &rows, &settings).unwrap();
         // Online: the real-time model stepped through every run.
         let online = predict(&ds, &trained).unwrap();
-        // Offline: intercept + Σ coefficient · candidate feature column of the same name.
+        // Offline: intercept + Σ coefficient · candidate feature column of the same name (the
+        // candidates at the model's own time constants: the transfer family adds its τ).
         let model = &trained.model;
+        let taus = TimeConstants {
+            temperature_s: model.bank().spec().temperature_taus_s.clone(),
+            ..settings.taus.clone()
+        };
+        let cand = candidates(&ds, &taus).unwrap();
         let n = model.bank().features().len();
         let names: Vec<String> = model
             .bank()
@@ -737,6 +830,36 @@ mod tests {
         assert!(train(&ds, &cand, &rows, &none).is_err());
     }
 
+    /// Three runs whose errors contradict each other (c moves −1 µm/K where a and b move
+    /// +2): whole runs held out in the inner validation show that no family predicts a run from
+    /// the others, and the automatic selection writes no compensation, saying why; the same
+    /// data with the static family named alone is fitted as asked.
+    #[test]
+    fn contradicting_runs_get_no_compensation_from_the_automatic_selection() {
+        let ds = crate::validate::tests::three_runs();
+        let cand = candidates(&ds, &TimeConstants::default()).unwrap();
+        let rows: Rows = (0..ds.runs.len())
+            .flat_map(|r| (0..ds.runs[r].len()).map(move |i| (r, i)))
+            .collect();
+        let trained = train(&ds, &cand, &rows, &Settings::default()).unwrap();
+        let c = &trained.choices[0];
+        assert!(c.blend.is_empty(), "{c:?}");
+        assert!(c
+            .fallback
+            .as_deref()
+            .unwrap()
+            .starts_with("no compensation"));
+        assert!(trained.model.coefficients().iter().all(|v| *v == 0.0));
+        assert!(trained
+            .warnings
+            .iter()
+            .any(|w| w.starts_with("dz_um: no compensation")));
+        let named = crate::validate::tests::static_settings();
+        let trained = train(&ds, &cand, &rows, &named).unwrap();
+        assert_eq!(trained.choices[0].blend.len(), 1);
+        assert_eq!(trained.choices[0].fallback, None);
+    }
+
     #[test]
     fn sensor_selection_keeps_the_informative_sensor() {
         let ds = twin_like();
@@ -784,9 +907,21 @@ mod tests {
         let cand = candidates(&ds, &TimeConstants::default()).unwrap();
         let rows: Rows = (0..n).map(|i| (0, i)).collect();
         let score = |inner| {
-            let p = Problem::new(&ds, &cand, &rows, 8, inner, false);
+            let settings = Settings {
+                inner,
+                ..Settings::default()
+            };
+            let mut p = Problem::new(&ds, &cand, &rows, &settings, None);
+            let at: Vec<Row> = rows
+                .iter()
+                .map(|&(run, row)| Row {
+                    run,
+                    time_s: ds.runs[run].time_s[row],
+                })
+                .collect();
+            p.folds = Folds::new(&at, 8, inner, 0.0);
             let d = p.design(Family::Static, &[0], None).unwrap();
-            p.cv(&d, &[0.0])[0][0].0
+            crate::selection::cv(&p, &d, &[0.0]).scores[0][0].0
         };
         let rolling = score(InnerCv::Rolling);
         assert!((rolling - 5.0 / 6f64.sqrt()).abs() < 1e-9, "{rolling}");

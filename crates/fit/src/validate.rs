@@ -180,6 +180,43 @@ pub struct RunFigures {
     pub targets: Vec<HeldOut>,
 }
 
+/// How well the inner validation predicted the test error of one target: the selection trusts
+/// the inner figure, so a ratio far from 1 says the choice rested on a wrong estimate.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct InnerVsTest {
+    /// Target name.
+    pub target: String,
+    /// The inner-validation RMSE of the choice, root mean square over the outer folds (µm).
+    pub inner_cv_rmse_um: f64,
+    /// The pooled test RMSE (µm).
+    pub test_rmse_um: f64,
+    /// test / inner.
+    pub test_to_inner: f64,
+}
+
+/// Per target, the outer folds' inner estimates against the pooled test RMSE.
+/// `inner[fold][target]` is each outer fold's inner estimate.
+pub fn inner_vs_test(metrics: &[Metrics], inner: &[Vec<f64>]) -> Vec<InnerVsTest> {
+    metrics
+        .iter()
+        .enumerate()
+        .map(|(k, m)| {
+            let folds = inner.len().max(1) as f64;
+            let inner = (inner.iter().map(|c| c[k].powi(2)).sum::<f64>() / folds).sqrt();
+            InnerVsTest {
+                target: m.target.clone(),
+                inner_cv_rmse_um: inner,
+                test_rmse_um: m.rmse_um,
+                test_to_inner: if inner > 0.0 {
+                    m.rmse_um / inner
+                } else {
+                    f64::INFINITY
+                },
+            }
+        })
+        .collect()
+}
+
 /// The outcome of a validation.
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct Validation {
@@ -196,6 +233,8 @@ pub struct Validation {
     pub choices: Vec<Vec<Choice>>,
     /// Temperature sensors used per outer fold (names).
     pub sensors: Vec<Vec<String>>,
+    /// Per target: the inner validation's estimate beside the test error it should predict.
+    pub inner_vs_test: Vec<InnerVsTest>,
     /// Warnings from the fits, and every held-out run the model makes worse than uncompensated.
     pub warnings: Vec<String>,
 }
@@ -328,7 +367,7 @@ pub fn outcome(
         last = Some((trained, pred, tr.clone()));
     }
     progress(folds.len(), folds.len());
-    let metrics = (0..nt)
+    let metrics: Vec<Metrics> = (0..nt)
         .map(|k| Metrics::new(&dataset.target_names[k], &measured[k], &predicted[k]))
         .collect();
     let (mut trained, mut fitted, mut training_rows) = last.ok_or("no folds")?;
@@ -360,10 +399,15 @@ pub fn outcome(
     }
     let chosen: Vec<Vec<String>> = choices
         .iter()
-        .map(|c| c.iter().map(|c| c.family.name().to_string()).collect())
+        .map(|c| c.iter().map(|c| c.label()).collect())
         .collect();
     let per_run = per_run(dataset, &rel, &oof, &fold_of, &chosen);
     warnings.extend(worse_than_uncompensated(&per_run));
+    let inner: Vec<Vec<f64>> = choices
+        .iter()
+        .map(|c| c.iter().map(|c| c.cv_rmse_um).collect())
+        .collect();
+    let inner_vs_test = inner_vs_test(&metrics, &inner);
     Ok(Outcome {
         validation: Validation {
             protocol: split,
@@ -375,6 +419,7 @@ pub fn outcome(
             per_run,
             choices,
             sensors,
+            inner_vs_test,
             warnings,
         },
         trained,

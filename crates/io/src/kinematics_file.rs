@@ -8,7 +8,7 @@
 //! axis X linear -1000 1000               # set-point order; travel in mm / degrees
 //! axis A rotary -110 110                 # (travel may be left out when a machine file is given)
 //! table F_A_X axis=A unit=um file=tables/F_A_X.csv        # format=csv|linuxcnc-0|linuxcnc-1|siemens
-//! table E_X_Z axis=X unit=um file=tables/cec.ini format=siemens siemens-axis=AX1 siemens-table=2
+//! table E_X_Z axis=X unit=um file=tables/cec.ini format=siemens siemens-axis=AX1 siemens-output-axis=AX3 siemens-table=2
 //! table F_A_B axis=A unit=urad file=tables/F_A_B.csv interpolation=monotone
 //! # Nr  Key       Axis  Delta      KompFile
 //!   0   Trans     Z     -L-150     -        # tool length L enters here
@@ -260,6 +260,7 @@ impl Draft<'_> {
             format,
             interp,
             siemens_axis,
+            siemens_output_axis,
             siemens_table,
         } = table_options(line, &self.axes)?;
         let (Some(axis), Some(unit), Some((file_field, file))) = (axis, unit, file) else {
@@ -275,15 +276,19 @@ impl Draft<'_> {
         let table_path: PathBuf = self.dir.join(file);
         let table_text = read_text(&table_path)
             .map_err(|e| line.at(file_field, "file", format!("table `{}`: {}", nf.text, e)))?;
-        if format != "siemens" && (siemens_axis.is_some() || siemens_table.is_some()) {
+        if format != "siemens"
+            && (siemens_axis.is_some() || siemens_output_axis.is_some() || siemens_table.is_some())
+        {
             return Err(line.at(
                 nf,
                 "format",
-                "siemens-axis= and siemens-table= need format=siemens".into(),
+                "siemens-axis=, siemens-output-axis= and siemens-table= need format=siemens".into(),
             ));
         }
+        let reading = siemens_axis.unwrap_or(&self.axes[axis].name);
         let pick = SiemensPick {
-            axis: siemens_axis.unwrap_or(&self.axes[axis].name),
+            axis: reading,
+            output: siemens_output_axis.unwrap_or(reading),
             number: siemens_table,
         };
         let built = read_table(&table_path, &table_text, format, wrap, interp, pick)?;
@@ -602,6 +607,9 @@ struct TableOptions<'l, 'a> {
     /// `siemens-axis=`: the control's name of the row's axis (`AX2`), which a Siemens table
     /// must read; default the axis' name here.
     siemens_axis: Option<&'a str>,
+    /// `siemens-output-axis=`: the control's name of the axis the row's values correct, which
+    /// a CEC table's `_OUTPUT_AXIS` must name; default the reading axis (the axis' own error).
+    siemens_output_axis: Option<&'a str>,
     /// `siemens-table=`: the number of the `$AN_CEC` table to use.
     siemens_table: Option<u32>,
 }
@@ -619,6 +627,7 @@ fn table_options<'l, 'a>(
         format: "csv",
         interp: Interpolation::Linear,
         siemens_axis: None,
+        siemens_output_axis: None,
         siemens_table: None,
     };
     for kv in &line.f[2..] {
@@ -661,6 +670,7 @@ fn table_options<'l, 'a>(
                 o.format = v;
             }
             "siemens-axis" => o.siemens_axis = Some(v),
+            "siemens-output-axis" => o.siemens_output_axis = Some(v),
             "siemens-table" => {
                 o.siemens_table = Some(v.parse().map_err(|_| {
                     line.at(
@@ -688,7 +698,7 @@ fn table_options<'l, 'a>(
                     kv,
                     k,
                     format!(
-                        "unknown key `{k}`; expected axis, unit, file, format, interpolation, siemens-axis or siemens-table"
+                        "unknown key `{k}`; expected axis, unit, file, format, interpolation, siemens-axis, siemens-output-axis or siemens-table"
                     ),
                 ))
             }
@@ -701,13 +711,16 @@ fn table_options<'l, 'a>(
 struct SiemensPick<'a> {
     /// The control's name of the axis the table must read.
     axis: &'a str,
+    /// The control's name of the axis the table's values correct (a CEC `_OUTPUT_AXIS`).
+    output: &'a str,
     /// `siemens-table=`.
     number: Option<u32>,
 }
 
 /// The compensation table in `table_text`, read in `format` (a checked `format=` value). Of a
 /// Siemens file, the table (or the `_DIRECTION` 1/−1 pair) that reads the row's axis
-/// ([`select_siemens`]): a table declared for another input axis is never applied.
+/// ([`select_siemens`]): a table declared for another input axis, or correcting another
+/// output axis than `siemens-output-axis=`, is never applied.
 fn read_table(
     table_path: &Path,
     table_text: &str,
@@ -728,7 +741,14 @@ fn read_table(
         }
         _ => {
             let all = parse_siemens(table_path, table_text, None)?;
-            select_siemens(table_path, &all, Some(pick.axis), pick.number, interp)?
+            select_siemens(
+                table_path,
+                &all,
+                Some(pick.axis),
+                Some(pick.output),
+                pick.number,
+                interp,
+            )?
         }
     })
 }

@@ -311,18 +311,18 @@ fn siemens_manual_syntax_and_two_tables_with_their_own_axes() {
 
     let lin = Interpolation::Linear;
     // Each axis gets its own table: AX2 reads table 1 (4 µm at 100 mm), AX1 table 2.
-    let t = select_siemens(p(), &tables, Some("AX2"), None, lin).unwrap();
+    let t = select_siemens(p(), &tables, Some("AX2"), Some("AX3"), None, lin).unwrap();
     assert!((t.value(100.0, Direction::Forward) - 4.0).abs() < 1e-9);
-    let t = select_siemens(p(), &tables, Some("AX1"), None, lin).unwrap();
+    let t = select_siemens(p(), &tables, Some("AX1"), None, None, lin).unwrap();
     assert!((t.value(200.0, Direction::Forward) - 0.0).abs() < 1e-9);
     // A table declared for AX2 is never applied to another axis: chosen by number for AX1,
     // it is refused at its first support point's line, naming both axes.
-    let e = select_siemens(p(), &tables, Some("AX1"), Some(1), lin).unwrap_err();
+    let e = select_siemens(p(), &tables, Some("AX1"), None, Some(1), lin).unwrap_err();
     assert_eq!(e.position, Some((3, 1)));
     assert_eq!(e.key.as_deref(), Some("$AN_CEC[1,…]"));
     assert!(e.to_string().contains("input axis AX2, not AX1"), "{e}");
     // No table reads X: refused, listing what the file holds.
-    let e = select_siemens(p(), &tables, Some("X"), None, lin).unwrap_err();
+    let e = select_siemens(p(), &tables, Some("X"), None, None, lin).unwrap_err();
     assert!(e.to_string().contains("no table reads axis X"), "{e}");
     assert!(
         e.to_string()
@@ -330,11 +330,48 @@ fn siemens_manual_syntax_and_two_tables_with_their_own_axes() {
         "{e}"
     );
     // Without an axis, two unrelated tables are ambiguous; a number chooses.
-    let e = select_siemens(p(), &tables, None, None, lin).unwrap_err();
+    let e = select_siemens(p(), &tables, None, None, None, lin).unwrap_err();
     assert!(e.to_string().contains("2 tables apply"), "{e}");
-    assert!(select_siemens(p(), &tables, None, Some(2), lin).is_ok());
-    let e = select_siemens(p(), &tables, None, Some(7), lin).unwrap_err();
+    assert!(select_siemens(p(), &tables, None, None, Some(2), lin).is_ok());
+    let e = select_siemens(p(), &tables, None, None, Some(7), lin).unwrap_err();
     assert!(e.to_string().contains("no $AN_CEC table 7"), "{e}");
+}
+
+#[test]
+fn siemens_cec_output_axis_must_be_the_corrected_axis() {
+    let lin = Interpolation::Linear;
+    let tables = parse_siemens(p(), TWO_CEC, None).unwrap();
+    // Table 1 reads AX2 and corrects AX3: applied to AX3 it is taken.
+    let t = select_siemens(p(), &tables, Some("AX2"), Some("AX3"), None, lin).unwrap();
+    assert!((t.value(100.0, Direction::Forward) - 4.0).abs() < 1e-9);
+    // Applied to AX2 (as AX2's own error) it is refused at its first line, naming both axes.
+    let e = select_siemens(p(), &tables, Some("AX2"), Some("AX2"), None, lin).unwrap_err();
+    assert_eq!(e.position, Some((3, 1)));
+    assert_eq!(e.key.as_deref(), Some("$AN_CEC[1,…]"));
+    let msg = e.to_string();
+    assert!(
+        msg.contains("output axis AX3 (_OUTPUT_AXIS), not AX2"),
+        "{msg}"
+    );
+    // Table 2 reads and corrects AX1: its own error.
+    assert!(select_siemens(p(), &tables, Some("AX1"), Some("AX1"), None, lin).is_ok());
+    // A directional pair: both halves are checked.
+    let pair = CompTable::directional(
+        vec![0.0, 50.0, 100.0],
+        vec![1.0, 2.0, 3.0],
+        vec![-1.0, -2.0, -3.0],
+        Wrap::Hold,
+        lin,
+    )
+    .unwrap();
+    let both = SiemensTable::directional_pair(&pair, 5, "AX1", "AX3").unwrap();
+    let back = parse_siemens(p(), &write_siemens(&both), None).unwrap();
+    assert!(select_siemens(p(), &back, Some("AX1"), Some("AX3"), None, lin).is_ok());
+    let e = select_siemens(p(), &back, Some("AX1"), Some("AX1"), None, lin).unwrap_err();
+    assert!(e.to_string().contains("not AX1"), "{e}");
+    // An encoder table corrects its own axis; there is no _OUTPUT_AXIS to check.
+    let enc = parse_siemens(p(), SIEMENS, None).unwrap();
+    assert!(select_siemens(p(), &enc[..1], Some("AX1"), Some("AX1"), None, lin).is_ok());
 }
 
 #[test]
@@ -343,7 +380,7 @@ fn siemens_directions_and_products() {
     // A table for one direction only corrects that direction: zero the other way.
     let one = TWO_CEC.replace("$AN_CEC_DIRECTION[1]=0", "$AN_CEC_DIRECTION[1]=-1");
     let tables = parse_siemens(p(), &one, None).unwrap();
-    let t = select_siemens(p(), &tables, Some("AX2"), None, lin).unwrap();
+    let t = select_siemens(p(), &tables, Some("AX2"), Some("AX3"), None, lin).unwrap();
     assert_eq!(t.value(100.0, Direction::Forward), 0.0);
     assert!((t.value(100.0, Direction::Reverse) - 4.0).abs() < 1e-9);
     // A pair with _DIRECTION 1 and -1 for the same axes is one directional table.
@@ -362,17 +399,17 @@ fn siemens_directions_and_products() {
     let text = write_siemens(&all);
     let back = parse_siemens(p(), &text, None).unwrap();
     // Read in table order: 1, 2, then the pair 5, 6.
-    let t = select_siemens(p(), &back[2..], Some("AX1"), None, lin).unwrap();
+    let t = select_siemens(p(), &back[2..], Some("AX1"), None, None, lin).unwrap();
     assert!((t.value(50.0, Direction::Reverse) + 2.0).abs() < 1e-9);
     // Among four tables, AX1 has the pair and table 2: ambiguous, a number picks one.
-    let e = select_siemens(p(), &back, Some("AX1"), None, lin).unwrap_err();
+    let e = select_siemens(p(), &back, Some("AX1"), None, None, lin).unwrap_err();
     assert!(e.to_string().contains("3 tables apply"), "{e}");
-    let t = select_siemens(p(), &back, Some("AX1"), Some(5), lin).unwrap();
+    let t = select_siemens(p(), &back, Some("AX1"), None, Some(5), lin).unwrap();
     assert_eq!(t.value(50.0, Direction::Reverse), 0.0);
     // A table multiplied by another cannot be evaluated alone.
     let mult = TWO_CEC.replace("$AN_CEC_MULT_BY_TABLE[1]=0", "$AN_CEC_MULT_BY_TABLE[1]=2");
     let tables = parse_siemens(p(), &mult, None).unwrap();
-    let e = select_siemens(p(), &tables, Some("AX2"), None, lin).unwrap_err();
+    let e = select_siemens(p(), &tables, Some("AX2"), Some("AX3"), None, lin).unwrap_err();
     assert!(e.to_string().contains("_MULT_BY_TABLE"), "{e}");
 }
 
@@ -413,10 +450,11 @@ proptest! {
         delete in any::<bool>(),
         axis in prop::sample::select(vec![None, Some("AX1"), Some("AX2"), Some("X")]),
         number in prop::option::of(0u32..4),
+        output in prop::sample::select(vec![None, Some("AX1"), Some("AX3")]),
     ) {
         let text = mutate(TWO_CEC, at, with, delete);
         if let Ok(tables) = parse_siemens(p(), &text, None) {
-            if let Ok(t) = select_siemens(p(), &tables, axis, number, Interpolation::Linear) {
+            if let Ok(t) = select_siemens(p(), &tables, axis, output, number, Interpolation::Linear) {
                 for x in [-10.0, 0.0, 55.5, 400.0, 1e9] {
                     prop_assert!(t.value(x, Direction::Forward).is_finite());
                     prop_assert!(t.value(x, Direction::Reverse).is_finite());

@@ -1,6 +1,7 @@
 //! A kinematics file's Siemens tables: the table a row reads must be declared for the row's
 //! axis (`_INPUT_AXIS`, or the axis of `$AA_ENC_COMP`), under the control's name of the axis
-//! (`siemens-axis=`); a file of several tables gives each row its own (`siemens-table=`).
+//! (`siemens-axis=`); a file of several tables gives each row its own (`siemens-table=`); a
+//! CEC table's `_OUTPUT_AXIS` must be the axis the row corrects (`siemens-output-axis=`).
 
 use std::path::PathBuf;
 
@@ -59,14 +60,14 @@ fn a_table_reads_only_the_axis_it_is_declared_for() {
     // X is AX1: table 2 (1 µm at 0, 3 µm at 400: 2 µm at 200), not table 1.
     let v = ktab(
         "ax1",
-        "table EZ axis=X unit=um file=cec.ini format=siemens siemens-axis=AX1",
+        "table EZ axis=X unit=um file=cec.ini format=siemens siemens-axis=AX1 siemens-output-axis=AX3",
     )
     .unwrap();
     assert!((v - 2.0).abs() < 1e-9, "{v}");
     // Y is AX2: table 1.
     let v = ktab(
         "ax2",
-        "table EZ axis=Y unit=um file=cec.ini format=siemens siemens-axis=AX2",
+        "table EZ axis=Y unit=um file=cec.ini format=siemens siemens-axis=AX2 siemens-output-axis=AX3",
     )
     .unwrap();
     assert!((v - 2.0).abs() < 1e-9, "{v}");
@@ -85,6 +86,21 @@ fn a_table_reads_only_the_axis_it_is_declared_for() {
     )
     .unwrap_err();
     assert!(e.contains("need format=siemens"), "{e}");
+    // Both tables correct AX3 (Z): applied as X's own error (siemens-output-axis defaults to
+    // siemens-axis) or to AX2, table 2 is refused at its first line, naming both axes.
+    let e = ktab(
+        "own",
+        "table EZ axis=X unit=um file=cec.ini format=siemens siemens-axis=AX1",
+    )
+    .unwrap_err();
+    assert!(e.contains("cec.ini:8:1:"), "{e}");
+    assert!(e.contains("output axis AX3 (_OUTPUT_AXIS), not AX1"), "{e}");
+    let e = ktab(
+        "out2",
+        "table EZ axis=X unit=um file=cec.ini format=siemens siemens-axis=AX1 siemens-output-axis=AX2",
+    )
+    .unwrap_err();
+    assert!(e.contains("not AX2"), "{e}");
     let e = ktab(
         "num",
         "table EZ axis=X unit=um file=cec.ini format=siemens siemens-table=x",

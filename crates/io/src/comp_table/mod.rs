@@ -22,6 +22,13 @@
 //!   a directional (forward/reverse) table is refused there, and goes out as two CEC tables
 //!   with `_DIRECTION` 1 and −1 ([`SiemensTable::directional_pair`], read back with
 //!   [`SiemensTable::pair_to_table`]).
+//! * **HEIDENHAIN** (TNC nonlinear axis error compensation): a `.COM` table (`NR`, `AXISPOS`,
+//!   one column per compensated axis, mm) selected for a reading axis by the active line of a
+//!   `.CMA` assignment table ([`HeidenhainCom`], [`HeidenhainCma`], [`read_heidenhain`]).
+//! * **ISG** (Beckhoff TwinCAT CNC) leadscrew error compensation lists `kw.ssfk.*` (0.1 µm,
+//!   unilateral or bilateral, equidistant or with set-points) ([`IsgSsfk`]).
+//! * **FANUC** pitch error compensation: parameters 3620–3624 and incremental point values
+//!   in detection units × magnification, in the parameter tape format ([`FanucPitch`]).
 
 use std::fmt::{self, Write as _};
 use std::path::{Path, PathBuf};
@@ -30,9 +37,17 @@ use truepos_kinematics::table::{CompTable, Interpolation, TableError, Wrap};
 
 use crate::error::InputError;
 
+mod fanuc;
+mod heidenhain;
+mod isg;
 mod linuxcnc;
 mod siemens;
 
+pub use fanuc::{parse_fanuc, FanucAxis, FanucGrid, FanucLoss, FanucPitch};
+pub use heidenhain::{
+    parse_cma, parse_com, read_heidenhain, CmaLine, HeidenhainCma, HeidenhainCom,
+};
+pub use isg::{parse_isg, IsgSsfk};
 pub use linuxcnc::{parse_linuxcnc, LinuxCncComp, LinuxCncType, LINUXCNC_MAX_ROWS};
 pub use siemens::{parse_siemens, select_siemens, write_siemens, SiemensKind, SiemensTable};
 
@@ -110,6 +125,14 @@ pub enum ExportError {
         /// The first table's number.
         first: u32,
     },
+    /// A HEIDENHAIN `.COM` column holds one value per point: a directional table does not fit.
+    DirectionalHeidenhain,
+    /// A FANUC pitch-error table: the reason (interval, range, quantisation).
+    Fanuc(String),
+    /// An ISG compensation list: the reason (a position off the 0.1 µm grid, a 32-bit range).
+    Isg(String),
+    /// A HEIDENHAIN table: a name the table cannot hold.
+    Heidenhain(String),
     /// A column of the table did not make a table on its own.
     Table(TableError),
 }
@@ -136,6 +159,10 @@ impl fmt::Display for ExportError {
             Self::NoTableNumber { first } => {
                 write!(f, "no table number after the first one ({first})")
             }
+            Self::DirectionalHeidenhain => f.write_str(
+                "a directional (forward/reverse) table cannot be written as a HEIDENHAIN .COM column, which holds one value per point; write one direction, or a LinuxCNC COMP_FILE or two Siemens $AN_CEC tables",
+            ),
+            Self::Fanuc(why) | Self::Isg(why) | Self::Heidenhain(why) => f.write_str(why),
             Self::Table(e) => write!(f, "{e}"),
         }
     }

@@ -216,6 +216,26 @@ impl SiemensTable {
         }
     }
 
+    /// A CEC table whose `_OUTPUT_AXIS` is not `output` (default its own input axis) is refused
+    /// at its first line, naming both axes; an encoder table corrects its own axis.
+    fn check_output(&self, output: Option<&str>) -> Result<(), InputError> {
+        let SiemensKind::Cec { .. } = self.kind else {
+            return Ok(());
+        };
+        let out = output.or(self.input_axis.as_deref()).unwrap_or("?");
+        if self.output_axis.as_deref() == Some(out) {
+            return Ok(());
+        }
+        Err(self.origin.error(
+            &self.kind.key(),
+            format!(
+                "{} corrects output axis {} (_OUTPUT_AXIS), not {out}, the axis it is applied to here; expected a table whose _OUTPUT_AXIS is {out} (give the control's name of the corrected axis if it differs)",
+                self.kind.key(),
+                self.output_axis.as_deref().unwrap_or("?")
+            ),
+        ))
+    }
+
     /// `$AN_CEC[3,…] (input AX2, output AX3, direction 1)`: the table and its metadata.
     fn describe(&self) -> String {
         match &self.kind {
@@ -250,12 +270,17 @@ impl SiemensTable {
 /// among the `tables` of one Siemens file, optionally only CEC table `number`: the one table
 /// that reads `axis`, or the two CEC tables with `_DIRECTION` 1 and −1 that read it and
 /// correct the same output axis (one directional table). A table declared for another input
-/// axis is never applied to `axis`; a table multiplied by another (`_MULT_BY_TABLE`) is
-/// refused, since its value depends on that table too. Errors name the file and the table.
+/// axis is never applied to `axis`; a CEC table whose `_OUTPUT_AXIS` is not `output` (the
+/// control's name of the axis the caller applies the values to; `None`: the axis the table
+/// reads, i.e. the table is that axis' own error) is refused too, naming both: the control
+/// adds its values to that axis and no other. A table multiplied by another
+/// (`_MULT_BY_TABLE`) is refused, since its value depends on that table too. Errors name the
+/// file and the table.
 pub fn select_siemens(
     path: &Path,
     tables: &[SiemensTable],
     axis: Option<&str>,
+    output: Option<&str>,
     number: Option<u32>,
     interpolation: Interpolation,
 ) -> Result<CompTable, InputError> {
@@ -313,12 +338,16 @@ pub fn select_siemens(
         ));
     }
     match chosen.as_slice() {
-        [t] => t.single_to_table(interpolation),
+        [t] => {
+            t.check_output(output)?;
+            t.single_to_table(interpolation)
+        }
         [a, b]
             if matches!((a.direction, b.direction), (Some(1), Some(-1)) | (Some(-1), Some(1)))
                 && a.input_axis == b.input_axis
                 && a.output_axis == b.output_axis =>
         {
+            a.check_output(output)?;
             SiemensTable::pair_to_table(a, b, interpolation)
         }
         [] => Err(InputError::file(

@@ -1,0 +1,346 @@
+//! The automatic selection of one target's model: every family scored by the gap-separated inner
+//! validation ([`crate::inner_cv`]), its ridge chosen within the family, the families combined
+//! by their out-of-fold predictions ([`crate::stacking`]), and a guard: no compensation when the
+//! blend is not clearly better than none, the static model alone when the blend is not clearly
+//! better than it ([`CLEARLY_BETTER`]); each fallback is a warning naming the figures.
+
+use crate::features::Family;
+use crate::least_squares::{Accumulator, SolveOptions};
+use crate::settings::{Rule, Settings};
+use crate::stacking;
+use crate::train::{Design, FamilyScore, Problem};
+
+/// A blend must beat "no compensation", and the static model, by this factor in the inner
+/// validation (RMSE ratio) to be written: a model that removes less than a tenth of the error
+/// is not worth an axis' risk, a dynamic blend that is not a tenth better than the static model
+/// does not earn the extrapolation risk of its filters, and the inner estimate itself (its
+/// weights fitted on the same out-of-fold predictions) is uncertain by about that much.
+pub const CLEARLY_BETTER: f64 = 0.9;
+
+/// One member of a blend.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Member {
+    /// Its family.
+    pub family: Family,
+    /// Its ridge parameter.
+    pub ridge: f64,
+    /// Its weight in the blend (the weights sum to at most 1; the rest is "no compensation").
+    pub weight: f64,
+    /// Its own inner-validation RMSE (µm).
+    pub cv_rmse_um: f64,
+    /// The identified time constant of the transfer family (s).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tau_s: Option<f64>,
+}
+
+/// A family's candidacy for one target: (family, ridge, inner RMSE µm, held-out predictions).
+type Candidate = (Family, f64, f64, Vec<f64>);
+
+/// What the selection chose for one target.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Pick {
+    /// The members with a weight above zero (empty: no compensation).
+    pub members: Vec<Member>,
+    /// The inner-validation RMSE of the pick itself, its weights fitted out of fold (µm).
+    pub cv_rmse_um: f64,
+    /// The inner-validation RMSE of no compensation (µm).
+    pub uncompensated_um: f64,
+    /// Why the pick is not the blend, if it is not.
+    pub fallback: Option<String>,
+}
+
+/// The inner validation of one design: per ridge, per target, the RMSE over all held-out rows
+/// with the standard error of the per-fold RMSEs, and the held-out predictions (fold order).
+pub(crate) struct FamilyCv {
+    pub scores: Vec<Vec<(f64, f64)>>,
+    pub oof: Vec<Vec<Vec<f64>>>,
+}
+
+/// Scores a design by the problem's folds (each trains on whole segments, one accumulator each).
+pub(crate) fn cv(p: &Problem<'_>, d: &Design, ridges: &[f64]) -> FamilyCv {
+    let nt = p.y.ncols();
+    let folds = &p.folds;
+    let parts: Vec<Accumulator> = folds
+        .segments
+        .iter()
+        .map(|r| p.accumulate(d, r.clone()))
+        .collect();
+    let held_n = folds.held_rows();
+    let mut oof = vec![vec![vec![0.0; held_n]; nt]; ridges.len()];
+    let mut sse = vec![vec![vec![0.0; folds.folds.len()]; nt]; ridges.len()];
+    let mut offset = 0;
+    for (f, fold) in folds.folds.iter().enumerate() {
+        let mut acc = Accumulator::new(d.cols.len() + 1, nt);
+        for &s in &fold.train {
+            let _ = acc.merge(parts[s].clone());
+        }
+        let tri = acc.finish();
+        for (ri, &ridge) in ridges.iter().enumerate() {
+            let opts = SolveOptions {
+                ridge,
+                unpenalized: vec![0],
+                rcond: None,
+            };
+            let sol = tri.solve(&opts).ok();
+            for (o, i) in fold.held.clone().enumerate() {
+                for k in 0..nt {
+                    let pred = match &sol {
+                        Some(sol) => p.predict(d, &sol.coefficients[k], i),
+                        None => f64::INFINITY,
+                    };
+                    oof[ri][k][offset + o] = pred;
+                    sse[ri][k][f] += (p.y[(i, k)] - pred).powi(2);
+                }
+            }
+        }
+        offset += fold.held.len();
+    }
+    let used = folds.folds.len() as f64;
+    let scores = sse
+        .into_iter()
+        .map(|per_target| {
+            per_target
+                .into_iter()
+                .map(|per_fold| {
+                    let total: f64 = per_fold.iter().sum();
+                    let rmse: Vec<f64> = per_fold
+                        .iter()
+                        .zip(&folds.folds)
+                        .map(|(s, fold)| (s / fold.held.len().max(1) as f64).sqrt())
+                        .collect();
+                    let m = rmse.iter().sum::<f64>() / used;
+                    let var =
+                        rmse.iter().map(|r| (r - m).powi(2)).sum::<f64>() / (used - 1.0).max(1.0);
+                    ((total / held_n.max(1) as f64).sqrt(), (var / used).sqrt())
+                })
+                .collect()
+        })
+        .collect();
+    FamilyCv { scores, oof }
+}
+
+/// The ridge index a family keeps for target `k`: the lowest CV RMSE, or with
+/// [`Rule::OneStandardError`] the largest ridge within one standard error of it (Hastie,
+/// Tibshirani & Friedman, *The Elements of Statistical Learning*, 2nd ed., §7.10: among models
+/// the CV cannot tell apart, the most regularised one, which extrapolates more gently).
+fn ridge_index(scores: &[Vec<(f64, f64)>], ridges: &[f64], k: usize, rule: Rule) -> usize {
+    let best = (0..ridges.len())
+        .min_by(|&a, &b| scores[a][k].0.total_cmp(&scores[b][k].0))
+        .unwrap_or(0);
+    match rule {
+        Rule::MinimumCv => best,
+        Rule::OneStandardError => {
+            let bound = scores[best][k].0 + scores[best][k].1;
+            (0..ridges.len())
+                .filter(|&r| scores[r][k].0 <= bound)
+                .max_by(|&a, &b| ridges[a].total_cmp(&ridges[b]))
+                .unwrap_or(best)
+        }
+    }
+}
+
+/// Per target the pick, and every family's figures (lowest CV RMSE over the ridges, per target).
+pub(crate) fn select(
+    p: &Problem<'_>,
+    settings: &Settings,
+    sensors: &[usize],
+) -> (Vec<Pick>, Vec<FamilyScore>) {
+    let nt = p.y.ncols();
+    let reference = p.reference(settings);
+    // Per target, the candidate members: (family, ridge, rmse, held-out predictions).
+    let mut members: Vec<Vec<Candidate>> = vec![Vec::new(); nt];
+    let mut families = Vec::new();
+    for &family in &settings.families {
+        let Some(design) = p.design(family, sensors, reference) else {
+            continue;
+        };
+        let mut fam = cv(p, &design, &settings.ridges);
+        let mut per_target = vec![(f64::INFINITY, 0.0); nt];
+        for k in 0..nt {
+            for (ri, row) in fam.scores.iter().enumerate() {
+                if row[k].0 < per_target[k].0 {
+                    per_target[k] = (row[k].0, settings.ridges[ri]);
+                }
+            }
+            let ri = ridge_index(&fam.scores, &settings.ridges, k, settings.rule);
+            let rmse = fam.scores[ri][k].0;
+            if rmse.is_finite() {
+                let pred = std::mem::take(&mut fam.oof[ri][k]);
+                members[k].push((family, settings.ridges[ri], rmse, pred));
+            }
+        }
+        families.push(FamilyScore { family, per_target });
+    }
+    let held = p.held_targets();
+    let picks = (0..nt)
+        .map(|k| {
+            let mut pick = if settings.families.len() == 1 && members[k].len() == 1 {
+                as_given(&members[k][0], &held[k])
+            } else {
+                pick(&members[k], &held[k])
+            };
+            for m in &mut pick.members {
+                m.tau_s = (m.family == Family::Transfer)
+                    .then_some(p.transfer_tau)
+                    .flatten();
+            }
+            pick
+        })
+        .collect();
+    (picks, families)
+}
+
+/// One family named by the user is fitted as it is: nothing to blend, nothing to guard.
+fn as_given(m: &Candidate, y: &[f64]) -> Pick {
+    Pick {
+        members: vec![Member {
+            family: m.0,
+            ridge: m.1,
+            weight: 1.0,
+            cv_rmse_um: m.2,
+            tau_s: None,
+        }],
+        cv_rmse_um: m.2,
+        uncompensated_um: stacking::rmse(y, &vec![0.0; y.len()]),
+        fallback: None,
+    }
+}
+
+/// Blend, guard and fallback for one target.
+fn pick(members: &[Candidate], y: &[f64]) -> Pick {
+    let zero = stacking::rmse(y, &vec![0.0; y.len()]);
+    let none = |reason: String| Pick {
+        members: Vec::new(),
+        cv_rmse_um: zero,
+        uncompensated_um: zero,
+        fallback: Some(reason),
+    };
+    if members.is_empty() {
+        return none("no family could be fitted: no compensation".into());
+    }
+    let preds: Vec<Vec<f64>> = members.iter().map(|m| m.3.clone()).collect();
+    let w = stacking::weights(&preds, y);
+    let blended: Vec<f64> = (0..y.len())
+        .map(|i| preds.iter().zip(&w).map(|(p, wm)| wm * p[i]).sum())
+        .collect();
+    let score = stacking::rmse(y, &blended);
+    if score > CLEARLY_BETTER * zero {
+        return none(format!(
+            "no compensation: the blend's inner-validation RMSE {score:.3} µm is not clearly below no compensation's {zero:.3} µm"
+        ));
+    }
+    if let Some(s) = members.iter().position(|m| m.0 == Family::Static) {
+        if score > CLEARLY_BETTER * members[s].2 {
+            return Pick {
+                members: vec![Member {
+                    family: Family::Static,
+                    ridge: members[s].1,
+                    weight: 1.0,
+                    cv_rmse_um: members[s].2,
+                    tau_s: None,
+                }],
+                cv_rmse_um: members[s].2,
+                uncompensated_um: zero,
+                fallback: Some(format!(
+                    "static: the blend's inner-validation RMSE {score:.3} µm is not clearly below the static model's {:.3} µm",
+                    members[s].2
+                )),
+            };
+        }
+    }
+    let chosen: Vec<Member> = members
+        .iter()
+        .zip(&w)
+        .filter(|(_, &wm)| wm > 0.0)
+        .map(|(m, &wm)| Member {
+            family: m.0,
+            ridge: m.1,
+            weight: wm,
+            cv_rmse_um: m.2,
+            tau_s: None,
+        })
+        .collect();
+    Pick {
+        members: chosen,
+        cv_rmse_um: score,
+        uncompensated_um: zero,
+        fallback: None,
+    }
+}
+
+/// A design fitted on every training row (each member of the final blend once).
+pub(crate) fn fit_all(
+    p: &Problem<'_>,
+    d: &Design,
+    ridge: f64,
+) -> Result<crate::least_squares::Solution, String> {
+    p.accumulate(d, 0..p.x.nrows())
+        .finish()
+        .solve(&SolveOptions {
+            ridge,
+            unpenalized: vec![0],
+            rcond: None,
+        })
+        .map_err(|e| e.to_string())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn member(family: Family, rmse: f64, pred: Vec<f64>) -> Candidate {
+        (family, 1e-3, rmse, pred)
+    }
+
+    #[test]
+    fn a_good_blend_is_kept_and_its_weights_sum_to_at_most_one() {
+        let y: Vec<f64> = (0..100).map(|i| (i as f64 / 9.0).sin() * 5.0).collect();
+        let good: Vec<f64> = y.iter().map(|v| 0.95 * v).collect();
+        let flat = vec![0.5; 100];
+        let p = pick(
+            &[
+                member(Family::Static, 3.0, flat),
+                member(Family::Dynamic, 0.2, good),
+            ],
+            &y,
+        );
+        assert_eq!(p.fallback, None);
+        assert_eq!(p.members.len(), 1);
+        assert_eq!(p.members[0].family, Family::Dynamic);
+        assert!(p.members[0].weight <= 1.0 + 1e-12);
+        assert!(p.cv_rmse_um < 0.3 && p.uncompensated_um > 3.0);
+    }
+
+    #[test]
+    fn nothing_clearly_better_than_none_gives_no_compensation() {
+        let y: Vec<f64> = (0..100).map(|i| (i as f64 / 9.0).sin()).collect();
+        let noise: Vec<f64> = (0..100)
+            .map(|i| ((i * 7919) % 13) as f64 / 13.0 - 0.5)
+            .collect();
+        let p = pick(&[member(Family::Dynamic, 1.2, noise)], &y);
+        assert!(p.members.is_empty());
+        assert!(p.fallback.unwrap().starts_with("no compensation"));
+    }
+
+    #[test]
+    fn a_blend_hardly_better_than_static_falls_back_to_static() {
+        let y: Vec<f64> = (0..100).map(|i| (i as f64 / 9.0).sin() * 5.0).collect();
+        let stat: Vec<f64> = y.iter().map(|v| 0.8 * v).collect();
+        let dynamic: Vec<f64> = y
+            .iter()
+            .enumerate()
+            .map(|(i, v)| 0.81 * v + 0.001 * (i % 3) as f64)
+            .collect();
+        let static_rmse = stacking::rmse(&y, &stat);
+        let p = pick(
+            &[
+                member(Family::Static, static_rmse, stat),
+                member(Family::Dynamic, 0.9, dynamic),
+            ],
+            &y,
+        );
+        assert_eq!(p.members.len(), 1);
+        assert_eq!(p.members[0].family, Family::Static);
+        assert!(p.fallback.unwrap().starts_with("static"));
+    }
+}
