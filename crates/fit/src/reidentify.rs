@@ -53,6 +53,13 @@ impl Reidentifier {
         &self.running
     }
 
+    /// The recursive estimate now, as a model: what the rule would switch to next. It keeps
+    /// learning after a switch, while [`Reidentifier::running`] holds the parameters of the
+    /// last switch. `None` if the estimate does not make a valid model.
+    pub fn latest(&self, machine: &Machine) -> Option<Model> {
+        self.running.with_parameters(machine, self.rls.theta()).ok()
+    }
+
     /// How many times the parameters were switched.
     pub fn switches(&self) -> usize {
         self.switches
@@ -195,7 +202,9 @@ pub struct Outcome {
 /// Re-identifies `model` over `events` in order (seed C, section 4): recursive least squares
 /// with forgetting on the model's own structure, the switch rule along the way, and at the end
 /// the check that the re-estimated parameters are better than the old ones on the most recent
-/// `settings.window` measurements. Only a model that passes both is returned.
+/// `settings.window` measurements. Only a model that passes both is returned; its parameters
+/// are the estimate after the last event (or those of the rule's last switch, should they do
+/// better on the window).
 pub fn reidentify(
     model: &Model,
     machine: &Machine,
@@ -227,7 +236,23 @@ pub fn reidentify(
     }
     let window_start = used.len().saturating_sub(settings.window.max(1));
     let recent = &used[window_start..];
-    let new = (re.switches() > 0).then(|| re.running().clone());
+    // Once the rule has switched, the estimate went on learning from every later probe, while
+    // the parameters of the last switch saw only the probes before it (after a switch that
+    // brings the error under the threshold the rule never switches again, so on a long log those
+    // are the parameters of its first few measurements). The latest estimate is written unless
+    // it does worse on the window than the last switch's.
+    let new = (re.switches() > 0).then(|| {
+        let switched = re.running().clone();
+        match re.latest(machine) {
+            Some(latest)
+                if window_rmse(&latest, events, recent)
+                    <= window_rmse(&switched, events, recent) =>
+            {
+                latest
+            }
+            _ => switched,
+        }
+    });
     let window = WindowFigures {
         measurements: recent.len(),
         old_rmse_um: window_rmse(model, events, recent),
