@@ -124,6 +124,86 @@ pub fn candidates(
     })
 }
 
+/// A candidate set with more temperature low-pass columns beside an existing one, without
+/// copying it: the transfer family's identified τ joins the candidates of a fit while the
+/// caller's set, shared by every outer fold, stays as it is.
+pub struct Extended<'a> {
+    /// The caller's candidates.
+    pub base: &'a Candidates,
+    /// The features of the whole set — the base's, then the added — with their names and spec;
+    /// its `runs` are empty (the values are [`Extended::value`]).
+    pub meta: Candidates,
+    extra: Vec<Mat<f64>>,
+}
+
+impl<'a> Extended<'a> {
+    /// `base` plus LPF_τ of every temperature rise for each τ of `taus_s` (none: `base` alone).
+    pub fn new(
+        dataset: &Dataset,
+        base: &'a Candidates,
+        taus_s: &[f64],
+    ) -> Result<Self, truepos_model::DynamicError> {
+        let temps = base.spec.temperatures;
+        let mut meta = Candidates {
+            spec: base.spec.clone(),
+            bank_inputs: base.bank_inputs.clone(),
+            features: base.features.clone(),
+            names: base.names.clone(),
+            runs: Vec::new(),
+        };
+        let mut extra = Vec::new();
+        if taus_s.is_empty() || temps == 0 {
+            return Ok(Self { base, meta, extra });
+        }
+        meta.spec.temperature_taus_s.extend_from_slice(taus_s);
+        let mut bank = FeatureBank::new(FeatureSpec {
+            temperatures: temps,
+            operating: 0,
+            temperature_rise: false,
+            temperature_taus_s: taus_s.to_vec(),
+            rate_taus_s: Vec::new(),
+            operating_taus_s: Vec::new(),
+            operating_square: false,
+            rise_while_running: false,
+        })?;
+        for f in bank.features() {
+            meta.features.push(*f);
+            meta.names
+                .push(f.name(|i| &dataset.input_names[base.bank_inputs[i]]));
+        }
+        let mut row = vec![0.0; temps];
+        for run in &dataset.runs {
+            bank.reset();
+            let mut m = Mat::<f64>::zeros(run.len(), bank.features().len());
+            for i in 0..run.len() {
+                for (slot, &d) in row.iter_mut().zip(&base.bank_inputs[..temps]) {
+                    *slot = run.inputs[d][i];
+                }
+                let dt = if i == 0 {
+                    0.0
+                } else {
+                    run.time_s[i] - run.time_s[i - 1]
+                };
+                for (j, v) in bank.step(dt, &row)?.iter().enumerate() {
+                    m[(i, j)] = *v;
+                }
+            }
+            extra.push(m);
+        }
+        Ok(Self { base, meta, extra })
+    }
+
+    /// Feature `j` of `run` at `row`.
+    pub fn value(&self, run: usize, row: usize, j: usize) -> f64 {
+        let nb = self.base.features.len();
+        if j < nb {
+            self.base.runs[run][(row, j)]
+        } else {
+            self.extra[run][(row, j - nb)]
+        }
+    }
+}
+
 /// A family of models: which kinds of features it may use.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "kebab-case")]

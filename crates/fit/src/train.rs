@@ -15,7 +15,7 @@ use faer::Mat;
 use truepos_model::{DynamicModel, FeatureBank, FeatureKind};
 
 use crate::dataset::{Dataset, InputKind};
-use crate::features::{bank_for, candidates, Candidates, Family};
+use crate::features::{bank_for, Candidates, Extended, Family};
 use crate::inner_cv::{decorrelation_time, Folds, Row};
 use crate::least_squares::Accumulator;
 use crate::selection::{fit_all, select, Member};
@@ -130,11 +130,12 @@ pub(crate) struct Problem<'a> {
 impl<'a> Problem<'a> {
     fn new(
         dataset: &Dataset,
-        cand: &'a Candidates,
+        source: &'a Extended<'_>,
         rows: &[(usize, usize)],
         settings: &Settings,
         transfer_tau: Option<f64>,
     ) -> Self {
+        let cand = &source.meta;
         let nf = cand.features.len();
         let nt = dataset.target_names.len();
         let mut x = Mat::<f64>::zeros(rows.len(), nf);
@@ -150,7 +151,7 @@ impl<'a> Problem<'a> {
             .collect();
         for (i, &(run, row)) in rows.iter().enumerate() {
             for j in 0..nf {
-                x[(i, j)] = cand.runs[run][(row, j)];
+                x[(i, j)] = source.value(run, row, j);
             }
             for k in 0..nt {
                 y[(i, k)] = rel[run][k][row];
@@ -327,20 +328,18 @@ pub fn train(
         None
     };
     let mut taus = settings.taus.clone();
-    let extended;
-    let cand = match transfer_tau {
-        Some(tau) if !taus.temperature_s.contains(&tau) => {
-            taus.temperature_s.push(tau);
-            extended = candidates(dataset, &taus).map_err(|e| e.to_string())?;
-            &extended
-        }
-        _ => cand,
-    };
-    let p = Problem::new(dataset, cand, rows, settings, transfer_tau);
+    let added: Vec<f64> = transfer_tau
+        .filter(|tau| !taus.temperature_s.contains(tau))
+        .into_iter()
+        .collect();
+    taus.temperature_s.extend_from_slice(&added);
+    let ext = Extended::new(dataset, cand, &added).map_err(|e| e.to_string())?;
+    let cand = &ext.meta;
+    let p = Problem::new(dataset, &ext, rows, settings, transfer_tau);
     let all_sensors: Vec<usize> = (0..cand.spec.temperatures).collect();
     let mut sensors = match settings.max_sensors {
         Some(max) if max < all_sensors.len() => {
-            stable_sensors(dataset, cand, rows, settings, transfer_tau, max)
+            stable_sensors(dataset, &ext, rows, settings, transfer_tau, max)
         }
         _ => all_sensors,
     };
@@ -556,13 +555,13 @@ const STABILITY_DRAWS: usize = 4;
 /// changes less from one outer fold to the next than a single greedy search's.
 fn stable_sensors(
     dataset: &Dataset,
-    cand: &Candidates,
+    cand: &Extended<'_>,
     rows: &[(usize, usize)],
     settings: &Settings,
     transfer_tau: Option<f64>,
     max: usize,
 ) -> Vec<usize> {
-    let mut count = vec![0usize; cand.spec.temperatures];
+    let mut count = vec![0usize; cand.meta.spec.temperatures];
     for d in 0..STABILITY_DRAWS {
         let sub: Vec<(usize, usize)> = rows
             .iter()
@@ -943,7 +942,8 @@ mod tests {
                 inner,
                 ..Settings::default()
             };
-            let mut p = Problem::new(&ds, &cand, &rows, &settings, None);
+            let ext = Extended::new(&ds, &cand, &[]).unwrap();
+            let mut p = Problem::new(&ds, &ext, &rows, &settings, None);
             let at: Vec<Row> = rows
                 .iter()
                 .map(|&(run, row)| Row {
