@@ -372,6 +372,75 @@ impl Triangle {
         self.rows
     }
 
+    /// The rows of several triangles together (one QR of the stacked factors); `None` for an
+    /// empty list or triangles of different shapes.
+    pub fn stack<'t>(parts: impl IntoIterator<Item = &'t Triangle>) -> Option<Triangle> {
+        let mut parts = parts.into_iter().peekable();
+        let first = parts.peek()?;
+        let (n, k) = (first.n, first.k);
+        let mut acc = Accumulator::new(n, k);
+        let mut rows = 0;
+        for t in parts {
+            if (t.n, t.k) != (n, k) {
+                return None;
+            }
+            acc.push_block(t.r.as_ref().get(.., ..n), t.r.as_ref().get(.., n..), None)
+                .ok()?;
+            rows += t.rows;
+        }
+        acc.rows = rows;
+        Some(acc.finish())
+    }
+
+    /// The triangle of [A | B]·M: the same rows with new columns, each a combination of the old
+    /// ones (`regressors` then `targets` of them), since (Q·R)·M = Q·(R·M). A selection of
+    /// columns, a difference of two, a shift by a multiple of another: no pass over the rows.
+    pub fn transformed(&self, m: MatRef<'_, f64>, regressors: usize, targets: usize) -> Triangle {
+        let rm = self.r.as_ref() * m;
+        let mut acc = Accumulator::new(regressors, targets);
+        if acc
+            .push_block(
+                rm.as_ref().get(.., ..regressors),
+                rm.as_ref().get(.., regressors..),
+                None,
+            )
+            .is_err()
+        {
+            // Non-finite M: a triangle that solves to an error rather than to garbage.
+            return Triangle {
+                n: regressors,
+                k: targets,
+                rows: 0,
+                r: Mat::zeros(regressors + targets, regressors + targets),
+            };
+        }
+        acc.rows = self.rows;
+        acc.finish()
+    }
+
+    /// Column `j` minus `c` times column 0, in place: R·T changes only R's first row, because
+    /// R's first column is zero below its first entry.
+    pub fn subtract_first_column(&mut self, j: usize, c: f64) {
+        let r00 = self.r[(0, 0)];
+        self.r[(0, j)] -= c * r00;
+    }
+
+    /// Entry (i, j) of [A | B]ᵀ·[A | B], the sum over the rows of column i times column j.
+    pub fn gram(&self, i: usize, j: usize) -> f64 {
+        let r = self.r.as_ref();
+        (0..=i.min(j)).map(|l| r[(l, i)] * r[(l, j)]).sum()
+    }
+
+    /// R·u: a combination u of the columns, in the triangle's coordinates. Two such vectors
+    /// have the dot product of the combinations themselves over the rows (Q is orthonormal),
+    /// so sums of squares and cross products of predictions need no pass over the rows.
+    pub fn apply(&self, u: &[f64]) -> Vec<f64> {
+        let r = self.r.as_ref();
+        (0..r.nrows())
+            .map(|i| (i..r.ncols()).map(|j| r[(i, j)] * u[j]).sum())
+            .collect()
+    }
+
     /// The coefficients of the first target for every ridge parameter of `ridges` (no column
     /// exempt from the penalty), from one SVD of the column-scaled triangle T = U·S·Vᵀ:
     /// x(λ) = D·V·diag(s/(s² + λ))·Uᵀ·c, which minimises ‖T·γ − c‖² + λ‖γ‖² exactly as
@@ -563,6 +632,62 @@ mod tests {
 
     /// One SVD for every ridge gives what one solve per ridge gives, at λ = 0 too (a column
     /// scaled 1e3 apart from the others and a nearly dependent pair included).
+    /// Stacking, transforming and applying a triangle give what a pass over the rows gives.
+    #[test]
+    fn triangles_stand_for_their_rows() {
+        let rows: Vec<[f64; 4]> = (0..300)
+            .map(|i| {
+                let t = i as f64;
+                [
+                    1.0,
+                    (t / 7.0).sin() * 3.0 + 40.0,
+                    (t / 13.0).cos(),
+                    0.2 * t - 1.0,
+                ]
+            })
+            .collect();
+        let tri = |range: std::ops::Range<usize>| {
+            let mut acc = Accumulator::new(3, 1);
+            for r in &rows[range] {
+                acc.push_row(&r[..3], &r[3..], 1.0).unwrap();
+            }
+            acc.finish()
+        };
+        let all = Triangle::stack([&tri(0..100), &tri(100..300)]).unwrap();
+        assert_eq!(all.rows(), 300);
+        // New columns [1 | x2 − x1 | y].
+        let mut m = Mat::<f64>::zeros(4, 3);
+        m[(0, 0)] = 1.0;
+        m[(2, 1)] = 1.0;
+        m[(1, 1)] = -1.0;
+        m[(3, 2)] = 1.0;
+        let mut t = all.transformed(m.as_ref(), 2, 1);
+        t.subtract_first_column(1, 0.5);
+        let col = |r: &[f64; 4]| [1.0, r[2] - r[1] - 0.5, r[3]];
+        for i in 0..3 {
+            for j in 0..3 {
+                let direct: f64 = rows.iter().map(|r| col(r)[i] * col(r)[j]).sum();
+                assert!((t.gram(i, j) - direct).abs() < 1e-9 * direct.abs().max(1.0));
+            }
+        }
+        // R·u and R·v have the dot product of the combinations u, v over the rows.
+        let (u, v) = ([0.3, -1.0, 2.0, 0.0], [0.0, 0.5, 0.0, 1.0]);
+        let dot: f64 = all
+            .apply(&u)
+            .iter()
+            .zip(all.apply(&v))
+            .map(|(a, b)| a * b)
+            .sum();
+        let direct: f64 = rows
+            .iter()
+            .map(|r| {
+                let c = |w: &[f64; 4]| (0..4).map(|j| w[j] * r[j]).sum::<f64>();
+                c(&u) * c(&v)
+            })
+            .sum();
+        assert!((dot - direct).abs() < 1e-9 * direct.abs().max(1.0));
+    }
+
     #[test]
     fn the_ridge_path_equals_one_solve_per_ridge() {
         let rows: Vec<(Vec<f64>, f64)> = (0..200)

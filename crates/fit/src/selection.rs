@@ -5,7 +5,7 @@
 //! better than it ([`CLEARLY_BETTER`]); each fallback is a warning naming the figures.
 
 use crate::features::Family;
-use crate::least_squares::{Accumulator, SolveOptions, Triangle};
+use crate::least_squares::{SolveOptions, Triangle};
 use crate::settings::{Rule, Settings};
 use crate::stacking;
 use crate::train::{Design, FamilyScore, Problem};
@@ -50,55 +50,43 @@ pub struct Pick {
 }
 
 /// The inner validation of one design: per ridge, per target, the RMSE over all held-out rows
-/// with the standard error of the per-fold RMSEs; and each fold's factor, to predict the
-/// held-out rows again at the one ridge kept (storing every ridge's predictions would cost
-/// ridges × targets × rows).
+/// with the standard error of the per-fold RMSEs; and each fold's triangle, to predict the
+/// held-out rows again at the one ridge kept.
 pub(crate) struct FamilyCv {
     pub scores: Vec<Vec<(f64, f64)>>,
     tris: Vec<Triangle>,
 }
 
 impl FamilyCv {
-    /// Target `k`'s held-out predictions (fold order) at `ridge`.
+    /// Target `k`'s held-out predictions at `ridge`, in the held triangles' coordinates
+    /// ([`Problem::held_prediction`], folds concatenated).
     fn predictions(&self, p: &Problem<'_>, d: &Design, k: usize, ridge: f64) -> Vec<f64> {
         let opts = SolveOptions {
             ridge,
             unpenalized: vec![0],
             rcond: None,
         };
-        let mut out = Vec::with_capacity(p.folds.held_rows());
-        for (fold, tri) in p.folds.folds.iter().zip(&self.tris) {
+        let mut out = Vec::with_capacity(p.folds.folds.len() * p.held_width());
+        for (f, tri) in self.tris.iter().enumerate() {
             match tri.solve(&opts) {
-                Ok(sol) => out.extend(
-                    fold.held
-                        .clone()
-                        .map(|i| p.predict(d, &sol.coefficients[k], i)),
-                ),
-                Err(_) => out.extend(fold.held.clone().map(|_| f64::INFINITY)),
+                Ok(sol) => out.extend(p.held_prediction(f, d, &sol.coefficients[k])),
+                Err(_) => out.extend(std::iter::repeat_n(f64::INFINITY, p.held_width())),
             }
         }
         out
     }
 }
 
-/// Scores a design by the problem's folds (each trains on whole segments, one accumulator each).
+/// Scores a design by the problem's folds: each fold's model from its training triangle, its
+/// squared errors from its held-out triangle.
 pub(crate) fn cv(p: &Problem<'_>, d: &Design, ridges: &[f64]) -> FamilyCv {
-    let nt = p.y.ncols();
+    let nt = p.nt;
     let folds = &p.folds;
-    let parts: Vec<Accumulator> = folds
-        .segments
-        .iter()
-        .map(|r| p.accumulate(d, r.clone()))
-        .collect();
     let held_n = folds.held_rows();
     let mut sse = vec![vec![vec![0.0; folds.folds.len()]; nt]; ridges.len()];
     let mut tris = Vec::with_capacity(folds.folds.len());
-    for (f, fold) in folds.folds.iter().enumerate() {
-        let mut acc = Accumulator::new(d.cols.len() + 1, nt);
-        for &s in &fold.train {
-            let _ = acc.merge(parts[s].clone());
-        }
-        let tri = acc.finish();
+    for f in 0..folds.folds.len() {
+        let tri = p.design_triangle(d, Some(f));
         for (ri, &ridge) in ridges.iter().enumerate() {
             let opts = SolveOptions {
                 ridge,
@@ -106,14 +94,11 @@ pub(crate) fn cv(p: &Problem<'_>, d: &Design, ridges: &[f64]) -> FamilyCv {
                 rcond: None,
             };
             let sol = tri.solve(&opts).ok();
-            for i in fold.held.clone() {
-                for (k, per_fold) in sse[ri].iter_mut().enumerate() {
-                    let pred = match &sol {
-                        Some(sol) => p.predict(d, &sol.coefficients[k], i),
-                        None => f64::INFINITY,
-                    };
-                    per_fold[f] += (p.y[(i, k)] - pred).powi(2);
-                }
+            for (k, per_fold) in sse[ri].iter_mut().enumerate() {
+                per_fold[f] = match &sol {
+                    Some(sol) => p.held_sse(f, d, &sol.coefficients[k], k),
+                    None => f64::INFINITY,
+                };
             }
         }
         tris.push(tri);
@@ -168,7 +153,7 @@ pub(crate) fn select(
     settings: &Settings,
     sensors: &[usize],
 ) -> (Vec<Pick>, Vec<FamilyScore>) {
-    let nt = p.y.ncols();
+    let nt = p.nt;
     let reference = p.reference(settings);
     // Per target, the candidate members: (family, ridge, rmse, held-out predictions).
     let mut members: Vec<Vec<Candidate>> = vec![Vec::new(); nt];
@@ -195,12 +180,13 @@ pub(crate) fn select(
         families.push(FamilyScore { family, per_target });
     }
     let held = p.held_targets();
+    let n = p.folds.held_rows();
     let picks = (0..nt)
         .map(|k| {
             let mut pick = if settings.families.len() == 1 && members[k].len() == 1 {
-                as_given(&members[k][0], &held[k])
+                as_given(&members[k][0], &held[k], n)
             } else {
-                pick(&members[k], &held[k])
+                pick(&members[k], &held[k], n)
             };
             for m in &mut pick.members {
                 m.tau_s = (m.family == Family::Transfer)
@@ -214,7 +200,7 @@ pub(crate) fn select(
 }
 
 /// One family named by the user is fitted as it is: nothing to blend, nothing to guard.
-fn as_given(m: &Candidate, y: &[f64]) -> Pick {
+fn as_given(m: &Candidate, y: &[f64], n: usize) -> Pick {
     Pick {
         members: vec![Member {
             family: m.0,
@@ -224,14 +210,14 @@ fn as_given(m: &Candidate, y: &[f64]) -> Pick {
             tau_s: None,
         }],
         cv_rmse_um: m.2,
-        uncompensated_um: stacking::rmse(y, &vec![0.0; y.len()]),
+        uncompensated_um: rmse_over(y, None, n),
         fallback: None,
     }
 }
 
 /// Blend, guard and fallback for one target.
-fn pick(members: &[Candidate], y: &[f64]) -> Pick {
-    let zero = stacking::rmse(y, &vec![0.0; y.len()]);
+fn pick(members: &[Candidate], y: &[f64], n: usize) -> Pick {
+    let zero = rmse_over(y, None, n);
     let none = |reason: String| Pick {
         members: Vec::new(),
         cv_rmse_um: zero,
@@ -246,7 +232,7 @@ fn pick(members: &[Candidate], y: &[f64]) -> Pick {
     let blended: Vec<f64> = (0..y.len())
         .map(|i| preds.iter().zip(&w).map(|(p, wm)| wm * p[i]).sum())
         .collect();
-    let score = stacking::rmse(y, &blended);
+    let score = rmse_over(y, Some(&blended), n);
     if score > CLEARLY_BETTER * zero {
         return none(format!(
             "no compensation: the blend's inner-validation RMSE {score:.3} µm is not clearly below no compensation's {zero:.3} µm"
@@ -291,14 +277,24 @@ fn pick(members: &[Candidate], y: &[f64]) -> Pick {
     }
 }
 
+/// The RMSE of `b` (zero if `None`) as a prediction of `a` over `n` rows. `a` and `b` may be the
+/// rows themselves or their coordinates in a triangle ([`Problem::held_prediction`]): both
+/// give the same sum of squares, only `n` counts the rows.
+fn rmse_over(a: &[f64], b: Option<&[f64]>, n: usize) -> f64 {
+    let sum: f64 = match b {
+        Some(b) => a.iter().zip(b).map(|(x, y)| (x - y).powi(2)).sum(),
+        None => a.iter().map(|x| x * x).sum(),
+    };
+    (sum / n.max(1) as f64).sqrt()
+}
+
 /// A design fitted on every training row (each member of the final blend once).
 pub(crate) fn fit_all(
     p: &Problem<'_>,
     d: &Design,
     ridge: f64,
 ) -> Result<crate::least_squares::Solution, String> {
-    p.accumulate(d, 0..p.x.nrows())
-        .finish()
+    p.design_triangle(d, None)
         .solve(&SolveOptions {
             ridge,
             unpenalized: vec![0],
@@ -326,6 +322,7 @@ mod tests {
                 member(Family::Dynamic, 0.2, good),
             ],
             &y,
+            y.len(),
         );
         assert_eq!(p.fallback, None);
         assert_eq!(p.members.len(), 1);
@@ -340,7 +337,7 @@ mod tests {
         let noise: Vec<f64> = (0..100)
             .map(|i| ((i * 7919) % 13) as f64 / 13.0 - 0.5)
             .collect();
-        let p = pick(&[member(Family::Dynamic, 1.2, noise)], &y);
+        let p = pick(&[member(Family::Dynamic, 1.2, noise)], &y, y.len());
         assert!(p.members.is_empty());
         assert!(p.fallback.unwrap().starts_with("no compensation"));
     }
@@ -361,6 +358,7 @@ mod tests {
                 member(Family::Dynamic, 0.9, dynamic),
             ],
             &y,
+            y.len(),
         );
         assert_eq!(p.members.len(), 1);
         assert_eq!(p.members[0].family, Family::Static);

@@ -17,7 +17,7 @@ use truepos_model::{DynamicModel, FeatureBank, FeatureKind};
 use crate::dataset::{Dataset, InputKind};
 use crate::features::{bank_for, Candidates, Extended, Family};
 use crate::inner_cv::{decorrelation_time, Folds, Row};
-use crate::least_squares::Accumulator;
+use crate::least_squares::{Accumulator, SolveOptions, Triangle};
 use crate::selection::{fit_all, select, Member};
 use crate::settings::Settings;
 use crate::transfer::identify_tau;
@@ -121,10 +121,19 @@ pub(crate) struct Problem<'a> {
     pub transfer_tau: Option<f64>,
     /// The fixed grid of temperature low-pass time constants the other families use.
     pub grid_taus: Vec<f64>,
-    pub x: Mat<f64>,
-    pub y: Mat<f64>,
+    /// Per candidate feature, its mean over the training rows (the columns are centred).
     pub means: Vec<f64>,
     pub folds: Folds,
+    /// Number of targets.
+    pub nt: usize,
+    /// Number of training rows.
+    pub n: usize,
+    /// Per fold, the triangle of [1 | x − mean | y] (every candidate feature, every target) over
+    /// the rows that train its model, and over its held-out rows.
+    train_tri: Vec<Triangle>,
+    held_tri: Vec<Triangle>,
+    /// The same over every training row.
+    all: Triangle,
 }
 
 impl<'a> Problem<'a> {
@@ -135,11 +144,23 @@ impl<'a> Problem<'a> {
         settings: &Settings,
         transfer_tau: Option<f64>,
     ) -> Self {
+        Self::build(dataset, source, rows, settings, transfer_tau, None)
+    }
+
+    /// One pass over the training rows fills one triangle per segment of the folds (`folds`,
+    /// or those of [`Problem::inner_folds`]); every design, fold and score is then computed from
+    /// these triangles, never from the rows again.
+    pub(crate) fn build(
+        dataset: &Dataset,
+        source: &'a Extended<'_>,
+        rows: &[(usize, usize)],
+        settings: &Settings,
+        transfer_tau: Option<f64>,
+        folds: Option<Folds>,
+    ) -> Self {
         let cand = &source.meta;
         let nf = cand.features.len();
         let nt = dataset.target_names.len();
-        let mut x = Mat::<f64>::zeros(rows.len(), nf);
-        let mut y = Mat::<f64>::zeros(rows.len(), nt);
         let rel: Vec<Vec<Vec<f64>>> = dataset
             .runs
             .iter()
@@ -149,21 +170,6 @@ impl<'a> Problem<'a> {
                     .collect()
             })
             .collect();
-        for (i, &(run, row)) in rows.iter().enumerate() {
-            for j in 0..nf {
-                x[(i, j)] = source.value(run, row, j);
-            }
-            for k in 0..nt {
-                y[(i, k)] = rel[run][k][row];
-            }
-        }
-        let mut means = vec![0.0; nf];
-        for (j, mean) in means.iter_mut().enumerate() {
-            *mean = (0..rows.len()).map(|i| x[(i, j)]).sum::<f64>() / rows.len().max(1) as f64;
-            for i in 0..rows.len() {
-                x[(i, j)] -= *mean;
-            }
-        }
         let at: Vec<Row> = rows
             .iter()
             .map(|&(run, row)| Row {
@@ -171,101 +177,127 @@ impl<'a> Problem<'a> {
                 time_s: dataset.runs[run].time_s[row],
             })
             .collect();
-        let mut p = Self {
+        let folds = folds.unwrap_or_else(|| inner_folds(source, rows, &rel, &at, settings));
+        let mut segs = segment_triangles(source, rows, &rel, &folds.segments, nt);
+        let all = Triangle::stack(&segs).unwrap_or_else(|| Accumulator::new(nf + 1, nt).finish());
+        let n = rows.len();
+        let means: Vec<f64> = (0..nf)
+            .map(|j| all.gram(0, j + 1) / n.max(1) as f64)
+            .collect();
+        for t in &mut segs {
+            for (j, &m) in means.iter().enumerate() {
+                t.subtract_first_column(j + 1, m);
+            }
+        }
+        let empty = || Accumulator::new(nf + 1, nt).finish();
+        let stack = |ids: &mut dyn Iterator<Item = usize>| {
+            Triangle::stack(ids.map(|s| &segs[s])).unwrap_or_else(empty)
+        };
+        let train_tri = folds
+            .folds
+            .iter()
+            .map(|f| stack(&mut f.train.iter().copied()))
+            .collect();
+        let held_tri = folds
+            .folds
+            .iter()
+            .map(|f| {
+                stack(
+                    &mut (0..segs.len())
+                        .filter(|&s| folds.segments[s].start >= f.held.start)
+                        .filter(|&s| folds.segments[s].end <= f.held.end),
+                )
+            })
+            .collect();
+        let all = stack(&mut (0..segs.len()));
+        Self {
             cand,
             transfer_tau,
             grid_taus: settings.taus.temperature_s.clone(),
-            x,
-            y,
             means,
-            folds: Folds::new(&at, 1, settings.inner, 0.0),
-        };
-        p.folds = p.inner_folds(&at, settings);
-        p
-    }
-
-    /// The folds of the inner validation. The gap is the slowest time constant of any candidate
-    /// feature and the decorrelation time of the static model's residual, whichever is longer
-    /// (capped at a block per side by [`Folds::new`]); without any row left to train a fold,
-    /// no gap.
-    fn inner_folds(&self, at: &[Row], settings: &Settings) -> Folds {
-        let slowest = self
-            .cand
-            .features
-            .iter()
-            .filter(|f| settings.families.iter().any(|fam| fam.includes(f.kind)))
-            .filter_map(|f| tau_of(f.kind))
-            .fold(0.0, f64::max);
-        let all: Vec<usize> = (0..self.cand.spec.temperatures).collect();
-        let residual = self
-            .design(Family::Static, &all, None)
-            .and_then(|d| fit_all(self, &d, 1e-3).ok().map(|sol| (d, sol)))
-            .map(|(d, sol)| {
-                let series: Vec<Vec<f64>> = (0..self.y.ncols())
-                    .map(|k| {
-                        (0..self.y.nrows())
-                            .map(|i| self.y[(i, k)] - self.predict(&d, &sol.coefficients[k], i))
-                            .collect()
-                    })
-                    .collect();
-                decorrelation_time(at, &series)
-            })
-            .unwrap_or(0.0);
-        let folds = Folds::new(at, settings.folds, settings.inner, slowest.max(residual));
-        if folds.folds.iter().any(|f| f.train.is_empty()) {
-            Folds::new(at, settings.folds, settings.inner, 0.0)
-        } else {
-            folds
+            folds,
+            nt,
+            n,
+            train_tri,
+            held_tri,
+            all,
         }
     }
 
-    /// The prediction of `coef` (intercept first) at row i.
-    pub fn predict(&self, d: &Design, coef: &[f64], i: usize) -> f64 {
-        let mut p = coef[0];
-        for (j, cj) in coef[1..].iter().enumerate() {
-            p += cj * self.value(d, i, j);
+    /// The columns of a design as a map from [1 | every feature | targets] to
+    /// [1 | the design's regressors | targets].
+    fn map(&self, d: &Design) -> Mat<f64> {
+        let (nf, nd, nt) = (self.cand.features.len(), d.cols.len(), self.nt);
+        let mut m = Mat::<f64>::zeros(1 + nf + nt, 1 + nd + nt);
+        m[(0, 0)] = 1.0;
+        for (j, &c) in d.cols.iter().enumerate() {
+            m[(1 + c, 1 + j)] = 1.0;
+            if let Some(r) = d.minus {
+                m[(1 + r, 1 + j)] = -1.0;
+            }
         }
-        p
+        for k in 0..nt {
+            m[(1 + nf + k, 1 + nd + k)] = 1.0;
+        }
+        m
     }
 
-    /// Per target, the held-out rows' targets in fold order.
+    /// The triangle of a design over fold `f`'s training rows (`None`: every training row).
+    pub fn design_triangle(&self, d: &Design, f: Option<usize>) -> Triangle {
+        let t = f.map_or(&self.all, |f| &self.train_tri[f]);
+        t.transformed(self.map(d).as_ref(), 1 + d.cols.len(), self.nt)
+    }
+
+    /// The combination of [1 | features | targets] that a design's coefficients `coef`
+    /// (intercept first) predict, minus target `k` if given (the residual's negative).
+    fn combination(&self, d: &Design, coef: &[f64], k: Option<usize>) -> Vec<f64> {
+        let nf = self.cand.features.len();
+        let mut u = vec![0.0; 1 + nf + self.nt];
+        u[0] = coef[0];
+        for (j, &c) in d.cols.iter().enumerate() {
+            u[1 + c] += coef[1 + j];
+            if let Some(r) = d.minus {
+                u[1 + r] -= coef[1 + j];
+            }
+        }
+        if let Some(k) = k {
+            u[1 + nf + k] = -1.0;
+        }
+        u
+    }
+
+    /// Sum of squared errors of `coef` on fold `f`'s held-out rows for target `k`.
+    pub fn held_sse(&self, f: usize, d: &Design, coef: &[f64], k: usize) -> f64 {
+        let e = self.held_tri[f].apply(&self.combination(d, coef, Some(k)));
+        e.iter().map(|v| v * v).sum()
+    }
+
+    /// Fold `f`'s held-out predictions of `coef`, in the held triangle's coordinates: vectors
+    /// whose dot products (over the folds concatenated) are those of the predictions themselves.
+    pub fn held_prediction(&self, f: usize, d: &Design, coef: &[f64]) -> Vec<f64> {
+        self.held_tri[f].apply(&self.combination(d, coef, None))
+    }
+
+    /// Length of one fold's vector in [`Problem::held_prediction`].
+    pub fn held_width(&self) -> usize {
+        1 + self.cand.features.len() + self.nt
+    }
+
+    /// Per target, the held-out targets in the same coordinates, folds concatenated.
     pub fn held_targets(&self) -> Vec<Vec<f64>> {
-        (0..self.y.ncols())
+        let nf = self.cand.features.len();
+        (0..self.nt)
             .map(|k| {
-                self.folds
-                    .folds
-                    .iter()
-                    .flat_map(|f| f.held.clone().map(move |i| (i, k)))
-                    .map(|(i, k)| self.y[(i, k)])
-                    .collect()
+                let mut e = vec![0.0; self.held_width()];
+                e[1 + nf + k] = 1.0;
+                self.held_tri.iter().flat_map(|t| t.apply(&e)).collect()
             })
             .collect()
     }
 
-    /// Value of design column j at row i.
-    #[inline]
-    pub fn value(&self, d: &Design, i: usize, j: usize) -> f64 {
-        self.x[(i, d.cols[j])] - d.minus.map_or(0.0, |m| self.x[(i, m)])
-    }
-
-    pub fn accumulate(&self, d: &Design, range: std::ops::Range<usize>) -> Accumulator {
-        let n = d.cols.len() + 1;
-        let nt = self.y.ncols();
-        let mut acc = Accumulator::new(n, nt);
-        let mut a = vec![0.0; n];
-        let mut b = vec![0.0; nt];
-        a[0] = 1.0;
-        for i in range {
-            for (j, slot) in a[1..].iter_mut().enumerate() {
-                *slot = self.value(d, i, j);
-            }
-            for (k, slot) in b.iter_mut().enumerate() {
-                *slot = self.y[(i, k)];
-            }
-            // Finite by construction (checked dataset, checked filters).
-            let _ = acc.push_row(&a, &b, 1.0);
-        }
-        acc
+    /// Sum over the training rows of column i times column j of [1 | x − mean | y].
+    pub fn gram(&self, i: usize, j: usize) -> f64 {
+        self.all.gram(i, j)
     }
 
     /// The design of a family on a sensor set; `None` when the family cannot be built (seed C
@@ -304,6 +336,158 @@ impl<'a> Problem<'a> {
             .collect();
         (!cols.is_empty()).then_some(Design { cols, minus })
     }
+}
+
+/// The folds of the inner validation. The gap is the slowest time constant of any candidate
+/// feature and the decorrelation time of the static model's residual, whichever is longer
+/// (capped at a block per side by [`Folds::new`]); without any row left to train a fold,
+/// no gap.
+fn inner_folds(
+    source: &Extended<'_>,
+    rows: &[(usize, usize)],
+    rel: &[Vec<Vec<f64>>],
+    at: &[Row],
+    settings: &Settings,
+) -> Folds {
+    let slowest = source
+        .meta
+        .features
+        .iter()
+        .filter(|f| settings.families.iter().any(|fam| fam.includes(f.kind)))
+        .filter_map(|f| tau_of(f.kind))
+        .fold(0.0, f64::max);
+    let residual = static_residuals(source, rows, rel)
+        .map(|series| decorrelation_time(at, &series))
+        .unwrap_or(0.0);
+    let folds = Folds::new(at, settings.folds, settings.inner, slowest.max(residual));
+    if folds.folds.iter().any(|f| f.train.is_empty()) {
+        Folds::new(at, settings.folds, settings.inner, 0.0)
+    } else {
+        folds
+    }
+}
+
+/// Per target, the residual on every training row of the static model (every temperature
+/// rise, centred, ridge 1e-3) fitted on all of them; `None` if it cannot be fitted.
+fn static_residuals(
+    source: &Extended<'_>,
+    rows: &[(usize, usize)],
+    rel: &[Vec<Vec<f64>>],
+) -> Option<Vec<Vec<f64>>> {
+    let cols: Vec<usize> = (0..source.meta.features.len())
+        .filter(|&j| source.meta.features[j].kind == FeatureKind::Rise)
+        .filter(|&j| source.meta.features[j].input < source.meta.spec.temperatures)
+        .collect();
+    if cols.is_empty() || rows.is_empty() {
+        return None;
+    }
+    let nt = rel.first().map_or(0, Vec::len);
+    let n = rows.len() as f64;
+    let means: Vec<f64> = cols
+        .iter()
+        .map(|&j| {
+            rows.iter()
+                .map(|&(r, i)| source.value(r, i, j))
+                .sum::<f64>()
+                / n
+        })
+        .collect();
+    let x = |&(r, i): &(usize, usize), c: usize| source.value(r, i, cols[c]) - means[c];
+    let mut acc = Accumulator::new(cols.len() + 1, nt);
+    let mut a = vec![1.0; cols.len() + 1];
+    let mut b = vec![0.0; nt];
+    for at in rows {
+        for c in 0..cols.len() {
+            a[1 + c] = x(at, c);
+        }
+        for (k, slot) in b.iter_mut().enumerate() {
+            *slot = rel[at.0][k][at.1];
+        }
+        acc.push_row(&a, &b, 1.0).ok()?;
+    }
+    let sol = acc
+        .finish()
+        .solve(&SolveOptions {
+            ridge: 1e-3,
+            unpenalized: vec![0],
+            rcond: None,
+        })
+        .ok()?;
+    Some(
+        (0..nt)
+            .map(|k| {
+                let coef = &sol.coefficients[k];
+                rows.iter()
+                    .map(|at| {
+                        let p: f64 =
+                            coef[0] + (0..cols.len()).map(|c| coef[1 + c] * x(at, c)).sum::<f64>();
+                        rel[at.0][k][at.1] - p
+                    })
+                    .collect()
+            })
+            .collect(),
+    )
+}
+
+/// One triangle of [1 | every candidate feature | every target] per segment of training rows,
+/// uncentred; the segments are shared among the cores.
+fn segment_triangles(
+    source: &Extended<'_>,
+    rows: &[(usize, usize)],
+    rel: &[Vec<Vec<f64>>],
+    segments: &[std::ops::Range<usize>],
+    nt: usize,
+) -> Vec<Triangle> {
+    let nf = source.meta.features.len();
+    let one = |seg: &std::ops::Range<usize>| {
+        let mut acc = Accumulator::new(nf + 1, nt);
+        let mut a = vec![1.0; nf + 1];
+        let mut b = vec![0.0; nt];
+        for &(run, row) in &rows[seg.clone()] {
+            for (j, slot) in a[1..].iter_mut().enumerate() {
+                *slot = source.value(run, row, j);
+            }
+            for (k, slot) in b.iter_mut().enumerate() {
+                *slot = rel[run][k][row];
+            }
+            // Finite by construction (checked dataset, checked filters).
+            let _ = acc.push_row(&a, &b, 1.0);
+        }
+        acc.finish()
+    };
+    let threads = std::thread::available_parallelism()
+        .map_or(1, |n| n.get())
+        .min(segments.len())
+        .max(1);
+    // Contiguous groups of segments with about equal numbers of rows, one per core.
+    let per = rows.len().div_ceil(threads).max(1);
+    let mut groups: Vec<Vec<usize>> = vec![Vec::new(); threads];
+    for (s, seg) in segments.iter().enumerate() {
+        groups[(seg.start / per).min(threads - 1)].push(s);
+    }
+    let mut out: Vec<Option<Triangle>> = vec![None; segments.len()];
+    std::thread::scope(|scope| {
+        let handles: Vec<_> = groups
+            .iter()
+            .map(|g| {
+                let one = &one;
+                scope.spawn(move || {
+                    g.iter()
+                        .map(|&s| (s, one(&segments[s])))
+                        .collect::<Vec<_>>()
+                })
+            })
+            .collect();
+        for h in handles {
+            match h.join() {
+                Ok(done) => done.into_iter().for_each(|(s, t)| out[s] = Some(t)),
+                Err(panic) => std::panic::resume_unwind(panic),
+            }
+        }
+    });
+    out.into_iter()
+        .map(|t| t.unwrap_or_else(|| Accumulator::new(nf + 1, nt).finish()))
+        .collect()
 }
 
 /// Chooses by inner CV on `rows` (training rows only; blocked or rolling origin, see
@@ -590,38 +774,31 @@ fn stable_sensors(
 /// Correlation ranking, then greedy forward selection by CV score (mean over targets of the
 /// CV RMSE relative to the target's spread), among the best-ranked candidates.
 fn greedy_sensors(p: &Problem<'_>, settings: &Settings, max: usize) -> Vec<usize> {
-    let nt = p.y.ncols();
+    let nt = p.nt;
     let temps = p.cand.spec.temperatures;
     let rise_col = |s: usize| {
         (0..p.cand.features.len()).find(|&j| {
             p.cand.features[j].input == s && p.cand.features[j].kind == FeatureKind::Rise
         })
     };
+    let nf = p.cand.features.len();
+    let n = p.n.max(1) as f64;
+    // From the Gram matrix of [1 | x − mean | y]: the columns x are centred, so Σx·(y − ȳ) = Σx·y.
     let spread: Vec<f64> = (0..nt)
         .map(|k| {
-            let n = p.y.nrows() as f64;
-            let m = (0..p.y.nrows()).map(|i| p.y[(i, k)]).sum::<f64>() / n;
-            ((0..p.y.nrows())
-                .map(|i| (p.y[(i, k)] - m).powi(2))
-                .sum::<f64>()
-                / n)
-                .sqrt()
-                .max(1e-12)
+            let (sy, syy) = (p.gram(0, 1 + nf + k), p.gram(1 + nf + k, 1 + nf + k));
+            ((syy - sy * sy / n).max(0.0) / n).sqrt().max(1e-12)
         })
         .collect();
     // |Pearson correlation| of each sensor's rise with each target, averaged over targets.
     let mut ranked: Vec<(f64, usize)> = (0..temps)
         .filter_map(|s| {
             let j = rise_col(s)?;
-            let xs = (0..p.x.nrows()).map(|i| p.x[(i, j)]);
-            let sx = xs.clone().map(|v| v * v).sum::<f64>().sqrt();
+            let sx = p.gram(1 + j, 1 + j).max(0.0).sqrt();
             let r = (0..nt)
                 .map(|k| {
-                    let m = (0..p.y.nrows()).map(|i| p.y[(i, k)]).sum::<f64>() / p.y.nrows() as f64;
-                    let sxy: f64 = (0..p.x.nrows())
-                        .map(|i| p.x[(i, j)] * (p.y[(i, k)] - m))
-                        .sum();
-                    let sy = spread[k] * (p.y.nrows() as f64).sqrt();
+                    let sxy = p.gram(1 + j, 1 + nf + k);
+                    let sy = spread[k] * n.sqrt();
                     if sx > 0.0 {
                         (sxy / (sx * sy)).abs()
                     } else {
@@ -943,7 +1120,6 @@ mod tests {
                 ..Settings::default()
             };
             let ext = Extended::new(&ds, &cand, &[]).unwrap();
-            let mut p = Problem::new(&ds, &ext, &rows, &settings, None);
             let at: Vec<Row> = rows
                 .iter()
                 .map(|&(run, row)| Row {
@@ -951,7 +1127,8 @@ mod tests {
                     time_s: ds.runs[run].time_s[row],
                 })
                 .collect();
-            p.folds = Folds::new(&at, 8, inner, 0.0);
+            let folds = Folds::new(&at, 8, inner, 0.0);
+            let p = Problem::build(&ds, &ext, &rows, &settings, None, Some(folds));
             let d = p.design(Family::Static, &[0], None).unwrap();
             crate::selection::cv(&p, &d, &[0.0]).scores[0][0].0
         };
