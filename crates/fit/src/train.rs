@@ -354,7 +354,7 @@ fn inner_folds(
         .features
         .iter()
         .filter(|f| settings.families.iter().any(|fam| fam.includes(f.kind)))
-        .filter_map(|f| tau_of(f.kind))
+        .filter_map(|f| f.kind.tau_s())
         .fold(0.0, f64::max);
     let residual = static_residuals(source, rows, rel)
         .map(|series| decorrelation_time(at, &series))
@@ -498,6 +498,9 @@ pub fn train(
     rows: &[(usize, usize)],
     settings: &Settings,
 ) -> Result<Trained, String> {
+    // Every factorisation after the segment pass is of a few hundred columns at most: faer's
+    // thread pool costs more than it saves there, and the segments already use every core.
+    faer::set_global_parallelism(faer::Par::Seq);
     if rows.len() < 4 * settings.folds.max(2) {
         return Err(format!(
             "only {} training samples: too few for {}-fold cross-validation",
@@ -699,17 +702,6 @@ fn blend(
         warnings,
         choices,
     })
-}
-
-/// The time constant of a filtered feature.
-fn tau_of(kind: FeatureKind) -> Option<f64> {
-    match kind {
-        FeatureKind::LowPass { tau_s }
-        | FeatureKind::Rate { tau_s }
-        | FeatureKind::Operating { tau_s }
-        | FeatureKind::OperatingSquared { tau_s } => Some(tau_s),
-        FeatureKind::Rise | FeatureKind::RiseWhileRunning { .. } => None,
-    }
 }
 
 /// The bank index of the reference sensor, if one is set and is a temperature input.

@@ -13,7 +13,7 @@
 //! from chasing noise. The filter is the real-time crate's own [`FeatureBank`], so the τ found
 //! is the τ the control runs.
 
-use truepos_model::{FeatureBank, FeatureSpec};
+use truepos_model::lag_gain;
 
 use crate::dataset::{Dataset, InputKind};
 use crate::least_squares::{Accumulator, SolveOptions};
@@ -39,16 +39,33 @@ pub fn identify_tau(dataset: &Dataset, rows: &[(usize, usize)], absolute: bool) 
     if temps.is_empty() || rows.is_empty() {
         return None;
     }
-    let cost = |log_tau: f64| reduced_residual(dataset, rows, &temps, log_tau.exp(), absolute);
+    let stretches = stretches(dataset, rows, absolute);
+    let cost = |log_tau: f64| reduced_residual(&stretches, &temps, log_tau.exp());
     let (lo, hi) = (TAU_RANGE_S.0.ln(), TAU_RANGE_S.1.ln());
     // Coarse scan: the residual of a sum of lags can have more than one dip.
     let steps = 12;
-    let grid: Vec<(f64, f64)> = (0..=steps)
-        .map(|s| {
-            let u = lo + (hi - lo) * s as f64 / steps as f64;
-            (u, cost(u))
-        })
-        .collect();
+    let at = |s: usize| lo + (hi - lo) * s as f64 / steps as f64;
+    // The scan's points are independent: half of them on a second core.
+    let grid: Vec<(f64, f64)> = std::thread::scope(|scope| {
+        let cost = &cost;
+        let odd = scope.spawn(move || {
+            (1..=steps)
+                .step_by(2)
+                .map(|s| (at(s), cost(at(s))))
+                .collect::<Vec<_>>()
+        });
+        let even: Vec<(f64, f64)> = (0..=steps)
+            .step_by(2)
+            .map(|s| (at(s), cost(at(s))))
+            .collect();
+        let odd = match odd.join() {
+            Ok(v) => v,
+            Err(panic) => std::panic::resume_unwind(panic),
+        };
+        let mut all: Vec<(f64, f64)> = even.into_iter().chain(odd).collect();
+        all.sort_by(|x, y| x.0.total_cmp(&y.0));
+        all
+    });
     let best = (0..grid.len()).min_by(|&a, &b| grid[a].1.total_cmp(&grid[b].1))?;
     if !grid[best].1.is_finite() {
         return None;
@@ -85,74 +102,91 @@ pub fn identify_tau(dataset: &Dataset, rows: &[(usize, usize)], absolute: bool) 
     Some(found.exp().round())
 }
 
-/// Σ_k RSS_k / TSS_k of the least-squares fit of [1, ΔT_i, LPF_τ(ΔT_i)] to every target.
-fn reduced_residual(
-    dataset: &Dataset,
-    rows: &[(usize, usize)],
-    temps: &[usize],
-    tau: f64,
-    absolute: bool,
-) -> f64 {
-    let spec = FeatureSpec {
-        temperatures: temps.len(),
-        operating: 0,
-        temperature_rise: true,
-        temperature_taus_s: vec![tau],
-        rate_taus_s: Vec::new(),
-        operating_taus_s: Vec::new(),
-        operating_square: false,
-        rise_while_running: false,
-    };
-    let Ok(mut bank) = FeatureBank::new(spec) else {
-        return f64::INFINITY;
-    };
+/// The training rows of one run: the run, its last training row, and the rows that enter the
+/// sum with their targets (every `stride`-th training row, see [`MAX_ROWS`]).
+struct Stretch<'d> {
+    run: &'d crate::dataset::Run,
+    last: usize,
+    used: Vec<(usize, Vec<f64>)>,
+}
+
+/// The training rows by run, with the targets of the rows the sum uses (read once, not per τ).
+fn stretches<'d>(dataset: &'d Dataset, rows: &[(usize, usize)], absolute: bool) -> Vec<Stretch<'d>> {
     let nt = dataset.target_names.len();
-    let nf = bank.features().len();
-    let mut acc = Accumulator::new(nf + 1, nt);
-    let (mut a, mut b, mut inputs) = (vec![1.0; nf + 1], vec![0.0; nt], vec![0.0; temps.len()]);
-    let (mut sum, mut sum2) = (vec![0.0; nt], vec![0.0; nt]);
     let stride = rows.len().div_ceil(MAX_ROWS).max(1);
-    let mut used = 0usize;
+    let mut out: Vec<Stretch<'d>> = Vec::new();
     let mut i = 0;
     while i < rows.len() {
         let run_index = rows[i].0;
         let run = &dataset.runs[run_index];
-        let targets: Vec<Vec<f64>> = (0..nt).map(|k| run.target(k, absolute)).collect();
         let end = rows[i..]
             .iter()
             .position(|r| r.0 != run_index)
             .map_or(rows.len(), |p| i + p);
-        let last = rows[end - 1].1;
-        bank.reset();
-        let mut next = i;
-        for row in 0..=last {
-            for (slot, &d) in inputs.iter_mut().zip(temps) {
-                *slot = run.inputs[d][row];
+        let targets: Vec<Vec<f64>> = (0..nt).map(|k| run.target(k, absolute)).collect();
+        let used = (i..end)
+            .filter(|n| n % stride == 0)
+            .map(|n| {
+                let row = rows[n].1;
+                (row, targets.iter().map(|t| t[row]).collect())
+            })
+            .collect();
+        out.push(Stretch {
+            run,
+            last: rows[end - 1].1,
+            used,
+        });
+        i = end;
+    }
+    out
+}
+
+/// Σ_k RSS_k / TSS_k of the least-squares fit of [1, ΔT_i, LPF_τ(ΔT_i)] to every target. The
+/// filter is the bank's own first-order lag ([`lag_gain`], state from the run's first sample),
+/// stepped over every row of the run and read at the rows of the sum.
+fn reduced_residual(stretches: &[Stretch<'_>], temps: &[usize], tau: f64) -> f64 {
+    let nt = stretches.first().and_then(|s| s.used.first()).map_or(0, |u| u.1.len());
+    let nf = 2 * temps.len();
+    let mut acc = Accumulator::new(nf + 1, nt);
+    let mut a = vec![1.0; nf + 1];
+    let (mut sum, mut sum2) = (vec![0.0; nt], vec![0.0; nt]);
+    let mut used = 0usize;
+    let mut state = vec![0.0; temps.len()];
+    for s in stretches {
+        let (run, mut next) = (s.run, 0);
+        let initial: Vec<f64> = temps.iter().map(|&d| run.inputs[d][0]).collect();
+        state.fill(0.0);
+        let (mut gain, mut gain_dt) = (0.0, 0.0);
+        for row in 0..=s.last {
+            if row > 0 {
+                let dt = run.time_s[row] - run.time_s[row - 1];
+                if !(dt.is_finite() && dt > 0.0) {
+                    return f64::INFINITY;
+                }
+                if dt != gain_dt {
+                    (gain, gain_dt) = (lag_gain(dt, tau), dt);
+                }
+                for (i, &d) in temps.iter().enumerate() {
+                    state[i] += gain * (run.inputs[d][row] - initial[i] - state[i]);
+                }
             }
-            let dt = if row == 0 {
-                0.0
-            } else {
-                run.time_s[row] - run.time_s[row - 1]
+            let Some((_, b)) = s.used.get(next).filter(|u| u.0 == row) else {
+                continue;
             };
-            let Ok(values) = bank.step(dt, &inputs) else {
+            next += 1;
+            used += 1;
+            for (i, &d) in temps.iter().enumerate() {
+                a[1 + 2 * i] = run.inputs[d][row] - initial[i];
+                a[2 + 2 * i] = state[i];
+            }
+            for k in 0..nt {
+                sum[k] += b[k];
+                sum2[k] += b[k] * b[k];
+            }
+            if acc.push_row(&a, b, 1.0).is_err() {
                 return f64::INFINITY;
-            };
-            if next < end && rows[next].1 == row {
-                next += 1;
-                if (next - 1) % stride != 0 {
-                    continue;
-                }
-                used += 1;
-                a[1..].copy_from_slice(values);
-                for (k, target) in targets.iter().enumerate() {
-                    b[k] = target[row];
-                    sum[k] += b[k];
-                    sum2[k] += b[k] * b[k];
-                }
-                let _ = acc.push_row(&a, &b, 1.0);
             }
         }
-        i = end;
     }
     let n = used as f64;
     let Ok(sol) = acc.finish().solve(&SolveOptions {

@@ -90,6 +90,19 @@ pub enum FeatureKind {
     },
 }
 
+impl FeatureKind {
+    /// The time constant of a filtered feature (s); `None` for the unfiltered ones.
+    pub fn tau_s(self) -> Option<f64> {
+        match self {
+            Self::LowPass { tau_s }
+            | Self::Rate { tau_s }
+            | Self::Operating { tau_s }
+            | Self::OperatingSquared { tau_s } => Some(tau_s),
+            Self::Rise | Self::RiseWhileRunning { .. } => None,
+        }
+    }
+}
+
 /// One feature: the input it reads and what it computes.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Feature {
@@ -183,6 +196,10 @@ pub struct FeatureBank {
     state: Vec<f64>,
     values: Vec<f64>,
     started: bool,
+    /// Per feature, the filter gain 1 − e^(−dt/τ) at `gain_dt` (0: none yet): a control cycle's
+    /// dt rarely changes, and the exponential is most of a step's cost.
+    gains: Vec<f64>,
+    gain_dt: f64,
 }
 
 impl FeatureBank {
@@ -251,6 +268,8 @@ impl FeatureBank {
             state: vec![0.0; n],
             values: vec![0.0; n],
             started: false,
+            gains: vec![0.0; n],
+            gain_dt: 0.0,
         })
     }
 
@@ -296,6 +315,13 @@ impl FeatureBank {
         if first {
             self.initial
                 .copy_from_slice(&inputs[..self.spec.temperatures]);
+        } else if dt_s != self.gain_dt {
+            for (gain, f) in self.gains.iter_mut().zip(&self.features) {
+                if let Some(tau_s) = f.kind.tau_s() {
+                    *gain = lag_gain(dt_s, tau_s);
+                }
+            }
+            self.gain_dt = dt_s;
         }
         for (k, f) in self.features.iter().enumerate() {
             let x = match f.kind {
@@ -314,13 +340,13 @@ impl FeatureBank {
             };
             let value = match f.kind {
                 FeatureKind::Rise | FeatureKind::RiseWhileRunning { .. } => x,
-                FeatureKind::LowPass { tau_s }
-                | FeatureKind::Operating { tau_s }
-                | FeatureKind::OperatingSquared { tau_s } => {
-                    low_pass(&mut self.state[k], x, dt_s, tau_s, first)
+                FeatureKind::LowPass { .. }
+                | FeatureKind::Operating { .. }
+                | FeatureKind::OperatingSquared { .. } => {
+                    low_pass(&mut self.state[k], x, self.gains[k], first)
                 }
                 FeatureKind::Rate { tau_s } => {
-                    let y = low_pass(&mut self.state[k], x, dt_s, tau_s, first);
+                    let y = low_pass(&mut self.state[k], x, self.gains[k], first);
                     (x - y) / tau_s
                 }
             };
@@ -331,14 +357,21 @@ impl FeatureBank {
     }
 }
 
+/// The gain of one step of a first-order lag, 1 − e^(−dt/τ): the exact discrete form of
+/// τ·ẏ + y = x with x held over the step. Every filter of the bank, and every offline copy of
+/// one, uses this so that they agree to the last bit.
+#[inline]
+pub fn lag_gain(dt_s: f64, tau_s: f64) -> f64 {
+    1.0 - libm::exp(-dt_s / tau_s)
+}
+
 /// One step of the first-order lag; on the first cycle the state starts at the input.
 #[inline]
-fn low_pass(state: &mut f64, x: f64, dt_s: f64, tau_s: f64, first: bool) -> f64 {
+fn low_pass(state: &mut f64, x: f64, gain: f64, first: bool) -> f64 {
     if first {
         *state = x;
     } else {
-        let a = 1.0 - libm::exp(-dt_s / tau_s);
-        *state += a * (x - *state);
+        *state += gain * (x - *state);
     }
     *state
 }

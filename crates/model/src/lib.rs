@@ -73,7 +73,9 @@ pub mod rls;
 pub mod update_period;
 
 pub use compensation::{BindError, BoundDynamicModel, Channels, CompensationModel, MachineInput};
-pub use dynamic::{DynamicError, DynamicModel, Feature, FeatureBank, FeatureKind, FeatureSpec};
+pub use dynamic::{
+    lag_gain, DynamicError, DynamicModel, Feature, FeatureBank, FeatureKind, FeatureSpec,
+};
 pub use evaluate::{Correction, CycleInput, EvalError, TRAVEL_TOLERANCE};
 pub use lag::{Lag, LagFilters, LagSource};
 pub use machine::{
