@@ -5,7 +5,6 @@
 use std::fmt;
 use std::str::FromStr;
 
-use faer::Mat;
 use truepos_model::{Feature, FeatureBank, FeatureKind, FeatureSpec};
 
 use crate::dataset::{Dataset, InputKind};
@@ -34,7 +33,9 @@ impl Default for TimeConstants {
     }
 }
 
-/// Every candidate feature of a dataset, per run.
+/// Every candidate feature of a dataset: the bank that computes them and their names. The values
+/// are never stored (a month of logs at 1 s times a hundred features would not fit in memory):
+/// an [`Extended::cursor`] steps the bank over a run wherever they are needed.
 #[derive(Debug, Clone)]
 pub struct Candidates {
     /// The spec of the bank (temperatures first, then operating inputs).
@@ -45,8 +46,6 @@ pub struct Candidates {
     pub features: Vec<Feature>,
     /// Feature names.
     pub names: Vec<String>,
-    /// Per run: samples × features.
-    pub runs: Vec<Mat<f64>>,
 }
 
 /// The bank spec and input order for a subset of a dataset's inputs.
@@ -81,82 +80,60 @@ pub fn bank_for(
     (spec, temps.into_iter().chain(ops).collect())
 }
 
-/// Runs the bank over every run of the dataset. Time steps come from the time column.
+/// The candidate features of every input of the dataset (time steps come from the time column).
 pub fn candidates(
     dataset: &Dataset,
     taus: &TimeConstants,
 ) -> Result<Candidates, truepos_model::DynamicError> {
     let all: Vec<usize> = (0..dataset.input_names.len()).collect();
     let (spec, bank_inputs) = bank_for(dataset, &all, taus, true);
-    let mut bank = FeatureBank::new(spec.clone())?;
+    let bank = FeatureBank::new(spec.clone())?;
     let features = bank.features().to_vec();
     let names = features
         .iter()
         .map(|f| f.name(|i| &dataset.input_names[bank_inputs[i]]))
         .collect();
-    let mut runs = Vec::with_capacity(dataset.runs.len());
-    let mut row = vec![0.0; bank_inputs.len()];
-    for run in &dataset.runs {
-        bank.reset();
-        let mut m = Mat::<f64>::zeros(run.len(), features.len());
-        for i in 0..run.len() {
-            for (slot, &d) in row.iter_mut().zip(&bank_inputs) {
-                *slot = run.inputs[d][i];
-            }
-            let dt = if i == 0 {
-                0.0
-            } else {
-                run.time_s[i] - run.time_s[i - 1]
-            };
-            let values = bank.step(dt, &row)?;
-            for (j, v) in values.iter().enumerate() {
-                m[(i, j)] = *v;
-            }
-        }
-        runs.push(m);
-    }
     Ok(Candidates {
         spec,
         bank_inputs,
         features,
         names,
-        runs,
     })
 }
 
-/// A candidate set with more temperature low-pass columns beside an existing one, without
-/// copying it: the transfer family's identified τ joins the candidates of a fit while the
-/// caller's set, shared by every outer fold, stays as it is.
+/// A candidate set with more temperature low-pass columns after an existing one's: the transfer
+/// family's identified τ joins the candidates of a fit while the caller's set, shared by every
+/// outer fold, stays as it is.
 pub struct Extended<'a> {
+    /// The dataset the features are computed from.
+    pub dataset: &'a Dataset,
     /// The caller's candidates.
     pub base: &'a Candidates,
-    /// The features of the whole set — the base's, then the added — with their names and spec;
-    /// its `runs` are empty (the values are [`Extended::value`]).
+    /// The features of the whole set — the base's, then the added — with their names and spec.
     pub meta: Candidates,
-    extra: Vec<Mat<f64>>,
+    /// The bank of the added columns, if any.
+    extra: Option<FeatureSpec>,
 }
 
 impl<'a> Extended<'a> {
     /// `base` plus LPF_τ of every temperature rise for each τ of `taus_s` (none: `base` alone).
     pub fn new(
-        dataset: &Dataset,
+        dataset: &'a Dataset,
         base: &'a Candidates,
         taus_s: &[f64],
     ) -> Result<Self, truepos_model::DynamicError> {
         let temps = base.spec.temperatures;
-        let mut meta = Candidates {
-            spec: base.spec.clone(),
-            bank_inputs: base.bank_inputs.clone(),
-            features: base.features.clone(),
-            names: base.names.clone(),
-            runs: Vec::new(),
-        };
-        let mut extra = Vec::new();
+        let mut meta = base.clone();
         if taus_s.is_empty() || temps == 0 {
-            return Ok(Self { base, meta, extra });
+            return Ok(Self {
+                dataset,
+                base,
+                meta,
+                extra: None,
+            });
         }
         meta.spec.temperature_taus_s.extend_from_slice(taus_s);
-        let mut bank = FeatureBank::new(FeatureSpec {
+        let spec = FeatureSpec {
             temperatures: temps,
             operating: 0,
             temperature_rise: false,
@@ -165,42 +142,83 @@ impl<'a> Extended<'a> {
             operating_taus_s: Vec::new(),
             operating_square: false,
             rise_while_running: false,
-        })?;
-        for f in bank.features() {
+        };
+        for f in FeatureBank::new(spec.clone())?.features() {
             meta.features.push(*f);
             meta.names
                 .push(f.name(|i| &dataset.input_names[base.bank_inputs[i]]));
         }
-        let mut row = vec![0.0; temps];
-        for run in &dataset.runs {
-            bank.reset();
-            let mut m = Mat::<f64>::zeros(run.len(), bank.features().len());
-            for i in 0..run.len() {
-                for (slot, &d) in row.iter_mut().zip(&base.bank_inputs[..temps]) {
-                    *slot = run.inputs[d][i];
-                }
-                let dt = if i == 0 {
-                    0.0
-                } else {
-                    run.time_s[i] - run.time_s[i - 1]
-                };
-                for (j, v) in bank.step(dt, &row)?.iter().enumerate() {
-                    m[(i, j)] = *v;
-                }
-            }
-            extra.push(m);
-        }
-        Ok(Self { base, meta, extra })
+        Ok(Self {
+            dataset,
+            base,
+            meta,
+            extra: Some(spec),
+        })
     }
 
-    /// Feature `j` of `run` at `row`.
-    pub fn value(&self, run: usize, row: usize, j: usize) -> f64 {
-        let nb = self.base.features.len();
-        if j < nb {
-            self.base.runs[run][(row, j)]
-        } else {
-            self.extra[run][(row, j - nb)]
+    /// A cursor that steps the banks along the runs.
+    pub fn cursor(&self) -> Result<Cursor<'_>, truepos_model::DynamicError> {
+        Ok(Cursor {
+            ext: self,
+            base: FeatureBank::new(self.base.spec.clone())?,
+            extra: self.extra.clone().map(FeatureBank::new).transpose()?,
+            position: None,
+            inputs: vec![0.0; self.base.bank_inputs.len()],
+            values: vec![0.0; self.meta.features.len()],
+        })
+    }
+}
+
+/// The candidate features along the runs of a dataset, computed by the real-time bank as the
+/// control computes them: every filter from the run's first sample.
+pub struct Cursor<'e> {
+    ext: &'e Extended<'e>,
+    base: FeatureBank,
+    extra: Option<FeatureBank>,
+    /// (run, row) the banks last stepped to.
+    position: Option<(usize, usize)>,
+    inputs: Vec<f64>,
+    values: Vec<f64>,
+}
+
+impl Cursor<'_> {
+    /// Every feature of `run` at `row`. Moving forward within a run steps the banks over the rows
+    /// between; another run, or a row already passed, starts again from the run's first sample.
+    pub fn at(&mut self, run: usize, row: usize) -> Result<&[f64], truepos_model::DynamicError> {
+        let from = match self.position {
+            Some((r, i)) if r == run && i <= row => {
+                if i == row {
+                    return Ok(&self.values);
+                }
+                i + 1
+            }
+            _ => {
+                self.base.reset();
+                if let Some(b) = &mut self.extra {
+                    b.reset();
+                }
+                0
+            }
+        };
+        let data = &self.ext.dataset.runs[run];
+        let temps = self.ext.base.spec.temperatures;
+        let nb = self.ext.base.features.len();
+        for i in from..=row {
+            for (slot, &d) in self.inputs.iter_mut().zip(&self.ext.base.bank_inputs) {
+                *slot = data.inputs[d][i];
+            }
+            let dt = if i == 0 {
+                0.0
+            } else {
+                data.time_s[i] - data.time_s[i - 1]
+            };
+            self.values[..nb].copy_from_slice(self.base.step(dt, &self.inputs)?);
+            if let Some(b) = &mut self.extra {
+                self.values[nb..].copy_from_slice(b.step(dt, &self.inputs[..temps])?);
+            }
         }
+        self.position = Some((run, row));
+        Ok(&self.values)
     }
 }
 
@@ -338,15 +356,19 @@ mod tests {
                 "rise(t1)·running(rpm)"
             ]
         );
-        let m = &c.runs[0];
-        assert_eq!(m[(1, 0)], 1.0);
+        let ext = Extended::new(&ds, &c, &[]).unwrap();
+        let mut cursor = ext.cursor().unwrap();
+        assert_eq!(cursor.at(0, 1).unwrap()[0], 1.0);
         // Step 1: 0.632120559 · 1; step 2: 0.632120559 + 0.632120559·(1 − 0.632120559).
-        assert!((m[(1, 1)] - 0.632_120_558_8).abs() < 1e-9);
-        assert!((m[(2, 1)] - 0.864_664_716_8).abs() < 1e-9);
-        assert_eq!(m[(2, 2)], 1000.0);
-        assert_eq!(m[(2, 3)], 1.0e6);
+        assert!((cursor.at(0, 1).unwrap()[1] - 0.632_120_558_8).abs() < 1e-9);
+        let m = cursor.at(0, 2).unwrap().to_vec();
+        assert!((m[1] - 0.864_664_716_8).abs() < 1e-9);
+        assert_eq!(m[2], 1000.0);
+        assert_eq!(m[3], 1.0e6);
         // The spindle runs throughout: the rise while running is the rise.
-        assert_eq!(m[(2, 4)], 1.0);
+        assert_eq!(m[4], 1.0);
+        // Back to an earlier row: the banks start again from the run's first sample.
+        assert!((cursor.at(0, 1).unwrap()[1] - 0.632_120_558_8).abs() < 1e-9);
     }
 
     #[test]

@@ -143,7 +143,7 @@ impl<'a> Problem<'a> {
         rows: &[(usize, usize)],
         settings: &Settings,
         transfer_tau: Option<f64>,
-    ) -> Self {
+    ) -> Result<Self, String> {
         Self::build(dataset, source, rows, settings, transfer_tau, None)
     }
 
@@ -157,7 +157,7 @@ impl<'a> Problem<'a> {
         settings: &Settings,
         transfer_tau: Option<f64>,
         folds: Option<Folds>,
-    ) -> Self {
+    ) -> Result<Self, String> {
         let cand = &source.meta;
         let nf = cand.features.len();
         let nt = dataset.target_names.len();
@@ -178,7 +178,7 @@ impl<'a> Problem<'a> {
             })
             .collect();
         let folds = folds.unwrap_or_else(|| inner_folds(source, rows, &rel, &at, settings));
-        let mut segs = segment_triangles(source, rows, &rel, &folds.segments, nt);
+        let mut segs = segment_triangles(source, rows, &rel, &folds.segments, nt)?;
         let all = Triangle::stack(&segs).unwrap_or_else(|| Accumulator::new(nf + 1, nt).finish());
         let n = rows.len();
         let means: Vec<f64> = (0..nf)
@@ -210,7 +210,7 @@ impl<'a> Problem<'a> {
             })
             .collect();
         let all = stack(&mut (0..segs.len()));
-        Self {
+        Ok(Self {
             cand,
             transfer_tau,
             grid_taus: settings.taus.temperature_s.clone(),
@@ -221,7 +221,7 @@ impl<'a> Problem<'a> {
             train_tri,
             held_tri,
             all,
-        }
+        })
     }
 
     /// The columns of a design as a map from [1 | every feature | targets] to
@@ -374,25 +374,28 @@ fn static_residuals(
     rows: &[(usize, usize)],
     rel: &[Vec<Vec<f64>>],
 ) -> Option<Vec<Vec<f64>>> {
-    let cols: Vec<usize> = (0..source.meta.features.len())
-        .filter(|&j| source.meta.features[j].kind == FeatureKind::Rise)
-        .filter(|&j| source.meta.features[j].input < source.meta.spec.temperatures)
+    // The rise of a temperature is its value minus the run's first (as the bank computes it).
+    let cand = &source.meta;
+    let cols: Vec<usize> = (0..cand.spec.temperatures)
+        .filter(|&s| {
+            cand.features
+                .iter()
+                .any(|f| f.input == s && f.kind == FeatureKind::Rise)
+        })
+        .map(|s| cand.bank_inputs[s])
         .collect();
     if cols.is_empty() || rows.is_empty() {
         return None;
     }
+    let runs = &source.dataset.runs;
+    let rise = |r: usize, i: usize, d: usize| runs[r].inputs[d][i] - runs[r].inputs[d][0];
     let nt = rel.first().map_or(0, Vec::len);
     let n = rows.len() as f64;
     let means: Vec<f64> = cols
         .iter()
-        .map(|&j| {
-            rows.iter()
-                .map(|&(r, i)| source.value(r, i, j))
-                .sum::<f64>()
-                / n
-        })
+        .map(|&d| rows.iter().map(|&(r, i)| rise(r, i, d)).sum::<f64>() / n)
         .collect();
-    let x = |&(r, i): &(usize, usize), c: usize| source.value(r, i, cols[c]) - means[c];
+    let x = |&(r, i): &(usize, usize), c: usize| rise(r, i, cols[c]) - means[c];
     let mut acc = Accumulator::new(cols.len() + 1, nt);
     let mut a = vec![1.0; cols.len() + 1];
     let mut b = vec![0.0; nt];
@@ -437,23 +440,29 @@ fn segment_triangles(
     rel: &[Vec<Vec<f64>>],
     segments: &[std::ops::Range<usize>],
     nt: usize,
-) -> Vec<Triangle> {
+) -> Result<Vec<Triangle>, String> {
     let nf = source.meta.features.len();
-    let one = |seg: &std::ops::Range<usize>| {
-        let mut acc = Accumulator::new(nf + 1, nt);
+    // Each core steps its own banks from the start of every run it needs.
+    let fill = |group: &[usize]| -> Result<Vec<(usize, Triangle)>, String> {
+        let mut cursor = source.cursor().map_err(|e| e.to_string())?;
         let mut a = vec![1.0; nf + 1];
         let mut b = vec![0.0; nt];
-        for &(run, row) in &rows[seg.clone()] {
-            for (j, slot) in a[1..].iter_mut().enumerate() {
-                *slot = source.value(run, row, j);
+        let mut out = Vec::with_capacity(group.len());
+        for &s in group {
+            let mut acc = Accumulator::new(nf + 1, nt);
+            for &(run, row) in &rows[segments[s].clone()] {
+                let values = cursor.at(run, row).map_err(|e| {
+                    format!("{}, row {}: {e}", source.dataset.runs[run].name, row + 1)
+                })?;
+                a[1..].copy_from_slice(values);
+                for (k, slot) in b.iter_mut().enumerate() {
+                    *slot = rel[run][k][row];
+                }
+                acc.push_row(&a, &b, 1.0).map_err(|e| e.to_string())?;
             }
-            for (k, slot) in b.iter_mut().enumerate() {
-                *slot = rel[run][k][row];
-            }
-            // Finite by construction (checked dataset, checked filters).
-            let _ = acc.push_row(&a, &b, 1.0);
+            out.push((s, acc.finish()));
         }
-        acc.finish()
+        Ok(out)
     };
     let threads = std::thread::available_parallelism()
         .map_or(1, |n| n.get())
@@ -470,24 +479,26 @@ fn segment_triangles(
         let handles: Vec<_> = groups
             .iter()
             .map(|g| {
-                let one = &one;
-                scope.spawn(move || {
-                    g.iter()
-                        .map(|&s| (s, one(&segments[s])))
-                        .collect::<Vec<_>>()
-                })
+                let fill = &fill;
+                scope.spawn(move || fill(g))
             })
             .collect();
         for h in handles {
             match h.join() {
-                Ok(done) => done.into_iter().for_each(|(s, t)| out[s] = Some(t)),
+                Ok(done) => {
+                    for (s, t) in done? {
+                        out[s] = Some(t);
+                    }
+                }
                 Err(panic) => std::panic::resume_unwind(panic),
             }
         }
-    });
-    out.into_iter()
+        Ok::<(), String>(())
+    })?;
+    Ok(out
+        .into_iter()
         .map(|t| t.unwrap_or_else(|| Accumulator::new(nf + 1, nt).finish()))
-        .collect()
+        .collect())
 }
 
 /// Chooses by inner CV on `rows` (training rows only; blocked or rolling origin, see
@@ -522,11 +533,11 @@ pub fn train(
     taus.temperature_s.extend_from_slice(&added);
     let ext = Extended::new(dataset, cand, &added).map_err(|e| e.to_string())?;
     let cand = &ext.meta;
-    let p = Problem::new(dataset, &ext, rows, settings, transfer_tau);
+    let p = Problem::new(dataset, &ext, rows, settings, transfer_tau)?;
     let all_sensors: Vec<usize> = (0..cand.spec.temperatures).collect();
     let mut sensors = match settings.max_sensors {
         Some(max) if max < all_sensors.len() => {
-            stable_sensors(dataset, &ext, rows, settings, transfer_tau, max)
+            stable_sensors(dataset, &ext, rows, settings, transfer_tau, max)?
         }
         _ => all_sensors,
     };
@@ -736,7 +747,7 @@ fn stable_sensors(
     settings: &Settings,
     transfer_tau: Option<f64>,
     max: usize,
-) -> Vec<usize> {
+) -> Result<Vec<usize>, String> {
     let mut count = vec![0usize; cand.meta.spec.temperatures];
     for d in 0..STABILITY_DRAWS {
         let sub: Vec<(usize, usize)> = rows
@@ -745,7 +756,7 @@ fn stable_sensors(
             .filter(|(i, _)| i * STABILITY_DRAWS / rows.len() != d)
             .map(|(_, r)| *r)
             .collect();
-        let p = Problem::new(dataset, cand, &sub, settings, transfer_tau);
+        let p = Problem::new(dataset, cand, &sub, settings, transfer_tau)?;
         for s in greedy_sensors(&p, settings, max) {
             count[s] += 1;
         }
@@ -756,11 +767,11 @@ fn stable_sensors(
     kept.sort_by(|a, b| count[*b].cmp(&count[*a]).then(a.cmp(b)));
     kept.truncate(max);
     if kept.is_empty() {
-        let p = Problem::new(dataset, cand, rows, settings, transfer_tau);
-        return greedy_sensors(&p, settings, max);
+        let p = Problem::new(dataset, cand, rows, settings, transfer_tau)?;
+        return Ok(greedy_sensors(&p, settings, max));
     }
     kept.sort_unstable();
-    kept
+    Ok(kept)
 }
 
 /// Correlation ranking, then greedy forward selection by CV score (mean over targets of the
@@ -924,9 +935,12 @@ mod tests {
             .iter()
             .map(|f| f.name(|i| &ds.input_names[trained.inputs[i]]))
             .collect();
+        let ext = Extended::new(&ds, &cand, &[]).unwrap();
+        let mut cursor = ext.cursor().unwrap();
         let mut nonzero = 0;
         for (r, run) in ds.runs.iter().enumerate() {
             for i in 0..run.len() {
+                let values = cursor.at(r, i).unwrap().to_vec();
                 let mut p = model.intercepts()[0];
                 for (j, name) in names.iter().enumerate() {
                     let c = model.coefficients()[j];
@@ -934,7 +948,7 @@ mod tests {
                         nonzero += 1;
                     }
                     let col = cand.names.iter().position(|x| x == name).unwrap();
-                    p += c * cand.runs[r][(i, col)];
+                    p += c * values[col];
                 }
                 let q = online[r][0][i];
                 assert!(
@@ -1120,7 +1134,7 @@ mod tests {
                 })
                 .collect();
             let folds = Folds::new(&at, 8, inner, 0.0);
-            let p = Problem::build(&ds, &ext, &rows, &settings, None, Some(folds));
+            let p = Problem::build(&ds, &ext, &rows, &settings, None, Some(folds)).unwrap();
             let d = p.design(Family::Static, &[0], None).unwrap();
             crate::selection::cv(&p, &d, &[0.0]).scores[0][0].0
         };

@@ -111,7 +111,11 @@ struct Stretch<'d> {
 }
 
 /// The training rows by run, with the targets of the rows the sum uses (read once, not per τ).
-fn stretches<'d>(dataset: &'d Dataset, rows: &[(usize, usize)], absolute: bool) -> Vec<Stretch<'d>> {
+fn stretches<'d>(
+    dataset: &'d Dataset,
+    rows: &[(usize, usize)],
+    absolute: bool,
+) -> Vec<Stretch<'d>> {
     let nt = dataset.target_names.len();
     let stride = rows.len().div_ceil(MAX_ROWS).max(1);
     let mut out: Vec<Stretch<'d>> = Vec::new();
@@ -145,7 +149,10 @@ fn stretches<'d>(dataset: &'d Dataset, rows: &[(usize, usize)], absolute: bool) 
 /// filter is the bank's own first-order lag ([`lag_gain`], state from the run's first sample),
 /// stepped over every row of the run and read at the rows of the sum.
 fn reduced_residual(stretches: &[Stretch<'_>], temps: &[usize], tau: f64) -> f64 {
-    let nt = stretches.first().and_then(|s| s.used.first()).map_or(0, |u| u.1.len());
+    let nt = stretches
+        .first()
+        .and_then(|s| s.used.first())
+        .map_or(0, |u| u.1.len());
     let nf = 2 * temps.len();
     let mut acc = Accumulator::new(nf + 1, nt);
     let mut a = vec![1.0; nf + 1];
