@@ -131,14 +131,14 @@ fn read_csv(path: &Path) -> Result<Table, CliError> {
     if t.columns.is_empty() {
         return Err(InputError::file(path, "empty file; expected a header and rows").into());
     }
-    let mut rows = Vec::with_capacity(t.rows.len());
-    for (r, row) in t.rows.iter().enumerate() {
-        let mut values = Vec::with_capacity(row.cells.len());
-        for (c, cell) in row.cells.iter().enumerate() {
+    let mut rows = Vec::with_capacity(t.len());
+    for (r, row) in t.rows().enumerate() {
+        let mut values = Vec::with_capacity(row.len());
+        for (c, cell) in row.cells().enumerate() {
             let v = match cell.value.number() {
                 Number::Value(v) if v.is_finite() => v,
                 _ => {
-                    let text = match &cell.value {
+                    let text = match cell.value {
                         table::Value::Text(x) => x.to_string(),
                         table::Value::Number(v) => v.to_string(),
                         table::Value::Empty => String::new(),
@@ -153,7 +153,7 @@ fn read_csv(path: &Path) -> Result<Table, CliError> {
         if values.len() != t.columns.len() {
             return Err(InputError::at(
                 path,
-                row.line,
+                row.line(),
                 1,
                 "",
                 format!(
@@ -164,7 +164,7 @@ fn read_csv(path: &Path) -> Result<Table, CliError> {
             )
             .into());
         }
-        rows.push((row.line, values));
+        rows.push((row.line(), values));
     }
     Ok(Table {
         header: t.columns,

@@ -71,6 +71,7 @@ pub mod inner_cv;
 pub mod least_squares;
 pub mod machine_fit;
 pub mod position_model;
+mod problem;
 pub mod reidentify;
 pub mod selection;
 pub mod settings;

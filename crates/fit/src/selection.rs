@@ -6,9 +6,10 @@
 
 use crate::features::Family;
 use crate::least_squares::{SolveOptions, Triangle};
+use crate::problem::{Design, Problem};
 use crate::settings::{Rule, Settings};
 use crate::stacking;
-use crate::train::{Design, FamilyScore, Problem};
+use crate::train::FamilyScore;
 
 /// A blend must beat "no compensation", and the static model, by this factor in the inner
 /// validation (RMSE ratio) to be written: a model that removes less than a tenth of the error

@@ -337,19 +337,19 @@ pub fn from_table(
         operating: Vec::new(),
     };
     let first_iso = time_col.and_then(|c| {
-        let first = table.rows.first()?.cells.get(c)?;
-        match &first.value {
+        let first = table.rows().next()?.cell(c)?;
+        match first.value {
             Value::Text(t) => timestamp::parse(t).ok(),
             _ => None,
         }
     });
-    for (row_index, row) in table.rows.iter().enumerate() {
+    for (row_index, row) in table.rows().enumerate() {
         if let Some(e) = table.width_error(row_index) {
             return Err(e);
         }
-        let line = row.line as u64;
+        let line = row.line() as u64;
         let cell = |col: usize| -> Result<f64, InputError> {
-            match row.cells[col].value.number() {
+            match row.number(col) {
                 Number::Value(v) => Ok(v),
                 Number::Text(text) => {
                     Err(table.at(row_index, col, format!("expected a number, got `{text}`")))
@@ -412,8 +412,8 @@ pub fn from_table(
 /// Seconds since the first row of an ISO 8601 time cell.
 fn iso_seconds(table: &Table, row: usize, col: usize, first: i128) -> Result<f64, InputError> {
     let ns =
-        match &table.rows[row].cells[col].value {
-            Value::Text(t) => timestamp::parse(t).map_err(|e| table.at(row, col, e))?,
+        match table.row(row).cell(col).map(|c| c.value) {
+            Some(Value::Text(t)) => timestamp::parse(t).map_err(|e| table.at(row, col, e))?,
             _ => return Err(table.at(
                 row,
                 col,

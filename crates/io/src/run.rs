@@ -88,9 +88,10 @@ impl Table {
     pub fn split_runs(self, column: &str) -> Result<Vec<Table>, InputError> {
         let col = self.select(&[column])?[0];
         let t = &self.table;
-        let mut runs: Vec<(String, usize, Vec<table::Row>)> = Vec::new();
-        for (r, row) in t.rows.iter().enumerate() {
-            let key = match &row.cells.get(col).map(|c| &c.value) {
+        // (key, first line, first row, end row) of each run, in order.
+        let mut runs: Vec<(String, usize, usize, usize)> = Vec::new();
+        for (r, row) in t.rows().enumerate() {
+            let key = match row.cell(col).map(|c| c.value) {
                 Some(table::Value::Number(v)) => v.to_string(),
                 Some(table::Value::Text(s)) => s.to_string(),
                 Some(table::Value::Empty) | None => {
@@ -101,8 +102,8 @@ impl Table {
                     ))
                 }
             };
-            match runs.iter().position(|(k, _, _)| *k == key) {
-                Some(i) if i + 1 == runs.len() => runs[i].2.push(row.clone()),
+            match runs.iter().position(|(k, ..)| *k == key) {
+                Some(i) if i + 1 == runs.len() => runs[i].3 = r + 1,
                 Some(i) => {
                     return Err(t.at(
                         r,
@@ -114,17 +115,14 @@ impl Table {
                         ),
                     ))
                 }
-                None => runs.push((key, row.line, vec![row.clone()])),
+                None => runs.push((key, row.line(), r, r + 1)),
             }
         }
         Ok(runs
             .into_iter()
-            .map(|(key, _, rows)| Table {
+            .map(|(key, _, start, end)| Table {
                 run: Some(key),
-                table: table::Table {
-                    rows,
-                    ..t.clone_header()
-                },
+                table: t.sub_table(start..end),
                 ..self.clone_header()
             })
             .collect())
@@ -142,16 +140,15 @@ impl Table {
 
     /// Number of data rows.
     pub fn rows(&self) -> usize {
-        self.table.rows.len()
+        self.table.len()
     }
 
     /// The values of column `col` as numbers; an empty or text cell is an error naming its row.
     pub fn numbers(&self, col: usize) -> Result<Vec<f64>, InputError> {
         let t = &self.table;
-        t.rows
-            .iter()
+        t.rows()
             .enumerate()
-            .map(|(r, row)| match row.cells[col].value.number() {
+            .map(|(r, row)| match row.number(col) {
                 Number::Value(v) if v.is_finite() => Ok(v),
                 Number::Value(v) => Err(t.at(r, col, format!("expected a finite number, got {v}"))),
                 Number::Text(x) => Err(t.at(r, col, format!("expected a number, got `{x}`"))),
@@ -182,10 +179,9 @@ impl Table {
         let unit = self.unit(col, Role::Error)?;
         let t = &self.table;
         let v = t
-            .rows
-            .iter()
+            .rows()
             .enumerate()
-            .map(|(r, row)| match row.cells[col].value.number() {
+            .map(|(r, row)| match row.number(col) {
                 Number::Value(v) if v.is_finite() => Ok(unit.convert(v, Role::Error).unwrap_or(v)),
                 Number::Value(v) => Err(t.at(r, col, format!("expected a finite number, got {v}"))),
                 Number::Text(x) => Err(t.at(r, col, format!("expected a number, got `{x}`"))),
@@ -245,17 +241,19 @@ impl Table {
     fn time_values(&self, col: usize) -> Result<Vec<f64>, InputError> {
         let t = &self.table;
         let iso = |r: usize| -> Result<Option<i128>, InputError> {
-            match &t.rows[r].cells[col].value {
-                table::Value::Text(x) => timestamp::parse(x).map(Some).or_else(|_| {
-                    match t.rows[r].cells[col].value.number() {
-                        Number::Value(_) => Ok(None),
-                        _ => Err(t.at(r, col, timestamp::parse(x).unwrap_err())),
-                    }
-                }),
+            match t.row(r).cell(col).map(|c| c.value) {
+                Some(table::Value::Text(x)) => {
+                    timestamp::parse(x)
+                        .map(Some)
+                        .or_else(|_| match t.row(r).number(col) {
+                            Number::Value(_) => Ok(None),
+                            _ => Err(t.at(r, col, timestamp::parse(x).unwrap_err())),
+                        })
+                }
                 _ => Ok(None),
             }
         };
-        let Some(first) = (!t.rows.is_empty()).then(|| iso(0)).transpose()?.flatten() else {
+        let Some(first) = (!t.is_empty()).then(|| iso(0)).transpose()?.flatten() else {
             return self.numbers(col).map_err(|mut e| {
                 if let Some(rest) = e.message.strip_prefix("expected a number, got ") {
                     e.message = format!("expected seconds (a number) or an ISO 8601 date-time like 2024-03-01T08:00:00, got {rest}");
@@ -263,7 +261,7 @@ impl Table {
                 e
             });
         };
-        (0..t.rows.len())
+        (0..t.len())
             .map(|r| match iso(r)? {
                 Some(ns) => Ok((ns - first) as f64 / 1e9),
                 None => Err(t.at(
@@ -348,10 +346,10 @@ fn csv_run(t: table::Table) -> Result<Table, InputError> {
         ));
     }
     t.check_unique_columns()?;
-    if let Some(e) = (0..t.rows.len()).find_map(|r| t.width_error(r)) {
+    if let Some(e) = (0..t.len()).find_map(|r| t.width_error(r)) {
         return Err(e);
     }
-    if t.rows.is_empty() {
+    if t.is_empty() {
         return Err(InputError::file(&t.file, "no data rows below the header"));
     }
     Ok(Table::new(t))

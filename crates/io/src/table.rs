@@ -18,7 +18,7 @@
 //! let t = table::parse_csv(Path::new("r.csv"), b"time_s, a\n0,1\n1,\"x\"\n", Default::default())
 //!     .unwrap();
 //! assert_eq!(t.columns, ["time_s", "a"]);
-//! assert_eq!(t.rows[1].cells[1].value.number(), Number::Text("x"));
+//! assert_eq!(t.row(1).number(1), Number::Text("x"));
 //! assert_eq!(
 //!     t.at(1, 1, "expected a number, got `x`").to_string(),
 //!     "r.csv:3:2: `a`: expected a number, got `x`"
@@ -33,16 +33,16 @@ use calamine::{open_workbook_auto, Data, Reader};
 
 use crate::error::InputError;
 
-/// A cell's content.
-#[derive(Debug, Clone, PartialEq)]
-pub enum Value {
+/// A cell's content, borrowed from its table.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Value<'a> {
     /// Nothing (an empty or blank CSV field, an empty workbook cell).
     Empty,
     /// A finite number (a CSV field that reads as one, or a numeric workbook cell).
     Number(f64),
     /// Anything else, trimmed for CSV, as stored for workbooks (`NaN`, `inf` and `1e400` stay
     /// text so that a message can quote them as written).
-    Text(Box<str>),
+    Text(&'a str),
 }
 
 /// A cell read as a number: [`Value::number`].
@@ -56,13 +56,13 @@ pub enum Number<'a> {
     Text(&'a str),
 }
 
-impl Value {
+impl<'a> Value<'a> {
     /// The cell as a number, the one number syntax of every table: Rust's `f64` syntax on the
     /// trimmed text (`1`, `-2.5e3`, `NaN`, `inf`).
-    pub fn number(&self) -> Number<'_> {
-        match self {
+    pub fn number(&self) -> Number<'a> {
+        match *self {
             Value::Empty => Number::Empty,
-            Value::Number(v) => Number::Value(*v),
+            Value::Number(v) => Number::Value(v),
             Value::Text(t) => t
                 .trim()
                 .parse::<f64>()
@@ -73,27 +73,78 @@ impl Value {
 
 /// One cell and its place: 1-based line and column in characters (CSV) or row and column
 /// (workbook sheets).
-#[derive(Debug, Clone, PartialEq)]
-pub struct Cell {
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Cell<'a> {
     /// What it holds.
-    pub value: Value,
+    pub value: Value<'a>,
     /// Line (CSV) or row (sheet) where it starts.
     pub line: u32,
     /// Character column (CSV) or column (sheet) where it starts.
     pub column: u32,
 }
 
-/// One data row.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Row {
-    /// Line (CSV) or row (sheet) where it starts.
-    pub line: usize,
-    /// Its cells, in file order; a CSV row may hold more or fewer than the header
-    /// ([`Table::width_error`]).
-    pub cells: Vec<Cell>,
+/// One data row of a [`Table`].
+#[derive(Debug, Clone, Copy)]
+pub struct Row<'t> {
+    table: &'t Table,
+    index: usize,
 }
 
-/// A table as read: a header row of column names and the data rows below it.
+impl<'t> Row<'t> {
+    /// Line (CSV) or row (sheet) where it starts.
+    pub fn line(&self) -> usize {
+        self.table.spans[self.index].line as usize
+    }
+
+    /// Number of its cells; a CSV row may hold more or fewer than the header
+    /// ([`Table::width_error`]).
+    pub fn len(&self) -> usize {
+        self.range().len()
+    }
+
+    /// Whether it holds no cell.
+    pub fn is_empty(&self) -> bool {
+        self.range().is_empty()
+    }
+
+    fn range(&self) -> std::ops::Range<usize> {
+        let start = self.table.spans[self.index].start;
+        let end = self
+            .table
+            .spans
+            .get(self.index + 1)
+            .map_or(self.table.slots.len(), |s| s.start);
+        start..end
+    }
+
+    /// Cell `col`, if the row has one.
+    pub fn cell(&self, col: usize) -> Option<Cell<'t>> {
+        let i = self.range().start + col;
+        (col < self.len()).then(|| self.table.cell_at(self.index, i))
+    }
+
+    /// Cell `col` read as a number ([`Value::number`]); a missing cell is empty.
+    pub fn number(&self, col: usize) -> Number<'t> {
+        self.cell(col).map_or(Number::Empty, |c| c.value.number())
+    }
+
+    /// Its cells, in file order.
+    pub fn cells(self) -> impl Iterator<Item = Cell<'t>> + 't {
+        let (table, row) = (self.table, self.index);
+        self.range().map(move |i| table.cell_at(row, i))
+    }
+}
+
+/// Where a row starts: its line and its first cell's index.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Span {
+    line: u32,
+    start: usize,
+}
+
+/// A table as read: a header row of column names and the data rows below it. The cells are
+/// stored flat, 12 bytes each (a month of 1 s logs is tens of millions of cells): a number as
+/// itself, an empty or text cell as a NaN that names it ([`Slot`]), and the character column.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Table {
     /// The file it came from.
@@ -106,8 +157,136 @@ pub struct Table {
     pub header_line: usize,
     /// 1-based column of the first column (sheets may start to the right).
     pub first_column: usize,
-    /// The data rows.
-    pub rows: Vec<Row>,
+    spans: Vec<Span>,
+    slots: Vec<f64>,
+    places: Vec<u32>,
+    texts: Vec<Box<str>>,
+    /// (cell index, line) of the cells that start on a later line than their row (a quoted
+    /// field holding a line break before them), in cell order.
+    late: Vec<(usize, u32)>,
+}
+
+/// How a cell is stored: a number as itself (numbers are finite), anything else as a quiet NaN
+/// whose payload says empty (0) or which text (index + 1).
+struct Slot;
+
+impl Slot {
+    const NAN: u64 = 0x7ff8_0000_0000_0000;
+
+    fn encode(value: Value<'_>, texts: &mut Vec<Box<str>>) -> f64 {
+        match value {
+            Value::Number(v) if v.is_finite() => v,
+            Value::Number(v) => Self::encode(Value::Text(&v.to_string()), texts),
+            Value::Empty => f64::from_bits(Self::NAN),
+            Value::Text(t) => {
+                texts.push(t.into());
+                f64::from_bits(Self::NAN | texts.len() as u64)
+            }
+        }
+    }
+
+    fn decode(slot: f64, texts: &[Box<str>]) -> Value<'_> {
+        if !slot.is_nan() {
+            return Value::Number(slot);
+        }
+        match (slot.to_bits() & !Self::NAN) as usize {
+            0 => Value::Empty,
+            i => Value::Text(&texts[i - 1]),
+        }
+    }
+}
+
+impl Table {
+    /// A table with its header and no rows yet.
+    pub fn new(
+        file: &Path,
+        sheet: Option<String>,
+        columns: Vec<String>,
+        header_line: usize,
+    ) -> Self {
+        Table {
+            file: file.to_path_buf(),
+            sheet,
+            columns,
+            header_line,
+            first_column: 1,
+            spans: Vec::new(),
+            slots: Vec::new(),
+            places: Vec::new(),
+            texts: Vec::new(),
+            late: Vec::new(),
+        }
+    }
+
+    /// Starts a data row at `line`.
+    pub fn start_row(&mut self, line: usize) {
+        self.spans.push(Span {
+            line: u32::try_from(line).unwrap_or(u32::MAX),
+            start: self.slots.len(),
+        });
+    }
+
+    /// Adds a cell to the last row started.
+    pub fn push_cell(&mut self, value: Value<'_>, line: u32, column: u32) {
+        let slot = Slot::encode(value, &mut self.texts);
+        let i = self.slots.len();
+        self.slots.push(slot);
+        self.places.push(column);
+        if self.spans.last().is_some_and(|s| s.line != line) {
+            self.late.push((i, line));
+        }
+    }
+
+    /// Cell `i` (flat index) of row `row`.
+    fn cell_at(&self, row: usize, i: usize) -> Cell<'_> {
+        let line = match self.late.binary_search_by_key(&i, |l| l.0) {
+            Ok(k) => self.late[k].1,
+            Err(_) => self.spans[row].line,
+        };
+        Cell {
+            value: Slot::decode(self.slots[i], &self.texts),
+            line,
+            column: self.places[i],
+        }
+    }
+
+    /// Number of data rows.
+    pub fn len(&self) -> usize {
+        self.spans.len()
+    }
+
+    /// Whether there is no data row.
+    pub fn is_empty(&self) -> bool {
+        self.spans.is_empty()
+    }
+
+    /// Data row `index` (panics past the end, like indexing).
+    pub fn row(&self, index: usize) -> Row<'_> {
+        assert!(
+            index < self.spans.len(),
+            "row {index} of {}",
+            self.spans.len()
+        );
+        Row { table: self, index }
+    }
+
+    /// Every data row, in file order.
+    pub fn rows(&self) -> impl ExactSizeIterator<Item = Row<'_>> + '_ {
+        (0..self.spans.len()).map(move |index| Row { table: self, index })
+    }
+
+    /// The data rows `range` as a table of their own (same file, same header).
+    pub fn sub_table(&self, range: std::ops::Range<usize>) -> Table {
+        let mut t = self.clone_header();
+        for r in range {
+            let row = self.row(r);
+            t.start_row(row.line());
+            for c in row.cells() {
+                t.push_cell(c.value, c.line, c.column);
+            }
+        }
+        t
+    }
 }
 
 impl Table {
@@ -137,9 +316,10 @@ impl Table {
     /// field number (the n-th column of the header, for a person counting columns), the
     /// column's name and `message`.
     pub fn at(&self, row: usize, col: usize, message: impl Into<String>) -> InputError {
-        let line = self.rows.get(row).map_or(self.header_line, |r| {
-            r.cells.get(col).map_or(r.line, |c| c.line as usize)
-        });
+        let line = match (row < self.len()).then(|| self.row(row)) {
+            Some(r) => r.cell(col).map_or(r.line(), |c| c.line as usize),
+            None => self.header_line,
+        };
         InputError::at(
             &self.file,
             line,
@@ -152,10 +332,10 @@ impl Table {
     /// [`Table::at`] with the cell's character column instead of its field number (the place
     /// an editor's cursor shows).
     pub fn at_character(&self, row: usize, col: usize, message: impl Into<String>) -> InputError {
-        let cell = self.rows.get(row).and_then(|r| r.cells.get(col));
-        let (line, column) = match cell {
+        let r = (row < self.len()).then(|| self.row(row));
+        let (line, column) = match r.and_then(|r| r.cell(col)) {
             Some(c) => (c.line as usize, c.column as usize),
-            None => (self.rows.get(row).map_or(self.header_line, |r| r.line), 1),
+            None => (r.map_or(self.header_line, |r| r.line()), 1),
         };
         let key = self.columns.get(col).cloned().unwrap_or_default();
         InputError::at(&self.file, line, column, key, message)
@@ -174,17 +354,17 @@ impl Table {
 
     /// The error of data row `row` when it does not have as many fields as the header.
     pub fn width_error(&self, row: usize) -> Option<InputError> {
-        let r = self.rows.get(row)?;
-        (r.cells.len() != self.columns.len()).then(|| {
+        let r = (row < self.len()).then(|| self.row(row))?;
+        (r.len() != self.columns.len()).then(|| {
             InputError::at(
                 &self.file,
-                r.line,
+                r.line(),
                 1,
                 "",
                 format!(
                     "expected {} fields as in the header, found {}",
                     self.columns.len(),
-                    r.cells.len()
+                    r.len()
                 ),
             )
         })
@@ -193,12 +373,13 @@ impl Table {
     /// The table without its rows.
     pub fn clone_header(&self) -> Table {
         Table {
-            file: self.file.clone(),
-            sheet: self.sheet.clone(),
-            columns: self.columns.clone(),
-            header_line: self.header_line,
             first_column: self.first_column,
-            rows: Vec::new(),
+            ..Table::new(
+                &self.file,
+                self.sheet.clone(),
+                self.columns.clone(),
+                self.header_line,
+            )
         }
     }
 
@@ -353,38 +534,33 @@ pub fn parse_csv(file: &Path, bytes: &[u8], options: CsvOptions) -> Result<Table
         Delimiter::Auto => detect_delimiter(text),
         d => d,
     };
-    let mut records = tokenize(text, delimiter.byte()).into_iter();
-    let (columns, header_line) = match records.next() {
-        Some(header) => (
-            header.iter().map(|c| c.text.trim().to_string()).collect(),
-            header.first().map_or(1, |c| c.line as usize),
-        ),
-        None => (Vec::new(), 1),
-    };
-    let rows = records
-        .map(|fields| Row {
-            line: fields.first().map_or(0, |c| c.line as usize),
-            cells: fields
-                .into_iter()
-                .map(|f| Cell {
-                    value: value_of(f.text.trim(), delimiter.decimal_comma()),
-                    line: f.line,
-                    column: f.column,
-                })
-                .collect(),
-        })
-        .collect();
-    Ok(Table {
-        file: file.to_path_buf(),
-        sheet: None,
-        columns,
-        header_line,
-        first_column: 1,
-        rows,
-    })
+    let mut table = Table::new(file, None, Vec::new(), 1);
+    let mut header = true;
+    let mut row_open = false;
+    tokenize(text, delimiter.byte(), |field, line, column, record_end| {
+        if header {
+            if table.columns.is_empty() {
+                table.header_line = line as usize;
+            }
+            table.columns.push(field.trim().to_string());
+            header = !record_end;
+            return;
+        }
+        if !row_open {
+            table.start_row(line as usize);
+            row_open = true;
+        }
+        table.push_cell(
+            value_of(field.trim(), delimiter.decimal_comma()),
+            line,
+            column,
+        );
+        row_open = !record_end;
+    });
+    Ok(table)
 }
 
-fn value_of(text: &str, decimal_comma: bool) -> Value {
+fn value_of(text: &str, decimal_comma: bool) -> Value<'_> {
     if text.is_empty() {
         return Value::Empty;
     }
@@ -396,7 +572,7 @@ fn value_of(text: &str, decimal_comma: bool) -> Value {
     };
     match parsed {
         Ok(v) if v.is_finite() => Value::Number(v),
-        _ => Value::Text(text.into()),
+        _ => Value::Text(text),
     }
 }
 
@@ -416,29 +592,22 @@ fn strip_comments(text: &str) -> String {
     out
 }
 
-struct Field {
-    text: String,
-    line: u32,
-    column: u32,
-}
-
-/// Splits CSV text into records of fields with their 1-based line and character column, with
-/// the csv crate's parser (csv-core).
-fn tokenize(text: &str, delimiter: u8) -> Vec<Vec<Field>> {
+/// Splits CSV text into fields with the csv crate's parser (csv-core), handing each to
+/// `field` with its 1-based line and character column and whether it ends its record.
+fn tokenize(text: &str, delimiter: u8, mut field: impl FnMut(&str, u32, u32, bool)) {
     let input = text.as_bytes();
     let mut reader = csv_core::ReaderBuilder::new().delimiter(delimiter).build();
-    let mut records = Vec::new();
-    let mut record: Vec<Field> = Vec::new();
     let mut out = vec![0u8; 1024];
-    let mut field = Vec::new();
+    let mut bytes = Vec::new();
     let mut pos = 0;
     let mut start: Option<usize> = None;
+    let mut first_of_record = true;
     // Where the line/column count stands, advanced monotonically.
     let (mut at, mut line, mut column) = (0usize, 1u32, 1u32);
     loop {
         if start.is_none() {
             let mut s = pos;
-            if record.is_empty() {
+            if first_of_record {
                 // The parser skips empty lines before a record; the record starts after them.
                 while s < input.len() && matches!(input[s], b'\r' | b'\n') {
                     s += 1;
@@ -449,7 +618,7 @@ fn tokenize(text: &str, delimiter: u8) -> Vec<Vec<Field>> {
         let rest = &input[pos..];
         let (result, nin, nout) = reader.read_field(rest, &mut out);
         pos += nin;
-        field.extend_from_slice(&out[..nout]);
+        bytes.extend_from_slice(&out[..nout]);
         match result {
             csv_core::ReadFieldResult::InputEmpty => {
                 if rest.is_empty() {
@@ -471,20 +640,13 @@ fn tokenize(text: &str, delimiter: u8) -> Vec<Vec<Field>> {
                     }
                 }
                 at = at.max(s);
-                record.push(Field {
-                    text: String::from_utf8_lossy(&field).into_owned(),
-                    line,
-                    column,
-                });
-                field.clear();
-                if record_end {
-                    records.push(std::mem::take(&mut record));
-                }
+                field(&String::from_utf8_lossy(&bytes), line, column, record_end);
+                bytes.clear();
+                first_of_record = record_end;
             }
             csv_core::ReadFieldResult::End => break,
         }
     }
-    records
 }
 
 /// Reads a workbook (`.xlsx`, `.xlsm`, `.xlsb`, `.xls`, `.ods` through calamine): every
@@ -535,30 +697,33 @@ pub fn read_workbook(file: &Path, sheet: Option<&str>) -> Result<Vec<Table>, Inp
                 }
             }
         }
-        let data: Vec<Row> = rows
-            .enumerate()
-            .map(|(i, row)| {
-                let line = header_line + 1 + i;
-                Row {
-                    line,
-                    cells: (0..columns.len())
-                        .map(|c| Cell {
-                            value: match row.get(c) {
-                                Some(Data::Float(v)) if v.is_finite() => Value::Number(*v),
-                                Some(Data::Float(v)) => Value::Text(v.to_string().into()),
-                                Some(Data::Int(v)) => Value::Number(*v as f64),
-                                Some(Data::Empty) | None => Value::Empty,
-                                Some(Data::String(s)) => Value::Text(s.as_str().into()),
-                                Some(other) => Value::Text(other.to_string().into()),
-                            },
-                            line: u32::try_from(line).unwrap_or(u32::MAX),
-                            column: u32::try_from(first_column + c).unwrap_or(u32::MAX),
-                        })
-                        .collect(),
-                }
-            })
-            .collect();
-        if data.is_empty() {
+        let mut table = Table {
+            first_column,
+            ..Table::new(file, Some(name.clone()), columns, header_line)
+        };
+        for (i, row) in rows.enumerate() {
+            let line = header_line + 1 + i;
+            table.start_row(line);
+            for c in 0..table.columns.len() {
+                let text;
+                let value = match row.get(c) {
+                    Some(Data::Float(v)) if v.is_finite() => Value::Number(*v),
+                    Some(Data::Int(v)) => Value::Number(*v as f64),
+                    Some(Data::Empty) | None => Value::Empty,
+                    Some(Data::String(s)) => Value::Text(s.as_str()),
+                    Some(other) => {
+                        text = other.to_string();
+                        Value::Text(&text)
+                    }
+                };
+                table.push_cell(
+                    value,
+                    u32::try_from(line).unwrap_or(u32::MAX),
+                    u32::try_from(first_column + c).unwrap_or(u32::MAX),
+                );
+            }
+        }
+        if table.is_empty() {
             if sheet.is_some() {
                 return Err(InputError::file(
                     file,
@@ -567,14 +732,7 @@ pub fn read_workbook(file: &Path, sheet: Option<&str>) -> Result<Vec<Table>, Inp
             }
             continue;
         }
-        out.push(Table {
-            file: file.to_path_buf(),
-            sheet: Some(name),
-            columns,
-            header_line,
-            first_column,
-            rows: data,
-        });
+        out.push(table);
     }
     if out.is_empty() {
         return Err(InputError::file(
@@ -623,21 +781,19 @@ mod tests {
         let t = parse("\u{feff}a, b ,c\n\n1,\"x,y\",  3\r\n°4,,\"multi\nline\"\n");
         assert_eq!(t.columns, ["a", "b", "c"]);
         assert_eq!(t.header_line, 1);
-        assert_eq!(t.rows.len(), 2);
-        let r = &t.rows[0];
-        assert_eq!(r.line, 3);
-        assert_eq!(
-            r.cells.iter().map(|c| c.column).collect::<Vec<_>>(),
-            [1, 3, 9]
-        );
-        assert_eq!(r.cells[1].value, Value::Text("x,y".into()));
-        assert_eq!(r.cells[2].value, Value::Number(3.0));
-        let r = &t.rows[1];
-        assert_eq!(r.line, 4);
-        assert_eq!(r.cells[0].value, Value::Text("°4".into()));
-        assert_eq!(r.cells[1].value, Value::Empty);
-        assert_eq!((r.cells[2].line, r.cells[2].column), (4, 5));
-        assert_eq!(r.cells[2].value, Value::Text("multi\nline".into()));
+        assert_eq!(t.len(), 2);
+        let r = t.row(0);
+        assert_eq!(r.line(), 3);
+        assert_eq!(r.cells().map(|c| c.column).collect::<Vec<_>>(), [1, 3, 9]);
+        assert_eq!(r.cell(1).unwrap().value, Value::Text("x,y"));
+        assert_eq!(r.cell(2).unwrap().value, Value::Number(3.0));
+        let r = t.row(1);
+        assert_eq!(r.line(), 4);
+        assert_eq!(r.cell(0).unwrap().value, Value::Text("°4"));
+        assert_eq!(r.cell(1).unwrap().value, Value::Empty);
+        let c = r.cell(2).unwrap();
+        assert_eq!((c.line, c.column), (4, 5));
+        assert_eq!(c.value, Value::Text("multi\nline"));
     }
 
     #[test]
@@ -654,27 +810,27 @@ mod tests {
         .unwrap();
         assert_eq!(t.columns, ["X", "Y"]);
         assert_eq!(t.header_line, 2);
-        assert_eq!(t.rows.iter().map(|r| r.line).collect::<Vec<_>>(), [5, 7]);
-        assert_eq!(t.rows[0].cells[1].value, Value::Number(2.0));
+        assert_eq!(t.rows().map(|r| r.line()).collect::<Vec<_>>(), [5, 7]);
+        assert_eq!(t.row(0).cell(1).unwrap().value, Value::Number(2.0));
     }
 
     #[test]
     fn semicolons_and_decimal_commas_are_detected_from_the_header() {
         let t = parse("time_s;t1_c;dz_um\n0;20,5;1\n1;21.25;-0,5\n");
         assert_eq!(t.columns, ["time_s", "t1_c", "dz_um"]);
-        assert_eq!(t.rows[0].cells[1].value, Value::Number(20.5));
-        assert_eq!(t.rows[1].cells[1].value, Value::Number(21.25));
-        assert_eq!(t.rows[1].cells[2].value, Value::Number(-0.5));
-        assert_eq!(t.rows[1].cells[2].column, 9);
+        assert_eq!(t.row(0).cell(1).unwrap().value, Value::Number(20.5));
+        assert_eq!(t.row(1).cell(1).unwrap().value, Value::Number(21.25));
+        assert_eq!(t.row(1).cell(2).unwrap().value, Value::Number(-0.5));
+        assert_eq!(t.row(1).cell(2).unwrap().column, 9);
         // A thousands separator is no decimal comma: the cell stays text for a message.
         let t = parse("a;b\n1.234,5;1,2,3\n");
-        assert_eq!(t.rows[0].cells[0].value, Value::Text("1.234,5".into()));
-        assert_eq!(t.rows[0].cells[1].value, Value::Text("1,2,3".into()));
+        assert_eq!(t.row(0).cell(0).unwrap().value, Value::Text("1.234,5"));
+        assert_eq!(t.row(0).cell(1).unwrap().value, Value::Text("1,2,3"));
         // Quoted semicolons do not make a comma file a semicolon file; with `,` a decimal
         // comma cannot exist.
         let t = parse("time_s,\"a;b\",\"c;d;e\"\n0,\"1,5\",2\n");
         assert_eq!(t.columns, ["time_s", "a;b", "c;d;e"]);
-        assert_eq!(t.rows[0].cells[1].value, Value::Text("1,5".into()));
+        assert_eq!(t.row(0).cell(1).unwrap().value, Value::Text("1,5"));
         // A comma inside a name does not outvote the semicolons.
         assert_eq!(
             detect_delimiter("\n\ntime_s;t1 (°C, front);dz_um\n"),
@@ -714,9 +870,10 @@ mod tests {
             }
             let (c, s) = (parse(&comma), parse(&semi));
             proptest::prop_assert_eq!(&c.columns, &s.columns);
-            for (x, y) in c.rows.iter().zip(&s.rows) {
-                let v = |r: &Row| r.cells.iter().map(|c| c.value.clone()).collect::<Vec<_>>();
-                proptest::prop_assert_eq!(v(x), v(y));
+            for (x, y) in c.rows().zip(s.rows()) {
+                let (vx, vy): (Vec<Value>, Vec<Value>) =
+                    (x.cells().map(|c| c.value).collect(), y.cells().map(|c| c.value).collect());
+                proptest::prop_assert_eq!(vx, vy);
             }
         }
     }
@@ -741,12 +898,9 @@ mod tests {
     #[test]
     fn numbers_and_widths() {
         let t = parse("a,b\nNaN,1e400\n1\n");
-        assert_eq!(t.rows[0].cells[0].value, Value::Text("NaN".into()));
-        assert!(matches!(t.rows[0].cells[0].value.number(), Number::Value(v) if v.is_nan()));
-        assert_eq!(
-            t.rows[0].cells[1].value.number(),
-            Number::Value(f64::INFINITY)
-        );
+        assert_eq!(t.row(0).cell(0).unwrap().value, Value::Text("NaN"));
+        assert!(matches!(t.row(0).number(0), Number::Value(v) if v.is_nan()));
+        assert_eq!(t.row(0).number(1), Number::Value(f64::INFINITY));
         assert!(t.width_error(0).is_none());
         assert_eq!(
             t.width_error(1).unwrap().to_string(),

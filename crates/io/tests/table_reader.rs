@@ -20,13 +20,13 @@ fn cell() -> impl Strategy<Value = (String, String)> {
     ]
 }
 
-fn expected(text: &str) -> Value {
+fn expected(text: &str) -> Value<'_> {
     if text.is_empty() {
         Value::Empty
     } else {
         match text.parse::<f64>() {
             Ok(v) if v.is_finite() => Value::Number(v),
-            _ => Value::Text(text.into()),
+            _ => Value::Text(text),
         }
     }
 }
@@ -43,19 +43,19 @@ proptest! {
                 ..Default::default()
             };
             if let Ok(t) = table::parse_csv(Path::new("t.csv"), &bytes, o) {
-                for r in 0..t.rows.len() {
+                for r in 0..t.len() {
                     let _ = t.width_error(r);
-                    for c in 0..t.rows[r].cells.len() {
-                        let _ = t.rows[r].cells[c].value.number();
+                    for c in 0..t.row(r).len() {
+                        let _ = t.row(r).number(c);
                         let _ = t.at(r, c, "x").to_string();
                         let _ = t.at_character(r, c, "x").to_string();
                     }
                 }
             }
             let t = table::parse_csv(Path::new("t.csv"), text.as_bytes(), o).unwrap();
-            for r in &t.rows {
-                prop_assert!(r.line >= 1);
-                for c in &r.cells {
+            for r in t.rows() {
+                prop_assert!(r.line() >= 1);
+                for c in r.cells() {
                     prop_assert!(c.line >= 1 && c.column >= 1);
                 }
             }
@@ -94,15 +94,16 @@ proptest! {
         }
         let t = table::parse_csv(Path::new("t.csv"), text.as_bytes(), CsvOptions::default()).unwrap();
         prop_assert_eq!(&t.columns, &["a", "b", "c"]);
-        prop_assert_eq!(t.rows.len(), grid.len());
+        prop_assert_eq!(t.len(), grid.len());
         for (r, row) in grid.iter().enumerate() {
-            let got = &t.rows[r];
+            let got = t.row(r);
             prop_assert!(t.width_error(r).is_none());
-            prop_assert_eq!(got.line, places[r].0);
+            prop_assert_eq!(got.line(), places[r].0);
             for (c, (_, value)) in row.iter().enumerate() {
-                prop_assert_eq!(&got.cells[c].value, &expected(value), "{:?}", text);
-                prop_assert_eq!(got.cells[c].line as usize, places[r].0);
-                prop_assert_eq!(got.cells[c].column as usize, places[r].1[c]);
+                let cell = got.cell(c).unwrap();
+                prop_assert_eq!(cell.value, expected(value), "{:?}", text);
+                prop_assert_eq!(cell.line as usize, places[r].0);
+                prop_assert_eq!(cell.column as usize, places[r].1[c]);
                 let e = t.at(r, c, "expected x").to_string();
                 let want = format!("t.csv:{}:{}: `{}`: expected x", places[r].0, c + 1, t.columns[c]);
                 prop_assert_eq!(e, want);

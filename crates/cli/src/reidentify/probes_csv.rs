@@ -68,16 +68,16 @@ pub fn parse(
         )
         .into());
     }
-    if table.rows.len() != cyc.time_s.len() {
+    if table.len() != cyc.time_s.len() {
         return Err(CliError::refused(format!(
             "{}: {} data rows read as a table but {} as cycles",
             path.display(),
-            table.rows.len(),
+            table.len(),
             cyc.time_s.len()
         )));
     }
     let mut events = Vec::new();
-    for (i, row) in table.rows.iter().enumerate() {
+    for (i, row) in table.rows().enumerate() {
         let mut measured = vec![None; machine.axes.len()];
         for (a, (_, dev)) in cols.iter().enumerate() {
             let Some(c) = *dev else { continue };
@@ -99,7 +99,7 @@ pub fn parse(
         }
         events.push(ProbeEvent {
             time_s: cyc.time_s[i],
-            place: format!("{}:{}", path.display(), row.line),
+            place: format!("{}:{}", path.display(), row.line()),
             temperatures_c: cyc.temperatures_c[i].clone(),
             operating: cyc.operating[i].clone(),
             position_mm: position,
@@ -140,8 +140,7 @@ pub fn read_inputs(
 
 /// A measured error: empty (not measured) or a finite number within the bound.
 fn deviation(table: &Table, row: usize, col: usize) -> Result<Option<f64>, InputError> {
-    let cell = &table.rows[row].cells.get(col);
-    let number = cell.map_or(Number::Empty, |c| c.value.number());
+    let number = table.row(row).number(col);
     match number {
         Number::Empty => Ok(None),
         Number::Value(v) if v.is_finite() && v.abs() <= MAX_PROBE_DEVIATION_UM => Ok(Some(v)),
@@ -186,7 +185,7 @@ fn probed_position(
         let (p, _) = probe_columns(&axis.name);
         return Err(InputError::at(
             &table.file,
-            table.rows[row].line,
+            table.row(row).line(),
             1,
             p.clone(),
             format!(
@@ -195,7 +194,7 @@ fn probed_position(
             ),
         ));
     };
-    match table.rows[row].cells.get(col).map(|c| c.value.number()) {
+    match table.row(row).cell(col).map(|c| c.value.number()) {
         Some(Number::Value(v)) if v.is_finite() && (lo..=hi).contains(&v) => Ok(v),
         Some(Number::Value(v)) => Err(table.at(row, col, format!("{expect}, got {v}"))),
         Some(Number::Text(t)) => Err(table.at(row, col, format!("{expect}, got `{t}`"))),

@@ -1,0 +1,427 @@
+//! The training rows of one fit as triangles: one pass over the rows steps the real-time
+//! feature banks ([`crate::features::Cursor`]) and fills, per segment of the inner folds
+//! ([`crate::inner_cv`]), the QR triangle of [1 | every candidate feature | every target]
+//! ([`crate::least_squares`]). Every design (a family on a sensor set, a difference against a
+//! reference sensor), every fold's fit, every held-out error and the stacking's held-out
+//! predictions then come from these triangles, never from the rows again: a triangle R of rows
+//! Z stands for them exactly (Zᵀ·Z = Rᵀ·R, and Z·u, Z·v have the dot product of R·u, R·v). A
+//! month of logs at 1 s costs one pass and a few megabytes, not a copy of a hundred feature
+//! columns.
+
+#![allow(clippy::needless_range_loop)] // index loops mirror the matrix formulas
+
+use faer::Mat;
+use truepos_model::FeatureKind;
+
+use crate::dataset::Dataset;
+use crate::features::{Candidates, Extended, Family};
+use crate::inner_cv::{decorrelation_time, Folds, Row};
+use crate::least_squares::{Accumulator, SolveOptions, Triangle};
+use crate::settings::Settings;
+
+/// The regressors of one candidate: feature columns, each minus an optional reference column
+/// (seed C: t_i − t_r is rise_i − rise_r, the rises being taken from the same first sample).
+#[derive(Debug, Clone)]
+pub(crate) struct Design {
+    pub cols: Vec<usize>,
+    pub minus: Option<usize>,
+}
+
+pub(crate) struct Problem<'a> {
+    pub cand: &'a Candidates,
+    /// The transfer family's identified time constant (s), if it is a candidate.
+    pub transfer_tau: Option<f64>,
+    /// The fixed grid of temperature low-pass time constants the other families use.
+    pub grid_taus: Vec<f64>,
+    /// Per candidate feature, its mean over the training rows (the columns are centred).
+    pub means: Vec<f64>,
+    pub folds: Folds,
+    /// Number of targets.
+    pub nt: usize,
+    /// Number of training rows.
+    pub n: usize,
+    /// Per fold, the triangle of [1 | x − mean | y] (every candidate feature, every target) over
+    /// the rows that train its model, and over its held-out rows.
+    train_tri: Vec<Triangle>,
+    held_tri: Vec<Triangle>,
+    /// The same over every training row.
+    all: Triangle,
+}
+
+impl<'a> Problem<'a> {
+    /// The problem of `rows` with the folds of [`inner_folds`].
+    pub(crate) fn new(
+        dataset: &Dataset,
+        source: &'a Extended<'_>,
+        rows: &[(usize, usize)],
+        settings: &Settings,
+        transfer_tau: Option<f64>,
+    ) -> Result<Self, String> {
+        Self::build(dataset, source, rows, settings, transfer_tau, None)
+    }
+
+    /// One pass over the training rows fills one triangle per segment of the folds (`folds`,
+    /// or those of [`Problem::inner_folds`]); every design, fold and score is then computed from
+    /// these triangles, never from the rows again.
+    pub(crate) fn build(
+        dataset: &Dataset,
+        source: &'a Extended<'_>,
+        rows: &[(usize, usize)],
+        settings: &Settings,
+        transfer_tau: Option<f64>,
+        folds: Option<Folds>,
+    ) -> Result<Self, String> {
+        let cand = &source.meta;
+        let nf = cand.features.len();
+        let nt = dataset.target_names.len();
+        let rel: Vec<Vec<Vec<f64>>> = dataset
+            .runs
+            .iter()
+            .map(|r| {
+                (0..nt)
+                    .map(|k| r.target(k, settings.absolute_targets))
+                    .collect()
+            })
+            .collect();
+        let at: Vec<Row> = rows
+            .iter()
+            .map(|&(run, row)| Row {
+                run,
+                time_s: dataset.runs[run].time_s[row],
+            })
+            .collect();
+        let folds = folds.unwrap_or_else(|| inner_folds(source, rows, &rel, &at, settings));
+        let mut segs = segment_triangles(source, rows, &rel, &folds.segments, nt)?;
+        let all = Triangle::stack(&segs).unwrap_or_else(|| Accumulator::new(nf + 1, nt).finish());
+        let n = rows.len();
+        let means: Vec<f64> = (0..nf)
+            .map(|j| all.gram(0, j + 1) / n.max(1) as f64)
+            .collect();
+        for t in &mut segs {
+            for (j, &m) in means.iter().enumerate() {
+                t.subtract_first_column(j + 1, m);
+            }
+        }
+        let empty = || Accumulator::new(nf + 1, nt).finish();
+        let stack = |ids: &mut dyn Iterator<Item = usize>| {
+            Triangle::stack(ids.map(|s| &segs[s])).unwrap_or_else(empty)
+        };
+        let train_tri = folds
+            .folds
+            .iter()
+            .map(|f| stack(&mut f.train.iter().copied()))
+            .collect();
+        let held_tri = folds
+            .folds
+            .iter()
+            .map(|f| {
+                stack(
+                    &mut (0..segs.len())
+                        .filter(|&s| folds.segments[s].start >= f.held.start)
+                        .filter(|&s| folds.segments[s].end <= f.held.end),
+                )
+            })
+            .collect();
+        let all = stack(&mut (0..segs.len()));
+        Ok(Self {
+            cand,
+            transfer_tau,
+            grid_taus: settings.taus.temperature_s.clone(),
+            means,
+            folds,
+            nt,
+            n,
+            train_tri,
+            held_tri,
+            all,
+        })
+    }
+
+    /// The columns of a design as a map from [1 | every feature | targets] to
+    /// [1 | the design's regressors | targets].
+    fn map(&self, d: &Design) -> Mat<f64> {
+        let (nf, nd, nt) = (self.cand.features.len(), d.cols.len(), self.nt);
+        let mut m = Mat::<f64>::zeros(1 + nf + nt, 1 + nd + nt);
+        m[(0, 0)] = 1.0;
+        for (j, &c) in d.cols.iter().enumerate() {
+            m[(1 + c, 1 + j)] = 1.0;
+            if let Some(r) = d.minus {
+                m[(1 + r, 1 + j)] = -1.0;
+            }
+        }
+        for k in 0..nt {
+            m[(1 + nf + k, 1 + nd + k)] = 1.0;
+        }
+        m
+    }
+
+    /// The triangle of a design over fold `f`'s training rows (`None`: every training row).
+    pub fn design_triangle(&self, d: &Design, f: Option<usize>) -> Triangle {
+        let t = f.map_or(&self.all, |f| &self.train_tri[f]);
+        t.transformed(self.map(d).as_ref(), 1 + d.cols.len(), self.nt)
+    }
+
+    /// The combination of [1 | features | targets] that a design's coefficients `coef`
+    /// (intercept first) predict, minus target `k` if given (the residual's negative).
+    fn combination(&self, d: &Design, coef: &[f64], k: Option<usize>) -> Vec<f64> {
+        let nf = self.cand.features.len();
+        let mut u = vec![0.0; 1 + nf + self.nt];
+        u[0] = coef[0];
+        for (j, &c) in d.cols.iter().enumerate() {
+            u[1 + c] += coef[1 + j];
+            if let Some(r) = d.minus {
+                u[1 + r] -= coef[1 + j];
+            }
+        }
+        if let Some(k) = k {
+            u[1 + nf + k] = -1.0;
+        }
+        u
+    }
+
+    /// Sum of squared errors of `coef` on fold `f`'s held-out rows for target `k`.
+    pub fn held_sse(&self, f: usize, d: &Design, coef: &[f64], k: usize) -> f64 {
+        let e = self.held_tri[f].apply(&self.combination(d, coef, Some(k)));
+        e.iter().map(|v| v * v).sum()
+    }
+
+    /// Fold `f`'s held-out predictions of `coef`, in the held triangle's coordinates: vectors
+    /// whose dot products (over the folds concatenated) are those of the predictions themselves.
+    pub fn held_prediction(&self, f: usize, d: &Design, coef: &[f64]) -> Vec<f64> {
+        self.held_tri[f].apply(&self.combination(d, coef, None))
+    }
+
+    /// Length of one fold's vector in [`Problem::held_prediction`].
+    pub fn held_width(&self) -> usize {
+        1 + self.cand.features.len() + self.nt
+    }
+
+    /// Per target, the held-out targets in the same coordinates, folds concatenated.
+    pub fn held_targets(&self) -> Vec<Vec<f64>> {
+        let nf = self.cand.features.len();
+        (0..self.nt)
+            .map(|k| {
+                let mut e = vec![0.0; self.held_width()];
+                e[1 + nf + k] = 1.0;
+                self.held_tri.iter().flat_map(|t| t.apply(&e)).collect()
+            })
+            .collect()
+    }
+
+    /// Sum over the training rows of column i times column j of [1 | x − mean | y].
+    pub fn gram(&self, i: usize, j: usize) -> f64 {
+        self.all.gram(i, j)
+    }
+
+    /// The design of a family on a sensor set; `None` when the family cannot be built (seed C
+    /// without a reference, or with nothing left to regress on).
+    pub fn design(
+        &self,
+        family: Family,
+        sensors: &[usize],
+        reference: Option<usize>,
+    ) -> Option<Design> {
+        let rise = |s: usize| {
+            (0..self.cand.features.len()).find(|&j| {
+                self.cand.features[j].input == s && self.cand.features[j].kind == FeatureKind::Rise
+            })
+        };
+        let minus = match family {
+            Family::SeedC => Some(rise(reference?)?),
+            _ => None,
+        };
+        let cols: Vec<usize> = (0..self.cand.features.len())
+            .filter(|&j| {
+                let f = self.cand.features[j];
+                let is_temp = f.input < self.cand.spec.temperatures;
+                let tau_ok = match (f.kind, family) {
+                    (FeatureKind::LowPass { tau_s }, Family::Transfer) => {
+                        Some(tau_s) == self.transfer_tau
+                    }
+                    (FeatureKind::LowPass { tau_s }, _) => self.grid_taus.contains(&tau_s),
+                    _ => true,
+                };
+                family.includes(f.kind)
+                    && tau_ok
+                    && (!is_temp || sensors.contains(&f.input))
+                    && Some(j) != minus
+            })
+            .collect();
+        (!cols.is_empty()).then_some(Design { cols, minus })
+    }
+}
+
+/// The folds of the inner validation. The gap is the slowest time constant of any candidate
+/// feature and the decorrelation time of the static model's residual, whichever is longer
+/// (capped at a block per side by [`Folds::new`]); without any row left to train a fold,
+/// no gap.
+fn inner_folds(
+    source: &Extended<'_>,
+    rows: &[(usize, usize)],
+    rel: &[Vec<Vec<f64>>],
+    at: &[Row],
+    settings: &Settings,
+) -> Folds {
+    let slowest = source
+        .meta
+        .features
+        .iter()
+        .filter(|f| settings.families.iter().any(|fam| fam.includes(f.kind)))
+        .filter_map(|f| f.kind.tau_s())
+        .fold(0.0, f64::max);
+    let residual = static_residuals(source, rows, rel)
+        .map(|series| decorrelation_time(at, &series))
+        .unwrap_or(0.0);
+    let folds = Folds::new(at, settings.folds, settings.inner, slowest.max(residual));
+    if folds.folds.iter().any(|f| f.train.is_empty()) {
+        Folds::new(at, settings.folds, settings.inner, 0.0)
+    } else {
+        folds
+    }
+}
+
+/// Per target, the residual on every training row of the static model (every temperature
+/// rise, centred, ridge 1e-3) fitted on all of them; `None` if it cannot be fitted.
+fn static_residuals(
+    source: &Extended<'_>,
+    rows: &[(usize, usize)],
+    rel: &[Vec<Vec<f64>>],
+) -> Option<Vec<Vec<f64>>> {
+    // The rise of a temperature is its value minus the run's first (as the bank computes it).
+    let cand = &source.meta;
+    let cols: Vec<usize> = (0..cand.spec.temperatures)
+        .filter(|&s| {
+            cand.features
+                .iter()
+                .any(|f| f.input == s && f.kind == FeatureKind::Rise)
+        })
+        .map(|s| cand.bank_inputs[s])
+        .collect();
+    if cols.is_empty() || rows.is_empty() {
+        return None;
+    }
+    let runs = &source.dataset.runs;
+    let rise = |r: usize, i: usize, d: usize| runs[r].inputs[d][i] - runs[r].inputs[d][0];
+    let nt = rel.first().map_or(0, Vec::len);
+    let n = rows.len() as f64;
+    let means: Vec<f64> = cols
+        .iter()
+        .map(|&d| rows.iter().map(|&(r, i)| rise(r, i, d)).sum::<f64>() / n)
+        .collect();
+    let x = |&(r, i): &(usize, usize), c: usize| rise(r, i, cols[c]) - means[c];
+    let mut acc = Accumulator::new(cols.len() + 1, nt);
+    let mut a = vec![1.0; cols.len() + 1];
+    let mut b = vec![0.0; nt];
+    for at in rows {
+        for c in 0..cols.len() {
+            a[1 + c] = x(at, c);
+        }
+        for (k, slot) in b.iter_mut().enumerate() {
+            *slot = rel[at.0][k][at.1];
+        }
+        acc.push_row(&a, &b, 1.0).ok()?;
+    }
+    let sol = acc
+        .finish()
+        .solve(&SolveOptions {
+            ridge: 1e-3,
+            unpenalized: vec![0],
+            rcond: None,
+        })
+        .ok()?;
+    Some(
+        (0..nt)
+            .map(|k| {
+                let coef = &sol.coefficients[k];
+                rows.iter()
+                    .map(|at| {
+                        let p: f64 =
+                            coef[0] + (0..cols.len()).map(|c| coef[1 + c] * x(at, c)).sum::<f64>();
+                        rel[at.0][k][at.1] - p
+                    })
+                    .collect()
+            })
+            .collect(),
+    )
+}
+
+/// One triangle of [1 | every candidate feature | every target] per segment of training rows,
+/// uncentred; the segments are shared among the cores.
+fn segment_triangles(
+    source: &Extended<'_>,
+    rows: &[(usize, usize)],
+    rel: &[Vec<Vec<f64>>],
+    segments: &[std::ops::Range<usize>],
+    nt: usize,
+) -> Result<Vec<Triangle>, String> {
+    let nf = source.meta.features.len();
+    // Each core steps its own banks from the start of every run it needs.
+    let fill = |group: &[usize]| -> Result<Vec<(usize, Triangle)>, String> {
+        let mut cursor = source.cursor().map_err(|e| e.to_string())?;
+        let mut a = vec![1.0; nf + 1];
+        let mut b = vec![0.0; nt];
+        let mut out = Vec::with_capacity(group.len());
+        for &s in group {
+            let mut acc = Accumulator::new(nf + 1, nt);
+            for &(run, row) in &rows[segments[s].clone()] {
+                let values = cursor.at(run, row).map_err(|e| {
+                    format!("{}, row {}: {e}", source.dataset.runs[run].name, row + 1)
+                })?;
+                a[1..].copy_from_slice(values);
+                for (k, slot) in b.iter_mut().enumerate() {
+                    *slot = rel[run][k][row];
+                }
+                acc.push_row(&a, &b, 1.0).map_err(|e| e.to_string())?;
+            }
+            out.push((s, acc.finish()));
+        }
+        Ok(out)
+    };
+    let threads = std::thread::available_parallelism()
+        .map_or(1, |n| n.get())
+        .min(segments.len())
+        .max(1);
+    // Contiguous groups of segments with about equal numbers of rows, one per core.
+    let per = rows.len().div_ceil(threads).max(1);
+    let mut groups: Vec<Vec<usize>> = vec![Vec::new(); threads];
+    for (s, seg) in segments.iter().enumerate() {
+        groups[(seg.start / per).min(threads - 1)].push(s);
+    }
+    let mut out: Vec<Option<Triangle>> = vec![None; segments.len()];
+    std::thread::scope(|scope| {
+        let handles: Vec<_> = groups
+            .iter()
+            .map(|g| {
+                let fill = &fill;
+                scope.spawn(move || fill(g))
+            })
+            .collect();
+        for h in handles {
+            match h.join() {
+                Ok(done) => {
+                    for (s, t) in done? {
+                        out[s] = Some(t);
+                    }
+                }
+                Err(panic) => std::panic::resume_unwind(panic),
+            }
+        }
+        Ok::<(), String>(())
+    })?;
+    Ok(out
+        .into_iter()
+        .map(|t| t.unwrap_or_else(|| Accumulator::new(nf + 1, nt).finish()))
+        .collect())
+}
+
+impl Problem<'_> {
+    /// The bank index of the reference sensor, if one is set and is a temperature input.
+    pub fn reference(&self, settings: &Settings) -> Option<usize> {
+        let r = settings.reference?;
+        self.cand
+            .bank_inputs
+            .iter()
+            .position(|&d| d == r)
+            .filter(|&b| b < self.cand.spec.temperatures)
+    }
+}
