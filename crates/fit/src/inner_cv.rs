@@ -24,7 +24,7 @@
 
 use std::ops::Range;
 
-use crate::settings::InnerCv;
+use crate::settings::{InnerCv, ROLLING_FIRST_HELD_OUT};
 
 /// Where a training row sits in time.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -111,6 +111,46 @@ impl Folds {
             }
         }
         out
+    }
+
+    /// The forward-chaining (rolling-origin) view of these folds: the same held-out blocks, each
+    /// trained only on the segments that end before its exclusion zone — the past beyond the
+    /// gap. The model is then used as it will be, on rows later than all it learnt from; the
+    /// blocked folds let a block be predicted by the rows after it, which hides how a model
+    /// extrapolates (docs/fitting.md, "How the selection chooses"). A fold is kept when its
+    /// past holds at least [`ROLLING_FIRST_HELD_OUT`] blocks' worth of rows (the mean block):
+    /// a fit on less than that is no model of anything the user would deploy, and its error
+    /// would say more about the lack of data than about extrapolation. The gap, up to a block,
+    /// comes out of that past, so with a long gap the first scored block is the fourth.
+    pub fn forward(&self) -> Self {
+        let past = |fold: &Fold| -> Vec<usize> {
+            fold.train
+                .iter()
+                .copied()
+                .filter(|&s| self.segments[s].end <= fold.held.start)
+                .collect()
+        };
+        let mean_block = self.held_rows() as f64 / self.folds.len().max(1) as f64;
+        let enough = ROLLING_FIRST_HELD_OUT as f64 * mean_block;
+        let folds = self
+            .folds
+            .iter()
+            .map(|fold| Fold {
+                held: fold.held.clone(),
+                train: past(fold),
+            })
+            .filter(|fold| {
+                let rows: usize = fold.train.iter().map(|&s| self.segments[s].len()).sum();
+                // Block edges round to whole rows: a row per block of slack.
+                (rows + ROLLING_FIRST_HELD_OUT) as f64 >= enough
+            })
+            .collect();
+        Self {
+            segments: self.segments.clone(),
+            folds,
+            gap_s: self.gap_s,
+            whole_runs: self.whole_runs,
+        }
     }
 
     /// Rows held out over all folds.
@@ -282,6 +322,24 @@ mod tests {
         assert_eq!(f.folds[0].held, 8..12);
         assert_eq!(f.training_rows(0), vec![0..6]);
         assert_eq!(f.training_rows(1), vec![0..10]);
+    }
+
+    #[test]
+    fn forward_folds_train_on_at_least_two_blocks_of_the_past() {
+        // 8 blocks of 10 rows. A gap of 15 s (capped at one block) takes a block out of each
+        // past: blocks 3… are scored, block 3 from rows 0..20.
+        let r = rows(&[80], 1.0);
+        let f = Folds::new(&r, 8, InnerCv::Blocked, 15.0).forward();
+        let held: Vec<Range<usize>> = f.folds.iter().map(|f| f.held.clone()).collect();
+        assert_eq!(held, vec![30..40, 40..50, 50..60, 60..70, 70..80]);
+        assert_eq!(f.training_rows(0), vec![0..20]);
+        assert_eq!(f.training_rows(4), vec![0..60]);
+        // Without a gap, from block 2 on; a rolling validation is forward already.
+        let f = Folds::new(&r, 8, InnerCv::Blocked, 0.0).forward();
+        assert_eq!(f.folds[0].held, 20..30);
+        assert_eq!(f.training_rows(0), vec![0..20]);
+        let rolling = Folds::new(&r, 8, InnerCv::Rolling, 0.0);
+        assert_eq!(rolling.forward().folds, rolling.folds);
     }
 
     #[test]

@@ -67,6 +67,7 @@
 pub mod dataset;
 pub mod export;
 pub mod features;
+mod forward;
 pub mod inner_cv;
 pub mod least_squares;
 pub mod machine_fit;

@@ -44,6 +44,8 @@ pub(crate) struct Problem<'a> {
     /// the rows that train its model, and over its held-out rows.
     train_tri: Vec<Triangle>,
     held_tri: Vec<Triangle>,
+    /// Per segment of the folds, its centred triangle.
+    segs: Vec<Triangle>,
     /// The same over every training row.
     all: Triangle,
 }
@@ -102,28 +104,7 @@ impl<'a> Problem<'a> {
                 t.subtract_first_column(j + 1, m);
             }
         }
-        let empty = || Accumulator::new(nf + 1, nt).finish();
-        let stack = |ids: &mut dyn Iterator<Item = usize>| {
-            Triangle::stack(ids.map(|s| &segs[s])).unwrap_or_else(empty)
-        };
-        let train_tri = folds
-            .folds
-            .iter()
-            .map(|f| stack(&mut f.train.iter().copied()))
-            .collect();
-        let held_tri = folds
-            .folds
-            .iter()
-            .map(|f| {
-                stack(
-                    &mut (0..segs.len())
-                        .filter(|&s| folds.segments[s].start >= f.held.start)
-                        .filter(|&s| folds.segments[s].end <= f.held.end),
-                )
-            })
-            .collect();
-        let all = stack(&mut (0..segs.len()));
-        Ok(Self {
+        let mut p = Self {
             cand,
             transfer_tau,
             grid_taus: settings.taus.temperature_s.clone(),
@@ -131,10 +112,36 @@ impl<'a> Problem<'a> {
             folds,
             nt,
             n,
-            train_tri,
-            held_tri,
-            all,
-        })
+            segs,
+            train_tri: Vec::new(),
+            held_tri: Vec::new(),
+            all: Accumulator::new(nf + 1, nt).finish(),
+        };
+        let folds = &p.folds.folds;
+        p.train_tri = folds.iter().map(|f| p.stack(&f.train)).collect();
+        p.held_tri = folds.iter().map(|f| p.stack_rows(f.held.clone())).collect();
+        p.all = p.stack_rows(0..n);
+        Ok(p)
+    }
+
+    /// The triangle of segments `ids` together (of no row if none).
+    pub fn stack(&self, ids: &[usize]) -> Triangle {
+        Triangle::stack(ids.iter().map(|&s| &self.segs[s]))
+            .unwrap_or_else(|| Accumulator::new(self.cand.features.len() + 1, self.nt).finish())
+    }
+
+    /// The triangle of the segments within rows `range` (a held-out block is a union of them).
+    pub fn stack_rows(&self, range: std::ops::Range<usize>) -> Triangle {
+        let ids: Vec<usize> = (0..self.segs.len())
+            .filter(|&s| self.folds.segments[s].start >= range.start)
+            .filter(|&s| self.folds.segments[s].end <= range.end)
+            .collect();
+        self.stack(&ids)
+    }
+
+    /// A design's triangle from a triangle of [1 | every feature | targets].
+    pub fn design_on(&self, t: &Triangle, d: &Design) -> Triangle {
+        t.transformed(self.map(d).as_ref(), 1 + d.cols.len(), self.nt)
     }
 
     /// The columns of a design as a map from [1 | every feature | targets] to
@@ -157,13 +164,12 @@ impl<'a> Problem<'a> {
 
     /// The triangle of a design over fold `f`'s training rows (`None`: every training row).
     pub fn design_triangle(&self, d: &Design, f: Option<usize>) -> Triangle {
-        let t = f.map_or(&self.all, |f| &self.train_tri[f]);
-        t.transformed(self.map(d).as_ref(), 1 + d.cols.len(), self.nt)
+        self.design_on(f.map_or(&self.all, |f| &self.train_tri[f]), d)
     }
 
     /// The combination of [1 | features | targets] that a design's coefficients `coef`
     /// (intercept first) predict, minus target `k` if given (the residual's negative).
-    fn combination(&self, d: &Design, coef: &[f64], k: Option<usize>) -> Vec<f64> {
+    pub fn combination(&self, d: &Design, coef: &[f64], k: Option<usize>) -> Vec<f64> {
         let nf = self.cand.features.len();
         let mut u = vec![0.0; 1 + nf + self.nt];
         u[0] = coef[0];

@@ -42,9 +42,11 @@ type Candidate = (Family, f64, f64, Vec<f64>);
 pub struct Pick {
     /// The members with a weight above zero (empty: no compensation).
     pub members: Vec<Member>,
-    /// The inner-validation RMSE of the pick itself, its weights fitted out of fold (µm).
+    /// The inner-validation RMSE of the pick itself, its weights fitted out of fold (µm): here
+    /// on the blocked folds that chose it; [`crate::train::train`] reports its forward
+    /// evaluation instead (the `forward` module).
     pub cv_rmse_um: f64,
-    /// The inner-validation RMSE of no compensation (µm).
+    /// The inner-validation RMSE of no compensation (µm), on the same rows.
     pub uncompensated_um: f64,
     /// Why the pick is not the blend, if it is not.
     pub fallback: Option<String>,
