@@ -16,6 +16,10 @@ use crate::least_squares::SolveOptions;
 use crate::problem::Problem;
 use crate::selection::Pick;
 
+/// A member refitted on every forward fold: per fold, per target, the combination of
+/// [1 | features | targets] it predicts.
+type Refitted = (Family, f64, Vec<Vec<Vec<f64>>>);
+
 /// Per target, the forward RMSE of the pick and of no compensation (µm), over the held-out
 /// rows of the forward folds; `None` when the inner folds leave no forward fold. Everything
 /// comes from the problem's triangles ([`crate::problem`]): each fold's members are fitted on
@@ -41,7 +45,7 @@ pub(crate) fn evaluate(
         .collect();
     // Per (family, ridge), refitted once: per fold, per target, the combination it predicts
     // (zero where a fold's fit fails: that fold predicts nothing).
-    let mut done: Vec<(Family, f64, Vec<Vec<Vec<f64>>>)> = Vec::new();
+    let mut done: Vec<Refitted> = Vec::new();
     let mut out = Vec::with_capacity(nt);
     for (k, pick) in picks.iter().enumerate() {
         let mut blend = vec![vec![0.0; width]; folds.folds.len()];
