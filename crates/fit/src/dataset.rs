@@ -286,6 +286,16 @@ pub struct Dataset {
 }
 
 impl Dataset {
+    /// Per run, per target, the values as measured (`absolute`) or relative to the run's first
+    /// sample ([`Run::target`]): what every fit and score compares with.
+    pub fn targets(&self, absolute: bool) -> Vec<Vec<Vec<f64>>> {
+        let nt = self.target_names.len();
+        self.runs
+            .iter()
+            .map(|r| (0..nt).map(|k| r.target(k, absolute)).collect())
+            .collect()
+    }
+
     /// The dataset of several runs with the same columns: inputs and targets are chosen on the
     /// first table (in pattern order, each column once) and read by name from every table, so
     /// a run without one of them is refused naming it. Checked ([`Dataset::check`]).

@@ -364,16 +364,7 @@ pub fn select(
             settings.folds
         ));
     }
-    let nt = ds.target_names.len();
-    let targets: Vec<Vec<Vec<f64>>> = ds
-        .runs
-        .iter()
-        .map(|r| {
-            (0..nt)
-                .map(|k| r.target(k, settings.absolute_targets))
-                .collect()
-        })
-        .collect();
+    let targets: Vec<Vec<Vec<f64>>> = ds.targets(settings.absolute_targets);
     let mut candidates = Vec::new();
     let dynamic = if let Some(cand) = cand.filter(|_| !settings.families.is_empty()) {
         let trained = train(ds, cand, rows, settings)?;
@@ -552,15 +543,7 @@ pub fn fit_machine(
 ) -> Result<MachineOutcome, String> {
     let folds = split.folds(ds)?;
     let nt = ds.target_names.len();
-    let rel: Vec<Vec<Vec<f64>>> = ds
-        .runs
-        .iter()
-        .map(|r| {
-            (0..nt)
-                .map(|k| r.target(k, settings.absolute_targets))
-                .collect()
-        })
-        .collect();
+    let rel: Vec<Vec<Vec<f64>>> = ds.targets(settings.absolute_targets);
     let mut measured = vec![Vec::new(); nt];
     let mut predicted = vec![Vec::new(); nt];
     let mut oof: Predictions = ds

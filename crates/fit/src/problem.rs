@@ -76,15 +76,7 @@ impl<'a> Problem<'a> {
         let cand = &source.meta;
         let nf = cand.features.len();
         let nt = dataset.target_names.len();
-        let rel: Vec<Vec<Vec<f64>>> = dataset
-            .runs
-            .iter()
-            .map(|r| {
-                (0..nt)
-                    .map(|k| r.target(k, settings.absolute_targets))
-                    .collect()
-            })
-            .collect();
+        let rel: Vec<Vec<Vec<f64>>> = dataset.targets(settings.absolute_targets);
         let at: Vec<Row> = rows
             .iter()
             .map(|&(run, row)| Row {

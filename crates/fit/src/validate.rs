@@ -313,15 +313,7 @@ pub fn outcome(
 ) -> Result<Outcome, String> {
     let folds = split.folds(dataset)?;
     let nt = dataset.target_names.len();
-    let rel: Vec<Vec<Vec<f64>>> = dataset
-        .runs
-        .iter()
-        .map(|r| {
-            (0..nt)
-                .map(|k| r.target(k, settings.absolute_targets))
-                .collect()
-        })
-        .collect();
+    let rel: Vec<Vec<Vec<f64>>> = dataset.targets(settings.absolute_targets);
     let mut measured = vec![Vec::new(); nt];
     let mut predicted = vec![Vec::new(); nt];
     // Per run and row, the prediction of the fold that held it out, and which fold that was.
