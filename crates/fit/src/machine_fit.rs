@@ -398,9 +398,15 @@ pub fn select(
         families,
         &mut candidates,
     )?;
-    let dynamic_score = dynamic
-        .as_ref()
-        .map(|t| pooled(&t.choices.iter().map(|c| c.cv_rmse_um).collect::<Vec<_>>()));
+    let dynamic_score = dynamic.as_ref().map(|t| {
+        // Seed A/C's scores come from the same blocked folds: compare like with like.
+        pooled(
+            &t.choices
+                .iter()
+                .map(|c| c.selection_cv_rmse_um)
+                .collect::<Vec<_>>(),
+        )
+    });
     let static_score = fixed
         .as_ref()
         .map(|s| pooled(&s.choices.iter().map(|c| c.2.score_um).collect::<Vec<_>>()));

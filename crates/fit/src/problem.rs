@@ -63,7 +63,7 @@ impl<'a> Problem<'a> {
     }
 
     /// One pass over the training rows fills one triangle per segment of the folds (`folds`,
-    /// or those of [`Problem::inner_folds`]); every design, fold and score is then computed from
+    /// or those of [`inner_folds`]); every design, fold and score is then computed from
     /// these triangles, never from the rows again.
     pub(crate) fn build(
         dataset: &Dataset,
@@ -379,7 +379,9 @@ fn segment_triangles(
         .map_or(1, |n| n.get())
         .min(segments.len())
         .max(1);
-    // Contiguous groups of segments with about equal numbers of rows, one per core.
+    // Contiguous groups of segments with about equal numbers of rows, one per core. Each core's
+    // cursor steps the banks from its runs' first samples, so with one long run the later
+    // group also steps the filters over the rows before its own (cheap beside the QR).
     let per = rows.len().div_ceil(threads).max(1);
     let mut groups: Vec<Vec<usize>> = vec![Vec::new(); threads];
     for (s, seg) in segments.iter().enumerate() {

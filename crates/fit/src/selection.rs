@@ -238,7 +238,7 @@ fn pick(members: &[Candidate], y: &[f64], n: usize) -> Pick {
     let score = rmse_over(y, Some(&blended), n);
     if score > CLEARLY_BETTER * zero {
         return none(format!(
-            "no compensation: the blend's inner-validation RMSE {score:.3} µm is not clearly below no compensation's {zero:.3} µm"
+            "no compensation: the blend's blocked inner-validation RMSE {score:.3} µm is not clearly below no compensation's {zero:.3} µm"
         ));
     }
     if let Some(s) = members.iter().position(|m| m.0 == Family::Static) {
@@ -254,7 +254,7 @@ fn pick(members: &[Candidate], y: &[f64], n: usize) -> Pick {
                 cv_rmse_um: members[s].2,
                 uncompensated_um: zero,
                 fallback: Some(format!(
-                    "static: the blend's inner-validation RMSE {score:.3} µm is not clearly below the static model's {:.3} µm",
+                    "static: the blend's blocked inner-validation RMSE {score:.3} µm is not clearly below the static model's {:.3} µm",
                     members[s].2
                 )),
             };

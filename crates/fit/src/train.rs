@@ -40,6 +40,10 @@ pub struct Choice {
     /// Inner estimate of no compensation's error (µm), on the same rows.
     #[serde(default)]
     pub uncompensated_cv_rmse_um: f64,
+    /// The blocked inner-validation RMSE the choice was made by (µm): what other forms fitted on
+    /// the same blocked folds (seed A/C's in `machine_fit`) are compared with.
+    #[serde(default)]
+    pub selection_cv_rmse_um: f64,
     /// Why the choice is not the blend of every family (no compensation, or the static family
     /// alone), if it is not.
     #[serde(default)]
@@ -117,7 +121,8 @@ pub fn train(
 ) -> Result<Trained, String> {
     // Every factorisation after the segment pass is of a few hundred columns at most: faer's
     // thread pool costs more than it saves there, and the segments already use every core.
-    faer::set_global_parallelism(faer::Par::Seq);
+    // Restored on the way out, so that the caller's own large solves keep their threads.
+    let _sequential = Sequential::new();
     if rows.len() < 4 * settings.folds.max(2) {
         return Err(format!(
             "only {} training samples: too few for {}-fold cross-validation",
@@ -163,13 +168,17 @@ pub fn train(
         );
     }
     let (mut picks, scores) = select(&p, settings, &sensors);
+    let blocked: Vec<f64> = picks.iter().map(|p| p.cv_rmse_um).collect();
     report_forward(&p, &mut picks, &sensors, reference);
     let Blended {
         coef,
         intercepts,
         warnings,
-        choices,
+        mut choices,
     } = blend(dataset, &p, &picks, &sensors, reference)?;
+    for (c, b) in choices.iter_mut().zip(blocked) {
+        c.selection_cv_rmse_um = b;
+    }
     let nf = cand.features.len();
     // Export: inputs = the chosen sensors, plus operating inputs if any target reads them.
     let uses = |pred: &dyn Fn(FeatureKind) -> bool| {
@@ -243,6 +252,23 @@ fn report_forward(
     };
     for (k, pick) in picks.iter_mut().enumerate() {
         (pick.cv_rmse_um, pick.uncompensated_um) = fwd[k];
+    }
+}
+
+/// faer's global parallelism set to sequential while it lives, the caller's restored after.
+struct Sequential(faer::Par);
+
+impl Sequential {
+    fn new() -> Self {
+        let before = faer::get_global_parallelism();
+        faer::set_global_parallelism(faer::Par::Seq);
+        Self(before)
+    }
+}
+
+impl Drop for Sequential {
+    fn drop(&mut self) {
+        faer::set_global_parallelism(self.0);
     }
 }
 
@@ -329,6 +355,7 @@ fn blend(
             cv_rmse_um: pick.cv_rmse_um,
             blend: pick.members.clone(),
             uncompensated_cv_rmse_um: pick.uncompensated_um,
+            selection_cv_rmse_um: pick.cv_rmse_um,
             fallback: pick.fallback.clone(),
         });
     }

@@ -10,8 +10,8 @@
 //! and are eliminated by least squares, leaving the residual as a function of τ alone, which is
 //! minimised over log τ (a coarse scan, then golden-section search around the best point). One τ
 //! serves every target and sensor: one more parameter, not one per sensor, keeps the family
-//! from chasing noise. The filter is the real-time crate's own [`FeatureBank`], so the τ found
-//! is the τ the control runs.
+//! from chasing noise. The filter steps with the real-time bank's own gain ([`lag_gain`]) and
+//! arithmetic, so the τ found is the τ the control runs.
 
 use truepos_model::lag_gain;
 

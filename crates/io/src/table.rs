@@ -145,7 +145,7 @@ struct Span {
 /// A table as read: a header row of column names and the data rows below it. The cells are
 /// stored flat, 12 bytes each (a month of 1 s logs is tens of millions of cells): a number as
 /// itself, an empty or text cell as a NaN that names it ([`Slot`]), and the character column.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone)]
 pub struct Table {
     /// The file it came from.
     pub file: PathBuf,
@@ -164,6 +164,28 @@ pub struct Table {
     /// (cell index, line) of the cells that start on a later line than their row (a quoted
     /// field holding a line break before them), in cell order.
     late: Vec<(usize, u32)>,
+}
+
+/// Equal when every cell holds the same value at the same place: the stored slots compare by
+/// their bits, since an empty or text cell is a NaN, which never equals itself as a number.
+impl PartialEq for Table {
+    fn eq(&self, other: &Self) -> bool {
+        self.file == other.file
+            && self.sheet == other.sheet
+            && self.columns == other.columns
+            && self.header_line == other.header_line
+            && self.first_column == other.first_column
+            && self.spans == other.spans
+            && self.places == other.places
+            && self.texts == other.texts
+            && self.late == other.late
+            && self.slots.len() == other.slots.len()
+            && self
+                .slots
+                .iter()
+                .zip(&other.slots)
+                .all(|(a, b)| a.to_bits() == b.to_bits())
+    }
 }
 
 /// How a cell is stored: a number as itself (numbers are finite), anything else as a quiet NaN
@@ -920,5 +942,9 @@ mod tests {
             "t.csv:3:1: expected 2 fields as in the header, found 1"
         );
         assert!(parse("").columns.is_empty());
+        // Empty and text cells are NaNs inside; a table still equals its copy.
+        let t = parse("a,b\n,x\n1,2\n");
+        assert_eq!(t, t.clone());
+        assert_ne!(t, parse("a,b\n,y\n1,2\n"));
     }
 }
