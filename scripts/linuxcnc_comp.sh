@@ -10,6 +10,7 @@
 set -euo pipefail
 REPO="$(cd "$(dirname "$0")/.." && pwd)"
 cd "$REPO"
+. scripts/linuxcnc_headless.sh
 OUT="${1:-$REPO/target/linuxcnc-comp}"
 
 bash scripts/install_linuxcnc.sh
@@ -27,27 +28,7 @@ done
 "$BIN/truepos" kin table --input tests/linuxcnc/comp_table.csv --from csv --to linuxcnc0 --out "$OUT/x.type0.comp"
 "$BIN/truepos" kin table --input tests/linuxcnc/comp_table.csv --from csv --to linuxcnc1 --out "$OUT/y.type1.comp"
 
-# As in linuxcnc_e2e.sh: rtapi_app refuses to run as root unless RTAPI_UID names another user.
-if [ "$(id -u)" -eq 0 ]; then
-    if ! id truepos-ci >/dev/null 2>&1; then
-        useradd --system --no-create-home --shell /usr/sbin/nologin truepos-ci
-    fi
-    export RTAPI_UID="$(id -u truepos-ci)"
-    export HOME="$OUT/home"
-    mkdir -p "$HOME" && chown truepos-ci "$HOME"
-fi
-
-echo "== run LinuxCNC headless ($OUT)"
-status=0
-timeout 120 script -qec "linuxcnc $OUT/comp.ini" /dev/null > "$OUT/linuxcnc.log" 2>&1 || status=$?
-for pid in $(pgrep -f "$OUT/comp.ini" || true); do kill "$pid" 2>/dev/null || true; done
-halrun -U >/dev/null 2>&1 || true
-grep -E "^comp:" "$OUT/linuxcnc.log" || true
-if [ "$status" -ne 0 ] || [ "$(cat "$OUT/comp_result.txt" 2>/dev/null)" != "PASS" ]; then
-    echo "FAIL: LinuxCNC run (exit $status, result '$(cat "$OUT/comp_result.txt" 2>/dev/null)')"
-    tail -40 "$OUT/linuxcnc.log"
-    exit 1
-fi
+run_linuxcnc_headless "$OUT/comp.ini" 120 "$OUT/comp_result.txt" "^comp:"
 
 echo "== compare what LinuxCNC commanded to the motors with truepos"
 /usr/bin/python3 tests/linuxcnc/comp_compare.py "$BIN/truepos" "$OUT"

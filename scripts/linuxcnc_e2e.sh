@@ -7,6 +7,7 @@
 set -euo pipefail
 REPO="$(cd "$(dirname "$0")/.." && pwd)"
 cd "$REPO"
+. scripts/linuxcnc_headless.sh
 OUT="${1:-$REPO/target/linuxcnc-e2e}"
 
 bash scripts/install_linuxcnc.sh
@@ -24,30 +25,7 @@ done
 cp tests/linuxcnc/tool.tbl "$OUT/"
 : > "$OUT/sim.var"
 
-# LinuxCNC's rtapi_app refuses to run realtime as root unless RTAPI_UID names another user, and
-# puts its socket in $HOME, which that user must be able to write.
-if [ "$(id -u)" -eq 0 ]; then
-    if ! id truepos-ci >/dev/null 2>&1; then
-        useradd --system --no-create-home --shell /usr/sbin/nologin truepos-ci
-    fi
-    export RTAPI_UID="$(id -u truepos-ci)"
-    export HOME="$OUT/home"
-    mkdir -p "$HOME" && chown truepos-ci "$HOME"
-fi
-
-echo "== run LinuxCNC headless ($OUT)"
-status=0
-# No terminal in CI: `script` gives the launcher one, so its output lands in linuxcnc.log.
-timeout 300 script -qec "linuxcnc $OUT/vmc3.ini" /dev/null > "$OUT/linuxcnc.log" 2>&1 || status=$?
-# Should the run hang, end what it left behind: only processes of this very configuration.
-for pid in $(pgrep -f "$OUT/vmc3.ini" || true); do kill "$pid" 2>/dev/null || true; done
-halrun -U >/dev/null 2>&1 || true
-grep -E "^e2e:|truepos-hal" "$OUT/linuxcnc.log" || true
-if [ "$status" -ne 0 ] || [ "$(cat "$OUT/e2e_result.txt" 2>/dev/null)" != "PASS" ]; then
-    echo "FAIL: LinuxCNC run (exit $status, result '$(cat "$OUT/e2e_result.txt" 2>/dev/null)')"
-    tail -40 "$OUT/linuxcnc.log"
-    exit 1
-fi
+run_linuxcnc_headless "$OUT/vmc3.ini" 300 "$OUT/e2e_result.txt" "^e2e:|truepos-hal"
 
 echo "== compare what LinuxCNC applied with the models; the events in the log"
 fail=0

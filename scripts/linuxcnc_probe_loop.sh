@@ -11,6 +11,7 @@
 set -euo pipefail
 REPO="$(cd "$(dirname "$0")/.." && pwd)"
 cd "$REPO"
+. scripts/linuxcnc_headless.sh
 OUT="${1:-$REPO/target/linuxcnc-probe}"
 SPEED=60
 
@@ -44,27 +45,7 @@ cp "$OUT/original.toml" "$OUT/model.toml"
     --out "$OUT/day_sim.csv" > /dev/null
 "${PREP[@]}" run "$SPEED" "$OUT/day_sim.csv" "$OUT/day.csv"
 
-# As in linuxcnc_e2e.sh: rtapi_app refuses to run as root unless RTAPI_UID names another user.
-if [ "$(id -u)" -eq 0 ]; then
-    if ! id truepos-ci >/dev/null 2>&1; then
-        useradd --system --no-create-home --shell /usr/sbin/nologin truepos-ci
-    fi
-    export RTAPI_UID="$(id -u truepos-ci)"
-    export HOME="$OUT/home"
-    mkdir -p "$HOME" && chown truepos-ci "$HOME"
-fi
-
-echo "== run LinuxCNC headless ($OUT)"
-status=0
-timeout 480 script -qec "linuxcnc $OUT/probe.ini" /dev/null > "$OUT/linuxcnc.log" 2>&1 || status=$?
-for pid in $(pgrep -f "$OUT/probe.ini" || true); do kill "$pid" 2>/dev/null || true; done
-halrun -U >/dev/null 2>&1 || true
-grep -E "^probe_loop:|truepos-hal" "$OUT/linuxcnc.log" || true
-if [ "$status" -ne 0 ] || [ "$(cat "$OUT/probe_result.txt" 2>/dev/null)" != "PASS" ]; then
-    echo "FAIL: LinuxCNC run (exit $status, result '$(cat "$OUT/probe_result.txt" 2>/dev/null)')"
-    tail -40 "$OUT/linuxcnc.log"
-    exit 1
-fi
+run_linuxcnc_headless "$OUT/probe.ini" 480 "$OUT/probe_result.txt" "^probe_loop:|truepos-hal"
 
 echo "== judge: residual after the switch, steps of the applied offset"
 /usr/bin/python3 tests/linuxcnc/probe_check.py "$TP" "$OUT"

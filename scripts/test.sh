@@ -23,34 +23,30 @@ cargo test --release -p truepos-runtime --test fuzz_network
 echo "== kinematics side by side with Orocos KDL"
 bash scripts/kdl_check.sh
 
-echo "== LinuxCNC end to end (real control, headless simulated machine)"
 # The host can hold the component or LinuxCNC's servo thread for seconds (this VM's hypervisor
 # steals time, the kernel has no PREEMPT_RT: one run saw a 7 s stall). A run that failed during
 # such a stall (the component's longest cycle interval > 100 ms, in its stats.json) says nothing
 # about truepos and runs again, at most three times in all; a failure without one fails at once.
-e2e_ok=0
-for attempt in 1 2 3; do
-  if bash scripts/linuxcnc_e2e.sh; then e2e_ok=1; break; fi
-  stall_ms=$(/usr/bin/python3 -c 'import json; print(json.load(open("target/linuxcnc-e2e/stats.json"))["max_interval_ms"])' 2>/dev/null || echo 0)
-  if ! /usr/bin/python3 -c "import sys; sys.exit(0 if float('$stall_ms') > 100 else 1)"; then
-    break
-  fi
-  echo "linuxcnc_e2e: attempt $attempt failed during a host stall of $stall_ms ms; running it again"
-done
-[ "$e2e_ok" = 1 ] || { echo "linuxcnc_e2e: FAIL"; exit 1; }
+#   with_stall_retry NAME OUT_DIR SCRIPT
+with_stall_retry() {
+  local name="$1" out="$2" script="$3" attempt stall_ms
+  for attempt in 1 2 3; do
+    if bash "$script"; then return 0; fi
+    stall_ms=$(/usr/bin/python3 -c "import json; print(json.load(open('$out/stats.json'))['max_interval_ms'])" 2>/dev/null || echo 0)
+    if ! /usr/bin/python3 -c "import sys; sys.exit(0 if float('$stall_ms') > 100 else 1)"; then
+      break
+    fi
+    echo "$name: attempt $attempt failed during a host stall of $stall_ms ms; running it again"
+  done
+  echo "$name: FAIL"
+  exit 1
+}
+
+echo "== LinuxCNC end to end (real control, headless simulated machine)"
+with_stall_retry linuxcnc_e2e target/linuxcnc-e2e scripts/linuxcnc_e2e.sh
 
 echo "== LinuxCNC probe loop: G38.2 on a drifted twin, re-identification, a hot switch mid-program"
-# Same stall rule as the end-to-end test: a failed run during a host stall runs again (3 in all).
-probe_ok=0
-for attempt in 1 2 3; do
-  if bash scripts/linuxcnc_probe_loop.sh; then probe_ok=1; break; fi
-  stall_ms=$(/usr/bin/python3 -c 'import json; print(json.load(open("target/linuxcnc-probe/stats.json"))["max_interval_ms"])' 2>/dev/null || echo 0)
-  if ! /usr/bin/python3 -c "import sys; sys.exit(0 if float('$stall_ms') > 100 else 1)"; then
-    break
-  fi
-  echo "linuxcnc_probe_loop: attempt $attempt failed during a host stall of $stall_ms ms; running it again"
-done
-[ "$probe_ok" = 1 ] || { echo "linuxcnc_probe_loop: FAIL"; exit 1; }
+with_stall_retry linuxcnc_probe_loop target/linuxcnc-probe scripts/linuxcnc_probe_loop.sh
 
 echo "== LinuxCNC COMP_FILE types 0 and 1: truepos-written tables loaded into LinuxCNC itself"
 bash scripts/linuxcnc_comp.sh

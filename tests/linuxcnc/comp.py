@@ -12,6 +12,8 @@ import time
 
 import linuxcnc
 
+import harness
+
 
 def log(msg):
     print(f"comp: {msg}", flush=True)
@@ -25,14 +27,7 @@ s = linuxcnc.stat()
 c = linuxcnc.command()
 
 
-def wait(what, cond, timeout=30.0):
-    end = time.time() + timeout
-    while time.time() < end:
-        s.poll()
-        if cond():
-            return
-        time.sleep(0.01)
-    raise SystemExit(f"comp: timeout waiting for {what}")
+wait = harness.waiter(s, "comp")
 
 
 def move(x, feed):

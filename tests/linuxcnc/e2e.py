@@ -27,6 +27,8 @@ import time
 import hal
 import linuxcnc
 
+import harness
+
 
 def log(msg):
     print(f"e2e: {msg}", flush=True)
@@ -115,23 +117,10 @@ threading.Thread(target=feeder, daemon=True).start()
 s = linuxcnc.stat()
 c = linuxcnc.command()
 
-# Without a PREEMPT_RT kernel LinuxCNC's uspace servo thread runs with normal scheduling
-# ("POSIX non-realtime") and catches up in bursts after the host holds it up; give the
-# simulator's threads SCHED_FIFO like a real control has (truepos-hal takes priority 50).
-rtapi = subprocess.run(["pgrep", "-x", "rtapi_app"], capture_output=True, text=True).stdout.split()
-for pid in rtapi:
-    if subprocess.run(["chrt", "-a", "-f", "-p", "60", pid]).returncode == 0:
-        log(f"rtapi_app {pid}: SCHED_FIFO 60")
+harness.realtime_priority(log)
 
 
-def wait(what, cond, timeout=30.0):
-    end = time.time() + timeout
-    while time.time() < end:
-        s.poll()
-        if cond():
-            return
-        time.sleep(0.02)
-    raise SystemExit(f"e2e: timeout waiting for {what}")
+wait = harness.waiter(s, "e2e", 0.02)
 
 
 def halcmd(*args):

@@ -35,6 +35,8 @@ import tomllib
 import hal
 import linuxcnc
 
+import harness
+
 
 def log(msg):
     print(f"probe_loop: {msg}", flush=True)
@@ -161,21 +163,10 @@ threading.Thread(target=feeder, daemon=True).start()
 
 s = linuxcnc.stat()
 c = linuxcnc.command()
-# As in e2e.py: the simulator's threads get SCHED_FIFO like a real control's (truepos-hal 50).
-for pid in subprocess.run(["pgrep", "-x", "rtapi_app"], capture_output=True,
-                          text=True).stdout.split():
-    if subprocess.run(["chrt", "-a", "-f", "-p", "60", pid]).returncode == 0:
-        log(f"rtapi_app {pid}: SCHED_FIFO 60")
+harness.realtime_priority(log)
 
 
-def wait(what, cond, timeout=30.0):
-    end = time.time() + timeout
-    while time.time() < end:
-        s.poll()
-        if cond():
-            return
-        time.sleep(0.01)
-    raise SystemExit(f"probe_loop: timeout waiting for {what}")
+wait = harness.waiter(s, "probe_loop")
 
 
 def pulse(pin):
