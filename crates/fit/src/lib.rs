@@ -71,6 +71,7 @@ mod forward;
 pub mod inner_cv;
 pub mod least_squares;
 pub mod machine_fit;
+mod out_of_fold;
 pub mod position_model;
 mod problem;
 pub mod reidentify;

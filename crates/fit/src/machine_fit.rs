@@ -17,6 +17,7 @@ use truepos_model::{CycleInput, LagSource, Machine, Model, Part, Reference};
 
 use crate::dataset::Dataset;
 use crate::features::Candidates;
+use crate::out_of_fold::OutOfFold;
 use crate::position_model::{
     family_differences, fit_blocks, input_sets, structure_owned, CvOptions, Family, Fitted,
     Observation,
@@ -550,15 +551,7 @@ pub fn fit_machine(
     let folds = split.folds(ds)?;
     let nt = ds.target_names.len();
     let rel: Vec<Vec<Vec<f64>>> = ds.targets(settings.absolute_targets);
-    let mut measured = vec![Vec::new(); nt];
-    let mut predicted = vec![Vec::new(); nt];
-    let mut oof: Predictions = ds
-        .runs
-        .iter()
-        .map(|r| vec![vec![f64::NAN; r.len()]; nt])
-        .collect();
-    let mut fold_of: Vec<Vec<Option<usize>>> =
-        ds.runs.iter().map(|r| vec![None; r.len()]).collect();
+    let mut held = OutOfFold::new(ds);
     let mut fold_selections = Vec::new();
     let mut chosen_names = Vec::new();
     let mut choices = Vec::new();
@@ -571,14 +564,7 @@ pub fn fit_machine(
         }
         let sel = select(ds, data, cand, tr, settings, families)?;
         let pred = predict_chosen(ds, data, &sel.chosen)?;
-        for &(r, i) in te {
-            fold_of[r][i] = Some(f);
-            for k in 0..nt {
-                measured[k].push(rel[r][k][i]);
-                predicted[k].push(pred[r][k][i]);
-                oof[r][k][i] = pred[r][k][i];
-            }
-        }
+        held.record(f, te, &rel, &pred);
         choices.push(match &sel.chosen {
             Chosen::Dynamic(t) => t.choices.clone(),
             Chosen::Static(_) => Vec::new(),
@@ -595,7 +581,7 @@ pub fn fit_machine(
     progress(folds.len(), folds.len());
     let mut metrics = Vec::new();
     for k in 0..nt {
-        let (m, failed) = figures(&ds.target_names[k], &measured[k], &predicted[k]);
+        let (m, failed) = figures(&ds.target_names[k], &held.measured[k], &held.predicted[k]);
         if failed > 0 {
             warnings.push(format!(
                 "{}: {failed} held-out samples could not be predicted (an input invalid or outside its range) and are not in the figures",
@@ -605,22 +591,14 @@ pub fn fit_machine(
         metrics.push(m);
     }
     let (mut selection, mut fitted, mut training_rows) = last.ok_or("no folds")?;
-    if fold_of.iter().flatten().all(Option::is_some) {
+    if held.every_measured_row_held_out(ds) {
         let all = all_rows(ds);
         selection = select(ds, data, cand, &all, settings, families)?;
         fitted = predict_chosen(ds, data, &selection.chosen)?;
         training_rows = all;
     }
-    for (r, run) in oof.iter_mut().enumerate() {
-        for (k, col) in run.iter_mut().enumerate() {
-            for (i, v) in col.iter_mut().enumerate() {
-                if fold_of[r][i].is_none() {
-                    *v = fitted[r][k][i];
-                }
-            }
-        }
-    }
-    let per_run = per_run(ds, &rel, &oof, &fold_of, &chosen_names);
+    let done = held.finish(&fitted);
+    let per_run = per_run(ds, &rel, &done.predictions, &done.fold_of, &chosen_names);
     warnings.extend(worse_than_uncompensated(&per_run));
     let inner: Vec<Vec<f64>> = fold_selections
         .iter()
@@ -643,11 +621,8 @@ pub fn fit_machine(
         },
         folds: fold_selections,
         selection,
-        predictions: oof,
-        held_out: fold_of
-            .iter()
-            .map(|run| run.iter().map(Option::is_some).collect())
-            .collect(),
+        predictions: done.predictions,
+        held_out: done.held_out,
         fitted,
         training_rows,
     })

@@ -10,6 +10,7 @@ use std::str::FromStr;
 
 use crate::dataset::Dataset;
 use crate::features::{candidates, Candidates};
+use crate::out_of_fold::OutOfFold;
 use crate::settings::Settings;
 use crate::train::{train, Choice, Trained};
 
@@ -314,19 +315,7 @@ pub fn outcome(
     let folds = split.folds(dataset)?;
     let nt = dataset.target_names.len();
     let rel: Vec<Vec<Vec<f64>>> = dataset.targets(settings.absolute_targets);
-    let mut measured = vec![Vec::new(); nt];
-    let mut predicted = vec![Vec::new(); nt];
-    // Per run and row, the prediction of the fold that held it out, and which fold that was.
-    let mut oof: Predictions = dataset
-        .runs
-        .iter()
-        .map(|r| vec![vec![f64::NAN; r.len()]; nt])
-        .collect();
-    let mut fold_of: Vec<Vec<Option<usize>>> =
-        dataset.runs.iter().map(|r| vec![None; r.len()]).collect();
-    let owners = owners(dataset);
-    // Rows without a measurement that a fold predicted out of sample ([`owners`]).
-    let mut filled: Vec<Vec<bool>> = dataset.runs.iter().map(|r| vec![false; r.len()]).collect();
+    let mut held = OutOfFold::new(dataset);
     let mut choices = Vec::new();
     let mut sensors = Vec::new();
     let mut warnings = Vec::new();
@@ -338,15 +327,7 @@ pub fn outcome(
         }
         let trained = train(dataset, cand, tr, settings)?;
         let pred = predict(dataset, &trained)?;
-        for &(r, i) in te {
-            fold_of[r][i] = Some(f);
-            for k in 0..nt {
-                measured[k].push(rel[r][k][i]);
-                predicted[k].push(pred[r][k][i]);
-                oof[r][k][i] = pred[r][k][i];
-            }
-        }
-        fill_unmeasured(&owners, &fold_of, f, &pred, &mut oof, &mut filled);
+        held.record(f, te, &rel, &pred);
         choices.push(trained.choices.clone());
         sensors.push(
             trained
@@ -360,40 +341,27 @@ pub fn outcome(
     }
     progress(folds.len(), folds.len());
     let metrics: Vec<Metrics> = (0..nt)
-        .map(|k| Metrics::new(&dataset.target_names[k], &measured[k], &predicted[k]))
+        .map(|k| {
+            Metrics::new(
+                &dataset.target_names[k],
+                &held.measured[k],
+                &held.predicted[k],
+            )
+        })
         .collect();
     let (mut trained, mut fitted, mut training_rows) = last.ok_or("no folds")?;
-    // When every row was held out once (leave-one-run-out, blocked k-fold), the folds only
-    // measure the procedure; the model to write is the same procedure on every row — else it
-    // would be the last fold's, which never saw the last run or block. A chronological split
-    // keeps its training part's model: the one its test figures describe.
-    let every_measured_row_held_out = dataset
-        .runs
-        .iter()
-        .zip(&fold_of)
-        .all(|(run, folds)| (0..run.len()).all(|i| !run.measured(i) || folds[i].is_some()));
-    if every_measured_row_held_out {
+    if held.every_measured_row_held_out(dataset) {
         let all = all_rows(dataset);
         trained = train(dataset, cand, &all, settings)?;
         fitted = predict(dataset, &trained)?;
         training_rows = all;
     }
-    // A row no fold held out (a chronological split's training rows) has no honest prediction;
-    // it gets the final model's, and `held_out` says so.
-    for (r, run) in oof.iter_mut().enumerate() {
-        for (k, col) in run.iter_mut().enumerate() {
-            for (i, v) in col.iter_mut().enumerate() {
-                if fold_of[r][i].is_none() && !filled[r][i] {
-                    *v = fitted[r][k][i];
-                }
-            }
-        }
-    }
+    let done = held.finish(&fitted);
     let chosen: Vec<Vec<String>> = choices
         .iter()
         .map(|c| c.iter().map(|c| c.label()).collect())
         .collect();
-    let per_run = per_run(dataset, &rel, &oof, &fold_of, &chosen);
+    let per_run = per_run(dataset, &rel, &done.predictions, &done.fold_of, &chosen);
     warnings.extend(worse_than_uncompensated(&per_run));
     let inner: Vec<Vec<f64>> = choices
         .iter()
@@ -415,66 +383,12 @@ pub fn outcome(
             warnings,
         },
         trained,
-        predictions: oof,
-        held_out: fold_of
-            .iter()
-            .zip(&filled)
-            .map(|(run, filled)| {
-                run.iter()
-                    .zip(filled)
-                    .map(|(f, &u)| f.is_some() || u)
-                    .collect()
-            })
-            .collect(),
+        predictions: done.predictions,
+        held_out: done.held_out,
         fitted,
         training_rows,
         absolute_targets: settings.absolute_targets,
     })
-}
-
-/// For each row without a measurement, the measured row of its run whose fold predicts it: the
-/// last one before it, or at a run's start the first one after (the stretch of the run it lies
-/// in); `None` for measured rows.
-fn owners(dataset: &Dataset) -> Vec<Vec<Option<usize>>> {
-    dataset
-        .runs
-        .iter()
-        .map(|run| {
-            let first = run.first_measured();
-            let mut last = None;
-            (0..run.len())
-                .map(|i| {
-                    if run.measured(i) {
-                        last = Some(i);
-                        None
-                    } else {
-                        last.or(first)
-                    }
-                })
-                .collect()
-        })
-        .collect()
-}
-
-/// Gives every row without a measurement whose owner fold `f` held out that fold's prediction.
-fn fill_unmeasured(
-    owners: &[Vec<Option<usize>>],
-    fold_of: &[Vec<Option<usize>>],
-    f: usize,
-    pred: &Predictions,
-    oof: &mut Predictions,
-    filled: &mut [Vec<bool>],
-) {
-    for (r, run) in owners.iter().enumerate() {
-        for (i, owner) in run.iter().enumerate() {
-            if owner.is_some_and(|o| fold_of[r][o] == Some(f)) {
-                filled[r][i] = true;
-                for (k, col) in oof[r].iter_mut().enumerate() {
-                    col[i] = pred[r][k][i];
-                }
-            }
-        }
-    }
 }
 
 /// Figures of every run's held-out rows, with the family each fold that held them out chose.

@@ -9,29 +9,21 @@
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
-use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use opcua::types::{DataValue, NodeId, ReadValueId, StatusCode, TimestampsToReturn, Variant};
 use truepos_runtime::sources::{
-    seconds_since, stop_thread, Backoff, ConfigError, LinkSnapshot, LinkStatus, OutageReporter,
-    Target, STOP_LIMIT,
+    seconds_since, Backoff, ConfigError, LinkStatus, PolledSource, Target, STOP_LIMIT,
 };
 use truepos_runtime::{Frame, LinkError, SharedChannels, Source};
 
 use crate::client::{connect, describe, node_id};
 use crate::config::{Identity, SourceConfig};
 
-/// The OPC UA source.
-pub struct OpcUaSource {
-    name: String,
-    targets: Vec<Target>,
-    channels: Arc<SharedChannels>,
-    status: Arc<LinkStatus>,
-    stop: Arc<AtomicBool>,
-    outage: OutageReporter,
-    thread: Option<JoinHandle<()>>,
-}
+/// The OPC UA source: a reading thread and the cycle's view of its values ([`PolledSource`],
+/// whose status, link and targets it shows).
+#[derive(Debug)]
+pub struct OpcUaSource(PolledSource);
 
 impl OpcUaSource {
     /// Starts the reading thread for a checked configuration; stamps are seconds since `epoch`
@@ -51,63 +43,41 @@ impl OpcUaSource {
                     .map_err(|e| ConfigError::new(format!("channel[{}].node", i + 1), e))
             })
             .collect::<Result<Vec<_>, _>>()?;
-        let channels = SharedChannels::new(targets.len());
-        let status = Arc::new(LinkStatus::default());
-        let stop = Arc::new(AtomicBool::new(false));
-        let reader = Reader {
-            config: config.clone(),
-            identity,
-            nodes,
-            scale: config.channel.iter().map(|c| (c.scale, c.offset)).collect(),
-            channels: Arc::clone(&channels),
-            status: Arc::clone(&status),
-            stop: Arc::clone(&stop),
-            epoch,
-        };
+        let config = config.clone();
         let name = format!("opcua {}", config.connection.endpoint);
-        let thread = std::thread::Builder::new()
-            .name(name.clone())
-            .spawn(move || reader.run())
-            .map_err(|e| {
-                ConfigError::new("opcua", format!("cannot start the reading thread: {e}"))
-            })?;
-        Ok(Self {
-            name,
-            targets,
-            channels,
-            status,
-            stop,
-            outage: OutageReporter::default(),
-            thread: Some(thread),
+        // The thread may be inside a session's close when asked to stop: 2 s more than the rest.
+        let limit = STOP_LIMIT + Duration::from_secs(2);
+        PolledSource::start(name, targets, limit, move |link| {
+            Reader {
+                scale: config.channel.iter().map(|c| (c.scale, c.offset)).collect(),
+                config,
+                identity,
+                nodes,
+                channels: link.channels,
+                status: link.status,
+                stop: link.stop,
+                epoch,
+            }
+            .run()
         })
+        .map(Self)
     }
+}
 
-    /// The link's state for the status line.
-    pub fn status(&self) -> LinkSnapshot {
-        self.status.snapshot()
+impl std::ops::Deref for OpcUaSource {
+    type Target = PolledSource;
+    fn deref(&self) -> &PolledSource {
+        &self.0
     }
 }
 
 impl Source for OpcUaSource {
     fn name(&self) -> &str {
-        &self.name
+        self.0.name()
     }
 
-    /// Copies the latest values with the time they were read (never later than the frame's).
     fn read(&mut self, frame: &mut Frame) -> Result<(), LinkError> {
-        for (k, target) in self.targets.iter().enumerate() {
-            let (value, stamp) = self.channels.get(k);
-            target.write(frame, value, stamp.min(frame.time_s));
-        }
-        self.outage.check(&self.status)
-    }
-}
-
-impl Drop for OpcUaSource {
-    fn drop(&mut self) {
-        if let Some(t) = self.thread.take() {
-            stop_thread(&self.stop, t, STOP_LIMIT + Duration::from_secs(2));
-        }
+        self.0.read(frame)
     }
 }
 

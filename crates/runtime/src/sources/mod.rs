@@ -12,6 +12,7 @@
 mod backoff;
 mod config;
 mod link;
+mod polled;
 mod target;
 mod thread;
 
@@ -24,5 +25,6 @@ pub use link::{
     LinkEvent, LinkEventKind, LinkSnapshot, LinkStatus, OutageReporter, MAX_EVENT_MESSAGE_BYTES,
     MAX_PENDING_EVENTS,
 };
+pub use polled::{Link, PolledSource};
 pub use target::{check_unique_targets, Target};
 pub use thread::{read_exact_until, seconds_since, sleep_unless_stopped, stop_thread, STOP_LIMIT};

@@ -3,7 +3,6 @@
 use std::net::SocketAddr;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
-use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use truepos_model::Machine;
@@ -15,21 +14,14 @@ use super::plan::{plan_reads, split_blocks, ReadBlock};
 use crate::frame::Frame;
 use crate::io_traits::{LinkError, SharedChannels, Source};
 use crate::sources::{
-    resolve_address, seconds_since, sleep_unless_stopped, stop_thread, Backoff, BackoffConfig,
-    ConfigError, LinkSnapshot, LinkStatus, OutageReporter, Target, STOP_LIMIT,
+    resolve_address, seconds_since, sleep_unless_stopped, Backoff, BackoffConfig, ConfigError,
+    LinkStatus, PolledSource, STOP_LIMIT,
 };
 
-/// A Modbus TCP source: a polling thread and the cycle's view of its values.
+/// A Modbus TCP source: a polling thread and the cycle's view of its values
+/// ([`PolledSource`], whose status, link and targets it shows).
 #[derive(Debug)]
-pub struct ModbusSource {
-    name: String,
-    targets: Vec<Target>,
-    channels: Arc<SharedChannels>,
-    status: Arc<LinkStatus>,
-    stop: Arc<AtomicBool>,
-    outage: OutageReporter,
-    thread: Option<JoinHandle<()>>,
-}
+pub struct ModbusSource(PolledSource);
 
 impl ModbusSource {
     /// Starts the polling thread for a checked configuration. `epoch` is the service clock's
@@ -41,81 +33,48 @@ impl ModbusSource {
     ) -> Result<Self, ConfigError> {
         let (targets, spans) = config.resolve(machine)?;
         let peer = resolve_address(&config.address, "modbus.address")?;
-        let channels = SharedChannels::new(targets.len());
-        let status = Arc::new(LinkStatus::default());
-        let stop = Arc::new(AtomicBool::new(false));
-        let poller = Poller {
-            peer,
-            poll: Duration::from_millis(config.poll_ms),
-            timeout: Duration::from_millis(config.timeout_ms),
-            backoff: config.backoff,
-            blocks: plan_reads(&spans),
-            decoders: config
-                .channels
-                .iter()
-                .map(|c| (c.encoding, c.word_order))
-                .collect(),
-            channels: Arc::clone(&channels),
-            status: Arc::clone(&status),
-            stop: Arc::clone(&stop),
-            epoch,
-        };
+        let (poll, timeout) = (config.poll_ms, config.timeout_ms);
+        let backoff = config.backoff;
+        let blocks = plan_reads(&spans);
+        let decoders: Vec<(Encoding, WordOrder)> = config
+            .channels
+            .iter()
+            .map(|c| (c.encoding, c.word_order))
+            .collect();
         let name = format!("modbus {}", config.address);
-        let thread = std::thread::Builder::new()
-            .name(name.clone())
-            .spawn(move || poller.run())
-            .map_err(|e| {
-                ConfigError::new("modbus", format!("cannot start the polling thread: {e}"))
-            })?;
-        Ok(Self {
-            name,
-            targets,
-            channels,
-            status,
-            stop,
-            outage: OutageReporter::default(),
-            thread: Some(thread),
+        PolledSource::start(name, targets, STOP_LIMIT, move |link| {
+            Poller {
+                peer,
+                poll: Duration::from_millis(poll),
+                timeout: Duration::from_millis(timeout),
+                backoff,
+                blocks,
+                decoders,
+                channels: link.channels,
+                status: link.status,
+                stop: link.stop,
+                epoch,
+            }
+            .run()
         })
+        .map(Self)
     }
+}
 
-    /// The link's state for the status line.
-    pub fn status(&self) -> LinkSnapshot {
-        self.status.snapshot()
-    }
-
-    /// The link's state, including its events to drain (off the cycle).
-    pub fn link(&self) -> &LinkStatus {
-        &self.status
-    }
-
-    /// The machine channels this source feeds, in configuration order.
-    pub fn targets(&self) -> &[Target] {
-        &self.targets
+impl std::ops::Deref for ModbusSource {
+    type Target = PolledSource;
+    fn deref(&self) -> &PolledSource {
+        &self.0
     }
 }
 
 impl Source for ModbusSource {
     fn name(&self) -> &str {
-        &self.name
+        self.0.name()
     }
 
-    /// Copies the latest values with the time of the answer that carried them (atomics only, no
-    /// allocation). A value that arrived after the frame's clock reading is stamped with the
-    /// frame's time: stamps never lie after `frame.time_s`.
     fn read(&mut self, frame: &mut Frame) -> Result<(), LinkError> {
-        for (k, target) in self.targets.iter().enumerate() {
-            let (value, stamp) = self.channels.get(k);
-            target.write(frame, value, stamp.min(frame.time_s));
-        }
-        self.outage.check(&self.status)
-    }
-}
-
-impl Drop for ModbusSource {
-    fn drop(&mut self) {
-        if let Some(t) = self.thread.take() {
-            stop_thread(&self.stop, t, STOP_LIMIT);
-        }
+        self.0.read(frame)
     }
 }
 
