@@ -15,15 +15,15 @@ use opcua::types::{DataValue, NodeId, ReadValueId, StatusCode, TimestampsToRetur
 use truepos_runtime::sources::{
     seconds_since, Backoff, ConfigError, LinkStatus, PolledSource, Target, STOP_LIMIT,
 };
-use truepos_runtime::{Frame, LinkError, SharedChannels, Source};
+use truepos_runtime::SharedChannels;
 
 use crate::client::{connect, describe, node_id};
 use crate::config::{Identity, SourceConfig};
 
-/// The OPC UA source: a reading thread and the cycle's view of its values ([`PolledSource`],
-/// whose status, link and targets it shows).
+/// The OPC UA source: [`OpcUaSource::start`] gives its reading thread to a [`PolledSource`], the
+/// cycle's view of the values it publishes.
 #[derive(Debug)]
-pub struct OpcUaSource(PolledSource);
+pub struct OpcUaSource;
 
 impl OpcUaSource {
     /// Starts the reading thread for a checked configuration; stamps are seconds since `epoch`
@@ -33,7 +33,7 @@ impl OpcUaSource {
         identity: Identity,
         targets: Vec<Target>,
         epoch: Instant,
-    ) -> Result<Self, ConfigError> {
+    ) -> Result<PolledSource, ConfigError> {
         let nodes = config
             .channel
             .iter()
@@ -60,24 +60,6 @@ impl OpcUaSource {
             }
             .run()
         })
-        .map(Self)
-    }
-}
-
-impl std::ops::Deref for OpcUaSource {
-    type Target = PolledSource;
-    fn deref(&self) -> &PolledSource {
-        &self.0
-    }
-}
-
-impl Source for OpcUaSource {
-    fn name(&self) -> &str {
-        self.0.name()
-    }
-
-    fn read(&mut self, frame: &mut Frame) -> Result<(), LinkError> {
-        self.0.read(frame)
     }
 }
 

@@ -11,17 +11,16 @@ use super::client::ModbusClient;
 use super::codec::{decode, DecodeError, Encoding, ModbusError, WordOrder};
 use super::config::ModbusConfig;
 use super::plan::{plan_reads, split_blocks, ReadBlock};
-use crate::frame::Frame;
-use crate::io_traits::{LinkError, SharedChannels, Source};
+use crate::io_traits::SharedChannels;
 use crate::sources::{
     resolve_address, seconds_since, sleep_unless_stopped, Backoff, BackoffConfig, ConfigError,
     LinkStatus, PolledSource, STOP_LIMIT,
 };
 
-/// A Modbus TCP source: a polling thread and the cycle's view of its values
-/// ([`PolledSource`], whose status, link and targets it shows).
+/// A Modbus TCP source: [`ModbusSource::start`] gives its polling thread to a [`PolledSource`],
+/// the cycle's view of the values it publishes.
 #[derive(Debug)]
-pub struct ModbusSource(PolledSource);
+pub struct ModbusSource;
 
 impl ModbusSource {
     /// Starts the polling thread for a checked configuration. `epoch` is the service clock's
@@ -30,7 +29,7 @@ impl ModbusSource {
         config: &ModbusConfig,
         machine: &Machine,
         epoch: Instant,
-    ) -> Result<Self, ConfigError> {
+    ) -> Result<PolledSource, ConfigError> {
         let (targets, spans) = config.resolve(machine)?;
         let peer = resolve_address(&config.address, "modbus.address")?;
         let (poll, timeout) = (config.poll_ms, config.timeout_ms);
@@ -57,24 +56,6 @@ impl ModbusSource {
             }
             .run()
         })
-        .map(Self)
-    }
-}
-
-impl std::ops::Deref for ModbusSource {
-    type Target = PolledSource;
-    fn deref(&self) -> &PolledSource {
-        &self.0
-    }
-}
-
-impl Source for ModbusSource {
-    fn name(&self) -> &str {
-        self.0.name()
-    }
-
-    fn read(&mut self, frame: &mut Frame) -> Result<(), LinkError> {
-        self.0.read(frame)
     }
 }
 
