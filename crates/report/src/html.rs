@@ -126,12 +126,21 @@ fn io_error(p: &Path) -> impl Fn(std::io::Error) -> ReportError {
     move |e| ReportError(format!("{}: {e}", p.display()))
 }
 
-/// Writes `text` to `path` through a temporary file in the same folder and a rename.
+/// Writes `text` to `path` through a temporary file in the same folder, synced before the
+/// rename: after a crash the report is the old one or the whole new one, never an empty file
+/// under the new name.
 fn write_whole(path: &Path, text: &str) -> Result<(), ReportError> {
     let mut tmp = path.as_os_str().to_owned();
     tmp.push(".partial");
     let tmp = PathBuf::from(tmp);
-    std::fs::write(&tmp, text).map_err(io_error(&tmp))?;
+    let written = std::fs::File::create(&tmp).and_then(|mut f| {
+        std::io::Write::write_all(&mut f, text.as_bytes())?;
+        f.sync_all()
+    });
+    if let Err(e) = written {
+        let _ = std::fs::remove_file(&tmp);
+        return Err(io_error(&tmp)(e));
+    }
     std::fs::rename(&tmp, path).map_err(|e| {
         let _ = std::fs::remove_file(&tmp);
         io_error(path)(e)
@@ -290,5 +299,30 @@ fn key_value_tables(html: &mut String, data: &ReportData) {
             );
         }
         html.push_str("</table>");
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_failed_write_leaves_no_partial_file() {
+        let d = std::env::temp_dir().join(format!("truepos-report-write-{}", std::process::id()));
+        std::fs::create_dir_all(&d).unwrap();
+        let ok = d.join("a.svg");
+        write_whole(&ok, "<svg/>").unwrap();
+        assert_eq!(std::fs::read_to_string(&ok).unwrap(), "<svg/>");
+        // The target is a folder that holds a file: the rename fails, and nothing is left.
+        let folder = d.join("b.svg");
+        std::fs::create_dir_all(folder.join("x")).unwrap();
+        let e = write_whole(&folder, "<svg/>").unwrap_err();
+        assert!(e.0.contains("b.svg"), "{}", e.0);
+        let partial = std::fs::read_dir(&d)
+            .unwrap()
+            .filter_map(|e| e.ok())
+            .any(|e| e.file_name().to_string_lossy().ends_with(".partial"));
+        assert!(!partial);
+        let _ = std::fs::remove_dir_all(&d);
     }
 }
