@@ -159,16 +159,17 @@ impl Folds {
     }
 }
 
-/// `k` contiguous blocks of about equal size. With at least three runs the blocks hold whole
-/// runs (as many blocks as runs at most): a run is one thermal excursion, and a block that cut
-/// one would be predicted from the rest of the same excursion — the inner validation then
-/// mirrors leave-one-run-out.
+/// `k` contiguous blocks of about equal size. With two runs or more the blocks hold whole runs
+/// (as many blocks as runs at most): a run is one thermal excursion, and a block that cut one
+/// would be predicted from the rest of the same excursion — the inner validation then mirrors
+/// leave-one-run-out. With two runs each fold trains on the other run alone: a thinner fit, but
+/// the only one that shows whether a family carries from one run to another.
 fn block_ranges(rows: &[Row], k: usize) -> (Vec<Range<usize>>, bool) {
     let n = rows.len();
     let starts: Vec<usize> = (0..n)
         .filter(|&i| i == 0 || rows[i].run != rows[i - 1].run)
         .collect();
-    if starts.len() < 3 {
+    if starts.len() < 2 {
         return ((0..k).map(|b| b * n / k..(b + 1) * n / k).collect(), false);
     }
     let k = k.min(starts.len());
@@ -290,7 +291,7 @@ mod tests {
     }
 
     #[test]
-    fn three_runs_or_more_are_held_out_whole() {
+    fn two_runs_or_more_are_held_out_whole() {
         let r = rows(&[5, 30, 4, 6, 5], 1.0);
         let f = Folds::new(&r, 3, InnerCv::Blocked, 1e9);
         let held: Vec<Range<usize>> = f.folds.iter().map(|f| f.held.clone()).collect();
@@ -299,17 +300,22 @@ mod tests {
         assert_eq!(f.training_rows(1), vec![0..5, 35..50]);
         let f = Folds::new(&r, 8, InnerCv::Blocked, 0.0);
         assert_eq!(f.folds.len(), 5);
+        // Two runs: each is predicted from the other alone, never from the rest of itself.
+        let f = Folds::new(&rows(&[6, 6], 10.0), 3, InnerCv::Blocked, 1e9);
+        let held: Vec<Range<usize>> = f.folds.iter().map(|f| f.held.clone()).collect();
+        assert_eq!(held, vec![0..6, 6..12]);
+        assert_eq!(f.training_rows(0), vec![6..12]);
+        assert_eq!(f.training_rows(1), vec![0..6]);
     }
 
     #[test]
-    fn the_gap_stops_at_a_run_boundary_and_at_one_block() {
-        // Two runs of 6 rows; blocks of 4: block 1 = rows 4..8 spans both runs.
-        let r = rows(&[6, 6], 10.0);
+    fn the_gap_stops_at_one_block() {
+        // One run of 12 rows, 10 s apart; blocks of 4.
+        let r = rows(&[12], 10.0);
         let f = Folds::new(&r, 3, InnerCv::Blocked, 1e9);
-        // Block 0 (run 0, rows 0..4): the gap takes rows 4, 5 (run 0) and stops at run 1.
-        assert_eq!(f.training_rows(0), vec![6..12]);
-        // Block 1: before it rows 0..4 of run 0 (capped at 4 rows); after it rows 8..12.
+        // Block 1 (rows 4..8): an endless gap takes one block on each side, and no more.
         assert_eq!(f.training_rows(1), Vec::<Range<usize>>::new());
+        assert_eq!(f.training_rows(0), vec![8..12]);
         let f = Folds::new(&r, 3, InnerCv::Blocked, 15.0);
         assert_eq!(f.training_rows(1), vec![0..3, 9..12]);
     }
