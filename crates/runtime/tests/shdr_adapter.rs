@@ -11,7 +11,7 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use truepos_runtime::sources::shdr::{ShdrChannelConfig, ShdrConfig, ShdrSource};
-use truepos_runtime::sources::{BackoffConfig, LinkEventKind};
+use truepos_runtime::sources::{BackoffConfig, LinkEventKind, PolledSource};
 use truepos_runtime::{Frame, LinkError, Source, NEVER};
 
 mod support;
@@ -174,7 +174,7 @@ fn config(address: String) -> ShdrConfig {
 
 /// Reads the source into the frame at service time `epoch.elapsed()`, checking that no stamp
 /// goes backwards.
-fn read(source: &mut ShdrSource, frame: &mut Frame, epoch: Instant) -> Result<(), LinkError> {
+fn read(source: &mut PolledSource, frame: &mut Frame, epoch: Instant) -> Result<(), LinkError> {
     frame.time_s = epoch.elapsed().as_secs_f64();
     let before = (
         frame.temperature_stamp_s.clone(),

@@ -13,7 +13,8 @@
 //! [`parse_line`] is a pure function: every malformed line gives an [`ShdrError`], never a
 //! panic (property-tested with a million inputs, `tests/fuzz_network.rs`).
 //!
-//! [`ShdrSource`] runs the client on its own thread and implements [`Source`]. The stamp of a
+//! [`ShdrSource::start`] runs the client on its own thread, hosted by a
+//! [`PolledSource`](crate::sources::PolledSource), the [`Source`] the cycle reads. The stamp of a
 //! value is the last time the adapter confirmed it: when it arrived, or later when any line or
 //! `PONG` arrived on the same connection (an adapter only re-sends changed values, so a live
 //! connection confirms the unchanged ones). When the connection is lost — the socket closes, or

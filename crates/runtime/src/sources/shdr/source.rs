@@ -1,23 +1,20 @@
 //! The SHDR source: its client thread (connection, heartbeat, line handling, the health of a
-//! connection) and the cycle's view of the values it received.
+//! connection), hosted by a [`PolledSource`] that gives the cycle the values it received.
 
+use std::cell::Cell;
 use std::collections::HashMap;
 use std::io::{Read, Write};
 use std::net::TcpStream;
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
-use std::sync::Arc;
-use std::thread::JoinHandle;
+use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
 use truepos_model::Machine;
 
 use super::config::ShdrConfig;
 use super::parse::{parse_line, LineBuffer, ShdrLine, ShdrValue};
-use crate::frame::{Frame, NEVER};
-use crate::io_traits::{LinkError, SharedChannels, Source};
 use crate::sources::{
-    resolve_address, seconds_since, sleep_unless_stopped, stop_thread, Backoff, ConfigError,
-    LinkSnapshot, LinkStatus, OutageReporter, Target, STOP_LIMIT,
+    resolve_address, seconds_since, sleep_unless_stopped, Backoff, ConfigError, Link, LinkStatus,
+    PolledSource, STOP_LIMIT,
 };
 
 /// Unusable lines in a row (no usable data line between them) after which the source counts as
@@ -27,28 +24,12 @@ pub const MAX_BAD_LINES_IN_ROW: u32 = 3;
 /// `* PONG`s without a `* PING` after which the connection is dropped as a PONG flood.
 pub const MAX_UNSOLICITED_PONGS: u32 = 8;
 
-/// What the client thread and the cycle share.
+/// An MTConnect SHDR source: [`ShdrSource::start`] gives its client thread to a
+/// [`PolledSource`], the cycle's view of the values it received. The stamp of a value is the
+/// last time the adapter confirmed it: the thread re-stamps every value of the live connection
+/// whenever a line or a `PONG` arrives on it.
 #[derive(Debug)]
-struct Shared {
-    channels: Arc<SharedChannels>,
-    /// Per channel, the connection number its value arrived on.
-    value_connection: Vec<AtomicU64>,
-    /// Service time of the last line or PONG on the current connection (f64 bits).
-    alive_s: AtomicU64,
-    status: LinkStatus,
-    stop: AtomicBool,
-}
-
-/// An MTConnect SHDR source: a client thread connected to an adapter, and the cycle's view of
-/// the values it received.
-#[derive(Debug)]
-pub struct ShdrSource {
-    name: String,
-    targets: Vec<Target>,
-    shared: Arc<Shared>,
-    outage: OutageReporter,
-    thread: Option<JoinHandle<()>>,
-}
+pub struct ShdrSource;
 
 impl ShdrSource {
     /// Starts the client thread for a checked configuration. `epoch` is the service clock's
@@ -57,16 +38,9 @@ impl ShdrSource {
         config: &ShdrConfig,
         machine: &Machine,
         epoch: Instant,
-    ) -> Result<Self, ConfigError> {
+    ) -> Result<PolledSource, ConfigError> {
         let targets = config.resolve(machine)?;
         let n = targets.len();
-        let shared = Arc::new(Shared {
-            channels: SharedChannels::new(n),
-            value_connection: (0..n).map(|_| AtomicU64::new(0)).collect(),
-            alive_s: AtomicU64::new(NEVER.to_bits()),
-            status: LinkStatus::default(),
-            stop: AtomicBool::new(false),
-        });
         let mut by_id: HashMap<String, Vec<usize>> = HashMap::new();
         for (k, c) in config.channels.iter().enumerate() {
             by_id
@@ -74,73 +48,18 @@ impl ShdrSource {
                 .or_default()
                 .push(k);
         }
-        let client = Client {
-            config: config.clone(),
-            by_id,
-            shared: Arc::clone(&shared),
-            epoch,
-        };
+        let config = config.clone();
         let name = format!("shdr {}", config.address);
-        let thread = std::thread::Builder::new()
-            .name(name.clone())
-            .spawn(move || client.run())
-            .map_err(|e| {
-                ConfigError::new("shdr", format!("cannot start the client thread: {e}"))
-            })?;
-        Ok(Self {
-            name,
-            targets,
-            shared,
-            outage: OutageReporter::default(),
-            thread: Some(thread),
+        PolledSource::start(name, targets, STOP_LIMIT, move |link| {
+            Client {
+                config,
+                by_id,
+                link,
+                value_connection: vec![Cell::new(0); n],
+                epoch,
+            }
+            .run()
         })
-    }
-
-    /// The link's state for the status line.
-    pub fn status(&self) -> LinkSnapshot {
-        self.shared.status.snapshot()
-    }
-
-    /// The link's state, including its events to drain (off the cycle).
-    pub fn link(&self) -> &LinkStatus {
-        &self.shared.status
-    }
-
-    /// The machine channels this source feeds, in configuration order.
-    pub fn targets(&self) -> &[Target] {
-        &self.targets
-    }
-}
-
-impl Source for ShdrSource {
-    fn name(&self) -> &str {
-        &self.name
-    }
-
-    /// Copies the latest values with their confirmation stamps (atomics only, no allocation; see
-    /// [`OutageReporter`] for an outage's first read). A value that arrived after the frame's
-    /// clock reading is stamped with the frame's time: stamps never lie after `frame.time_s`.
-    fn read(&mut self, frame: &mut Frame) -> Result<(), LinkError> {
-        let current = self.shared.status.connection_number();
-        let alive = f64::from_bits(self.shared.alive_s.load(Ordering::Acquire));
-        for (k, target) in self.targets.iter().enumerate() {
-            let (value, stamp) = self.shared.channels.get(k);
-            let confirmed = if self.shared.value_connection[k].load(Ordering::Acquire) == current {
-                stamp.max(alive)
-            } else {
-                stamp
-            };
-            target.write(frame, value, confirmed.min(frame.time_s));
-        }
-        self.outage.check(&self.shared.status)
-    }
-}
-
-impl Drop for ShdrSource {
-    fn drop(&mut self) {
-        if let Some(t) = self.thread.take() {
-            stop_thread(&self.shared.stop, t, STOP_LIMIT);
-        }
     }
 }
 
@@ -148,7 +67,9 @@ impl Drop for ShdrSource {
 struct Client {
     config: ShdrConfig,
     by_id: HashMap<String, Vec<usize>>,
-    shared: Arc<Shared>,
+    link: Link,
+    /// Per channel, the connection number its value arrived on.
+    value_connection: Vec<Cell<u64>>,
     epoch: Instant,
 }
 
@@ -165,8 +86,8 @@ impl Client {
 
     fn run(self) {
         let mut backoff = Backoff::new(self.config.backoff);
-        let status = &self.shared.status;
-        while !self.shared.stop.load(Ordering::Acquire) {
+        let status = &self.link.status;
+        while !self.link.stop.load(Ordering::Acquire) {
             match self.connect() {
                 Ok(stream) => {
                     backoff.reset();
@@ -176,29 +97,25 @@ impl Client {
                     );
                     match self.serve(stream) {
                         End::Stopped => return,
-                        End::Lost(why) => {
-                            self.freeze_confirmations();
-                            status.set_lost(self.now_s(), why)
-                        }
+                        End::Lost(why) => status.set_lost(self.now_s(), why),
                     }
                 }
                 Err(why) => status.set_lost(self.now_s(), why),
             }
-            if !sleep_unless_stopped(backoff.next_delay(), &self.shared.stop) {
+            if !sleep_unless_stopped(backoff.next_delay(), &self.link.stop) {
                 return;
             }
         }
     }
 
-    /// At the end of a connection: the values it delivered keep, as their stamps, the last time
-    /// it confirmed them (later connections do not confirm them; stamps never go backwards).
-    fn freeze_confirmations(&self) {
-        let connection = self.shared.status.connection_number();
-        let alive = f64::from_bits(self.shared.alive_s.load(Ordering::Acquire));
-        for (k, c) in self.shared.value_connection.iter().enumerate() {
-            if c.load(Ordering::Acquire) == connection {
-                let (value, stamp) = self.shared.channels.get(k);
-                self.shared.channels.publish(k, value, stamp.max(alive));
+    /// The adapter confirmed, at `now_s`, every value of `connection`: it only re-sends changed
+    /// values, so a live connection vouches for the unchanged ones. Values of an earlier
+    /// connection keep the last stamp theirs gave them; stamps never go backwards.
+    fn confirm(&self, connection: u64, now_s: f64) {
+        for (k, c) in self.value_connection.iter().enumerate() {
+            if c.get() == connection {
+                let (value, _) = self.link.channels.get(k);
+                self.link.channels.publish(k, value, now_s);
             }
         }
     }
@@ -221,7 +138,7 @@ impl Client {
 
     /// Reads lines and keeps the heartbeat until the connection ends.
     fn serve(&self, mut stream: TcpStream) -> End {
-        let connection = self.shared.status.connection_number();
+        let connection = self.link.status.connection_number();
         let address = &self.config.address;
         let mut lines = LineBuffer::default();
         let mut chunk = [0u8; 4096];
@@ -234,7 +151,7 @@ impl Client {
         let mut skip_until: Option<String> = None;
         let mut health = Health::new(Instant::now());
         loop {
-            if self.shared.stop.load(Ordering::Acquire) {
+            if self.link.stop.load(Ordering::Acquire) {
                 return End::Stopped;
             }
             let now = Instant::now();
@@ -261,7 +178,7 @@ impl Client {
                     > u128::from(self.config.data_timeout_ms)
             {
                 health.fail(
-                    &self.shared.status,
+                    &self.link.status,
                     self.now_s(),
                     Failing::Silent,
                     format!(
@@ -292,8 +209,8 @@ impl Client {
                 match self.handle_line(bytes, connection, &mut skip_until) {
                     Line::Pong(ms) if outstanding.take().is_some() => pong = Some(ms),
                     Line::Pong(_) => health.unsolicited_pongs += 1,
-                    Line::Data => health.data(&self.shared.status, self.now_s(), address),
-                    Line::Bad(why) => health.bad(&self.shared.status, self.now_s(), address, why),
+                    Line::Data => health.data(&self.link.status, self.now_s(), address),
+                    Line::Bad(why) => health.bad(&self.link.status, self.now_s(), address, why),
                     Line::Other => {}
                 }
             });
@@ -310,9 +227,7 @@ impl Client {
             if let Some(ms) = pong {
                 // A PONG confirms the values only while the adapter also delivers data.
                 if health.failing.is_none() {
-                    self.shared
-                        .alive_s
-                        .store(self.now_s().to_bits(), Ordering::Release);
+                    self.confirm(connection, self.now_s());
                 }
                 pong_limit = Duration::from_millis(ms);
                 ping_every = Duration::from_millis(self.config.ping_ms.min(ms));
@@ -323,7 +238,7 @@ impl Client {
     /// Handles one complete line: publishes its values, reports what cannot be used.
     fn handle_line(&self, bytes: &[u8], connection: u64, skip_until: &mut Option<String>) -> Line {
         let now = self.now_s();
-        let status = &self.shared.status;
+        let status = &self.link.status;
         let address = &self.config.address;
         let Ok(text) = std::str::from_utf8(bytes) else {
             let why = format!("adapter {address}: a line is not UTF-8 text");
@@ -367,11 +282,11 @@ impl Client {
                         }
                     };
                     for &k in ks {
-                        self.shared.channels.publish(k, value, now);
-                        self.shared.value_connection[k].store(connection, Ordering::Release);
+                        self.link.channels.publish(k, value, now);
+                        self.value_connection[k].set(connection);
                     }
                 }
-                self.shared.alive_s.store(now.to_bits(), Ordering::Release);
+                self.confirm(connection, now);
                 Line::Data
             }
             Err(e) => {
