@@ -59,13 +59,15 @@ pub struct Folds {
 }
 
 impl Folds {
-    /// `blocks` contiguous blocks of `rows` (at least 2, at most one per row); with
+    /// `blocks` contiguous blocks of `rows` (at least 2, 3 with rolling origin; at most one per
+    /// row); with
     /// [`InnerCv::Rolling`] only blocks from the third on are held out, each
     /// predicted from the rows before it.
     pub fn new(rows: &[Row], blocks: usize, inner: InnerCv, gap_s: f64) -> Self {
         let n = rows.len();
-        let k = blocks.clamp(1, n.max(1));
-        let (ranges, whole_runs) = block_ranges(rows, k);
+        // Never fewer blocks than leave a fold to score (`--folds 2` with rolling origin).
+        let k = blocks.max(inner.min_blocks()).clamp(1, n.max(1));
+        let (ranges, whole_runs) = block_ranges(rows, k, inner.min_blocks());
         let mut cuts = vec![0, n];
         let mut zones = Vec::new();
         for (f, held) in ranges.iter().enumerate() {
@@ -159,17 +161,18 @@ impl Folds {
     }
 }
 
-/// `k` contiguous blocks of about equal size. With two runs or more the blocks hold whole runs
-/// (as many blocks as runs at most): a run is one thermal excursion, and a block that cut one
+/// `k` contiguous blocks of about equal size. With `min_runs` runs or more (the blocks a fold
+/// needs: two, or three for rolling origin) the blocks hold whole runs (as many blocks as runs
+/// at most): a run is one thermal excursion, and a block that cut one
 /// would be predicted from the rest of the same excursion — the inner validation then mirrors
 /// leave-one-run-out. With two runs each fold trains on the other run alone: a thinner fit, but
 /// the only one that shows whether a family carries from one run to another.
-fn block_ranges(rows: &[Row], k: usize) -> (Vec<Range<usize>>, bool) {
+fn block_ranges(rows: &[Row], k: usize, min_runs: usize) -> (Vec<Range<usize>>, bool) {
     let n = rows.len();
     let starts: Vec<usize> = (0..n)
         .filter(|&i| i == 0 || rows[i].run != rows[i - 1].run)
         .collect();
-    if starts.len() < 2 {
+    if starts.len() < min_runs {
         return ((0..k).map(|b| b * n / k..(b + 1) * n / k).collect(), false);
     }
     let k = k.min(starts.len());
@@ -306,6 +309,14 @@ mod tests {
         assert_eq!(held, vec![0..6, 6..12]);
         assert_eq!(f.training_rows(0), vec![6..12]);
         assert_eq!(f.training_rows(1), vec![0..6]);
+        // Rolling origin scores from the third block on: two runs are cut in time instead,
+        // or nothing would be scored.
+        let f = Folds::new(&rows(&[6, 6], 10.0), 4, InnerCv::Rolling, 0.0);
+        assert!(!f.whole_runs);
+        assert_eq!(f.folds.len(), 2);
+        // Two blocks asked for with rolling origin: three, so that one is scored.
+        let f = Folds::new(&rows(&[12], 1.0), 2, InnerCv::Rolling, 0.0);
+        assert_eq!(f.folds.len(), 1);
     }
 
     #[test]

@@ -22,7 +22,7 @@ use crate::position_model::{
     family_differences, fit_blocks, input_sets, structure_owned, CvOptions, Family, Fitted,
     Observation,
 };
-use crate::settings::{InnerCv, Settings, ROLLING_FIRST_HELD_OUT};
+use crate::settings::{InnerCv, Settings};
 use crate::train::{train, Trained};
 use crate::validate::{
     all_rows, per_run, predict, worse_than_uncompensated, Metrics, Predictions, Split, Validation,
@@ -230,10 +230,7 @@ pub struct Selection {
 
 /// The contiguous blocks of the inner CV over `rows`, as `train` cuts them.
 fn blocks(rows: &[(usize, usize)], folds: usize, inner: InnerCv) -> Vec<&[(usize, usize)]> {
-    let min = match inner {
-        InnerCv::Blocked => 2,
-        InnerCv::Rolling => ROLLING_FIRST_HELD_OUT + 1,
-    };
+    let min = inner.min_blocks();
     let k = folds.clamp(min, rows.len().max(min));
     (0..k)
         .map(|b| &rows[b * rows.len() / k..(b + 1) * rows.len() / k])

@@ -85,6 +85,15 @@ impl InnerCv {
         }
     }
 
+    /// The fewest blocks that leave a fold to score: two for blocked, one more than the
+    /// blocks that only train for rolling origin.
+    pub(crate) fn min_blocks(self) -> usize {
+        match self {
+            Self::Blocked => 2,
+            Self::Rolling => ROLLING_FIRST_HELD_OUT + 1,
+        }
+    }
+
     /// Whether block `f` is scored at all.
     pub(crate) fn holds_out(self, f: usize) -> bool {
         match self {
