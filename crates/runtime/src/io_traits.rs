@@ -104,13 +104,16 @@ impl SharedChannels {
         }
     }
 
-    /// The latest value and its update time.
+    /// The latest value and its update time. The stamp is read first: [`Self::publish`] stores
+    /// the value before the stamp, so a value read after a stamp is at least as new as it. A
+    /// read that overlaps a publish may pair a newer value with the older stamp — the value
+    /// looks older than it is, never fresher.
     pub fn get(&self, channel: usize) -> (f64, f64) {
         match (self.values.get(channel), self.stamps.get(channel)) {
-            (Some(v), Some(s)) => (
-                f64::from_bits(v.load(Ordering::Acquire)),
-                f64::from_bits(s.load(Ordering::Acquire)),
-            ),
+            (Some(v), Some(s)) => {
+                let stamp = f64::from_bits(s.load(Ordering::Acquire));
+                (f64::from_bits(v.load(Ordering::Acquire)), stamp)
+            }
             _ => (f64::NAN, NEVER),
         }
     }

@@ -15,9 +15,10 @@
 //!
 //! [`ShdrSource::start`] runs the client on its own thread, hosted by a
 //! [`PolledSource`](crate::sources::PolledSource), the [`Source`] the cycle reads. The stamp of a
-//! value is the last time the adapter confirmed it: when it arrived, or later when any line or
-//! `PONG` arrived on the same connection (an adapter only re-sends changed values, so a live
-//! connection confirms the unchanged ones). When the connection is lost — the socket closes, or
+//! value is the last time the adapter confirmed it: when it arrived, or later when a data line or
+//! a `PONG` arrived on the same connection — a `PONG` only while the adapter also delivers data
+//! (an adapter only re-sends changed values, so a live connection confirms the unchanged ones).
+//! When the connection is lost — the socket closes, or
 //! no `PONG` comes within the announced interval after a `PING` — the stamps stop advancing and
 //! the client reconnects with backoff ([`crate::sources`]).
 //!

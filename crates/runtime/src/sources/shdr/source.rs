@@ -27,7 +27,7 @@ pub const MAX_UNSOLICITED_PONGS: u32 = 8;
 /// An MTConnect SHDR source: [`ShdrSource::start`] gives its client thread to a
 /// [`PolledSource`], the cycle's view of the values it received. The stamp of a value is the
 /// last time the adapter confirmed it: the thread re-stamps every value of the live connection
-/// whenever a line or a `PONG` arrives on it.
+/// whenever a data line arrives on it, or a `PONG` while it is not failing.
 #[derive(Debug)]
 pub struct ShdrSource;
 
