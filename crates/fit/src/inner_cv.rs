@@ -60,9 +60,8 @@ pub struct Folds {
 
 impl Folds {
     /// `blocks` contiguous blocks of `rows` (at least 2, 3 with rolling origin; at most one per
-    /// row); with
-    /// [`InnerCv::Rolling`] only blocks from the third on are held out, each
-    /// predicted from the rows before it.
+    /// row); with [`InnerCv::Rolling`] only blocks from the third on are held out, each predicted
+    /// from the rows before it.
     pub fn new(rows: &[Row], blocks: usize, inner: InnerCv, gap_s: f64) -> Self {
         let n = rows.len();
         // Never fewer blocks than leave a fold to score (`--folds 2` with rolling origin).
@@ -163,9 +162,8 @@ impl Folds {
 
 /// `k` contiguous blocks of about equal size. With `min_runs` runs or more (the blocks a fold
 /// needs: two, or three for rolling origin) the blocks hold whole runs (as many blocks as runs
-/// at most): a run is one thermal excursion, and a block that cut one
-/// would be predicted from the rest of the same excursion — the inner validation then mirrors
-/// leave-one-run-out. With two runs each fold trains on the other run alone: a thinner fit, but
+/// at most): a run is one thermal excursion, and a block that cut one would be predicted from
+/// the rest of the same excursion — the inner validation then mirrors leave-one-run-out. With two runs each fold trains on the other run alone: a thinner fit, but
 /// the only one that shows whether a family carries from one run to another.
 fn block_ranges(rows: &[Row], k: usize, min_runs: usize) -> (Vec<Range<usize>>, bool) {
     let n = rows.len();

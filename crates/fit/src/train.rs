@@ -5,8 +5,9 @@
 //! is predicted by a model fitted on the rows outside it and outside a gap around it
 //! ([`crate::inner_cv`]): contiguous blocks keep neighbouring, nearly identical samples on the same
 //! side, which a random split would not, and the gap keeps the rows that share the block's
-//! thermal excursion out of its fit. [`InnerCv::Rolling`] is the forecaster's variant (rolling
-//! origin): each block from the third on is predicted from the rows before it only. Every
+//! thermal excursion out of its fit. [`InnerCv::Rolling`](crate::settings::InnerCv::Rolling)
+//! is the forecaster's variant (rolling origin): each block from the third on is predicted from
+//! the rows before it only. Every
 //! family's out-of-fold predictions are then combined ([`crate::selection`]).
 
 #![allow(clippy::needless_range_loop)] // index loops mirror the matrix formulas
@@ -112,7 +113,7 @@ pub struct FamilyScore {
 pub type Rows = Vec<(usize, usize)>;
 
 /// Chooses by inner CV on `rows` (training rows only; blocked or rolling origin, see
-/// [`InnerCv`]) and fits on all of them.
+/// [`InnerCv`](crate::settings::InnerCv)) and fits on all of them.
 pub fn train(
     dataset: &Dataset,
     cand: &Candidates,

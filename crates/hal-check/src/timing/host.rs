@@ -204,7 +204,7 @@ impl HostSampler {
     /// Starts sampling every `interval_ns`, watching `watched_cpu`'s steal (the CPU the cycle is
     /// bound to; all CPUs if `None`). The thread runs at normal priority on the CPUs of the
     /// calling thread (start it before binding that to the cycle's CPU: see
-    /// [`crate::pacer::keep_off_cpu`]). Fails if `/proc/stat` cannot be read.
+    /// [`truepos_hal::pacer::keep_off_cpu`]). Fails if `/proc/stat` cannot be read.
     pub fn start(interval_ns: u64, watched_cpu: Option<usize>) -> Result<Self, String> {
         let mut stat = ProcFile::open("/proc/stat").ok_or("cannot open /proc/stat")?;
         let first = stat

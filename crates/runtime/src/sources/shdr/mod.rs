@@ -18,9 +18,9 @@
 //! value is the last time the adapter confirmed it: when it arrived, or later when a data line or
 //! a `PONG` arrived on the same connection — a `PONG` only while the adapter also delivers data
 //! (an adapter only re-sends changed values, so a live connection confirms the unchanged ones).
-//! When the connection is lost — the socket closes, or
-//! no `PONG` comes within the announced interval after a `PING` — the stamps stop advancing and
-//! the client reconnects with backoff ([`crate::sources`]).
+//! When the connection is lost — the socket closes, or no `PONG` comes within the announced
+//! interval after a `PING` — the stamps stop advancing and the client reconnects with backoff
+//! ([`crate::sources`]).
 //!
 //! Limits: data items are read as `id|value` pairs, so CONDITION (six fields), MESSAGE and
 //! time-series items must be on lines of their own (as adapters usually send them); a line whose
