@@ -2,6 +2,8 @@
 //! command line and dispatches.
 
 #![forbid(unsafe_code)]
+// The argument docs are clap's `--help` text, where `<axis>_mm` is the usual placeholder.
+#![allow(rustdoc::invalid_html_tags)]
 
 use std::process::ExitCode;
 

@@ -8,7 +8,7 @@
 //!
 //! Per axis, three consecutive variables from a base (common variables #500–#999 are kept at
 //! power off): the compensation at P0 in µm, its slope in µm/m, P0 in mm — so that
-//! ΔK [µm] = K0 + slope · (P − P0) / 1000, the SINUMERIK line in units that keep the digits of
+//! `ΔK [µm] = K0 + slope · (P − P0) / 1000`, the SINUMERIK line in units that keep the digits of
 //! a macro value. Values are the compensation (−error), which the applying side adds to the
 //! position.
 

@@ -310,7 +310,7 @@ fn sources(
     })
 }
 
-/// The cycles of one table: the machine's channels found by name ([`sources`]) and converted
+/// The cycles of one table: the machine's channels found by name (`sources`) and converted
 /// to °C and mm.
 pub fn from_table(
     table: &Table,

@@ -144,7 +144,7 @@ struct Span {
 
 /// A table as read: a header row of column names and the data rows below it. The cells are
 /// stored flat, 12 bytes each (a month of 1 s logs is tens of millions of cells): a number as
-/// itself, an empty or text cell as a NaN that names it ([`Slot`]), and the character column.
+/// itself, an empty or text cell as a NaN that names it (`Slot`), and the character column.
 #[derive(Debug, Clone)]
 pub struct Table {
     /// The file it came from.

@@ -6,7 +6,7 @@
 //!
 //! - [`scenario`]: operating scenarios from TOML (spindle, axis motion, coolant, idle, ambient,
 //!   probing, sensor faults) and the built-in ISO 230-3 style tests and shifts.
-//! - [`machine`]: the reference 3-axis vertical machining centre — heat sources, the layout of
+//! - [`twin`]: the reference 3-axis vertical machining centre — heat sources, the layout of
 //!   its thermal nodes, sensor spots, and its serial kinematic chain.
 //! - [`params`]: the physical parameters and the twin description file that overrides them.
 //! - [`network`]: the lumped thermal network and its exact exponential integrator.
@@ -14,7 +14,7 @@
 //!   seed A (`R = H·L_bottom/(L_bottom − L_top)`).
 //! - [`deviation`]: small-angle homogeneous transforms chained through the axes.
 //! - [`sensor`]: first-order lag, noise, quantisation, faults.
-//! - [`run`]: the time loop, the in-memory run, its CSV and summary.
+//! - [`simulation`]: the time loop, the in-memory run, its CSV and summary.
 //!
 //! Sign: error = actual − nominal tool position relative to the workpiece, in µm.
 //!
