@@ -17,7 +17,7 @@ LINUXCNC_LOCK=/tmp/truepos-linuxcnc.lock
 
 # Removes LinuxCNC's shared-memory segments that nothing is attached to: HAL, RTAPI and UUID keys
 # (the ones LinuxCNC's own unload removes) and the sampler/streamer channels (0x4853....), which
-# a killed rtapi_app leaves behind. Only called with no rtapi_app running.
+# a killed rtapi_app leaves behind. Only called with none of LINUXCNC_PROGRAMS running.
 remove_orphan_linuxcnc_memory() {
     local key id nattch
     while read -r key id nattch; do
@@ -28,11 +28,22 @@ remove_orphan_linuxcnc_memory() {
         { print $1, $2, $6 }')
 }
 
-# Waits up to $1 s for every LinuxCNC process (rtapi_app, linuxcncsvr) to end; 1 if one is left.
+# The programs that hold LinuxCNC's shared memory: while one runs, its segments stay attached.
+LINUXCNC_PROGRAMS="rtapi_app linuxcncsvr milltask halsampler halstreamer truepos-hal"
+
+# Waits up to $1 s for every program of LINUXCNC_PROGRAMS to end; 1 (naming them) if one is left.
 linuxcnc_ended_within() {
-    local n=0
-    while pgrep -x rtapi_app >/dev/null || pgrep -x linuxcncsvr >/dev/null; do
-        [ "$n" -ge "$(($1 * 10))" ] && return 1
+    local n=0 left p
+    while :; do
+        left=""
+        for p in $LINUXCNC_PROGRAMS; do
+            pgrep -x "$p" >/dev/null && left="$left $p"
+        done
+        [ -z "$left" ] && return 0
+        if [ "$n" -ge "$(($1 * 10))" ]; then
+            echo "still running:$left"
+            return 1
+        fi
         sleep 0.1
         n=$((n + 1))
     done
@@ -54,15 +65,18 @@ run_linuxcnc_headless() {
     fi
     echo "== run LinuxCNC headless ($out)"
     local lock_fd
-    exec {lock_fd}>>"$LINUXCNC_LOCK"
-    chmod 0666 "$LINUXCNC_LOCK" 2>/dev/null || true
+    # Created writable by all, then opened read-only (enough for flock): a lock file another user
+    # created stays usable where the kernel protects files in sticky /tmp from other writers.
+    [ -e "$LINUXCNC_LOCK" ] || (umask 0 && : >>"$LINUXCNC_LOCK")
+    exec {lock_fd}<"$LINUXCNC_LOCK"
     if ! flock -w 900 "$lock_fd"; then
         echo "FAIL: another LinuxCNC test run held $LINUXCNC_LOCK for 900 s"
         exit 1
     fi
     if ! linuxcnc_ended_within 30; then
-        echo "FAIL: a LinuxCNC not started by this test is running (rtapi_app or linuxcncsvr);" \
-            "stop it first: its shared memory would collide with this run's"
+        echo "FAIL: LinuxCNC programs are still running 30 s after this run wanted to start (an" \
+            "earlier run's leftovers or a LinuxCNC of yours); stop them first: their shared" \
+            "memory would collide with this run's"
         exit 1
     fi
     remove_orphan_linuxcnc_memory
@@ -75,7 +89,7 @@ run_linuxcnc_headless() {
     for pid in $(pgrep -f "$ini" || true); do kill "$pid" 2>/dev/null || true; done
     halrun -U >/dev/null 2>&1 {lock_fd}>&- || true
     # The lock is released only once this run's processes are gone, so the next run starts clean.
-    linuxcnc_ended_within 30 || echo "warning: LinuxCNC processes still running 30 s after the run"
+    linuxcnc_ended_within 30 || echo "warning: LinuxCNC programs left 30 s after the run; the next run waits for them"
     exec {lock_fd}>&-
     grep -E "$pattern" "$out/linuxcnc.log" || true
     if [ "$status" -ne 0 ] || [ "$(cat "$result" 2>/dev/null)" != "PASS" ]; then
