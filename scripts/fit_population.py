@@ -16,6 +16,7 @@ import json
 import math
 import os
 import random
+import shlex
 import statistics
 import subprocess
 import sys
@@ -239,10 +240,11 @@ def population(size):
 # Running a case
 # ---------------------------------------------------------------------------------------------
 
-def run_case(c, binary, work, static=False):
+def run_case(c, binary, work, static=False, extra=()):
     """Simulates the case's runs and fits them; returns the table row. With `static`, also the
     static regression's test RMSE (seed A's prior art, `--family static --ridge 0`) as a
-    reference — the one fit that is not at the defaults, and not part of the bars."""
+    reference — the one fit that is not at the defaults, and not part of the bars. `extra`:
+    options added to every fit (`--fit-args`), to measure a setting that is not a default."""
     d = os.path.join(work, c["name"])
     os.makedirs(d, exist_ok=True)
     twin = os.path.join(d, "twin.toml")
@@ -262,7 +264,7 @@ def run_case(c, binary, work, static=False):
     for p in csvs:
         cmd += ["--run", p]
     cmd += ["--target", c["target"], "--inputs", ",".join(c["inputs"]), "--time", "time_s",
-            "--split", c["split"], "--json"]
+            "--split", c["split"], "--json", *extra]
     with open(os.path.join(d, "fit.cmd"), "w") as f:
         f.write(" ".join(cmd) + "\n")
     fitted = json.loads(call(cmd))
@@ -380,7 +382,11 @@ def main():
     ap.add_argument("--only", help="run only the cases whose name contains this")
     ap.add_argument("--static", action="store_true",
                     help="add the static regression's test RMSE per case (a second fit each)")
+    ap.add_argument("--fit-args", default="",
+                    help="options added to every fit, e.g. '--family static,transfer2' (the "
+                         "figures are then not those of the defaults, and the summary says so)")
     a = ap.parse_args()
+    extra = shlex.split(a.fit_args)
     t0 = time.monotonic()
     rows = []
     for c in population(a.size):
@@ -388,10 +394,12 @@ def main():
             continue
         print(f"{c['name']}: simulating {len(c['runs'])} run(s), fitting", file=sys.stderr)
         try:
-            rows.append(run_case(c, a.binary, a.work, a.static))
+            rows.append(run_case(c, a.binary, a.work, a.static, extra))
         except (RuntimeError, KeyError, IndexError, ValueError) as e:
             sys.exit(f"fit_population: case {c['name']}: {e}")
     s = summary(rows, a.size, time.monotonic() - t0)
+    if extra:
+        s["fit_args"] = a.fit_args
     print(table(rows))
     print()
     print(f"median reduction {s['median_reduction_percent']} %, median inner/test "

@@ -61,10 +61,11 @@ pub struct Args {
     /// Fix the model family, comma-separated to choose among several: seed-c (reference-sensor
     /// regression, needs --reference), static (temperature rises only), operating (+ filtered
     /// spindle speed), dynamic (+ filtered temperatures), dynamic-rates (+ rates of change),
-    /// dynamic-running, dynamic-rates-running (+ rises while the spindle runs); with a machine
-    /// file also seed A/C's: prior-art, all-axes, all-axes-squared, bed-factor,
-    /// reference-sensor, and with --difference-axis own-axis and serial. Default: chosen
-    /// automatically among all of them.
+    /// dynamic-running, dynamic-rates-running (+ rises while the spindle runs), transfer (a lag
+    /// per sensor at one identified time constant), transfer2 (two: second order; not among
+    /// the defaults); with a machine file also seed A/C's: prior-art, all-axes,
+    /// all-axes-squared, bed-factor, reference-sensor, and with --difference-axis own-axis and
+    /// serial. Default: chosen automatically among all of them but transfer2.
     #[arg(long)]
     pub(crate) family: Option<String>,
     /// Fix the ridge parameter(s), comma-separated, each 0–10¹². Default: chosen automatically.

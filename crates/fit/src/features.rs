@@ -245,11 +245,30 @@ pub enum Family {
     /// Seed C's regression: Y = Σ k_i·(t_i − t_r) + c, every selected sensor against one
     /// reference sensor (`Settings::reference`); a candidate only when a reference is given.
     SeedC,
+    /// Second-order transfer functions from every temperature to the error: the rises and their
+    /// low-passes at two time constants identified from the training data ([`crate::transfer`]).
+    /// Not among the defaults ([`Family::DEFAULT`]).
+    Transfer2,
 }
 
 impl Family {
     /// Every family, simplest first.
-    pub const ALL: [Family; 8] = [
+    pub const ALL: [Family; 9] = [
+        Family::SeedC,
+        Family::Static,
+        Family::Transfer,
+        Family::Transfer2,
+        Family::Operating,
+        Family::Dynamic,
+        Family::DynamicRates,
+        Family::DynamicRunning,
+        Family::DynamicRatesRunning,
+    ];
+
+    /// The families the selection chooses among unless told otherwise: every family but the
+    /// second-order transfer functions, which cost FL_THERMAL's ch4 its 2.5 µm bar (2.52 µm)
+    /// wherever they were measured (docs/fitting.md).
+    pub const DEFAULT: [Family; 8] = [
         Family::SeedC,
         Family::Static,
         Family::Transfer,
@@ -271,6 +290,7 @@ impl Family {
             Self::DynamicRatesRunning => "dynamic-rates-running",
             Self::SeedC => "seed-c",
             Self::Transfer => "transfer",
+            Self::Transfer2 => "transfer2",
         }
     }
 
@@ -283,10 +303,11 @@ impl Family {
     pub fn includes(self, kind: FeatureKind) -> bool {
         match kind {
             FeatureKind::Rise => true,
-            FeatureKind::Operating { .. } | FeatureKind::OperatingSquared { .. } => {
-                !matches!(self, Self::Static | Self::SeedC | Self::Transfer)
-            }
-            // The transfer family keeps only the low-pass at its identified τ (`train`).
+            FeatureKind::Operating { .. } | FeatureKind::OperatingSquared { .. } => !matches!(
+                self,
+                Self::Static | Self::SeedC | Self::Transfer | Self::Transfer2
+            ),
+            // The transfer families keep only the low-passes at their identified τ (`train`).
             FeatureKind::LowPass { .. } => {
                 !matches!(self, Self::Static | Self::SeedC | Self::Operating)
             }
@@ -378,6 +399,16 @@ mod tests {
         assert!(!Family::Static.includes(FeatureKind::Operating { tau_s: 1.0 }));
         assert!(!Family::Dynamic.includes(FeatureKind::Rate { tau_s: 1.0 }));
         assert_eq!(Family::parse("dynamic-rates"), Some(Family::DynamicRates));
+        // The defaults are every family but the second-order transfer functions.
+        let all_but: Vec<Family> = Family::ALL
+            .into_iter()
+            .filter(|&f| f != Family::Transfer2)
+            .collect();
+        assert_eq!(Family::DEFAULT.to_vec(), all_but);
+        assert!(
+            Family::Transfer2.includes(lp)
+                && !Family::Transfer2.includes(FeatureKind::Operating { tau_s: 1.0 })
+        );
         let running = FeatureKind::RiseWhileRunning { running: 1 };
         for f in Family::ALL {
             let with = matches!(f, Family::DynamicRunning | Family::DynamicRatesRunning);

@@ -18,6 +18,7 @@ use crate::features::{Candidates, Extended, Family};
 use crate::inner_cv::{decorrelation_time, Folds, Row};
 use crate::least_squares::{Accumulator, SolveOptions, Triangle};
 use crate::settings::Settings;
+use crate::transfer::TransferTaus;
 
 /// The regressors of one candidate: feature columns, each minus an optional reference column
 /// (seed C: t_i − t_r is rise_i − rise_r, the rises being taken from the same first sample).
@@ -29,8 +30,8 @@ pub(crate) struct Design {
 
 pub(crate) struct Problem<'a> {
     pub cand: &'a Candidates,
-    /// The transfer family's identified time constant (s), if it is a candidate.
-    pub transfer_tau: Option<f64>,
+    /// The transfer families' identified time constants.
+    pub transfer: TransferTaus,
     /// The fixed grid of temperature low-pass time constants the other families use.
     pub grid_taus: Vec<f64>,
     /// Per candidate feature, its mean over the training rows (the columns are centred).
@@ -57,9 +58,9 @@ impl<'a> Problem<'a> {
         source: &'a Extended<'_>,
         rows: &[(usize, usize)],
         settings: &Settings,
-        transfer_tau: Option<f64>,
+        transfer: TransferTaus,
     ) -> Result<Self, String> {
-        Self::build(dataset, source, rows, settings, transfer_tau, None)
+        Self::build(dataset, source, rows, settings, transfer, None)
     }
 
     /// One pass over the training rows fills one triangle per segment of the folds (`folds`,
@@ -70,7 +71,7 @@ impl<'a> Problem<'a> {
         source: &'a Extended<'_>,
         rows: &[(usize, usize)],
         settings: &Settings,
-        transfer_tau: Option<f64>,
+        transfer: TransferTaus,
         folds: Option<Folds>,
     ) -> Result<Self, String> {
         let cand = &source.meta;
@@ -98,7 +99,7 @@ impl<'a> Problem<'a> {
         }
         let mut p = Self {
             cand,
-            transfer_tau,
+            transfer,
             grid_taus: settings.taus.temperature_s.clone(),
             means,
             folds,
@@ -233,8 +234,8 @@ impl<'a> Problem<'a> {
                 let f = self.cand.features[j];
                 let is_temp = f.input < self.cand.spec.temperatures;
                 let tau_ok = match (f.kind, family) {
-                    (FeatureKind::LowPass { tau_s }, Family::Transfer) => {
-                        Some(tau_s) == self.transfer_tau
+                    (FeatureKind::LowPass { tau_s }, Family::Transfer | Family::Transfer2) => {
+                        self.transfer.of(family).contains(&tau_s)
                     }
                     (FeatureKind::LowPass { tau_s }, _) => self.grid_taus.contains(&tau_s),
                     _ => true,

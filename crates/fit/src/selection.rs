@@ -29,9 +29,12 @@ pub struct Member {
     pub weight: f64,
     /// Its own inner-validation RMSE (µm).
     pub cv_rmse_um: f64,
-    /// The identified time constant of the transfer family (s).
+    /// The identified time constant of the transfer family (s); τ1 of the second-order one.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub tau_s: Option<f64>,
+    /// τ2 of the second-order transfer family (s).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tau2_s: Option<f64>,
 }
 
 /// A family's candidacy for one target: (family, ridge, inner RMSE µm, held-out predictions).
@@ -192,9 +195,8 @@ pub(crate) fn select(
                 pick(&members[k], &held[k], n)
             };
             for m in &mut pick.members {
-                m.tau_s = (m.family == Family::Transfer)
-                    .then_some(p.transfer_tau)
-                    .flatten();
+                let taus = p.transfer.of(m.family);
+                (m.tau_s, m.tau2_s) = (taus.first().copied(), taus.get(1).copied());
             }
             pick
         })
@@ -211,6 +213,7 @@ fn as_given(m: &Candidate, y: &[f64], n: usize) -> Pick {
             weight: 1.0,
             cv_rmse_um: m.2,
             tau_s: None,
+            tau2_s: None,
         }],
         cv_rmse_um: m.2,
         uncompensated_um: rmse_over(y, None, n),
@@ -250,6 +253,7 @@ fn pick(members: &[Candidate], y: &[f64], n: usize) -> Pick {
                     weight: 1.0,
                     cv_rmse_um: members[s].2,
                     tau_s: None,
+            tau2_s: None,
                 }],
                 cv_rmse_um: members[s].2,
                 uncompensated_um: zero,
@@ -270,6 +274,7 @@ fn pick(members: &[Candidate], y: &[f64], n: usize) -> Pick {
             weight: wm,
             cv_rmse_um: m.2,
             tau_s: None,
+            tau2_s: None,
         })
         .collect();
     Pick {

@@ -44,7 +44,7 @@ impl Default for Settings {
     fn default() -> Self {
         Self {
             taus: TimeConstants::default(),
-            families: Family::ALL.to_vec(),
+            families: Family::DEFAULT.to_vec(),
             ridges: vec![0.0, 1e-6, 1e-5, 1e-4, 1e-3, 3e-3, 1e-2, 3e-2, 0.1, 0.3, 1.0],
             folds: 8,
             inner: InnerCv::Blocked,
