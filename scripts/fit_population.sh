@@ -5,7 +5,7 @@
 # (per case: test RMSE, uncompensated, reduction, inner-CV estimate / test, runs made worse)
 # and one JSON summary line. docs/fitting.md ("Development benchmark: the twin population").
 #
-#   bash scripts/fit_population.sh [--size ci|full] [--assert] [--static] [--only NAME] [--fit-args ARGS]
+#   bash scripts/fit_population.sh [--size ci|full] [--assert] [--static] [--only NAME] [--fit-args='ARGS']
 #
 # --size ci (default): 25 cases, shorter days (the test command runs it);
 # full: 47 cases (docs/fitting.md's table). --static adds the static regression's test RMSE per

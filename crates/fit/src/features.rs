@@ -102,7 +102,7 @@ pub fn candidates(
 }
 
 /// A candidate set with more temperature low-pass columns after an existing one's: the transfer
-/// family's identified τ joins the candidates of a fit while the caller's set, shared by every
+/// families' identified τ join the candidates of a fit while the caller's set, shared by every
 /// outer fold, stays as it is.
 pub struct Extended<'a> {
     /// The dataset the features are computed from.

@@ -253,7 +253,7 @@ fn pick(members: &[Candidate], y: &[f64], n: usize) -> Pick {
                     weight: 1.0,
                     cv_rmse_um: members[s].2,
                     tau_s: None,
-            tau2_s: None,
+                    tau2_s: None,
                 }],
                 cv_rmse_um: members[s].2,
                 uncompensated_um: zero,
