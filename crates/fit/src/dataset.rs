@@ -433,6 +433,23 @@ impl Dataset {
     }
 }
 
+/// One run of one temperature sensor `t1_c` and one target `dz_um`: the shape of the fitting
+/// crate's single-lag test cases.
+#[cfg(test)]
+pub(crate) fn one_sensor(time_s: Vec<f64>, temperature: Vec<f64>, target: Vec<f64>) -> Dataset {
+    Dataset {
+        input_names: vec!["t1_c".into()],
+        input_kinds: vec![InputKind::Temperature],
+        target_names: vec!["dz_um".into()],
+        runs: vec![Run {
+            name: "r".into(),
+            time_s,
+            inputs: vec![temperature],
+            targets: vec![target],
+        }],
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

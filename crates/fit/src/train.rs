@@ -760,17 +760,7 @@ mod tests {
             temp.push(20.0 + rise);
             y.push(2.0 * rise + if i >= 700 { 5.0 } else { 0.0 });
         }
-        let ds = Dataset {
-            input_names: vec!["t1_c".into()],
-            input_kinds: vec![InputKind::Temperature],
-            target_names: vec!["dz_um".into()],
-            runs: vec![Run {
-                name: "r".into(),
-                time_s: t,
-                inputs: vec![temp],
-                targets: vec![y],
-            }],
-        };
+        let ds = crate::dataset::one_sensor(t, temp, y);
         let cand = candidates(&ds, &TimeConstants::default()).unwrap();
         let rows: Rows = (0..n).map(|i| (0, i)).collect();
         let score = |inner| {

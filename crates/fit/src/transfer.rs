@@ -342,7 +342,6 @@ fn reduced_residual(stretches: &[Stretch<'_>], temps: &[usize], taus: &[f64]) ->
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::dataset::Run;
 
     /// A structure lagging its sensor by τ = 2400 s: the identified τ is within a few percent,
     /// from training rows that skip every other sample and leave out the run's end.
@@ -358,24 +357,14 @@ mod tests {
             temp.push(temp_now);
             y.push(1.5 * lag - 0.3 * (temp_now - 20.0));
         }
-        let ds = Dataset {
-            input_names: vec!["t1_c".into()],
-            input_kinds: vec![InputKind::Temperature],
-            target_names: vec!["dz_um".into()],
-            runs: vec![Run {
-                name: "r".into(),
-                time_s: t,
-                inputs: vec![temp],
-                targets: vec![y],
-            }],
-        };
+        let ds = crate::dataset::one_sensor(t, temp, y);
         let rows: Vec<(usize, usize)> = (0..2400).step_by(2).map(|i| (0, i)).collect();
         let tau = identify_tau(&ds, &rows, false).unwrap();
         assert!((tau - 2400.0).abs() < 0.05 * 2400.0, "{tau}");
     }
 
     /// A structure with two parts lagging the sensor by 1200 s and 9000 s: both time constants
-    /// are found within a few percent, and the first-order family's one τ lies between them.
+    /// are found within a few percent.
     #[test]
     fn the_time_constants_of_two_lags_are_found() {
         let (mut t, mut temp, mut y) = (vec![], vec![], vec![]);
@@ -389,17 +378,7 @@ mod tests {
             temp.push(20.0 + rise);
             y.push(2.0 * fast - 1.2 * slow + 0.2 * rise);
         }
-        let ds = Dataset {
-            input_names: vec!["t1_c".into()],
-            input_kinds: vec![InputKind::Temperature],
-            target_names: vec!["dz_um".into()],
-            runs: vec![Run {
-                name: "r".into(),
-                time_s: t,
-                inputs: vec![temp],
-                targets: vec![y],
-            }],
-        };
+        let ds = crate::dataset::one_sensor(t, temp, y);
         let rows: Vec<(usize, usize)> = (0..3600).map(|i| (0, i)).collect();
         let (a, b) = identify_tau_pair(&ds, &rows, false).unwrap();
         assert!((a - 1200.0).abs() < 0.05 * 1200.0, "{a}");
