@@ -229,13 +229,14 @@ impl<'a> Problem<'a> {
             Family::SeedC => Some(rise(reference?)?),
             _ => None,
         };
+        let transfer_taus = self.transfer.of(family);
         let cols: Vec<usize> = (0..self.cand.features.len())
             .filter(|&j| {
                 let f = self.cand.features[j];
                 let is_temp = f.input < self.cand.spec.temperatures;
                 let tau_ok = match (f.kind, family) {
                     (FeatureKind::LowPass { tau_s }, Family::Transfer | Family::Transfer2) => {
-                        self.transfer.of(family).contains(&tau_s)
+                        transfer_taus.contains(&tau_s)
                     }
                     (FeatureKind::LowPass { tau_s }, _) => self.grid_taus.contains(&tau_s),
                     _ => true,
