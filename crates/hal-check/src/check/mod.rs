@@ -153,7 +153,17 @@ pub fn check(
         &mut report,
     );
     judge(machine, limits, config, &mut report);
-    if models.iter().any(|m| m.model.keeps_state()) && report.dynamic_compared == 0 {
+    let keeps_state = models.iter().any(|m| m.model.keeps_state());
+    if keeps_state && samples.first().is_some_and(|s| !s.active()) {
+        report.failures.push(format!(
+            "the recording starts before the component compensated (truepos.status {} in its \
+             first cycle): the replay of a fitted dynamic model starts there, from temperatures \
+             the component may never have read (an unconnected pin reads 0.0); start the \
+             samplers once truepos.status is active",
+            samples[0].status
+        ));
+    }
+    if keeps_state && report.dynamic_compared == 0 {
         report.failures.push(
             "the set holds a fitted dynamic model, but no settled, active cycle used it: the \
              run did not check it"

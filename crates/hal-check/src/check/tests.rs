@@ -520,4 +520,16 @@ fn a_fitted_dynamic_model_is_stepped_through_the_recording() {
         "{:?}",
         unused.failures
     );
+    // A recording that starts before the component compensated (the samplers enabled at load,
+    // the temperature pins still unconnected) cannot anchor the replay: it fails, naming why.
+    let mut early = warming(0.0);
+    early[0].status = 0;
+    let r = check(&machine, &models, &limits(50.0), &early, &config);
+    assert!(
+        r.failures
+            .iter()
+            .any(|f| f.contains("starts before the component compensated")),
+        "{:?}",
+        r.failures
+    );
 }
