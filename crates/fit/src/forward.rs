@@ -12,7 +12,6 @@
 //! estimate is measured the same way.
 
 use crate::features::Family;
-use crate::least_squares::SolveOptions;
 use crate::problem::Problem;
 use crate::selection::Pick;
 
@@ -54,11 +53,7 @@ pub(crate) fn evaluate(
                 Some(at) => at,
                 None => {
                     let design = p.design(m.family, sensors, reference)?;
-                    let opts = SolveOptions {
-                        ridge: m.ridge,
-                        unpenalized: vec![0],
-                        rcond: None,
-                    };
+                    let opts = design.solve_options(m.ridge);
                     let per_fold = past
                         .iter()
                         .map(|t| match p.design_on(t, &design).solve(&opts) {

@@ -312,6 +312,26 @@ pub struct Triangle {
     r: Mat<f64>,
 }
 
+/// Each column's norm in the triangle and the factor that scales it for the ridge: 1/norm, or
+/// for a column of a `shared_scale` group 1/(the group's root mean square norm).
+fn column_scales(r: MatRef<'_, f64>, n: usize, groups: &[Vec<usize>]) -> (Vec<f64>, Vec<f64>) {
+    let norms: Vec<f64> = (0..n).map(|j| r.get(..j + 1, j).norm_l2()).collect();
+    let mut scale: Vec<f64> = norms
+        .iter()
+        .map(|&v| if v > 0.0 { 1.0 / v } else { 1.0 })
+        .collect();
+    for group in groups {
+        let cols: Vec<usize> = group.iter().copied().filter(|&j| j < n).collect();
+        let ms = cols.iter().map(|&j| norms[j] * norms[j]).sum::<f64>() / cols.len().max(1) as f64;
+        if ms > 0.0 {
+            for j in cols {
+                scale[j] = 1.0 / ms.sqrt();
+            }
+        }
+    }
+    (norms, scale)
+}
+
 /// How to solve.
 #[derive(Debug, Clone, Default)]
 pub struct SolveOptions {
@@ -320,6 +340,12 @@ pub struct SolveOptions {
     pub ridge: f64,
     /// Columns exempt from the ridge penalty (the intercept).
     pub unpenalized: Vec<usize>,
+    /// Groups of columns in one physical unit that share one scale, the root mean square of
+    /// their norms, instead of each its own: the penalty is then on the coefficients in that
+    /// unit alike (µm/K for every temperature), so a column that barely varied in the data
+    /// cannot earn a large coefficient from a small share of the variance. Columns in no group
+    /// keep their own norm.
+    pub shared_scale: Vec<Vec<usize>>,
     /// Singular values below `rcond · s_max` count as zero; `None` = ε·max(rows, columns), the
     /// default of LAPACK's `gelsd` as numpy uses it.
     pub rcond: Option<f64>,
@@ -447,19 +473,17 @@ impl Triangle {
     /// [`solve`](Self::solve) does by stacking √λ·I under T; at λ = 0 the singular values below
     /// its rank threshold are dropped as there. For scoring ridge candidates, where one SVD
     /// instead of one per candidate is most of the time; the fit itself uses `solve`.
-    pub fn ridge_path(&self, ridges: &[f64]) -> Result<Vec<Vec<f64>>, SolveError> {
+    pub fn ridge_path(
+        &self,
+        ridges: &[f64],
+        shared_scale: &[Vec<usize>],
+    ) -> Result<Vec<Vec<f64>>, SolveError> {
         let n = self.n;
         if n == 0 || self.rows == 0 || self.k == 0 {
             return Err(SolveError::Empty);
         }
         let r = self.r.as_ref();
-        let mut scale = vec![1.0; n];
-        for (j, d) in scale.iter_mut().enumerate() {
-            let norm = r.get(..j + 1, j).norm_l2();
-            if norm > 0.0 {
-                *d = 1.0 / norm;
-            }
-        }
+        let (_, scale) = column_scales(r, n, shared_scale);
         let mut t = Mat::<f64>::zeros(n, n);
         for j in 0..n {
             for i in 0..=j {
@@ -505,14 +529,7 @@ impl Triangle {
             return Err(SolveError::Empty);
         }
         let r = self.r.as_ref();
-        let mut norms = vec![0.0; n];
-        let mut scale = vec![1.0; n];
-        for j in 0..n {
-            norms[j] = r.get(..j + 1, j).norm_l2();
-            if norms[j] > 0.0 {
-                scale[j] = 1.0 / norms[j];
-            }
-        }
+        let (norms, scale) = column_scales(r, n, &options.shared_scale);
         // T = R·D (upper triangle), C = Qᵀ·B (top n rows).
         let mut t = Mat::<f64>::zeros(n, n);
         for j in 0..n {
@@ -704,7 +721,7 @@ mod tests {
         }
         let tri = acc.finish();
         let ridges = [0.0, 1e-8, 1e-4, 1e-2, 1.0];
-        let path = tri.ridge_path(&ridges).unwrap();
+        let path = tri.ridge_path(&ridges, &[]).unwrap();
         for (r, &ridge) in ridges.iter().enumerate() {
             let one = &tri
                 .solve(&SolveOptions {
@@ -718,6 +735,47 @@ mod tests {
                 let p = |x: &[f64]| a.iter().zip(x).map(|(a, x)| a * x).sum::<f64>();
                 assert!((p(&path[r]) - p(one)).abs() < 1e-6, "λ = {ridge}");
             }
+        }
+    }
+
+    /// Two regressors in one unit, one varying ten times less than the other, y = x1 + x2:
+    /// with each column's own scale the ridge shrinks both coefficients alike (by their share
+    /// of the variance, not their unit); with a shared scale (one unit, one penalty per unit of coefficient) the quiet column's
+    /// coefficient is shrunk far more, as its share of the variance is small. The ridge path
+    /// agrees with the solve under the shared scale too.
+    #[test]
+    fn a_shared_scale_shrinks_a_quiet_column_more() {
+        let rows: Vec<(Vec<f64>, f64)> = (0..40)
+            .map(|i| {
+                let t = i as f64;
+                let x1 = (t * 0.37).sin() * 10.0;
+                let x2 = (t * 0.91).cos();
+                (vec![1.0, x1, x2], x1 + x2)
+            })
+            .collect();
+        let options = |shared_scale: Vec<Vec<usize>>| SolveOptions {
+            ridge: 0.3,
+            unpenalized: vec![0],
+            rcond: None,
+            shared_scale,
+        };
+        let own = fit(&rows, &options(Vec::new())).coefficients[0].clone();
+        let shared = fit(&rows, &options(vec![vec![1, 2]])).coefficients[0].clone();
+        assert!(shared[2] < 0.5 * own[2], "{shared:?} against {own:?}");
+        assert!(shared[1] > own[1], "{shared:?} against {own:?}");
+        let mut acc = Accumulator::new(3, 1);
+        for (a, b) in &rows {
+            acc.push_row(a, &[*b], 1.0).unwrap();
+        }
+        // The path penalises every column, the intercept too.
+        let path = acc.finish().ridge_path(&[0.3], &[vec![1, 2]]).unwrap();
+        let every = SolveOptions {
+            unpenalized: Vec::new(),
+            ..options(vec![vec![1, 2]])
+        };
+        let one = fit(&rows, &every).coefficients[0].clone();
+        for (p, s) in path[0].iter().zip(&one) {
+            assert!((p - s).abs() < 1e-9, "{:?} against {one:?}", path[0]);
         }
     }
 

@@ -434,6 +434,7 @@ fn fit_rows(
         ridge,
         unpenalized: Vec::new(),
         rcond: None,
+        shared_scale: Vec::new(),
     };
     let ridges = options.ridges;
     // Per ridge: squared errors per held-out block.
@@ -455,7 +456,7 @@ fn fit_rows(
             continue;
         }
         held.push(block.len());
-        let path = train.finish().ridge_path(ridges);
+        let path = train.finish().ridge_path(ridges, &[]);
         for r in 0..ridges.len() {
             let sum = match &path {
                 Ok(thetas) => block

@@ -26,6 +26,40 @@ use crate::transfer::TransferTaus;
 pub(crate) struct Design {
     pub cols: Vec<usize>,
     pub minus: Option<usize>,
+    /// The design's columns (intercept 0) that share one ridge scale: every temperature term in
+    /// kelvin (rises, their low-passes, rises while running), and every rate in K/s.
+    pub shared_scale: Vec<Vec<usize>>,
+}
+
+impl Design {
+    /// How to solve the design at `ridge`: the intercept unpenalised, the ridge on the
+    /// coefficients per unit (see [`SolveOptions::shared_scale`]).
+    pub fn solve_options(&self, ridge: f64) -> SolveOptions {
+        SolveOptions {
+            ridge,
+            unpenalized: vec![0],
+            rcond: None,
+            shared_scale: self.shared_scale.clone(),
+        }
+    }
+}
+
+/// The shared-scale groups of a design's columns `cols` (see [`Design::shared_scale`]).
+fn unit_groups(cand: &Candidates, cols: &[usize]) -> Vec<Vec<usize>> {
+    let group = |kelvin: bool| -> Vec<usize> {
+        cols.iter()
+            .enumerate()
+            .filter(|&(_, &c)| match cand.features[c].kind {
+                FeatureKind::Rise
+                | FeatureKind::LowPass { .. }
+                | FeatureKind::RiseWhileRunning { .. } => kelvin,
+                FeatureKind::Rate { .. } => !kelvin,
+                FeatureKind::Operating { .. } | FeatureKind::OperatingSquared { .. } => false,
+            })
+            .map(|(j, _)| 1 + j)
+            .collect()
+    };
+    vec![group(true), group(false)]
 }
 
 pub(crate) struct Problem<'a> {
@@ -247,7 +281,12 @@ impl<'a> Problem<'a> {
                     && Some(j) != minus
             })
             .collect();
-        (!cols.is_empty()).then_some(Design { cols, minus })
+        let shared_scale = unit_groups(self.cand, &cols);
+        (!cols.is_empty()).then_some(Design {
+            cols,
+            minus,
+            shared_scale,
+        })
     }
 }
 
@@ -327,6 +366,7 @@ fn static_residuals(
             ridge: 1e-3,
             unpenalized: vec![0],
             rcond: None,
+            shared_scale: vec![(1..=cols.len()).collect()],
         })
         .ok()?;
     Some(

@@ -5,7 +5,7 @@
 //! better than it ([`CLEARLY_BETTER`]); each fallback is a warning naming the figures.
 
 use crate::features::Family;
-use crate::least_squares::{SolveOptions, Triangle};
+use crate::least_squares::Triangle;
 use crate::problem::{Design, Problem};
 use crate::settings::{Rule, Settings};
 use crate::stacking;
@@ -67,11 +67,7 @@ impl FamilyCv {
     /// Target `k`'s held-out predictions at `ridge`, in the held triangles' coordinates
     /// ([`Problem::held_prediction`], folds concatenated).
     fn predictions(&self, p: &Problem<'_>, d: &Design, k: usize, ridge: f64) -> Vec<f64> {
-        let opts = SolveOptions {
-            ridge,
-            unpenalized: vec![0],
-            rcond: None,
-        };
+        let opts = d.solve_options(ridge);
         let mut out = Vec::with_capacity(p.folds.folds.len() * p.held_width());
         for (f, tri) in self.tris.iter().enumerate() {
             match tri.solve(&opts) {
@@ -94,12 +90,7 @@ pub(crate) fn cv(p: &Problem<'_>, d: &Design, ridges: &[f64]) -> FamilyCv {
     for f in 0..folds.folds.len() {
         let tri = p.design_triangle(d, Some(f));
         for (ri, &ridge) in ridges.iter().enumerate() {
-            let opts = SolveOptions {
-                ridge,
-                unpenalized: vec![0],
-                rcond: None,
-            };
-            let sol = tri.solve(&opts).ok();
+            let sol = tri.solve(&d.solve_options(ridge)).ok();
             for (k, per_fold) in sse[ri].iter_mut().enumerate() {
                 per_fold[f] = match &sol {
                     Some(sol) => p.held_sse(f, d, &sol.coefficients[k], k),
@@ -303,11 +294,7 @@ pub(crate) fn fit_all(
     ridge: f64,
 ) -> Result<crate::least_squares::Solution, String> {
     p.design_triangle(d, None)
-        .solve(&SolveOptions {
-            ridge,
-            unpenalized: vec![0],
-            rcond: None,
-        })
+        .solve(&d.solve_options(ridge))
         .map_err(|e| e.to_string())
 }
 

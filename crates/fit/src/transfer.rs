@@ -331,6 +331,8 @@ fn reduced_residual(stretches: &[Stretch<'_>], temps: &[usize], taus: &[f64]) ->
         ridge: RIDGE,
         unpenalized: vec![0],
         rcond: None,
+        // Every column is in kelvin, as in the fit the identified τ serves.
+        shared_scale: vec![(1..=width * temps.len()).collect()],
     }) else {
         return f64::INFINITY;
     };
