@@ -8,7 +8,7 @@
 //! on every core ([`Accumulator::from_matrix`]) and their R factors merge by one more QR.
 //!
 //! [`Triangle::solve`] then scales the columns of A to unit norm (column norms of A are the column
-//! norms of R), optionally stacks √λ·I under it (ridge), and solves through the singular value
+//! norms of R) — or, for a [`SolveOptions::shared_scale`] group, by the group's RMS norm —, optionally stacks √λ·I under it (ridge), and solves through the singular value
 //! decomposition of the small n × n triangle: singular values below `rcond · s_max` are dropped,
 //! giving the minimum-norm solution, and each dropped direction is reported with the columns that
 //! span it (the culprits of the rank deficiency).
@@ -335,8 +335,9 @@ fn column_scales(r: MatRef<'_, f64>, n: usize, groups: &[Vec<usize>]) -> (Vec<f6
 /// How to solve.
 #[derive(Debug, Clone, Default)]
 pub struct SolveOptions {
-    /// Ridge parameter λ ≥ 0 on unit-norm columns: minimises ‖A·x − b‖² + λ·Σ_j (‖A_j‖·x_j)²,
-    /// so λ is relative to the data's own sum of squares and independent of units.
+    /// Ridge parameter λ ≥ 0 on scaled columns: minimises ‖A·x − b‖² + λ·Σ_j (s_j·x_j)², s_j
+    /// the norm ‖A_j‖ or, in a `shared_scale` group, the group's RMS norm, so λ is relative to
+    /// the data's own sum of squares and independent of units.
     pub ridge: f64,
     /// Columns exempt from the ridge penalty (the intercept).
     pub unpenalized: Vec<usize>,
@@ -739,10 +740,10 @@ mod tests {
     }
 
     /// Two regressors in one unit, one varying ten times less than the other, y = x1 + x2:
-    /// with each column's own scale the ridge shrinks both coefficients alike (by their share
-    /// of the variance, not their unit); with a shared scale (one unit, one penalty per unit of coefficient) the quiet column's
-    /// coefficient is shrunk far more, as its share of the variance is small. The ridge path
-    /// agrees with the solve under the shared scale too.
+    /// with each column's own scale the ridge shrinks both coefficients alike; with a shared
+    /// scale (one penalty per unit of coefficient) the quiet column's coefficient is shrunk far
+    /// more, as its share of the variance is small. The ridge path agrees with the solve under
+    /// the shared scale too.
     #[test]
     fn a_shared_scale_shrinks_a_quiet_column_more() {
         let rows: Vec<(Vec<f64>, f64)> = (0..40)

@@ -16,7 +16,8 @@ pub struct Settings {
     pub taus: TimeConstants,
     /// Candidate families.
     pub families: Vec<Family>,
-    /// Candidate ridge parameters (relative, on unit-norm columns).
+    /// Candidate ridge parameters (relative, on scaled columns: unit norm, or one scale per unit,
+    /// `SolveOptions::shared_scale`).
     pub ridges: Vec<f64>,
     /// Blocks of the inner cross-validation.
     pub folds: usize,

@@ -30,7 +30,9 @@ use crate::settings::Settings;
 /// The range searched (s): 5 min to 8 h, the span of machine-tool thermal time constants.
 pub const TAU_RANGE_S: (f64, f64) = (300.0, 8.0 * 3600.0);
 
-/// Ridge of the reduced problem: a whisper, only so that collinear sensors stay solvable.
+/// Ridge of the reduced problem: a whisper, only so that collinear sensors stay solvable (on the
+/// kelvin columns' shared scale, as in the fit: a sensor a thousand times quieter than the others
+/// would be shrunk by about half here).
 const RIDGE: f64 = 1e-6;
 
 /// Training rows the reduced residual is summed over at most: one τ is a smooth function of

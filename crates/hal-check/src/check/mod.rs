@@ -156,10 +156,10 @@ pub fn check(
     let keeps_state = models.iter().any(|m| m.model.keeps_state());
     if keeps_state && samples.first().is_some_and(|s| !s.active()) {
         report.failures.push(format!(
-            "the recording starts before the component compensated (truepos.status {} in its \
-             first cycle): the replay of a fitted dynamic model starts there, from temperatures \
-             the component may never have read (an unconnected pin reads 0.0); start the \
-             samplers once truepos.status is active",
+            "the recording starts in a cycle that is not active (truepos.status {}): the \
+             replay of a fitted dynamic model starts there, from temperatures the component may \
+             never have read (an unconnected pin reads 0.0); start the samplers once \
+             truepos.status is active",
             samples[0].status
         ));
     }

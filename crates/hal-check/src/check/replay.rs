@@ -8,9 +8,10 @@
 //! the replay starts them at the first recorded cycle. The two agree when the model's inputs held
 //! still between the component's start and the recording's (the end-to-end test's temperatures
 //! do: the samplers start once the component is active, and the twin plays only after that),
-//! because every filter then sits at its input and every rise is zero. A recording whose first
-//! cycle is not active fails the check: it may hold pins not yet connected (0.0, a valid
-//! ambient temperature), from which the replay would take its reference. Like the component's validator, the replay steps no model on a
+//! because every filter then sits at its input and every rise is zero. When the set holds a
+//! fitted dynamic model, a recording whose first cycle is not active fails the check: it may
+//! hold pins not yet connected (0.0, a valid ambient temperature), from which the replay would
+//! take its reference. Like the component's validator, the replay steps no model on a
 //! temperature outside its channel's valid range or not finite (the filters wait, the cycle has
 //! no value); the validator's rate, staleness and stuck checks are not replayed, so a dynamic
 //! model under test must read sensors the test does not fault that way.

@@ -528,7 +528,7 @@ fn a_fitted_dynamic_model_is_stepped_through_the_recording() {
     assert!(
         r.failures
             .iter()
-            .any(|f| f.contains("starts before the component compensated")),
+            .any(|f| f.contains("starts in a cycle that is not active")),
         "{:?}",
         r.failures
     );
