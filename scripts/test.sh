@@ -57,5 +57,5 @@ echo "== FL_THERMAL benchmark, rolling-origin selection (docs/fitting.md: why it
 bash scripts/fl_thermal_bench.sh --inner-cv rolling
 echo "== twin population: issue 14's development benchmark at the ci size, its bars asserted"
 echo "   (median reduction >= 85 %, no run made worse, median inner/test within 1.5; the full size"
-echo "   still has 2 of 76 runs made worse: docs/fitting.md)"
+echo "   meets them too: docs/fitting.md)"
 bash scripts/fit_population.sh --size ci --assert

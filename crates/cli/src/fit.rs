@@ -65,7 +65,7 @@ pub struct Args {
     /// per sensor at one identified time constant), transfer2 (two: second order; not among
     /// the defaults); with a machine file also seed A/C's: prior-art, all-axes,
     /// all-axes-squared, bed-factor, reference-sensor, and with --difference-axis own-axis and
-    /// serial. Default: chosen automatically among all of them but transfer2.
+    /// serial. Default: chosen automatically among all of them but static and transfer2.
     #[arg(long)]
     pub(crate) family: Option<String>,
     /// Fix the ridge parameter(s), comma-separated, each 0–10¹². Default: chosen automatically.

@@ -85,7 +85,8 @@ fn a_model_fitted_through_the_cli_reaches_the_demo_figures_on_another_day() {
         String::from_utf8_lossy(&out.stderr)
     );
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
-    // Every family was a candidate, each with its inner figure per target.
+    // Every default family was a candidate (static is not a default), each with its inner
+    // figure per target.
     let cands = v["selection"]["candidates"].as_array().unwrap();
     let has = |form: &str, family: &str| {
         cands.iter().any(|c| {
@@ -94,9 +95,10 @@ fn a_model_fitted_through_the_cli_reaches_the_demo_figures_on_another_day() {
                 && c["targets"].as_array().unwrap().len() == 3
         })
     };
-    for f in ["static", "dynamic", "dynamic-rates-running"] {
+    for f in ["transfer", "dynamic", "dynamic-rates-running"] {
         assert!(has("dynamic", f), "{f}: {v}");
     }
+    assert!(!has("dynamic", "static"), "{v}");
     for f in [
         "prior-art",
         "all-axes",

@@ -1,7 +1,8 @@
 //! The automatic selection of one target's model: every family scored by the gap-separated inner
 //! validation ([`crate::inner_cv`]), its ridge chosen within the family, the families combined
 //! by their out-of-fold predictions ([`crate::stacking`]), and a guard: no compensation when the
-//! blend is not clearly better than none, the static model alone when the blend is not clearly
+//! blend is not clearly better than none, and — when the static family is among the candidates
+//! (named with `--family`; not a default) — the static model alone when the blend is not clearly
 //! better than it ([`CLEARLY_BETTER`]); each fallback is a warning naming the figures.
 
 use crate::features::Family;
