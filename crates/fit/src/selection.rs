@@ -12,7 +12,8 @@ use crate::settings::{Rule, Settings};
 use crate::stacking;
 use crate::train::FamilyScore;
 
-/// A blend must beat "no compensation", and the static model, by this factor in the inner
+/// A blend must beat "no compensation" — and, when the static family is a candidate (named
+/// with `--family`; not a default), the static model — by this factor in the inner
 /// validation (RMSE ratio) to be written: a model that removes less than a tenth of the error
 /// is not worth an axis' risk, a dynamic blend that is not a tenth better than the static model
 /// does not earn the extrapolation risk of its filters, and the inner estimate itself (its
