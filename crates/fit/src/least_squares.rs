@@ -8,10 +8,11 @@
 //! on every core ([`Accumulator::from_matrix`]) and their R factors merge by one more QR.
 //!
 //! [`Triangle::solve`] then scales the columns of A to unit norm (column norms of A are the column
-//! norms of R) — or, for a [`SolveOptions::shared_scale`] group, by the group's RMS norm —, optionally stacks √λ·I under it (ridge), and solves through the singular value
-//! decomposition of the small n × n triangle: singular values below `rcond · s_max` are dropped,
-//! giving the minimum-norm solution, and each dropped direction is reported with the columns that
-//! span it (the culprits of the rank deficiency).
+//! norms of R) — or, for a [`SolveOptions::shared_scale`] group, by the group's RMS norm —,
+//! optionally stacks √λ·I under it (ridge), and solves through the singular value decomposition
+//! of the small n × n triangle: singular values below `rcond · s_max` are dropped, giving the
+//! minimum-norm solution, and each dropped direction is reported with the columns that span it
+//! (the culprits of the rank deficiency).
 //!
 //! Weights: a row with weight w enters as √w·[a | b], so the fit minimises Σ w·(a·x − b)².
 

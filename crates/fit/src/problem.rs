@@ -46,20 +46,22 @@ impl Design {
 
 /// The shared-scale groups of a design's columns `cols` (see [`Design::shared_scale`]).
 fn unit_groups(cand: &Candidates, cols: &[usize]) -> Vec<Vec<usize>> {
-    let group = |kelvin: bool| -> Vec<usize> {
-        cols.iter()
-            .enumerate()
-            .filter(|&(_, &c)| match cand.features[c].kind {
-                FeatureKind::Rise
-                | FeatureKind::LowPass { .. }
-                | FeatureKind::RiseWhileRunning { .. } => kelvin,
-                FeatureKind::Rate { .. } => !kelvin,
-                FeatureKind::Operating { .. } | FeatureKind::OperatingSquared { .. } => false,
-            })
-            .map(|(j, _)| 1 + j)
-            .collect()
+    // 0: kelvin, 1: kelvin per second; an operating input's unit is its own.
+    let unit = |kind: FeatureKind| match kind {
+        FeatureKind::Rise | FeatureKind::LowPass { .. } | FeatureKind::RiseWhileRunning { .. } => {
+            Some(0)
+        }
+        FeatureKind::Rate { .. } => Some(1),
+        FeatureKind::Operating { .. } | FeatureKind::OperatingSquared { .. } => None,
     };
-    vec![group(true), group(false)]
+    (0..2)
+        .map(|u| {
+            (0..cols.len())
+                .filter(|&j| unit(cand.features[cols[j]].kind) == Some(u))
+                .map(|j| 1 + j)
+                .collect()
+        })
+        .collect()
 }
 
 pub(crate) struct Problem<'a> {
