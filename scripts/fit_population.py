@@ -305,8 +305,9 @@ def figures(fitted):
                           "uncompensated_rmse_um": round(t[KEYS["uncompensated"]], 3)})
     families = []
     for fold in v[KEYS["choices"]]:
-        if fold[0][KEYS["family"]] not in families:
-            families.append(fold[0][KEYS["family"]])
+        family = fold[0][KEYS["family"]] or "no compensation"  # null: an empty blend
+        if family not in families:
+            families.append(family)
     test = m[KEYS["rmse"]]
     # A figure that is not a finite number, or a reduction that does not follow from the two
     # RMSEs, means the fit's output changed shape: stop rather than print a wrong table.

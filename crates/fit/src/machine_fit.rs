@@ -438,11 +438,7 @@ pub fn select(
             (Chosen::Static(s), labels, cv, warnings)
         }
         (_, Some(t), _) => {
-            let labels = t
-                .choices
-                .iter()
-                .map(|c| format!("{} λ={:e}", c.family.name(), c.ridge))
-                .collect();
+            let labels = t.choices.iter().map(|c| c.describe()).collect();
             let cv = t.choices.iter().map(|c| c.cv_rmse_um).collect();
             let warnings = t.warnings.clone();
             (Chosen::Dynamic(t), labels, cv, warnings)

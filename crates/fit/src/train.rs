@@ -26,9 +26,9 @@ use crate::transfer::TransferTaus;
 pub struct Choice {
     /// Target name.
     pub target: String,
-    /// Family.
-    pub family: Family,
-    /// Ridge parameter.
+    /// The heaviest member's family; `None` when no compensation was chosen (empty blend).
+    pub family: Option<Family>,
+    /// The heaviest member's ridge parameter (0 with no compensation).
     pub ridge: f64,
     /// Inner estimate of the choice's error (µm): the blend as chosen, evaluated forward in
     /// time — each late inner block predicted by the members refitted on the rows before it,
@@ -352,7 +352,7 @@ fn blend(
             .copied();
         choices.push(Choice {
             target: dataset.target_names[k].clone(),
-            family: head.map_or(Family::Static, |m| m.family),
+            family: head.map(|m| m.family),
             ridge: head.map_or(0.0, |m| m.ridge),
             cv_rmse_um: pick.cv_rmse_um,
             blend: pick.members.clone(),
@@ -673,7 +673,7 @@ mod tests {
         let cand = candidates(&ds, &settings.taus).unwrap();
         let rows: Rows = (0..n).map(|i| (0, i)).collect();
         let trained = train(&ds, &cand, &rows, &settings).unwrap();
-        assert_eq!(trained.choices[0].family, Family::SeedC);
+        assert_eq!(trained.choices[0].family, Some(Family::SeedC));
         let m = &trained.model;
         let names: Vec<String> = m
             .bank()
@@ -699,7 +699,8 @@ mod tests {
 
     /// Three runs whose errors contradict each other (c moves −1 µm/K where a and b move
     /// +2): whole runs held out in the inner validation show that no family predicts a run from
-    /// the others, and the automatic selection writes no compensation, saying why; the same
+    /// the others, and the automatic selection writes no compensation, saying why (and names no
+    /// family for it: `family` is null in `--json`); the same
     /// data with the static family named alone is fitted as asked.
     #[test]
     fn contradicting_runs_get_no_compensation_from_the_automatic_selection() {
@@ -711,6 +712,11 @@ mod tests {
         let trained = train(&ds, &cand, &rows, &Settings::default()).unwrap();
         let c = &trained.choices[0];
         assert!(c.blend.is_empty(), "{c:?}");
+        assert_eq!((c.family, c.label().as_str()), (None, "no compensation"));
+        assert_eq!(
+            serde_json::to_value(c).unwrap()["family"],
+            serde_json::Value::Null
+        );
         assert!(c
             .fallback
             .as_deref()
