@@ -26,7 +26,7 @@ for m, c in zip(v["metrics"], v["choices"][-1]):
         "uncompensated_rmse_um": round(m["uncompensated_rmse_um"], 3),
         "reduction_percent": round(m["rmse_reduction_percent"], 1),
         "static_regression_reference_um": static.get(m["target"]),
-        "chosen": {"family": c["family"], "ridge": c["ridge"], "cv_rmse_um": round(c["cv_rmse_um"], 3)},
+        "chosen": {"family": c["family"] or "no compensation", "ridge": c["ridge"], "cv_rmse_um": round(c["cv_rmse_um"], 3)},
     }
 worst = max(ch["test_rmse_um"] for ch in channels.values())
 print(json.dumps({

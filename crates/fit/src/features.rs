@@ -23,10 +23,11 @@ pub struct TimeConstants {
 impl Default for TimeConstants {
     /// Spindle heat reaches a structure over minutes to hours; thermal time constants of machine
     /// tool structures are typically 0.5 … 4 h, and a large casting keeps its heat for longer
-    /// (the displacement outlasts the sensors' cooling overnight). The operating grid spans
-    /// 5 min … 4 h, one point per factor of two to three, so that a sum of first-order lags can
-    /// approximate the real response; the temperatures, which already carry the structure's own
-    /// lag, get a fast, a medium and a slow lag up to the transfer family's longest τ (8 h).
+    /// (FL_THERMAL: the displacement outlasted the sensors' cooling during a 4 h stop). The
+    /// operating grid spans 5 min … 4 h, one point per factor of two to three, so that a sum of
+    /// first-order lags can approximate the real response; the temperatures, which already carry
+    /// the structure's own lag, get a fast, a medium and a slow lag up to the transfer family's
+    /// longest τ (8 h).
     fn default() -> Self {
         Self {
             temperature_s: vec![900.0, 3600.0, 28800.0],

@@ -4,7 +4,7 @@
 //! ```json
 //! { "format": "truepos-dynamic-model", "version": 1, "machine": "fl-thermal",
 //!   "inputs": [{"name": "t5_c", "kind": "temperature"}, {"name": "spindle_rpm", "kind": "operating"}],
-//!   "temperature_rise": true, "temperature_taus_s": [900, 3600], "rate_taus_s": [1800],
+//!   "temperature_rise": true, "temperature_taus_s": [900, 3600, 28800], "rate_taus_s": [1800],
 //!   "operating_taus_s": [300, …], "operating_square": true, "rise_while_running": true,
 //!   "features": ["rise(t5_c)", …],
 //!   "outputs": [{"name": "ch1_um", "intercept_um": 0.1, "coefficients": [ … one per feature … ]}],
