@@ -59,3 +59,7 @@ echo "== twin population: issue 14's development benchmark at the ci size, its b
 echo "   (median reduction >= 85 %, no run made worse, median inner/test within 1.5; the full size"
 echo "   meets them too: docs/fitting.md)"
 bash scripts/fit_population.sh --size ci --assert
+echo "== development gate: the defaults against the simple baseline, paired per run with a bootstrap interval,"
+echo "   on a twin population drawn from this commit's own seed range (docs/fitting.md, 'The development gate')"
+draw=$(( 0x$(git rev-parse --short=7 HEAD 2>/dev/null || echo 1) % 9999 + 1 ))
+bash scripts/fit_gate.sh --size ci --draw "$draw"

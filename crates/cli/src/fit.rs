@@ -7,7 +7,7 @@ use std::time::Instant;
 use crate::error::CliError;
 use truepos_fit::dataset::{Columns, Dataset, Patterns};
 use truepos_fit::export::{model_file, plausible, predictions_csv, TargetAxis};
-use truepos_fit::settings::{Families, InnerCv, Ridges, Rule, Settings};
+use truepos_fit::settings::{Families, InnerCv, Ridges, Rule, Selection, Settings};
 use truepos_fit::validate::{fit, Outcome, Split, Validation};
 use truepos_io::limits::int_in;
 use truepos_io::run::{read_shaped, Table, Time};
@@ -65,16 +65,24 @@ pub struct Args {
     /// per sensor at one identified time constant), transfer2 (two: second order; not among
     /// the defaults); with a machine file also seed A/C's: prior-art, all-axes,
     /// all-axes-squared, bed-factor, reference-sensor, and with --difference-axis own-axis and
-    /// serial. Default: chosen automatically among all of them but static and transfer2.
+    /// serial; baseline (the simple reference: rises and operating state at a small fixed
+    /// ridge, always fitted and reported beside the choice). Default: chosen automatically among
+    /// all of them but static and transfer2 (see --selection).
     #[arg(long)]
     pub(crate) family: Option<String>,
     /// Fix the ridge parameter(s), comma-separated, each 0–10¹². Default: chosen automatically.
     #[arg(long)]
     pub(crate) ridge: Option<Ridges>,
-    /// How inner-CV scores choose: 1se (the most regularised candidate within one standard error
-    /// of the best) or min (the lowest CV error).
-    #[arg(long, default_value = "1se")]
-    pub(crate) rule: Rule,
+    /// How inner-CV scores choose a family's ridge: 1se (the most regularised candidate within
+    /// one standard error of the best) or min (the lowest CV error). Default: 1se, and min with
+    /// --selection paired.
+    #[arg(long)]
+    pub(crate) rule: Option<Rule>,
+    /// How the families are decided between: blend (each family's out-of-fold predictions
+    /// combined, the default) or paired (the best family kept only where it beats the baseline
+    /// fold by fold, one ridge scale per sensor, a short ridge grid; docs/fitting.md).
+    #[arg(long, default_value = "blend")]
+    pub(crate) selection: Selection,
     /// Use at most this many temperature sensors (correlation ranking + greedy forward
     /// selection), 1–1000.
     #[arg(long, value_parser = int_in(1usize, 1000))]
@@ -147,7 +155,10 @@ pub(crate) fn tables(args: &Args) -> Result<Vec<Table>, CliError> {
 }
 
 pub(crate) fn settings(args: &Args, ds: &Dataset) -> Result<Settings, CliError> {
-    let defaults = Settings::default();
+    let defaults = match args.selection {
+        Selection::Blend => Settings::default(),
+        Selection::Paired => Settings::paired(),
+    };
     let families = match &args.family {
         Some(f) => {
             f.parse::<Families>()
@@ -159,9 +170,12 @@ pub(crate) fn settings(args: &Args, ds: &Dataset) -> Result<Settings, CliError> 
     Ok(Settings {
         families,
         ridges: args.ridge.clone().map_or(defaults.ridges, |r| r.0),
+        position_ridges: args.ridge.clone().map_or(defaults.position_ridges, |r| r.0),
+        position_rule: args.rule.unwrap_or(defaults.position_rule),
         folds: args.folds,
         inner: args.inner_cv,
-        rule: args.rule,
+        rule: args.rule.unwrap_or(defaults.rule),
+        selection: args.selection,
         max_sensors: args.max_sensors,
         reference: match &args.reference {
             Some(name) => Some(
@@ -281,8 +295,11 @@ pub fn run(args: Args) -> Result<(), CliError> {
         "target", "uncomp µm", "RMSE µm", "max|e| µm", "p-p µm", "reduction"
     );
     for (m, c) in validation.metrics.iter().zip(&trained.choices) {
+        let baseline = c
+            .baseline_cv_rmse_um
+            .map_or(String::new(), |b| format!(", baseline CV {b:.2} µm"));
         println!(
-            "{:<12} {:>10.2} {:>10.2} {:>10.2} {:>10.2} {:>8.1}%  {} (CV {:.2} µm)",
+            "{:<12} {:>10.2} {:>10.2} {:>10.2} {:>10.2} {:>8.1}%  {} (CV {:.2} µm{baseline})",
             m.target,
             m.uncompensated_rmse_um,
             m.rmse_um,
@@ -291,6 +308,21 @@ pub fn run(args: Args) -> Result<(), CliError> {
             m.rmse_reduction_percent,
             c.describe(),
             c.cv_rmse_um
+        );
+    }
+    for c in &trained.choices {
+        if let Some(p) = &c.paired {
+            println!("{}: {}", c.target, p.describe());
+        }
+    }
+    if let Some(base) = &validation.baseline_metrics {
+        let figures: Vec<String> = base
+            .iter()
+            .map(|m| format!("{} {:.2} µm", m.target, m.rmse_um))
+            .collect();
+        println!(
+            "the baseline on the same held-out rows (the simple reference: rises and operating state): {}",
+            figures.join(", ")
         );
     }
     let ratios: Vec<String> = validation
@@ -335,14 +367,17 @@ pub(crate) fn print_per_run(validation: &Validation) {
         .max(3);
     println!("per held-out run:");
     println!(
-        "{:<width$} {:<12} {:>7} {:>10} {:>10} {:>10} {:>9}  chosen",
-        "run", "target", "rows", "uncomp µm", "RMSE µm", "max|e| µm", "reduction"
+        "{:<width$} {:<12} {:>7} {:>10} {:>10} {:>10} {:>9} {:>11}  chosen",
+        "run", "target", "rows", "uncomp µm", "RMSE µm", "max|e| µm", "reduction", "baseline µm"
     );
     for r in &validation.per_run {
         for h in &r.targets {
             let m = &h.metrics;
+            let baseline = h
+                .baseline_rmse_um
+                .map_or("—".to_string(), |b| format!("{b:.2}"));
             println!(
-                "{:<width$} {:<12} {:>7} {:>10.2} {:>10.2} {:>10.2} {:>8.1}%  {}",
+                "{:<width$} {:<12} {:>7} {:>10.2} {:>10.2} {:>10.2} {:>8.1}% {:>11}  {}",
                 r.run,
                 m.target,
                 m.samples,
@@ -350,6 +385,7 @@ pub(crate) fn print_per_run(validation: &Validation) {
                 m.rmse_um,
                 m.max_abs_um,
                 m.rmse_reduction_percent,
+                baseline,
                 h.family
             );
         }

@@ -195,8 +195,10 @@ fn the_candidates_on_screen_and_in_json_agree() {
     let screen = String::from_utf8(screen.stdout).unwrap();
     let v: serde_json::Value = serde_json::from_slice(&json.stdout).unwrap();
     let cands = v["selection"]["candidates"].as_array().unwrap();
-    // static, dynamic; prior-art, all-axes and reference-sensor on two input sets each.
-    assert_eq!(cands.len(), 8, "{v}");
+    // static, dynamic, the baseline they are compared with; prior-art, all-axes and
+    // reference-sensor on two input sets each.
+    assert_eq!(cands.len(), 9, "{v}");
+    assert!(cands.iter().any(|c| c["family"] == "baseline"), "{v}");
     for c in cands {
         let figures: Vec<String> = c["targets"]
             .as_array()

@@ -152,12 +152,15 @@ fn leave_one_run_out_shows_every_run_the_same_on_screen_and_in_json() {
         }
         // The screen shows the JSON's numbers, rounded, and the run's measured rows.
         assert_eq!(t["samples"], 20);
+        // The baseline, fitted on the same training rows beside the family named, has its
+        // column: one sensor's rise at a whisper of ridge, so the same figure as static's.
         let want = format!(
-            "{name} dz_um 20 {:.2} {:.2} {:.2} {:.1}% static",
+            "{name} dz_um 20 {:.2} {:.2} {:.2} {:.1}% {:.2} static",
             got("uncompensated_rmse_um"),
             got("rmse_um"),
             got("max_abs_um"),
-            got("rmse_reduction_percent")
+            got("rmse_reduction_percent"),
+            got("baseline_rmse_um")
         );
         assert_eq!(line.split_whitespace().collect::<Vec<_>>().join(" "), want);
     }

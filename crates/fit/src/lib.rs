@@ -14,8 +14,10 @@
 //!   ridge, SVD-based rank decisions that name the culprit columns. Never the normal equations.
 //! - [`train`]: family, sensors and ridge chosen by blocked time-series cross-validation inside
 //!   the training rows only, each held-out block separated from its training rows by a gap
-//!   ([`inner_cv`]), the families blended by their out-of-fold predictions ([`stacking`]) and
-//!   guarded against doing worse than no compensation ([`selection`]); export to a
+//!   ([`inner_cv`]); the families blended by their out-of-fold predictions ([`stacking`]) or,
+//!   with the paired selection, the best one kept only where it beats the simple baseline fold
+//!   by fold; no compensation where nothing clearly beats none ([`selection`]); the baseline
+//!   always fitted and reported beside the choice; export to a
 //!   [`truepos_model::DynamicModel`].
 //! - [`validate`]: chronological split, leave one run out, blocked k-fold; RMSE, max |e|,
 //!   peak-to-peak and reduction versus uncompensated, per target channel; [`validate::fit`]
@@ -64,6 +66,7 @@
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
+mod blend;
 pub mod dataset;
 pub mod export;
 pub mod features;

@@ -257,8 +257,8 @@ fn static_selection(
     let blocks = blocks(rows, settings.folds, settings.inner);
     let options = CvOptions {
         inner: settings.inner,
-        ridges: &settings.ridges,
-        rule: settings.rule,
+        ridges: &settings.position_ridges,
+        rule: settings.position_rule,
     };
     let sets: Vec<_> = input_sets(machine)
         .into_iter()
@@ -610,6 +610,7 @@ pub fn fit_machine(
             choices,
             sensors: Vec::new(),
             inner_vs_test,
+            baseline_metrics: None,
             warnings,
         },
         folds: fold_selections,

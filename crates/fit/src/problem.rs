@@ -17,7 +17,7 @@ use crate::dataset::Dataset;
 use crate::features::{Candidates, Extended, Family};
 use crate::inner_cv::{decorrelation_time, Folds, Row};
 use crate::least_squares::{Accumulator, SolveOptions, Triangle};
-use crate::settings::Settings;
+use crate::settings::{Selection, Settings};
 use crate::transfer::TransferTaus;
 
 /// The regressors of one candidate: feature columns, each minus an optional reference column
@@ -26,14 +26,15 @@ use crate::transfer::TransferTaus;
 pub(crate) struct Design {
     pub cols: Vec<usize>,
     pub minus: Option<usize>,
-    /// The design's columns (intercept 0) that share one ridge scale: every temperature term in
-    /// kelvin (rises, their low-passes, rises while running), and every rate in K/s.
+    /// The design's columns (intercept 0) that share one ridge scale: per unit with the blend
+    /// ([`unit_groups`]), per sensor with the paired selection ([`sensor_groups`]), none for the
+    /// baseline.
     pub shared_scale: Vec<Vec<usize>>,
 }
 
 impl Design {
     /// How to solve the design at `ridge`: the intercept unpenalised, the ridge on the
-    /// coefficients per unit (see [`SolveOptions::shared_scale`]).
+    /// coefficients with the design's scales (see [`SolveOptions::shared_scale`]).
     pub fn solve_options(&self, ridge: f64) -> SolveOptions {
         SolveOptions {
             ridge,
@@ -44,9 +45,11 @@ impl Design {
     }
 }
 
-/// The shared-scale groups of a design's columns `cols` (see [`Design::shared_scale`]).
+/// The shared-scale groups of a design's columns `cols` with the blend: every temperature term
+/// (rises, their low-passes, rises while running) in kelvin shares one scale, so that a gain
+/// costs the same µm/K on every sensor; every rate (K/s) another; an operating input keeps its
+/// own.
 fn unit_groups(cand: &Candidates, cols: &[usize]) -> Vec<Vec<usize>> {
-    // 0: kelvin, 1: kelvin per second; an operating input's unit is its own.
     let unit = |kind: FeatureKind| match kind {
         FeatureKind::Rise | FeatureKind::LowPass { .. } | FeatureKind::RiseWhileRunning { .. } => {
             Some(0)
@@ -64,12 +67,45 @@ fn unit_groups(cand: &Candidates, cols: &[usize]) -> Vec<Vec<usize>> {
         .collect()
 }
 
+/// The shared-scale groups of a design's columns `cols` with the paired selection: one per
+/// temperature sensor, over every term made from it — its rise, its low-passes, its rates and
+/// its rises while running. A sensor's terms are one temperature seen with different delays, so
+/// they share its scale and the ridge cannot favour one delay for being louder; sensors keep
+/// their own scales, because how far a sensor moved in training says nothing about how much of
+/// the error it explains (a well-placed sensor on a massive casting barely moves). An operating
+/// input's unit is its own, and so is its scale.
+fn sensor_groups(cand: &Candidates, cols: &[usize]) -> Vec<Vec<usize>> {
+    let mut groups: Vec<(usize, Vec<usize>)> = Vec::new();
+    for (j, &c) in cols.iter().enumerate() {
+        let f = cand.features[c];
+        if matches!(
+            f.kind,
+            FeatureKind::Operating { .. } | FeatureKind::OperatingSquared { .. }
+        ) {
+            continue;
+        }
+        match groups.iter_mut().find(|(input, _)| *input == f.input) {
+            Some((_, members)) => members.push(1 + j),
+            None => groups.push((f.input, vec![1 + j])),
+        }
+    }
+    groups
+        .into_iter()
+        .map(|(_, members)| members)
+        .filter(|m| m.len() > 1)
+        .collect()
+}
+
 pub(crate) struct Problem<'a> {
     pub cand: &'a Candidates,
     /// The transfer families' identified time constants.
     pub transfer: TransferTaus,
     /// The fixed grid of temperature low-pass time constants the other families use.
     pub grid_taus: Vec<f64>,
+    /// The operating time constant of the baseline: the shortest of the grid.
+    pub baseline_operating_tau: Option<f64>,
+    /// One ridge scale per sensor (the paired selection) rather than per unit.
+    pub per_sensor: bool,
     /// Per candidate feature, its mean over the training rows (the columns are centred).
     pub means: Vec<f64>,
     pub folds: Folds,
@@ -137,6 +173,13 @@ impl<'a> Problem<'a> {
             cand,
             transfer,
             grid_taus: settings.taus.temperature_s.clone(),
+            baseline_operating_tau: settings
+                .taus
+                .operating_s
+                .iter()
+                .copied()
+                .min_by(f64::total_cmp),
+            per_sensor: settings.selection == Selection::Paired,
             means,
             folds,
             nt,
@@ -231,7 +274,8 @@ impl<'a> Problem<'a> {
         1 + self.cand.features.len() + self.nt
     }
 
-    /// Per target, the held-out targets in the same coordinates, folds concatenated.
+    /// Per target, the held-out targets in the held triangles' coordinates, folds concatenated:
+    /// vectors whose sum of squares is that of the held-out targets themselves.
     pub fn held_targets(&self) -> Vec<Vec<f64>> {
         let nf = self.cand.features.len();
         (0..self.nt)
@@ -275,6 +319,9 @@ impl<'a> Problem<'a> {
                         transfer_taus.contains(&tau_s)
                     }
                     (FeatureKind::LowPass { tau_s }, _) => self.grid_taus.contains(&tau_s),
+                    (FeatureKind::Operating { tau_s }, Family::Baseline) => {
+                        self.baseline_operating_tau == Some(tau_s)
+                    }
                     _ => true,
                 };
                 family.includes(f.kind)
@@ -283,7 +330,13 @@ impl<'a> Problem<'a> {
                     && Some(j) != minus
             })
             .collect();
-        let shared_scale = unit_groups(self.cand, &cols);
+        // The baseline is defined with one scale per column: each of its columns is a
+        // different sensor or input already.
+        let shared_scale = match family {
+            Family::Baseline => Vec::new(),
+            _ if self.per_sensor => sensor_groups(self.cand, &cols),
+            _ => unit_groups(self.cand, &cols),
+        };
         (!cols.is_empty()).then_some(Design {
             cols,
             minus,
@@ -294,8 +347,10 @@ impl<'a> Problem<'a> {
 
 /// The folds of the inner validation. The gap is the slowest time constant of any candidate
 /// feature and the decorrelation time of the static model's residual, whichever is longer
-/// (capped at a block per side by [`Folds::new`]); without any row left to train a fold,
-/// no gap.
+/// (capped at a block per side by [`Folds::new`]); without any row left to train a fold, no
+/// gap. With the paired selection a time constant identified from the data (the transfer
+/// families') does not set it: it can land anywhere up to its scan bound, and would then set the
+/// gap of every other candidate.
 fn inner_folds(
     source: &Extended<'_>,
     rows: &[(usize, usize)],
@@ -303,9 +358,11 @@ fn inner_folds(
     at: &[Row],
     settings: &Settings,
 ) -> Folds {
-    let slowest = source
-        .meta
-        .features
+    let features = match settings.selection {
+        Selection::Paired => &source.base.features,
+        Selection::Blend => &source.meta.features,
+    };
+    let slowest = features
         .iter()
         .filter(|f| settings.families.iter().any(|fam| fam.includes(f.kind)))
         .filter_map(|f| f.kind.tau_s())
@@ -467,5 +524,77 @@ impl Problem<'_> {
             .iter()
             .position(|&d| d == r)
             .filter(|&b| b < self.cand.spec.temperatures)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::dataset::{Dataset, InputKind, Run};
+    use crate::features::{candidates, TimeConstants};
+
+    /// Every term made from one sensor shares its scale, each sensor has its own, and an
+    /// operating input's terms are scaled alone; the baseline holds the rises and the shortest
+    /// operating lag only.
+    #[test]
+    fn one_scale_per_sensor_and_the_baseline_structure() {
+        let ds = Dataset {
+            input_names: vec!["t1_c".into(), "t2_c".into(), "spindle_rpm".into()],
+            input_kinds: vec![
+                InputKind::Temperature,
+                InputKind::Temperature,
+                InputKind::Operating,
+            ],
+            target_names: vec!["dz_um".into()],
+            runs: vec![Run {
+                name: "r".into(),
+                time_s: vec![0.0, 60.0],
+                inputs: vec![vec![20.0; 2], vec![21.0; 2], vec![0.0; 2]],
+                targets: vec![vec![0.0; 2]],
+            }],
+        };
+        let cand = candidates(&ds, &TimeConstants::default()).unwrap();
+        let cols: Vec<usize> = (0..cand.features.len()).collect();
+        let groups = sensor_groups(&cand, &cols);
+        assert_eq!(groups.len(), 2);
+        for g in &groups {
+            let input = cand.features[g[0] - 1].input;
+            assert!(g.iter().all(|&j| cand.features[j - 1].input == input));
+            assert!(input < 2, "operating terms keep their own scale");
+        }
+        let grouped: usize = groups.iter().map(Vec::len).sum();
+        let temperature_terms = cand.features.iter().filter(|f| f.input < 2).count();
+        assert_eq!(grouped, temperature_terms);
+        let ext = Extended::new(&ds, &cand, &[]).unwrap();
+        let rows: Vec<(usize, usize)> = vec![(0, 0), (0, 1)];
+        let settings = Settings::paired();
+        let folds = Folds::new(
+            &[
+                Row {
+                    run: 0,
+                    time_s: 0.0,
+                },
+                Row {
+                    run: 0,
+                    time_s: 60.0,
+                },
+            ],
+            2,
+            settings.inner,
+            0.0,
+        );
+        let p = Problem::build(
+            &ds,
+            &ext,
+            &rows,
+            &settings,
+            TransferTaus::default(),
+            Some(folds),
+        )
+        .unwrap();
+        let d = p.design(Family::Baseline, &[0, 1], None).unwrap();
+        let names: Vec<&str> = d.cols.iter().map(|&c| cand.names[c].as_str()).collect();
+        assert_eq!(names, ["rise(t1_c)", "rise(t2_c)", "lp300(spindle_rpm)"]);
+        assert!(d.shared_scale.is_empty());
     }
 }

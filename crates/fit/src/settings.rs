@@ -16,16 +16,28 @@ pub struct Settings {
     pub taus: TimeConstants,
     /// Candidate families.
     pub families: Vec<Family>,
-    /// Candidate ridge parameters (relative, on scaled columns: unit norm, or one scale per unit,
-    /// `SolveOptions::shared_scale`).
+    /// Candidate ridge parameters (relative, on scaled columns: one scale per unit with the
+    /// blend, one per sensor with the paired selection, `SolveOptions::shared_scale`).
     pub ridges: Vec<f64>,
     /// Blocks of the inner cross-validation.
     pub folds: usize,
     /// Which blocks train the model that predicts a held-out block.
     #[serde(default)]
     pub inner: InnerCv,
-    /// How the CV scores pick the settings.
+    /// How the CV scores pick a family's ridge.
     pub rule: Rule,
+    /// How the families are decided between: blended ([`Selection::Blend`], the default) or the
+    /// best one only where it beats the baseline fold by fold ([`Selection::Paired`]).
+    #[serde(default)]
+    pub selection: Selection,
+    /// Candidate ridge parameters of the position-dependent families (`truepos fit --machine`):
+    /// their structures are fixed by the machine, not chosen from the data, so their ridge keeps
+    /// its long grid and the one-standard-error rule ([`POSITION_RIDGES`]).
+    #[serde(default = "position_ridges")]
+    pub position_ridges: Vec<f64>,
+    /// How the CV scores pick a position-dependent family's ridge.
+    #[serde(default = "position_rule")]
+    pub position_rule: Rule,
     /// Run with at most this many temperature sensors (chosen by correlation ranking and greedy
     /// forward selection); `None` = all.
     pub max_sensors: Option<usize>,
@@ -41,15 +53,85 @@ pub struct Settings {
     pub absolute_targets: bool,
 }
 
+/// The paired selection's ridge grid: short, and it stops at 0.1 — with few, unlike folds the
+/// lowest inner error is noisy, and a long grid of heavy ridges lets the choice walk into
+/// shrinking exactly the small sensor differences that tell a quiet run from a loud one.
+pub const PAIRED_RIDGES: [f64; 4] = [1e-4, 1e-3, 1e-2, 0.1];
+
+/// How the families are decided between (docs/fitting.md, "How the selection chooses").
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Selection {
+    /// Every family's ridge by the rule, the families blended by their out-of-fold predictions,
+    /// guarded against no compensation ([`crate::blend`]). The default: the development gate
+    /// has not shown the paired selection better (docs/fitting.md).
+    #[default]
+    Blend,
+    /// The fixed baseline, replaced by the best richer family only where that family beats it
+    /// fold by fold ([`crate::selection`]); one scale per sensor, identified time constants on
+    /// their bound dropped and kept out of the inner gap, the ridge from [`PAIRED_RIDGES`] by
+    /// the lowest inner error.
+    Paired,
+}
+
+impl Settings {
+    /// The defaults with the paired selection and its own grid and rule.
+    pub fn paired() -> Self {
+        Self {
+            selection: Selection::Paired,
+            ridges: PAIRED_RIDGES.to_vec(),
+            rule: Rule::MinimumCv,
+            ..Self::default()
+        }
+    }
+}
+
+impl FromStr for Selection {
+    type Err = String;
+
+    /// `blend` or `paired`.
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s.trim() {
+            "blend" => Ok(Self::Blend),
+            "paired" => Ok(Self::Paired),
+            _ => Err(format!("expected blend or paired, got `{s}`")),
+        }
+    }
+}
+
+impl fmt::Display for Selection {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            Self::Blend => "blend",
+            Self::Paired => "paired",
+        })
+    }
+}
+
+/// The position-dependent families' ridge grid (see [`Settings::position_ridges`]).
+pub const POSITION_RIDGES: [f64; 11] =
+    [0.0, 1e-6, 1e-5, 1e-4, 1e-3, 3e-3, 1e-2, 3e-2, 0.1, 0.3, 1.0];
+
+fn position_ridges() -> Vec<f64> {
+    POSITION_RIDGES.to_vec()
+}
+
+fn position_rule() -> Rule {
+    Rule::OneStandardError
+}
+
 impl Default for Settings {
     fn default() -> Self {
         Self {
             taus: TimeConstants::default(),
             families: Family::DEFAULT.to_vec(),
-            ridges: vec![0.0, 1e-6, 1e-5, 1e-4, 1e-3, 3e-3, 1e-2, 3e-2, 0.1, 0.3, 1.0],
+            ridges: POSITION_RIDGES.to_vec(),
             folds: 8,
             inner: InnerCv::Blocked,
             rule: Rule::OneStandardError,
+            selection: Selection::Blend,
+            position_ridges: position_ridges(),
+            position_rule: position_rule(),
             max_sensors: None,
             reference: None,
             absolute_targets: false,
@@ -119,7 +201,12 @@ impl Settings {
             Rule::MinimumCv => "lowest CV error",
             Rule::OneStandardError => "one-standard-error rule",
         };
-        format!("{cv}, {rule}")
+        match self.selection {
+            Selection::Blend => format!("{cv}, {rule}"),
+            Selection::Paired => format!(
+                "{cv}, {rule}, the best family kept only where it beats the baseline fold by fold"
+            ),
+        }
     }
 }
 
@@ -127,9 +214,12 @@ impl Settings {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum Rule {
-    /// The candidate with the lowest CV RMSE.
+    /// The candidate with the lowest CV RMSE (the paired selection's: its grid is short, and
+    /// the comparison with the baseline guards against a lucky pick).
     MinimumCv,
-    /// The most regularised candidate of the best family within one standard error of the best.
+    /// The most regularised candidate of the best family within one standard error of the best
+    /// (the blend's). With whole runs as folds the standard error holds the run-to-run
+    /// differences, and the rule can walk to heavy ridges.
     OneStandardError,
 }
 

@@ -17,7 +17,7 @@ use truepos_model::{DynamicModel, FeatureBank, FeatureKind};
 use crate::dataset::{Dataset, InputKind};
 use crate::features::{bank_for, Candidates, Extended, Family};
 use crate::problem::{Design, Problem};
-use crate::selection::{fit_all, select, Member};
+use crate::selection::{fit_all, select, Member, Paired, Pick, BASELINE_RIDGE};
 use crate::settings::Settings;
 use crate::transfer::TransferTaus;
 
@@ -45,10 +45,16 @@ pub struct Choice {
     /// the same blocked folds (seed A/C's in `machine_fit`) are compared with.
     #[serde(default)]
     pub selection_cv_rmse_um: f64,
-    /// Why the choice is not the blend of every family (no compensation, or the static family
-    /// alone), if it is not.
+    /// Why nothing is compensated, if so.
     #[serde(default)]
     pub fallback: Option<String>,
+    /// The baseline's inner estimate (µm), evaluated as `cv_rmse_um` is: what the simple
+    /// reference model would have scored.
+    #[serde(default)]
+    pub baseline_cv_rmse_um: Option<f64>,
+    /// The paired comparison that decided between the baseline and the best richer family.
+    #[serde(default)]
+    pub paired: Option<Paired>,
 }
 
 impl Choice {
@@ -61,7 +67,7 @@ impl Choice {
         names.join("+")
     }
 
-    /// In words: `dynamic-running 0.57 λ=3e-2 + operating 0.30 λ=1e-1`, or `no compensation`.
+    /// In words: `dynamic-running τ… λ=3e-2`, or `no compensation`.
     pub fn describe(&self) -> String {
         if self.blend.is_empty() {
             return "no compensation".into();
@@ -101,6 +107,19 @@ pub struct Trained {
     pub warnings: Vec<String>,
     /// Every family tried, with its inner-CV figures per target.
     pub scores: Vec<FamilyScore>,
+    /// The baseline fitted on the same rows, to be judged beside the choice on held-out data
+    /// (`None` when it cannot be built).
+    pub baseline: Option<Box<Exported>>,
+}
+
+/// A model exported from the candidate features: the real-time model and the dataset input
+/// index of each of its inputs.
+#[derive(Debug, Clone)]
+pub struct Exported {
+    /// The real-time model.
+    pub model: DynamicModel,
+    /// Dataset input index of each model input.
+    pub inputs: Vec<usize>,
 }
 
 /// The inner-CV figures of one family: per target, its lowest CV RMSE over the ridges tried
@@ -171,18 +190,82 @@ pub fn train(
     }
     let (mut picks, scores) = select(&p, settings, &sensors);
     let blocked: Vec<f64> = picks.iter().map(|p| p.cv_rmse_um).collect();
+    let mut baseline_picks = baseline_picks(&picks);
     report_forward(&p, &mut picks, &sensors, reference);
+    report_forward(&p, &mut baseline_picks, &sensors, reference);
     let Blended {
         coef,
         intercepts,
         warnings,
         mut choices,
     } = blend(dataset, &p, &picks, &sensors, reference)?;
-    for (c, b) in choices.iter_mut().zip(blocked) {
+    for ((c, b), base) in choices.iter_mut().zip(blocked).zip(&baseline_picks) {
         c.selection_cv_rmse_um = b;
+        c.baseline_cv_rmse_um = (!base.members.is_empty()).then_some(base.cv_rmse_um);
     }
+    let exported = export(dataset, &ext, &taus, &sensors, &coef, intercepts)?;
+    let baseline = if baseline_picks.iter().all(|b| b.members.is_empty()) {
+        None
+    } else {
+        let b = blend(dataset, &p, &baseline_picks, &sensors, None)?;
+        Some(Box::new(export(
+            dataset,
+            &ext,
+            &taus,
+            &sensors,
+            &b.coef,
+            b.intercepts,
+        )?))
+    };
+    Ok(Trained {
+        model: exported.model,
+        inputs: exported.inputs,
+        sensors: sensors.iter().map(|&s| cand.bank_inputs[s]).collect(),
+        choices,
+        warnings,
+        scores,
+        baseline,
+    })
+}
+
+/// Per target, the baseline alone as a pick (no member where it could not be built).
+fn baseline_picks(picks: &[Pick]) -> Vec<Pick> {
+    picks
+        .iter()
+        .map(|p| Pick {
+            members: p
+                .baseline_cv_rmse_um
+                .map(|rmse| Member {
+                    family: Family::Baseline,
+                    ridge: BASELINE_RIDGE,
+                    weight: 1.0,
+                    cv_rmse_um: rmse,
+                    tau_s: None,
+                    tau2_s: None,
+                })
+                .into_iter()
+                .collect(),
+            cv_rmse_um: p.baseline_cv_rmse_um.unwrap_or(p.uncompensated_um),
+            uncompensated_um: p.uncompensated_um,
+            baseline_cv_rmse_um: p.baseline_cv_rmse_um,
+            paired: None,
+            fallback: None,
+        })
+        .collect()
+}
+
+/// The real-time model of per-target coefficients over the candidate features: its inputs are
+/// the chosen sensors, plus the operating inputs if any target reads them.
+fn export(
+    dataset: &Dataset,
+    ext: &Extended<'_>,
+    taus: &crate::features::TimeConstants,
+    sensors: &[usize],
+    coef: &[Vec<f64>],
+    intercepts: Vec<f64>,
+) -> Result<Exported, String> {
+    let cand = &ext.meta;
     let nf = cand.features.len();
-    // Export: inputs = the chosen sensors, plus operating inputs if any target reads them.
     let uses = |pred: &dyn Fn(FeatureKind) -> bool| {
         (0..nf).any(|j| pred(cand.features[j].kind) && coef.iter().any(|c| c[j] != 0.0))
     };
@@ -202,7 +285,7 @@ pub fn train(
                 .filter(|&i| dataset.input_kinds[i] == InputKind::Operating),
         );
     }
-    let (spec, order) = bank_for(dataset, &inputs, &taus, uses_running);
+    let (spec, order) = bank_for(dataset, &inputs, taus, uses_running);
     let bank = FeatureBank::new(spec).map_err(|e| e.to_string())?;
     // The same feature in the candidate bank: same dataset input, same kind (a rise while
     // running names its operating input by bank index, which differs between the two banks).
@@ -213,7 +296,7 @@ pub fn train(
         other => other,
     };
     let mut flat = Vec::new();
-    for c in &coef {
+    for c in coef {
         for f in bank.features() {
             let d = order[f.input];
             let kind = dataset_kind(f.kind, &order);
@@ -229,13 +312,9 @@ pub fn train(
         }
     }
     let model = DynamicModel::new(bank, intercepts, flat).map_err(|e| e.to_string())?;
-    Ok(Trained {
+    Ok(Exported {
         model,
         inputs: order,
-        sensors: sensors.iter().map(|&s| cand.bank_inputs[s]).collect(),
-        choices,
-        warnings,
-        scores,
     })
 }
 
@@ -359,6 +438,8 @@ fn blend(
             uncompensated_cv_rmse_um: pick.uncompensated_um,
             selection_cv_rmse_um: pick.cv_rmse_um,
             fallback: pick.fallback.clone(),
+            baseline_cv_rmse_um: pick.baseline_cv_rmse_um,
+            paired: pick.paired,
         });
     }
     Ok(Blended {

@@ -25,7 +25,7 @@ use truepos_model::lag_gain;
 use crate::dataset::{Dataset, InputKind};
 use crate::features::Family;
 use crate::least_squares::{Accumulator, SolveOptions};
-use crate::settings::Settings;
+use crate::settings::{Selection, Settings};
 
 /// The range searched (s): 5 min to 8 h, the span of machine-tool thermal time constants.
 pub const TAU_RANGE_S: (f64, f64) = (300.0, 8.0 * 3600.0);
@@ -58,13 +58,16 @@ impl TransferTaus {
     pub fn identify(dataset: &Dataset, rows: &[(usize, usize)], settings: &Settings) -> Self {
         let wanted = |f: Family| settings.families.contains(&f);
         let absolute = settings.absolute_targets;
+        let kept = |tau: &f64| settings.selection == Selection::Blend || interior(*tau);
         Self {
             first: wanted(Family::Transfer)
                 .then(|| identify_tau(dataset, rows, absolute))
-                .flatten(),
+                .flatten()
+                .filter(kept),
             second: wanted(Family::Transfer2)
                 .then(|| identify_tau_pair(dataset, rows, absolute))
                 .flatten()
+                .filter(|(a, b)| kept(a) && kept(b))
                 .map(|(a, b)| [a, b]),
         }
     }
@@ -167,6 +170,18 @@ pub fn identify_tau(dataset: &Dataset, rows: &[(usize, usize)], absolute: bool) 
     let found = if fu <= costs[best] { u } else { grid[best] };
     // Rounded to 1 s: the τ is written into the model file and named in reports.
     Some(found.exp().round())
+}
+
+/// How close (in ln τ) to a bound of [`TAU_RANGE_S`] a time constant counts as on it: 5 %.
+const ON_BOUND: f64 = 0.05;
+
+/// Whether τ (s) lies inside the range searched, not on a bound. A τ on its bound was not
+/// identified — the data's best lag lies outside the range, or the family does not fit at
+/// all — and the paired selection leaves the family out rather than fit it at an arbitrary
+/// edge.
+pub fn interior(tau_s: f64) -> bool {
+    let (lo, hi) = (TAU_RANGE_S.0.ln(), TAU_RANGE_S.1.ln());
+    tau_s.ln() > lo + ON_BOUND && tau_s.ln() < hi - ON_BOUND
 }
 
 /// The two time constants (s), τ1 < τ2, that minimise the training residual of the second-order
@@ -365,6 +380,33 @@ mod tests {
         let rows: Vec<(usize, usize)> = (0..2400).step_by(2).map(|i| (0, i)).collect();
         let tau = identify_tau(&ds, &rows, false).unwrap();
         assert!((tau - 2400.0).abs() < 0.05 * 2400.0, "{tau}");
+    }
+
+    /// A structure lagging its sensor by 100 h, far beyond the 8 h searched: the best τ lies on
+    /// the range's bound, which identifies nothing, and the paired selection leaves the family
+    /// out.
+    #[test]
+    fn a_time_constant_on_its_bound_is_not_identified() {
+        let (mut t, mut temp, mut y) = (vec![], vec![], vec![]);
+        let (mut lag, dt) = (0.0, 30.0);
+        for i in 0..3000 {
+            let heat = if (i / 400) % 2 == 0 { 0.0 } else { 4.0 };
+            let temp_now = 20.0 + heat + 0.5 * (i as f64 / 50.0).sin();
+            lag += (1.0 - (-dt / 360_000.0f64).exp()) * (temp_now - 20.0 - lag);
+            t.push(dt * i as f64);
+            temp.push(temp_now);
+            y.push(200.0 * lag + 0.1 * (temp_now - 20.0));
+        }
+        let ds = crate::dataset::one_sensor(t, temp, y);
+        let rows: Vec<(usize, usize)> = (0..3000).map(|i| (0, i)).collect();
+        let found = identify_tau(&ds, &rows, false).unwrap();
+        assert!(!interior(found), "{found}");
+        let settings = Settings {
+            families: vec![Family::Transfer],
+            ..Settings::paired()
+        };
+        assert_eq!(TransferTaus::identify(&ds, &rows, &settings).first, None);
+        assert!(interior(3600.0) && !interior(TAU_RANGE_S.1));
     }
 
     /// A structure with two parts lagging the sensor by 1200 s and 9000 s: both time constants

@@ -11,6 +11,7 @@ use std::str::FromStr;
 use crate::dataset::Dataset;
 use crate::features::{candidates, Candidates};
 use crate::out_of_fold::OutOfFold;
+use crate::selection::CLEARLY_BETTER;
 use crate::settings::Settings;
 use crate::train::{train, Choice, Trained};
 
@@ -169,6 +170,10 @@ pub struct HeldOut {
     /// The family the inner selection chose for this target in the fold that held the run out;
     /// several, joined by " / ", when folds cut the run (blocked k-fold).
     pub family: String,
+    /// The baseline's RMSE on the same rows (µm), fitted on the same training rows: the simple
+    /// reference the choice is judged against.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub baseline_rmse_um: Option<f64>,
 }
 
 /// One run's held-out rows, judged on their own: a pooled figure can hide a run the model makes
@@ -236,7 +241,11 @@ pub struct Validation {
     pub sensors: Vec<Vec<String>>,
     /// Per target: the inner validation's estimate beside the test error it should predict.
     pub inner_vs_test: Vec<InnerVsTest>,
-    /// Warnings from the fits, and every held-out run the model makes worse than uncompensated.
+    /// Per target, the baseline's figures pooled over the same held-out rows (`None` when a fold
+    /// could not build it).
+    pub baseline_metrics: Option<Vec<Metrics>>,
+    /// Warnings from the fits, every held-out run the model makes worse than uncompensated, and
+    /// every one the baseline would have done better on.
     pub warnings: Vec<String>,
 }
 
@@ -245,15 +254,24 @@ pub type Predictions = Vec<Vec<Vec<f64>>>;
 
 /// Predictions of a trained model over whole runs (every row), by stepping the real-time model.
 pub fn predict(dataset: &Dataset, trained: &Trained) -> Result<Predictions, String> {
-    let mut model = trained.model.clone();
+    predict_with(dataset, &trained.model, &trained.inputs)
+}
+
+/// Predictions of `model`, whose inputs are the dataset's `inputs`, over whole runs.
+pub fn predict_with(
+    dataset: &Dataset,
+    model: &truepos_model::DynamicModel,
+    inputs: &[usize],
+) -> Result<Predictions, String> {
+    let mut model = model.clone();
     let nt = model.output_count();
     let mut out = Vec::new();
-    let mut row = vec![0.0; trained.inputs.len()];
+    let mut row = vec![0.0; inputs.len()];
     for run in &dataset.runs {
         model.reset();
         let mut pred = vec![Vec::with_capacity(run.len()); nt];
         for i in 0..run.len() {
-            for (slot, &d) in row.iter_mut().zip(&trained.inputs) {
+            for (slot, &d) in row.iter_mut().zip(inputs) {
                 *slot = run.inputs[d][i];
             }
             let dt = if i == 0 {
@@ -320,6 +338,7 @@ pub fn outcome(
     let mut sensors = Vec::new();
     let mut warnings = Vec::new();
     let mut last = None;
+    let mut baseline = Some(Baseline::new(dataset));
     for (f, (tr, te)) in folds.iter().enumerate() {
         progress(f, folds.len());
         if te.is_empty() {
@@ -328,6 +347,13 @@ pub fn outcome(
         let trained = train(dataset, cand, tr, settings)?;
         let pred = predict(dataset, &trained)?;
         held.record(f, te, &rel, &pred);
+        baseline = match (baseline, &trained.baseline) {
+            (Some(mut b), Some(model)) => {
+                b.record(te, &predict_with(dataset, &model.model, &model.inputs)?);
+                Some(b)
+            }
+            _ => None,
+        };
         choices.push(trained.choices.clone());
         sensors.push(
             trained
@@ -361,8 +387,10 @@ pub fn outcome(
         .iter()
         .map(|c| c.iter().map(|c| c.label()).collect())
         .collect();
-    let per_run = per_run(dataset, &rel, &done.predictions, &done.fold_of, &chosen);
+    let mut per_run = per_run(dataset, &rel, &done.predictions, &done.fold_of, &chosen);
     warnings.extend(worse_than_uncompensated(&per_run));
+    let baseline_metrics = baseline.map(|b| b.judge(dataset, &rel, &done.fold_of, &mut per_run));
+    warnings.extend(baseline_better(&per_run));
     let inner: Vec<Vec<f64>> = choices
         .iter()
         .map(|c| c.iter().map(|c| c.cv_rmse_um).collect())
@@ -380,6 +408,7 @@ pub fn outcome(
             choices,
             sensors,
             inner_vs_test,
+            baseline_metrics,
             warnings,
         },
         trained,
@@ -428,6 +457,7 @@ pub(crate) fn per_run(
                 HeldOut {
                     metrics: Metrics::new(&dataset.target_names[k], &m, &p),
                     family: families.join(" / "),
+                    baseline_rmse_um: None,
                 }
             })
             .collect();
@@ -452,6 +482,98 @@ pub fn worse_than_uncompensated(per_run: &[RunFigures]) -> Vec<String> {
                     format!(
                         "run {}, {} held out: the model makes it worse: RMSE {:.2} µm compensated, {:.2} µm uncompensated",
                         r.run, h.metrics.target, h.metrics.rmse_um, h.metrics.uncompensated_rmse_um
+                    )
+                })
+        })
+        .collect()
+}
+
+/// The baseline's out-of-fold predictions, beside the choice's: each held-out row predicted by
+/// the baseline fitted on the same training rows.
+struct Baseline {
+    predictions: Predictions,
+}
+
+impl Baseline {
+    fn new(dataset: &Dataset) -> Self {
+        let nt = dataset.target_names.len();
+        Self {
+            predictions: dataset
+                .runs
+                .iter()
+                .map(|r| vec![vec![f64::NAN; r.len()]; nt])
+                .collect(),
+        }
+    }
+
+    fn record(&mut self, test: &[(usize, usize)], pred: &Predictions) {
+        for &(r, i) in test {
+            for (k, col) in self.predictions[r].iter_mut().enumerate() {
+                col[i] = pred[r][k][i];
+            }
+        }
+    }
+
+    /// Per target the pooled figures over every held-out row, and each run's baseline RMSE set
+    /// in `per_run`.
+    fn judge(
+        &self,
+        dataset: &Dataset,
+        rel: &[Vec<Vec<f64>>],
+        fold_of: &[Vec<Option<usize>>],
+        per_run: &mut [RunFigures],
+    ) -> Vec<Metrics> {
+        let nt = dataset.target_names.len();
+        let mut pooled = vec![(Vec::new(), Vec::new()); nt];
+        for (r, run) in dataset.runs.iter().enumerate() {
+            let figures = per_run.iter_mut().find(|f| f.run == run.name);
+            let mut each = vec![(Vec::new(), Vec::new()); nt];
+            for i in (0..run.len()).filter(|&i| fold_of[r][i].is_some()) {
+                for k in 0..nt {
+                    let p = self.predictions[r][k][i];
+                    if p.is_finite() {
+                        each[k].0.push(rel[r][k][i]);
+                        each[k].1.push(p);
+                    }
+                }
+            }
+            if let Some(figures) = figures {
+                for (h, (m, p)) in figures.targets.iter_mut().zip(&each) {
+                    h.baseline_rmse_um = Some(Metrics::new("", m, p).rmse_um);
+                }
+            }
+            for (all, (m, p)) in pooled.iter_mut().zip(each) {
+                all.0.extend(m);
+                all.1.extend(p);
+            }
+        }
+        pooled
+            .iter()
+            .zip(&dataset.target_names)
+            .map(|((m, p), name)| Metrics::new(name, m, p))
+            .collect()
+    }
+}
+
+/// A warning for every run and target whose held-out rows the baseline would have predicted
+/// better than the model chosen, by more than a tenth.
+pub fn baseline_better(per_run: &[RunFigures]) -> Vec<String> {
+    per_run
+        .iter()
+        .flat_map(|r| {
+            r.targets
+                .iter()
+                .filter(|h| {
+                    h.baseline_rmse_um
+                        .is_some_and(|b| b < CLEARLY_BETTER * h.metrics.rmse_um)
+                })
+                .map(move |h| {
+                    format!(
+                        "run {}, {} held out: the baseline would have done better: RMSE {:.2} µm, the model chosen {:.2} µm",
+                        r.run,
+                        h.metrics.target,
+                        h.baseline_rmse_um.unwrap_or(f64::NAN),
+                        h.metrics.rmse_um
                     )
                 })
         })
@@ -621,5 +743,34 @@ pub(crate) mod tests {
         // The pooled figure is over the same rows as the per-run figures together.
         let n: usize = v.per_run.iter().map(|r| r.targets[0].metrics.samples).sum();
         assert_eq!(n, v.metrics[0].samples);
+        // The baseline is fitted beside the family named, on the same training rows: on one
+        // sensor it is the same regression at a whisper of ridge, so its figures are close.
+        let b = c.baseline_rmse_um.unwrap();
+        assert!(
+            (b - c.metrics.rmse_um).abs() < 0.01 * c.metrics.rmse_um,
+            "{b} {c:?}"
+        );
+        let pooled = &v.baseline_metrics.as_ref().unwrap()[0];
+        assert_eq!(pooled.samples, v.metrics[0].samples);
+    }
+
+    /// A run the baseline predicts more than a tenth better than the model chosen is named.
+    #[test]
+    fn a_run_the_baseline_does_better_on_is_named() {
+        let figures = |rmse: f64, baseline: f64| RunFigures {
+            run: format!("r{rmse}"),
+            targets: vec![HeldOut {
+                metrics: Metrics::new("dz_um", &[rmse, -rmse], &[0.0, 0.0]),
+                family: "dynamic".into(),
+                baseline_rmse_um: Some(baseline),
+            }],
+        };
+        let w = baseline_better(&[figures(2.0, 1.5), figures(2.0, 1.9), figures(1.0, 3.0)]);
+        assert_eq!(w.len(), 1, "{w:?}");
+        assert!(w[0].starts_with("run r2, dz_um held out: the baseline would have done better"));
+        assert!(
+            w[0].contains("RMSE 1.50 µm, the model chosen 2.00 µm"),
+            "{w:?}"
+        );
     }
 }
