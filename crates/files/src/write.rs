@@ -49,6 +49,18 @@ pub fn check_output(path: &Path, inputs: Inputs<'_>) -> Result<(), FileError> {
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
         Err(e) => return Err(FileError::io(path, "cannot write", e)),
     };
+    check_existing(path, &meta, inputs, false)
+}
+
+/// The rules for an output that exists: no link, no input, a regular file (or, for a stream
+/// when `char_device` is set, a character device).
+fn check_existing(
+    path: &Path,
+    meta: &std::fs::Metadata,
+    inputs: Inputs<'_>,
+    char_device: bool,
+) -> Result<(), FileError> {
+    use std::os::unix::fs::FileTypeExt;
     let ft = meta.file_type();
     if ft.is_symlink() {
         let to = std::fs::read_link(path)
@@ -62,7 +74,7 @@ pub fn check_output(path: &Path, inputs: Inputs<'_>) -> Result<(), FileError> {
             ),
         ));
     }
-    if !ft.is_file() {
+    if !ft.is_file() && !(char_device && ft.is_char_device()) {
         return Err(FileError::new(
             path,
             format!(
@@ -87,6 +99,36 @@ pub fn check_output(path: &Path, inputs: Inputs<'_>) -> Result<(), FileError> {
         }
     }
     Ok(())
+}
+
+/// Opens `path` as a stream that is written while the command runs (the CSV sink's
+/// recording, which a monitor follows and which keeps what was recorded before a crash): the
+/// rules of [`check_output`], except that a character device (`/dev/null`, a serial line) is
+/// written into — never replaced. The file is opened without following a link and without
+/// blocking (a FIFO swapped in since the check fails instead of waiting for a reader), checked
+/// again once open, and only then truncated.
+pub fn open_stream(path: &Path, inputs: Inputs<'_>) -> Result<File, FileError> {
+    use std::os::unix::fs::OpenOptionsExt;
+    if let Ok(meta) = std::fs::symlink_metadata(path) {
+        check_existing(path, &meta, inputs, true)?;
+    } else {
+        check_output(path, inputs)?;
+    }
+    let file = std::fs::OpenOptions::new()
+        .write(true)
+        .create(true)
+        .custom_flags(libc::O_NOFOLLOW | libc::O_NONBLOCK | libc::O_NOCTTY)
+        .open(path)
+        .map_err(|e| FileError::io(path, "cannot write", e))?;
+    let meta = file
+        .metadata()
+        .map_err(|e| FileError::io(path, "cannot write", e))?;
+    check_existing(path, &meta, inputs, true)?;
+    if meta.file_type().is_file() {
+        file.set_len(0)
+            .map_err(|e| FileError::io(path, "cannot write", e))?;
+    }
+    Ok(file)
 }
 
 /// The directory an output is renamed into (`.` for a bare file name).

@@ -180,3 +180,33 @@ fn a_set_is_written_whole_or_not_at_all() {
     assert!(!c.exists());
     assert!(leftovers(&d).is_empty());
 }
+
+#[test]
+fn a_stream_writes_into_a_character_device_and_refuses_the_rest() {
+    let d = test_dir("stream");
+    let input = d.join("run.csv");
+    std::fs::write(&input, "time_s\n0\n").unwrap();
+    let e = open_stream(&input, &[("--replay", &input)]).unwrap_err();
+    assert!(
+        e.to_string()
+            .contains("is also this command's input --replay"),
+        "{e}"
+    );
+    assert_eq!(std::fs::read_to_string(&input).unwrap(), "time_s\n0\n");
+    let link = d.join("link.csv");
+    std::os::unix::fs::symlink(&input, &link).unwrap();
+    assert!(open_stream(&link, &[]).is_err());
+    let fifo = d.join("fifo.csv");
+    assert!(std::process::Command::new("mkfifo")
+        .arg(&fifo)
+        .status()
+        .unwrap()
+        .success());
+    assert!(open_stream(&fifo, &[]).is_err());
+    assert!(open_stream(Path::new("/dev/null"), &[]).is_ok());
+    let out = d.join("out.csv");
+    std::fs::write(&out, "old content").unwrap();
+    let mut f = open_stream(&out, &[]).unwrap();
+    f.write_all(b"new").unwrap();
+    assert_eq!(std::fs::read_to_string(&out).unwrap(), "new");
+}
