@@ -74,7 +74,8 @@ fn check_existing(
             ),
         ));
     }
-    if !ft.is_file() && !(char_device && ft.is_char_device()) {
+    let writable = ft.is_file() || (char_device && ft.is_char_device());
+    if !writable {
         return Err(FileError::new(
             path,
             format!(
