@@ -151,3 +151,40 @@ mod tests {
         assert!(e.to_string().contains("byte 2"), "{e}");
     }
 }
+
+#[cfg(test)]
+mod limit_tests {
+    use super::*;
+    use crate::test_dir;
+
+    /// A variable of this test alone, so no other test sees it change.
+    const RAISED: Limit = Limit {
+        kind: "run",
+        bytes: 10,
+        env: Some("TRUEPOS_TEST_ONLY_MAX_MB"),
+    };
+
+    #[test]
+    fn a_limit_is_raised_by_its_variable_and_a_bad_value_is_an_error() {
+        let d = test_dir("raised");
+        let f = d.join("run.csv");
+        std::fs::write(&f, vec![b'1'; 100]).unwrap();
+        let e = read(&f, RAISED).unwrap_err();
+        assert!(
+            e.to_string().ends_with(
+                "is 100 bytes, more than the 10 bytes a run file may have (raise it with \
+                 TRUEPOS_TEST_ONLY_MAX_MB=MiB)"
+            ),
+            "{e}"
+        );
+        std::env::set_var("TRUEPOS_TEST_ONLY_MAX_MB", "1");
+        assert_eq!(read(&f, RAISED).unwrap().len(), 100);
+        std::env::set_var("TRUEPOS_TEST_ONLY_MAX_MB", "lots");
+        let e = read(&f, RAISED).unwrap_err();
+        assert!(
+            e.to_string().contains("expected a whole number of MiB"),
+            "{e}"
+        );
+        std::env::remove_var("TRUEPOS_TEST_ONLY_MAX_MB");
+    }
+}
