@@ -3,14 +3,14 @@
 //! Every command of truepos, the service's hot reload and the CSV sink read and write files
 //! through this crate, so that the rules below hold everywhere at once.
 //!
-//! **Reading** ([`read`]): only a regular file is read — a FIFO, a device, a socket or a
+//! **Reading** ([`read`](mod@read)): only a regular file is read — a FIFO, a device, a socket or a
 //! directory is refused by name before anything is read from it; the file is opened with
 //! `O_NONBLOCK`, so a FIFO put where a model was expected never blocks the reader (the reload
 //! thread included); and every kind of file has a size limit ([`Limit`]), checked on the size
 //! the file states and again while reading, so `/dev/zero` or a model with a 500 MB comment is
 //! refused at once, naming the file, its size and the limit.
 //!
-//! **Writing** ([`write`]): the output is first written to a temporary file created
+//! **Writing** ([`write`](mod@write)): the output is first written to a temporary file created
 //! exclusively (`O_EXCL`, a random name in the output's directory, so a planted file or link
 //! of that name is never followed), synced, then renamed over the output — a reader sees the
 //! old file or the whole new one. An output that is one of the command's inputs (same device
