@@ -574,3 +574,59 @@ fn a_log_in_a_read_only_directory_is_read() {
     let (ok, err) = within(20, &["log", "--log", s(&ro_log)]);
     assert!(ok, "log: {err}");
 }
+
+/// `fit --model` on a full disk: the earlier model stays whole and no temporary file is left
+/// (it was left truncated at 4 096 bytes). The full disk is a 64 KiB tmpfs filled up, which
+/// needs root; elsewhere the test says why it skips.
+#[test]
+fn a_full_disk_leaves_the_earlier_model_whole() {
+    let d = scratch("rt-full-disk");
+    let run = small_run(&d);
+    let disk = d.join("disk");
+    std::fs::create_dir_all(&disk).unwrap();
+    let mounted = Command::new("mount")
+        .args(["-t", "tmpfs", "-o", "size=64k", "tmpfs"])
+        .arg(&disk)
+        .output()
+        .unwrap();
+    if !mounted.status.success() {
+        eprintln!(
+            "skipped: cannot mount a small tmpfs here ({})",
+            String::from_utf8_lossy(&mounted.stderr).trim()
+        );
+        return;
+    }
+    let _m = Mounted(disk.clone());
+    let model = disk.join("model.json");
+    std::fs::write(&model, "{\"earlier\": true}\n").unwrap();
+    // Fill what is left, in small pieces so that the last one takes the last block.
+    let mut filler = std::fs::File::create(disk.join("filler")).unwrap();
+    while std::io::Write::write_all(&mut filler, &[b'x'; 512]).is_ok() {}
+    drop(filler);
+    let (ok, err) = within(
+        120,
+        &[
+            "fit",
+            "--run",
+            s(&run),
+            "--inputs",
+            "t*",
+            "--target",
+            "dz_um",
+            "--model",
+            s(&model),
+        ],
+    );
+    assert!(!ok, "the fit wrote on a full disk: {err}");
+    assert!(err.contains(s(&model)), "{err}");
+    assert_eq!(
+        std::fs::read_to_string(&model).unwrap(),
+        "{\"earlier\": true}\n"
+    );
+    let left: Vec<_> = std::fs::read_dir(&disk)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.ends_with(".tmp"))
+        .collect();
+    assert!(left.is_empty(), "{left:?}");
+}
