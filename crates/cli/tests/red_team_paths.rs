@@ -33,7 +33,16 @@ enum Kind {
 
 /// The commands that write a file: each with its input (a copy in the case's directory, so
 /// that the output can be it) and the arguments around `OUT`.
-const COMMANDS: [&str; 7] = ["export", "eval", "fit", "sim", "log", "reidentify", "gcode"];
+const COMMANDS: [&str; 8] = [
+    "export",
+    "eval",
+    "fit",
+    "sim",
+    "log",
+    "reidentify",
+    "gcode",
+    "table",
+];
 
 /// A log, written once for the process, that `truepos log --csv` and `reidentify` read.
 fn a_log() -> &'static Path {
@@ -94,6 +103,14 @@ fn case(cmd: &str, dir: &Path, out: &Path) -> (PathBuf, Vec<String>) {
             copy(&repo(MODEL), "model.toml"),
             vec!["reidentify", "--machine", M, "--run", RUN, "--model"],
         ),
+        "table" => {
+            let p = dir.join("table.csv");
+            std::fs::write(&p, "position,forward,reverse\n0,2,-2\n100,3.5,-0.5\n").unwrap();
+            (
+                p,
+                vec!["kin", "table", "--from", "csv", "--to", "csv", "--input"],
+            )
+        }
         _ => {
             let p = dir.join("prog.ngc");
             std::fs::write(&p, "G0 X10\nM2\n").unwrap();
