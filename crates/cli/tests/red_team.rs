@@ -160,6 +160,10 @@ fn an_output_that_is_a_fifo_is_refused_and_kept() {
         &["sim", "--scenario", "spindle-warmup", "--out", s(&out)],
     );
     assert!(!ok && err.contains("is a FIFO"), "{err}");
+    // The CSV sink, which opened a FIFO with no reader and waited for ever.
+    let sink = format!("csv:{}", s(&out));
+    let (ok, err) = within(30, &["run", "--fast", "--duration-s", "1", "--sink", &sink]);
+    assert!(!ok && err.contains("is a FIFO"), "{err}");
     assert!(std::fs::symlink_metadata(&out)
         .unwrap()
         .file_type()
