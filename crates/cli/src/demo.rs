@@ -44,10 +44,11 @@ fn scenario(name: &str) -> Result<Scenario, CliError> {
     match Scenario::builtin(name) {
         Some(s) => Ok(s),
         None => {
-            let text = std::fs::read_to_string(name).map_err(CliError::context(format!(
-                "scenario `{name}`: not a built-in ({}) and not a readable file: ",
-                truepos_sim::BUILTIN.join(", ")
-            )))?;
+            let text = truepos_files::read::read_text(Path::new(name), truepos_files::CONFIG)
+                .map_err(CliError::context(format!(
+                    "scenario `{name}`: not a built-in ({}) and not a readable file: ",
+                    truepos_sim::BUILTIN.join(", ")
+                )))?;
             Ok(Scenario::parse(&text, name, None)?)
         }
     }
@@ -298,7 +299,7 @@ fn save(
         .sum();
     file.provenance
         .insert("observations".into(), (observations as i64).into());
-    std::fs::write(path, file.to_toml()).map_err(CliError::file(path, Some("cannot write")))
+    crate::write::write_whole(path, file.to_toml(), &[])
 }
 
 /// The test day's figures: uncompensated, prior art, position-dependent.

@@ -49,6 +49,10 @@ pub enum CliError {
         doing: Option<&'static str>,
         source: Box<dyn std::error::Error + Send + Sync>,
     },
+    /// A file refused or failed by the one door for reading and writing files; the message
+    /// names the file and the rule.
+    #[error(transparent)]
+    Files(#[from] truepos_files::FileError),
     /// Standard output went away or failed for another reason than a closed pipe.
     #[error("cannot write to standard output: {0}")]
     Stdout(#[source] std::io::Error),

@@ -47,6 +47,16 @@ struct AxisSummary {
 }
 
 pub fn run(args: Args) -> Result<(), CliError> {
+    if args.out.as_os_str() != "-" {
+        crate::write::check(
+            &args.out,
+            &[
+                ("--machine", &args.machine),
+                ("--model", &args.model),
+                ("--run", &args.run),
+            ],
+        )?;
+    }
     let machine = machine_file::load(&args.machine)?.machine;
     let mut model = Evaluator::load(&args.model, &machine)?;
     let runs = model.load_runs(&args.run, &machine, &args.shape, args.time.as_deref())?;
@@ -54,16 +64,27 @@ pub fn run(args: Args) -> Result<(), CliError> {
     let named = runs.len() > 1 || runs[0].0 != args.run.display().to_string();
 
     let to_stdout = args.out.as_os_str() == "-";
-    let mut writer: Option<csv::Writer<Box<dyn Write>>> = if to_stdout && args.json {
+    // A file is written through the one door and renamed into place once complete.
+    let mut pending = if to_stdout {
+        None
+    } else {
+        Some(crate::write::create(
+            &args.out,
+            &[
+                ("--machine", &args.machine),
+                ("--model", &args.model),
+                ("--run", &args.run),
+            ],
+        )?)
+    };
+    let mut writer: Option<csv::Writer<Box<dyn Write + '_>>> = if to_stdout && args.json {
         None
     } else if to_stdout {
         Some(csv::Writer::from_writer(Box::new(std::io::stdout().lock())))
     } else {
-        let f = std::fs::File::create(&args.out)
-            .map_err(CliError::file(&args.out, Some("cannot write")))?;
-        Some(csv::Writer::from_writer(Box::new(std::io::BufWriter::new(
-            f,
-        ))))
+        pending.as_mut().map(|f| {
+            csv::Writer::from_writer(Box::new(std::io::BufWriter::new(f)) as Box<dyn Write + '_>)
+        })
     };
     let io_err = |e: csv::Error| CliError::file(&args.out, Some("cannot write"))(e);
     let n_axes = model.axis_count();
@@ -102,9 +123,13 @@ pub fn run(args: Args) -> Result<(), CliError> {
         Some(figures) => figures,
         None => return Ok(()), // the reader (`head`, a pager) has seen enough
     };
-    if let Some(mut w) = writer {
+    if let Some(w) = writer.as_mut() {
         w.flush()
             .map_err(CliError::file(&args.out, Some("cannot write")))?;
+    }
+    drop(writer);
+    if let Some(p) = pending {
+        p.commit()?;
     }
 
     let rows: usize = runs.iter().map(|(_, c)| c.time_s.len()).sum();
@@ -178,7 +203,7 @@ fn evaluate(
     runs: &[(String, truepos_io::cycles::Cycles)],
     named: bool,
     summary: &mut [AxisSummary],
-    mut writer: Option<&mut csv::Writer<Box<dyn Write>>>,
+    mut writer: Option<&mut csv::Writer<Box<dyn Write + '_>>>,
 ) -> Result<Option<Evaluated>, CliError> {
     let n_axes = summary.len();
     let io_err = |e: csv::Error| CliError::file(&args.out, Some("cannot write"))(e);

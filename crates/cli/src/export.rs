@@ -1,7 +1,7 @@
 //! `truepos export`: a model's state at one moment of a run, projected onto a control's own
 //! compensation form and written as the file that sets it (see docs/controls.md).
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use truepos_controls::fanuc::{macro_axes, write_macro_program};
 use truepos_controls::heidenhain::{offset_9231, tempcomp, PlcWord};
@@ -206,7 +206,17 @@ fn positions_now(machine: &Machine, run: &Cycles, k: usize) -> Vec<f64> {
         .collect()
 }
 
+/// The files `truepos export` reads, which its output may not be.
+fn inputs(args: &Args) -> [(&'static str, &Path); 3] {
+    [
+        ("--machine", &args.machine),
+        ("--model", &args.model),
+        ("--run", &args.run),
+    ]
+}
+
 pub fn run(args: Args) -> Result<(), CliError> {
+    crate::write::check(&args.out, &inputs(&args))?;
     let machine = machine_file::load(&args.machine)?.machine;
     let mut model = Evaluator::load(&args.model, &machine)?;
     let mut runs = model.load_runs(&args.run, &machine, &args.shape, args.time.as_deref())?;
@@ -292,7 +302,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
             &header,
         )?,
     };
-    crate::write::write_whole(&args.out, &text)?;
+    crate::write::write_whole(&args.out, &text, &inputs(&args))?;
     if args.json {
         let v = serde_json::json!({"to": format!("{:?}", args.to), "at_s": cycles.time_s[k], "axes": axes_json, "out": args.out.display().to_string()});
         println!("{v}");

@@ -1,7 +1,7 @@
 //! `truepos fit`: learn a dynamic compensation model from recorded runs and validate it honestly.
 
 use std::io::IsTerminal;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use crate::error::CliError;
@@ -15,6 +15,14 @@ use truepos_io::run::{read_shaped, Table, Time};
 use crate::shape::ShapeArgs;
 
 /// Arguments of `truepos fit`.
+/// The files `truepos fit` reads, which none of its outputs may be.
+pub(crate) fn input_files(args: &Args) -> Vec<(&'static str, &Path)> {
+    let mut v: Vec<(&'static str, &Path)> =
+        args.runs.iter().map(|r| ("--run", r.as_path())).collect();
+    v.push(("--machine", Path::new(&args.machine)));
+    v
+}
+
 #[derive(clap::Args)]
 pub struct Args {
     /// A run: CSV, or a workbook (.xlsx; every sheet is a run). Repeat for several runs, which are
@@ -141,7 +149,10 @@ pub(crate) fn load(args: &Args, inputs: &Patterns) -> Result<(Dataset, Vec<Table
         targets: args.target.clone(),
         operating: args.operating.clone(),
     };
-    Ok((Dataset::from_tables(&tables, &columns)?, tables))
+    let ds = Dataset::from_tables(&tables, &columns)?;
+    let rows = ds.runs.iter().map(|r| r.time_s.len()).sum();
+    truepos_fit::dataset::check_budget(ds.input_names.len(), rows).map_err(CliError::Refused)?;
+    Ok((ds, tables))
 }
 
 /// The run tables named on the command line.
@@ -218,6 +229,9 @@ impl Progress {
 
 /// Runs `truepos fit`.
 pub fn run(args: Args) -> Result<(), CliError> {
+    for out in [&args.model, &args.predictions].into_iter().flatten() {
+        crate::write::check(out, &input_files(&args))?;
+    }
     if args.machine.ends_with(".toml") {
         return crate::fit_machine::run(args);
     }
@@ -272,12 +286,10 @@ pub fn run(args: Args) -> Result<(), CliError> {
             &created_by,
         )
         .map_err(CliError::context("--axis: "))?;
-        std::fs::write(path, file.to_json() + "\n")
-            .map_err(CliError::file(path, Some("cannot write")))?;
+        crate::write::write_whole(path, file.to_json() + "\n", &input_files(&args))?;
     }
     if let Some(path) = &args.predictions {
-        std::fs::write(path, predictions_csv(&ds, &outcome))
-            .map_err(CliError::file(path, Some("cannot write")))?;
+        crate::write::write_whole(path, predictions_csv(&ds, &outcome), &input_files(&args))?;
     }
     if let Some(dir) = &args.report {
         crate::fit_report::write(dir, &ds, &outcome, &warnings)?;

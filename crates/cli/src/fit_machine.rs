@@ -185,11 +185,12 @@ pub fn run(mut args: Args) -> Result<(), CliError> {
         warnings.extend(what.into_iter().map(|w| format!("--force: {w}")));
     }
     if let Some(out) = &args.model {
-        write_model(&ds, &settings, &machine, &outcome, &data.target_axes, out)?;
+        let text = model_text(&ds, &settings, &machine, &outcome, &data.target_axes)?;
+        crate::write::write_whole(out, text, &crate::fit::input_files(&args))?;
     }
     if let Some(p) = &args.predictions {
         let csv = predictions_csv_of(&ds, &outcome.predictions, &outcome.held_out, true);
-        std::fs::write(p, csv).map_err(CliError::file(p, Some("cannot write")))?;
+        crate::write::write_whole(p, csv, &crate::fit::input_files(&args))?;
     }
     for w in &warnings {
         eprintln!("warning: {w}");
@@ -272,14 +273,13 @@ fn print_screen(ds: &Dataset, outcome: &MachineOutcome) {
 
 /// The chosen model in its own form: a seed A/C model as the model file (TOML) `eval`, `run`
 /// and the LinuxCNC component read; a dynamic model as the dynamic model file (JSON).
-fn write_model(
+fn model_text(
     ds: &Dataset,
     settings: &truepos_fit::settings::Settings,
     machine: &Machine,
     outcome: &MachineOutcome,
     axes: &[usize],
-    out: &Path,
-) -> Result<(), CliError> {
+) -> Result<String, CliError> {
     let created_by = format!("truepos fit {}", env!("CARGO_PKG_VERSION"));
     let text = match &outcome.selection.chosen {
         Chosen::Dynamic(trained) => {
@@ -337,5 +337,5 @@ fn write_model(
             file.to_toml()
         }
     };
-    std::fs::write(out, text).map_err(CliError::file(out, Some("cannot write")))
+    Ok(text)
 }

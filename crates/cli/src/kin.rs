@@ -207,7 +207,10 @@ fn emit(c: &Common, body: &str, summary: serde_json::Value, text: String) -> Res
     let summary = if c.json { summary.to_string() } else { text };
     match &c.output {
         Some(p) => {
-            std::fs::write(p, body).map_err(CliError::file(p, Some("cannot write")))?;
+            let mut inputs: Vec<(&str, &Path)> =
+                vec![("--kinematics", &c.kinematics), ("--input", &c.input)];
+            inputs.extend(c.machine.as_deref().map(|m| ("--machine", m)));
+            crate::write::write_whole(p, body, &inputs)?;
             println!("{summary}");
         }
         None => {

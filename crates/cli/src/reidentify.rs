@@ -63,7 +63,17 @@ pub struct Args {
     json: bool,
 }
 
+/// The files `truepos reidentify` reads, which its output may not be.
+fn inputs(args: &Args) -> Vec<(&'static str, &Path)> {
+    let mut inputs: Vec<(&str, &Path)> =
+        vec![("--machine", &args.machine), ("--model", &args.model)];
+    inputs.extend(args.log.as_deref().map(|l| ("--log", l)));
+    inputs.extend(args.run.as_deref().map(|r| ("--run", r)));
+    inputs
+}
+
 pub fn run(args: Args) -> Result<ExitCode, CliError> {
+    crate::write::check(&args.out, &inputs(&args))?;
     if args
         .out
         .extension()
@@ -75,8 +85,7 @@ pub fn run(args: Args) -> Result<ExitCode, CliError> {
         )));
     }
     let machine = machine_file::load(&args.machine)?.machine;
-    let parent_text =
-        std::fs::read(&args.model).map_err(CliError::file(&args.model, Some("cannot read")))?;
+    let parent_text = crate::write::read(&args.model, truepos_files::MODEL)?;
     let loaded = compensation::load(&args.model, &machine)?;
     let Some(model) = loaded.model.as_static() else {
         return Err(CliError::refused(format!(
@@ -211,7 +220,7 @@ fn write_model(
     compensation::parse(&args.out, &text, machine).map_err(CliError::context(
         "the re-identified model does not load back (a bug; nothing written): ",
     ))?;
-    crate::write::write_whole(&args.out, text.as_bytes())?;
+    crate::write::write_whole(&args.out, text.as_bytes(), &inputs(args))?;
     Ok(generation)
 }
 

@@ -2,7 +2,7 @@
 //! the inspection of its log.
 
 use std::io::{IsTerminal, Write};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -18,6 +18,21 @@ use truepos_runtime::replay::{state_name, CsvSink, Recording, ReplaySource};
 use truepos_runtime::sources::modbus::{ModbusConfig, ModbusSource};
 use truepos_runtime::sources::shdr::{ShdrConfig, ShdrSource};
 use truepos_runtime::{PathState, Running, Service, ServiceConfig, ServiceHost, Sink, Source};
+
+/// The files `truepos run` reads (machine, models, replayed runs and configurations, the
+/// log), none of which a CSV sink may write.
+fn run_inputs(args: &RunArgs) -> Vec<(&'static str, &Path)> {
+    let mut v: Vec<(&'static str, &Path)> = vec![("--machine", args.machine.as_path())];
+    v.extend(args.models.iter().map(|m| ("--models", m.as_path())));
+    for s in &args.sources {
+        if let Some((_, rest)) = s.split_once(':') {
+            let file = rest.rsplit_once('@').map_or(rest, |(f, _)| f);
+            v.push(("--source", Path::new(file)));
+        }
+    }
+    v.extend(args.log.as_deref().map(|l| ("--log", l)));
+    v
+}
 
 /// Arguments of `truepos run`.
 #[derive(clap::Args)]
@@ -119,7 +134,11 @@ fn twin_source(
     let sc = match truepos_sim::Scenario::builtin(scenario) {
         Some(s) => s,
         None => {
-            let text = std::fs::read_to_string(scenario).map_err(CliError::context(format!(
+            let text = truepos_files::read::read_text(
+                std::path::Path::new(scenario),
+                truepos_files::CONFIG,
+            )
+            .map_err(CliError::context(format!(
                 "twin scenario `{scenario}`: not a built-in ({}) and not a readable file: ",
                 truepos_sim::BUILTIN.join(", ")
             )))?;
@@ -354,7 +373,12 @@ fn open_sinks(
                 "--sink `{spec}`: expected `csv:FILE.csv` or `opcua:MAPPING.toml`"
             )));
         };
-        let sink = CsvSink::create(std::path::Path::new(file), &axis_names, args.sink_every_s)?;
+        let sink = CsvSink::create(
+            std::path::Path::new(file),
+            &axis_names,
+            args.sink_every_s,
+            &run_inputs(args),
+        )?;
         sinks.push(Box::new(sink));
     }
     Ok(sinks)
@@ -751,13 +775,15 @@ fn link_faults(events: &[log::LoggedEvent]) -> Vec<(String, String)> {
 pub fn show_log(args: LogArgs) -> Result<(), CliError> {
     if let Some(out) = &args.csv {
         let (names, rows) = log::read_cycles(&args.log, None)?;
-        let mut w =
-            csv::Writer::from_path(out).map_err(CliError::file(out, Some("cannot write")))?;
+        let mut w = csv::Writer::from_writer(Vec::new());
         w.write_record(&names)?;
         for r in &rows {
             w.write_record(r)?;
         }
-        w.flush().map_err(csv::Error::from)?;
+        let bytes = w
+            .into_inner()
+            .map_err(|e| csv::Error::from(e.into_error()))?;
+        crate::write::write_whole(out, bytes, &[("--log", &args.log)])?;
         eprintln!("{} cycles written to {}", rows.len(), out.display());
         return Ok(());
     }

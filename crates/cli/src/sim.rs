@@ -54,6 +54,11 @@ pub fn run(args: Args) -> Result<(), CliError> {
         print!("{text}");
         return Ok(());
     }
+    if let Some(out) = args.out.as_deref().filter(|o| o.as_os_str() != "-") {
+        let mut inputs: Vec<(&str, &Path)> = vec![("--scenario", Path::new(&args.scenario))];
+        inputs.extend(args.twin.as_deref().map(|t| ("--twin", t)));
+        crate::write::check(out, &inputs)?;
+    }
     let twin = load_twin(&args)?;
     let scenario = load_scenario(&args, &twin)?;
     let run = simulate(&twin, &scenario, args.seed)?;
@@ -61,7 +66,9 @@ pub fn run(args: Args) -> Result<(), CliError> {
         .out
         .clone()
         .unwrap_or_else(|| PathBuf::from(format!("sim-{}.csv", scenario.name)));
-    write_run(&run, &out, args.nodes)?;
+    let scenario_file = Path::new(&args.scenario);
+    let scenario_file = scenario_file.is_file().then_some(scenario_file);
+    write_run(&run, &out, args.nodes, args.twin.as_deref(), scenario_file)?;
     let s = run.summary();
     if args.json {
         println!("{}", summary_json(&run, &s, &out));
@@ -76,7 +83,7 @@ fn load_twin(args: &Args) -> Result<Twin, CliError> {
     Ok(match &args.twin {
         None => Twin::reference(),
         Some(path) => {
-            let text = std::fs::read_to_string(path)
+            let text = truepos_files::read::read_text(path, truepos_files::CONFIG)
                 .map_err(CliError::context(format!("--twin {}: ", path.display())))?;
             let params = TwinParams::parse(&text, &path.display().to_string())?;
             Twin::from_params(&params)
@@ -90,11 +97,13 @@ fn load_scenario(args: &Args, twin: &Twin) -> Result<Scenario, CliError> {
         Some(s) => s,
         None => {
             let path = PathBuf::from(&args.scenario);
-            let src = std::fs::read_to_string(&path).map_err(CliError::context(format!(
-                "--scenario {}: neither a built-in scenario ({}) nor a readable file: ",
-                args.scenario,
-                BUILTIN.join(", ")
-            )))?;
+            let src = truepos_files::read::read_text(&path, truepos_files::CONFIG).map_err(
+                CliError::context(format!(
+                    "--scenario {}: neither a built-in scenario ({}) nor a readable file: ",
+                    args.scenario,
+                    BUILTIN.join(", ")
+                )),
+            )?;
             Scenario::parse(&src, &path.display().to_string(), Some(twin.travel_mm))?
         }
     };
@@ -139,14 +148,24 @@ fn simulate(twin: &Twin, scenario: &Scenario, seed: u64) -> Result<SimRun, CliEr
 }
 
 /// Writes the run's CSV to `out` (`-`: standard output).
-fn write_run(run: &SimRun, out: &Path, nodes: bool) -> Result<(), CliError> {
+fn write_run(
+    run: &SimRun,
+    out: &Path,
+    nodes: bool,
+    twin: Option<&Path>,
+    scenario: Option<&Path>,
+) -> Result<(), CliError> {
     if out.as_os_str() == "-" {
         run.write_csv(std::io::stdout().lock(), nodes)
             .map_err(CliError::context("writing CSV: "))?;
     } else {
-        let f = std::fs::File::create(out).map_err(CliError::file(out, None))?;
-        run.write_csv(std::io::BufWriter::new(f), nodes)
+        let mut inputs: Vec<(&str, &Path)> = Vec::new();
+        inputs.extend(twin.map(|t| ("--twin", t)));
+        inputs.extend(scenario.map(|s| ("--scenario", s)));
+        let mut f = crate::write::create(out, &inputs)?;
+        run.write_csv(std::io::BufWriter::new(&mut f), nodes)
             .map_err(CliError::file(out, None))?;
+        f.commit()?;
     }
     Ok(())
 }

@@ -49,6 +49,10 @@ pub enum Error {
         #[source]
         source: std::io::Error,
     },
+    /// The program or the output refused by the one door for files (a FIFO, a device, a
+    /// link, the input as output, a program beyond its size limit).
+    #[error(transparent)]
+    Files(#[from] truepos_files::FileError),
     /// The program, or what rs274 made of it, cannot be compensated.
     #[error("{place}: {reason}{}", canon_suffix(.place))]
     Refused { place: Place, reason: String },

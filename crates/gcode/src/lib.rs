@@ -115,32 +115,22 @@ pub struct Summary {
     pub seconds: f64,
 }
 
-/// Compensates `input` into `output`: written to a temporary file in `output`'s directory
-/// and renamed over `output` only on success.
+/// Compensates `input` into `output` through the one door for outputs
+/// ([`truepos_files::write::Pending`]): written to an exclusive temporary file in `output`'s
+/// directory and renamed over `output` only on success; an output that is the input, a
+/// device, a FIFO, a directory or a link is refused before rs274 runs.
 pub fn rewrite_file(
     input: &Path,
     chain: &Chain,
     options: &Options,
     output: &Path,
 ) -> Result<Summary, Error> {
-    let dir = match output.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    let tmp = tempfile::Builder::new()
-        .prefix(".truepos-gcode-")
-        .tempfile_in(dir)
-        .map_err(Error::file(dir, "cannot create a temporary file in"))?;
-    let w = std::io::BufWriter::with_capacity(1 << 16, tmp);
+    let mut tmp = truepos_files::write::Pending::create(output, &[("--input", input)])?;
+    let w = std::io::BufWriter::with_capacity(1 << 16, &mut tmp);
     let (summary, w) = rewrite(input, chain, options, w)?;
-    let tmp = w
-        .into_inner()
+    w.into_inner()
         .map_err(|e| Error::file(output, "cannot write")(e.into_error()))?;
-    tmp.as_file()
-        .sync_all()
-        .map_err(Error::file(output, "cannot write"))?;
-    tmp.persist(output)
-        .map_err(|e| Error::file(output, "cannot rename the finished output to")(e.error))?;
+    tmp.commit()?;
     Ok(summary)
 }
 

@@ -44,7 +44,7 @@ pub fn line_of_text(text: &str) -> Option<u64> {
 
 /// Checks `input` and writes the numbered copy to `copy`; returns the number of lines.
 pub fn number(input: &Path, copy: &Path) -> Result<u64, Error> {
-    let f = std::fs::File::open(input).map_err(Error::file(input, "cannot read"))?;
+    let (f, _) = truepos_files::read::open(input, truepos_files::PROGRAM)?;
     let mut r = BufReader::with_capacity(1 << 16, f);
     let out = std::fs::File::create(copy).map_err(Error::file(copy, "cannot write"))?;
     let mut w = BufWriter::with_capacity(1 << 16, out);

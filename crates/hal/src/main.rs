@@ -216,7 +216,8 @@ fn run(args: RunArgs) -> Result<(), Error> {
     });
     eprintln!("truepos-hal: stopped after {} cycles: {stats}", s.cycles);
     if let Some(p) = &args.stats {
-        std::fs::write(p, format!("{stats}\n")).map_err(Error::Stats)?;
+        truepos_files::write::write_whole(p, format!("{stats}\n").as_bytes(), &[])
+            .map_err(|e| Error::Stats(std::io::Error::other(e.to_string())))?;
     }
     Ok(())
 }

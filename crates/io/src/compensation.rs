@@ -27,7 +27,7 @@ pub struct Loaded {
 /// Reads a model file of either form and binds it to the machine. A file that cannot be read is
 /// an error naming it; every other error names file, line, column and key.
 pub fn load(path: &Path, machine: &Machine) -> Result<Loaded, InputError> {
-    parse(path, &read_text(path)?, machine)
+    parse(path, &read_text(path, truepos_files::MODEL)?, machine)
 }
 
 /// Loads the model files of a set for the service, in order of preference, bound to the

@@ -132,8 +132,7 @@ pub fn load_with(
     required_sensors: &[usize],
     positions: Positions,
 ) -> Result<Cycles, InputError> {
-    let file = std::fs::File::open(path)
-        .map_err(|e| InputError::file(path, format!("cannot read: {e}")))?;
+    let (file, _) = truepos_files::read::open(path, truepos_files::RUN)?;
     read_with(path, file, machine, required_sensors, positions)
 }
 

@@ -391,7 +391,7 @@ pub fn is_dynamic(text: &str) -> bool {
 
 /// Reads a dynamic model file and binds it to the machine.
 pub fn load(path: &Path, machine: &Machine) -> Result<BoundDynamicModel, InputError> {
-    parse(path, &read_text(path)?, machine)
+    parse(path, &read_text(path, truepos_files::MODEL)?, machine)
 }
 
 /// Parses a dynamic model file's text (`path` names it in errors) and binds it to the machine.

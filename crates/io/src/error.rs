@@ -91,9 +91,17 @@ pub fn line_column(text: &str, offset: usize) -> (usize, usize) {
     (line, column)
 }
 
-/// Reads a whole text file, naming it in the error.
-pub fn read_text(path: &Path) -> Result<String, InputError> {
-    std::fs::read_to_string(path).map_err(|e| InputError::file(path, format!("cannot read: {e}")))
+/// Reads a whole text file of one kind through the one door ([`truepos_files::read`]: a
+/// regular file only, within the kind's size limit, opened without blocking), naming it in the
+/// error.
+pub fn read_text(path: &Path, limit: truepos_files::Limit) -> Result<String, InputError> {
+    truepos_files::read::read_text(path, limit).map_err(InputError::from)
+}
+
+impl From<truepos_files::FileError> for InputError {
+    fn from(e: truepos_files::FileError) -> Self {
+        InputError::file(&e.path, e.message)
+    }
 }
 
 /// Deserialises TOML text, turning syntax and type errors into an [`InputError`] that names the

@@ -47,7 +47,7 @@ pub struct KinematicsFile {
 /// Reads a kinematics file and the tables it references; with `machine`, every axis must exist
 /// there with the same kind, and travel comes from the machine.
 pub fn load(path: &Path, machine: Option<&Machine>) -> Result<KinematicsFile, InputError> {
-    let text = read_text(path)?;
+    let text = read_text(path, truepos_files::CONFIG)?;
     parse(path, &text, machine)
 }
 
@@ -274,7 +274,7 @@ impl Draft<'_> {
             AxisKind::Rotary => Wrap::Rotary,
         };
         let table_path: PathBuf = self.dir.join(file);
-        let table_text = read_text(&table_path)
+        let table_text = read_text(&table_path, truepos_files::TABLE)
             .map_err(|e| line.at(file_field, "file", format!("table `{}`: {}", nf.text, e)))?;
         if format != "siemens"
             && (siemens_axis.is_some() || siemens_output_axis.is_some() || siemens_table.is_some())

@@ -138,7 +138,7 @@ struct RawOperating {
 
 /// Reads and checks a machine description file.
 pub fn load(path: &Path) -> Result<MachineConfig, InputError> {
-    let text = read_text(path)?;
+    let text = read_text(path, truepos_files::MACHINE)?;
     parse(path, &text)
 }
 

@@ -269,7 +269,7 @@ pub struct LoadedModel {
 
 /// Reads a model file like [`load`] and keeps its axis-combination index.
 pub fn load_entry(path: &Path, machine: &Machine) -> Result<LoadedModel, InputError> {
-    parse_entry(path, &read_text(path)?, machine)
+    parse_entry(path, &read_text(path, truepos_files::MODEL)?, machine)
 }
 
 /// Parses a model file's text like [`load`] (`.json` as JSON, anything else as TOML; `path`
@@ -298,7 +298,7 @@ pub fn parse_entry(path: &Path, text: &str, machine: &Machine) -> Result<LoadedM
 
 /// Reads a model file (`.json` as JSON, anything else as TOML) and binds it to a machine.
 pub fn load(path: &Path, machine: &Machine) -> Result<Model, InputError> {
-    let text = read_text(path)?;
+    let text = read_text(path, truepos_files::MODEL)?;
     let is_json = path
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("json"));

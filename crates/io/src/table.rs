@@ -29,7 +29,7 @@ use std::io::Read;
 use std::path::{Path, PathBuf};
 
 #[cfg(feature = "xlsx")]
-use calamine::{open_workbook_auto, Data, Reader};
+use calamine::{open_workbook_auto_from_rs, Data, Reader};
 
 use crate::error::InputError;
 
@@ -519,10 +519,41 @@ pub fn detect_delimiter(text: &str) -> Delimiter {
     }
 }
 
+/// The longest line a CSV file may have, in bytes: a row of a thousand columns of twenty
+/// characters is 20 kB, so 1 MiB is no limit to a real table, while a file of one endless line
+/// (a binary, a wrong export) is refused at its first MiB instead of being split into millions
+/// of column names.
+pub const MAX_LINE_BYTES: usize = 1 << 20;
+
+/// Refuses a line longer than [`MAX_LINE_BYTES`], naming the line, before anything of the
+/// file is parsed.
+fn check_line_lengths(file: &Path, bytes: &[u8]) -> Result<(), InputError> {
+    let (mut start, mut line) = (0usize, 1usize);
+    loop {
+        let end = memchr::memchr(b'\n', &bytes[start..]).map_or(bytes.len(), |i| start + i);
+        if end - start > MAX_LINE_BYTES {
+            return Err(InputError::at(
+                file,
+                line,
+                MAX_LINE_BYTES + 1,
+                "",
+                format!(
+                    "the line is longer than {MAX_LINE_BYTES} bytes, the longest line a table \
+                     may have: expected one row of a table per line"
+                ),
+            ));
+        }
+        if end >= bytes.len() {
+            return Ok(());
+        }
+        start = end + 1;
+        line += 1;
+    }
+}
+
 /// Reads a CSV file.
 pub fn load_csv(file: &Path, options: CsvOptions) -> Result<Table, InputError> {
-    let bytes =
-        std::fs::read(file).map_err(|e| InputError::file(file, format!("cannot read: {e}")))?;
+    let bytes = truepos_files::read::read(file, truepos_files::RUN)?;
     parse_csv(file, &bytes, options)
 }
 
@@ -543,6 +574,7 @@ pub fn read_csv(
 /// The only errors are about the text itself (not UTF-8); what the rows must hold is the
 /// caller's to check ([`Table::width_error`], [`Value::number`], [`Table::at`]).
 pub fn parse_csv(file: &Path, bytes: &[u8], options: CsvOptions) -> Result<Table, InputError> {
+    check_line_lengths(file, bytes)?;
     let text = std::str::from_utf8(bytes).map_err(|e| {
         let line = bytes[..e.valid_up_to()]
             .iter()
@@ -690,7 +722,8 @@ fn tokenize(text: &str, delimiter: u8, mut field: impl FnMut(&str, u32, u32, boo
 /// name; a workbook with none is an error.
 #[cfg(feature = "xlsx")]
 pub fn read_workbook(file: &Path, sheet: Option<&str>) -> Result<Vec<Table>, InputError> {
-    let mut wb = open_workbook_auto(file)
+    let bytes = truepos_files::read::read(file, truepos_files::RUN)?;
+    let mut wb = open_workbook_auto_from_rs(std::io::Cursor::new(bytes))
         .map_err(|e| InputError::file(file, format!("cannot open the workbook: {e}")))?;
     let names = wb.sheet_names();
     let wanted: Vec<String> = match sheet {

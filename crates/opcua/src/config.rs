@@ -257,8 +257,8 @@ fn default_sample_ms() -> u64 {
 /// Reads and parses a TOML file; a TOML mistake names the file, line and column.
 fn load<T: serde::de::DeserializeOwned>(path: &Path, what: &str) -> Result<T, ConfigError> {
     let file = path.display().to_string();
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| ConfigError::new(&file, format!("cannot read the {what}: {e}")))?;
+    let text = truepos_files::read::read_text(path, truepos_files::CONFIG)
+        .map_err(|e| ConfigError::new(&file, format!("cannot read the {what}: {}", e.message)))?;
     toml::from_str(&text)
         .map_err(|e| ConfigError::new(&file, e.to_string().trim_end().replace('\n', " ")))
 }

@@ -126,25 +126,13 @@ fn io_error(p: &Path) -> impl Fn(std::io::Error) -> ReportError {
     move |e| ReportError(format!("{}: {e}", p.display()))
 }
 
-/// Writes `text` to `path` through a temporary file in the same folder, synced before the
-/// rename: after a crash the report is the old one or the whole new one, never an empty file
-/// under the new name.
+/// Writes `text` to `path` through the one door for outputs ([`truepos_files::write`]): an
+/// exclusive temporary file in the same folder, synced before the rename, so after a crash
+/// the report is the old one or the whole new one; a link, device or FIFO in its place is
+/// refused.
 fn write_whole(path: &Path, text: &str) -> Result<(), ReportError> {
-    let mut tmp = path.as_os_str().to_owned();
-    tmp.push(".partial");
-    let tmp = PathBuf::from(tmp);
-    let written = std::fs::File::create(&tmp).and_then(|mut f| {
-        std::io::Write::write_all(&mut f, text.as_bytes())?;
-        f.sync_all()
-    });
-    if let Err(e) = written {
-        let _ = std::fs::remove_file(&tmp);
-        return Err(io_error(&tmp)(e));
-    }
-    std::fs::rename(&tmp, path).map_err(|e| {
-        let _ = std::fs::remove_file(&tmp);
-        io_error(path)(e)
-    })
+    truepos_files::write::write_whole(path, text.as_bytes(), &[])
+        .map_err(|e| ReportError(e.to_string()))
 }
 
 /// The headline figures as cards.
@@ -313,7 +301,7 @@ mod tests {
         let ok = d.join("a.svg");
         write_whole(&ok, "<svg/>").unwrap();
         assert_eq!(std::fs::read_to_string(&ok).unwrap(), "<svg/>");
-        // The target is a folder that holds a file: the rename fails, and nothing is left.
+        // The target is a folder that holds a file: refused, and nothing is left.
         let folder = d.join("b.svg");
         std::fs::create_dir_all(folder.join("x")).unwrap();
         let e = write_whole(&folder, "<svg/>").unwrap_err();
@@ -321,7 +309,7 @@ mod tests {
         let partial = std::fs::read_dir(&d)
             .unwrap()
             .filter_map(|e| e.ok())
-            .any(|e| e.file_name().to_string_lossy().ends_with(".partial"));
+            .any(|e| e.file_name().to_string_lossy().ends_with(".tmp"));
         assert!(!partial);
         let _ = std::fs::remove_dir_all(&d);
     }

@@ -148,13 +148,29 @@ pub struct CsvSink {
 impl CsvSink {
     /// A CSV sink writing at most one row every `every_s` seconds (0: every cycle). The header
     /// goes out with the first rows, so a file that cannot take it fails in the service (an
-    /// event and a state), not here.
-    pub fn create(path: &Path, axis_names: &[String], every_s: f64) -> Result<Self, CsvSinkError> {
+    /// event and a state), not here. The file is opened through the one door for outputs
+    /// ([`truepos_files::write::open_stream`]): a link, a FIFO, a directory, a block device or
+    /// one of the run's `inputs` is refused; a character device (`/dev/null`) is written into.
+    pub fn create(
+        path: &Path,
+        axis_names: &[String],
+        every_s: f64,
+        inputs: truepos_files::write::Inputs<'_>,
+    ) -> Result<Self, CsvSinkError> {
         let fail = |source| CsvSinkError {
             file: path.to_path_buf(),
             source,
         };
-        let file = std::fs::File::create(path).map_err(fail)?;
+        let file = truepos_files::write::open_stream(path, inputs).map_err(|e| CsvSinkError {
+            file: path.to_path_buf(),
+            source: e.source.unwrap_or_else(|| {
+                let why = e
+                    .message
+                    .strip_prefix("cannot write: ")
+                    .unwrap_or(&e.message);
+                std::io::Error::other(why.to_string())
+            }),
+        })?;
         let mut header = csv::Writer::from_writer(Vec::new());
         let mut fields = vec!["time_s".to_string()];
         fields.extend(axis_names.iter().map(|a| format!("{a}_offset_um")));

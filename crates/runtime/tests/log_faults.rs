@@ -319,7 +319,7 @@ fn a_failing_sink_is_one_event_and_a_state() {
 #[test]
 fn the_csv_sink_fails_steadily_on_a_full_device() {
     let axes = vec!["X".to_string(), "Y".to_string(), "Z".to_string()];
-    let mut full = replay::CsvSink::create(Path::new("/dev/full"), &axes, 0.0).unwrap();
+    let mut full = replay::CsvSink::create(Path::new("/dev/full"), &axes, 0.0, &[]).unwrap();
     let mut out = Output::zero(3);
     for i in 0..100 {
         out.time_s = f64::from(i) * 0.01;
@@ -332,7 +332,7 @@ fn the_csv_sink_fails_steadily_on_a_full_device() {
     let dir = scratch("logfault-csv");
     let file = dir.join("out.csv");
     {
-        let mut csv = replay::CsvSink::create(&file, &axes, 0.0).unwrap();
+        let mut csv = replay::CsvSink::create(&file, &axes, 0.0, &[]).unwrap();
         for i in 0..100 {
             out.time_s = f64::from(i) * 0.01;
             csv.write(&out).unwrap();

@@ -161,7 +161,9 @@ pub fn table(a: &TableArgs) -> Result<(), CliError> {
             .iter()
             .map(|(p, text)| (p.as_path(), text.as_bytes()))
             .collect();
-        crate::write::write_all_whole(&whole)?;
+        let mut inputs: Vec<(&str, &Path)> = vec![("--input", &a.input)];
+        inputs.extend(a.cma.as_deref().map(|c| ("--cma", c)));
+        crate::write::write_all_whole(&whole, &inputs)?;
         eprintln!(
             "wrote {} support points ({}) to {}",
             t.positions().len(),
@@ -181,7 +183,7 @@ pub fn table(a: &TableArgs) -> Result<(), CliError> {
 
 fn read(a: &TableArgs) -> Result<CompTable, CliError> {
     let path = &a.input;
-    let text = std::fs::read_to_string(path).map_err(CliError::file(path, Some("cannot read")))?;
+    let text = crate::write::read_text(path, truepos_files::TABLE)?;
     let interp = if a.monotone {
         Interpolation::MonotoneCubic
     } else {

@@ -28,7 +28,7 @@ pub fn read(
     machine: &Machine,
     sensors: &[usize],
 ) -> Result<Vec<ProbeEvent>, CliError> {
-    let bytes = std::fs::read(path).map_err(CliError::file(path, Some("cannot read")))?;
+    let bytes = crate::write::read(path, truepos_files::RUN)?;
     parse(path, &bytes, machine, sensors)
 }
 
@@ -115,7 +115,7 @@ pub fn read_inputs(
     path: &Path,
     machine: &Machine,
 ) -> Result<(Vec<(f64, truepos_runtime::probe::ProbeInput)>, f64), CliError> {
-    let bytes = std::fs::read(path).map_err(CliError::file(path, Some("cannot read")))?;
+    let bytes = crate::write::read(path, truepos_files::RUN)?;
     let start = cycles::read_with(path, &bytes[..], machine, &[], Positions::Optional)?
         .time_s
         .first()

@@ -285,10 +285,10 @@ pub fn load_samples(
     machine: &Machine,
 ) -> Result<Vec<Sample>, SampleError> {
     let read = |p: &Path| {
-        std::fs::read_to_string(p).map_err(|e| SampleError {
+        truepos_files::read::read_text(p, truepos_files::RUN).map_err(|e| SampleError {
             file: p.display().to_string(),
             line: 0,
-            message: format!("cannot read: {e}"),
+            message: e.message,
         })
     };
     parse_samples(

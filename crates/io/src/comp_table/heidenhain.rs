@@ -608,12 +608,12 @@ pub fn read_heidenhain(
     wrap: Wrap,
     interpolation: Interpolation,
 ) -> Result<CompTable, InputError> {
-    let cma_text = crate::error::read_text(cma_path)?;
+    let cma_text = crate::error::read_text(cma_path, truepos_files::TABLE)?;
     let cma = parse_cma(cma_path, &cma_text)?;
     let (entry, line) = cma.active_for(cma_path, axis)?;
     let file = entry.rsplit(['\\', '/', ':']).next().unwrap_or(entry);
     let com_path = cma_path.with_file_name(file);
-    let com_text = crate::error::read_text(&com_path).map_err(|e| {
+    let com_text = crate::error::read_text(&com_path, truepos_files::TABLE).map_err(|e| {
         InputError::at(
             cma_path,
             line,

@@ -27,7 +27,47 @@ pub(crate) fn open_read(path: &Path) -> Result<Connection, LogError> {
             message: "no such log".into(),
         });
     }
-    Connection::open_with_flags(path, rusqlite::OpenFlags::SQLITE_OPEN_READ_ONLY).map_err(err(path))
+    let conn = Connection::open_with_flags(path, rusqlite::OpenFlags::SQLITE_OPEN_READ_ONLY)
+        .and_then(|c| probe(&c).map(|()| c));
+    match conn {
+        Ok(c) => Ok(c),
+        // A WAL log opened read-only needs its `-shm` file, which SQLite cannot create in a
+        // directory the reader may not write (an operator's account reading the service's
+        // log). Without a `-wal` file every commit is in the database file itself, so reading
+        // it as immutable shows all of it; with one, the error stands rather than showing an
+        // old state.
+        Err(e) if !wal_file(path).exists() => open_immutable(path).map_err(|_| err(path)(e)),
+        Err(e) => Err(err(path)(e)),
+    }
+}
+
+/// A first read, so that a database that cannot be read fails here (SQLite opens lazily).
+fn probe(c: &Connection) -> rusqlite::Result<()> {
+    c.query_row("SELECT count(*) FROM sqlite_master", [], |_| Ok(()))
+}
+
+fn wal_file(path: &Path) -> std::path::PathBuf {
+    let mut p = path.as_os_str().to_owned();
+    p.push("-wal");
+    p.into()
+}
+
+/// Opens the log with SQLite's `immutable=1`: no lock, no `-shm` file, nothing written.
+pub(crate) fn open_immutable(path: &Path) -> Result<Connection, LogError> {
+    let mut uri = String::from("file:");
+    for b in path.as_os_str().as_encoded_bytes() {
+        match b {
+            b'a'..=b'z' | b'A'..=b'Z' | b'0'..=b'9' | b'/' | b'-' | b'_' | b'.' | b'~' => {
+                uri.push(char::from(*b))
+            }
+            _ => uri.push_str(&format!("%{b:02X}")),
+        }
+    }
+    uri.push_str("?immutable=1");
+    let flags = rusqlite::OpenFlags::SQLITE_OPEN_READ_ONLY | rusqlite::OpenFlags::SQLITE_OPEN_URI;
+    let c = Connection::open_with_flags(&uri, flags).map_err(err(path))?;
+    probe(&c).map_err(err(path))?;
+    Ok(c)
 }
 
 /// Reads the events of a log (also while the service writes it).
@@ -106,4 +146,30 @@ pub fn integrity_check(path: &Path) -> Result<String, LogError> {
     let conn = open_read(path)?;
     conn.query_row("PRAGMA integrity_check", [], |r| r.get(0))
         .map_err(err(path))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The read-only fallback itself, forced: root (CI, the service's account) can write any
+    /// directory, so a chmod cannot make the first open fail here; the cli's red-team test
+    /// `a_log_in_a_read_only_directory_is_read` mounts a read-only directory where it can.
+    #[test]
+    fn a_log_opened_immutable_reads_every_commit() {
+        let d = std::env::temp_dir().join(format!("truepos-log-immutable-{}", std::process::id()));
+        std::fs::create_dir_all(&d).unwrap();
+        let path = d.join("a b%.db");
+        let c = Connection::open(&path).unwrap();
+        c.execute_batch("PRAGMA journal_mode=WAL; CREATE TABLE t(x); INSERT INTO t VALUES (7);")
+            .unwrap();
+        drop(c);
+        assert!(!wal_file(&path).exists());
+        let r = open_immutable(&path).unwrap();
+        let x: i64 = r.query_row("SELECT x FROM t", [], |r| r.get(0)).unwrap();
+        assert_eq!(x, 7);
+        drop(r);
+        assert!(!wal_file(&path).exists());
+        let _ = std::fs::remove_dir_all(&d);
+    }
 }

@@ -49,8 +49,11 @@ pub fn load_toml_file<T: serde::de::DeserializeOwned>(
     what: &str,
 ) -> Result<T, ConfigError> {
     let file = path.display().to_string();
-    let text = std::fs::read_to_string(path).map_err(|e| {
-        ConfigError::new(&file, format!("cannot read the {what} configuration: {e}"))
+    let text = truepos_files::read::read_text(path, truepos_files::CONFIG).map_err(|e| {
+        ConfigError::new(
+            &file,
+            format!("cannot read the {what} configuration: {}", e.message),
+        )
     })?;
     from_toml_text(&text, &file)
 }
