@@ -2,9 +2,9 @@
 //! gap-separated inner folds ([`crate::inner_cv`]); the simple baseline ([`Family::Baseline`]:
 //! the temperature rises and the operating state at a small fixed ridge, [`BASELINE_RIDGE`]) is
 //! always fitted beside them and its figure reported. Two ways to decide
-//! ([`Selection`](crate::settings::Selection)):
+//! ([`crate::settings::Selection`]):
 //!
-//! - **`blend`** (the default, [`crate::blend`]): every family's ridge by the rule, the families
+//! - **`blend`** (the default, in the module `blend`): every family's ridge by the rule, the families
 //!   blended by their out-of-fold predictions, guarded against no compensation.
 //! - **`paired`**: the best richer candidate (lowest pooled inner RMSE, its ridge from a short
 //!   grid) replaces the baseline only when it is better fold by fold — lower RMSE on more than

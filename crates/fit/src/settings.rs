@@ -63,7 +63,7 @@ pub const PAIRED_RIDGES: [f64; 4] = [1e-4, 1e-3, 1e-2, 0.1];
 #[serde(rename_all = "kebab-case")]
 pub enum Selection {
     /// Every family's ridge by the rule, the families blended by their out-of-fold predictions,
-    /// guarded against no compensation ([`crate::blend`]). The default: the development gate
+    /// guarded against no compensation (the module `blend`). The default: the development gate
     /// has not shown the paired selection better (docs/fitting.md).
     #[default]
     Blend,
