@@ -6,6 +6,7 @@
 //! Exit status: 0 with a new model written (`"status": "switched"`); 3 when the running model
 //! stays (`"status": "kept"`, the reason said, nothing written); 1 on an error.
 
+mod plausible;
 pub(crate) mod probes_csv;
 mod probes_log;
 
@@ -84,7 +85,8 @@ pub fn run(args: Args) -> Result<ExitCode, CliError> {
             args.out.display()
         )));
     }
-    let machine = machine_file::load(&args.machine)?.machine;
+    let config = machine_file::load(&args.machine)?;
+    let machine = config.machine;
     let parent_text = crate::write::read(&args.model, truepos_files::MODEL)?;
     let loaded = compensation::load(&args.model, &machine)?;
     let Some(model) = loaded.model.as_static() else {
@@ -107,6 +109,7 @@ pub fn run(args: Args) -> Result<ExitCode, CliError> {
         ),
         (None, None) => unreachable!("clap requires --log or --run"),
     };
+    let (events, implausible) = plausible::within_envelope(events, &machine, &config.axes);
     let settings = Settings {
         lambda: args.lambda,
         threshold_um: args.threshold_um,
@@ -114,6 +117,9 @@ pub fn run(args: Args) -> Result<ExitCode, CliError> {
     };
     let outcome = reidentify(model, &machine, &events, settings);
     let parent = Parent::of(&args.model, &parent_text);
+    if let Some(new) = &outcome.model {
+        plausible::check_model(new, &events, &machine, &config.axes)?;
+    }
     let written = match &outcome.model {
         Some(new) => Some(write_model(
             &args,
@@ -126,7 +132,14 @@ pub fn run(args: Args) -> Result<ExitCode, CliError> {
         )?),
         None => None,
     };
-    print(&args, &parent, source, &outcome, rejected, written)?;
+    print(
+        &args,
+        &parent,
+        source,
+        &outcome,
+        (rejected, &implausible),
+        written,
+    )?;
     Ok(match outcome.verdict {
         Verdict::Switched => ExitCode::SUCCESS,
         Verdict::Kept => ExitCode::from(KEPT),
@@ -229,7 +242,7 @@ fn print(
     parent: &Parent,
     source: &Path,
     o: &Outcome,
-    rejected: usize,
+    (rejected, implausible): (usize, &[String]),
     generation: Option<i64>,
 ) -> Result<(), CliError> {
     let status = match o.verdict {
@@ -248,6 +261,7 @@ fn print(
                 "source": source.display().to_string(),
                 "events": o.events,
                 "rejected_by_the_service": rejected,
+                "beyond_the_envelope": implausible,
                 "measurements": o.measurements,
                 "skipped": o.skipped,
                 "first_time_s": finite(o.first_time_s),
@@ -273,6 +287,15 @@ fn print(
         o.last_time_s,
         source.display()
     );
+    for s in implausible.iter().take(5) {
+        println!("  left out: {s}");
+    }
+    if implausible.len() > 5 {
+        println!(
+            "  … {} more left out beyond the envelope",
+            implausible.len() - 5
+        );
+    }
     for s in o.skipped.iter().take(5) {
         println!("  skipped: {s} (an input outside the model's valid range)");
     }

@@ -57,6 +57,10 @@ impl Rls {
         if phi.len() != n || !y.is_finite() || phi.iter().any(|v| !v.is_finite()) {
             return None;
         }
+        if n == 0 {
+            // Nothing to estimate: the error is the measurement (and `chunks_exact(0)` panics).
+            return Some(y);
+        }
         let e = y - dot(phi, &self.theta);
         let (pphi, _) = self.scratch.split_at_mut(n);
         for (pi, row) in pphi.iter_mut().zip(self.p.chunks_exact(n)) {
@@ -147,6 +151,15 @@ impl SwitchRule {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A model with no parameters (a zero model re-identified) has nothing to update: the
+    /// measurement is the error, and nothing panics.
+    #[test]
+    fn no_parameters_returns_the_measurement() {
+        let mut r = Rls::new(&[], 1e3, 0.99);
+        assert_eq!(r.update(&[], 4.5), Some(4.5));
+        assert_eq!(r.update(&[], f64::NAN), None);
+    }
 
     /// y = 2·x₁ − 3·x₂ without noise: RLS from zero reaches θ = (2, −3).
     #[test]

@@ -1,0 +1,84 @@
+//! The red-team cases of issue 32 about models nobody can vouch for: probe deviations and
+//! exported values that no thermal compensation of the machine could carry. Each failed on the
+//! landed code (a re-identified model predicting a millimetre at a cold machine; an export of
+//! −488 mm with exit 0); the file cases are `red_team.rs`.
+
+mod support;
+
+use std::path::Path;
+
+use support::{command, scratch};
+use truepos_sim::{Scenario, Twin};
+
+const TWIN: &str = "examples/twin/machine.toml";
+
+/// A day of the twin with probe events, every measured Z deviation replaced by `dz`.
+fn probes_with_dz(dir: &Path, dz: &str) -> std::path::PathBuf {
+    let day = Twin::reference()
+        .run(&Scenario::builtin("spindle-warmup").unwrap(), 1)
+        .unwrap();
+    let path = dir.join("probes.csv");
+    day.write_csv(std::fs::File::create(&path).unwrap(), false)
+        .unwrap();
+    let text = std::fs::read_to_string(&path).unwrap();
+    let mut lines = text.lines();
+    let header = lines.next().unwrap();
+    let col = header
+        .split(',')
+        .position(|h| h == "probe_dz_um")
+        .expect("the twin writes probe_dz_um");
+    let mut out = vec![header.to_string()];
+    for l in lines {
+        let mut cells: Vec<&str> = l.split(',').collect();
+        if !cells[col].is_empty() {
+            cells[col] = dz;
+        }
+        out.push(cells.join(","));
+    }
+    std::fs::write(&path, out.join("\n") + "\n").unwrap();
+    path
+}
+
+#[test]
+fn probe_deviations_beyond_the_envelope_are_left_out_by_reidentify() {
+    let dir = scratch("red-team-reidentify");
+    // A model that predicts nothing: the running error is the probes' deviation.
+    let zero = dir.join("zero.toml");
+    let machine = truepos_io::machine_file::load(&support::repo(TWIN))
+        .unwrap()
+        .machine;
+    let m = truepos_model::Model::new("zero", &machine, vec![]).unwrap();
+    std::fs::write(
+        &zero,
+        truepos_io::model_file::ModelFile::from_model(&m, &machine).to_toml(),
+    )
+    .unwrap();
+    let probes = probes_with_dz(&dir, "999.9");
+    let out = dir.join("new.toml");
+    let o = command()
+        .args(["reidentify", "--machine", TWIN, "--model"])
+        .arg(&zero)
+        .arg("--run")
+        .arg(&probes)
+        .arg("--out")
+        .arg(&out)
+        .arg("--json")
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(matches!(o.status.code(), Some(0 | 3)), "{err}");
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let left_out = v["data"]["beyond_the_envelope"].as_array().unwrap();
+    assert!(!left_out.is_empty(), "{v:#}");
+    assert!(
+        left_out
+            .iter()
+            .all(|s| s.as_str().unwrap().contains("Z deviation 999.9 µm")),
+        "{v:#}"
+    );
+    if out.exists() {
+        // What was written learnt nothing of the millimetre.
+        let text = std::fs::read_to_string(&out).unwrap();
+        assert!(!text.contains("999"), "{text}");
+    }
+}
