@@ -36,7 +36,7 @@ pub fn within_envelope(
             for (a, m) in ev.measured_um.iter_mut().enumerate() {
                 let limit = bound(axes, a);
                 if let Some(v) = *m {
-                    if !(v.abs() <= limit) {
+                    if v.is_nan() || v.abs() > limit {
                         left_out.push(format!(
                             "{}: {} deviation {v} µm is beyond ±{limit} µm, {ENVELOPE_FACTOR} \
                              times the axis' envelope (max_offset_um in the machine file)",
@@ -71,7 +71,7 @@ pub fn check_model(
         };
         for (a, e) in c.error_um().iter().enumerate() {
             let limit = bound(axes, a);
-            if !(e.abs() <= limit) {
+            if e.is_nan() || e.abs() > limit {
                 return Err(CliError::refused(format!(
                     "the re-identified model predicts {e:.1} µm on {} at {} (time {} s), beyond \
                      ±{limit} µm, {ENVELOPE_FACTOR} times the axis' envelope (max_offset_um in \
