@@ -11,6 +11,7 @@ use truepos_controls::siemens::write_program;
 use truepos_io::cycles::Cycles;
 use truepos_io::machine_file;
 use truepos_model::{AxisKind, CycleInput, Machine, Model};
+use truepos_runtime::config::AxisConfig;
 
 use crate::error::CliError;
 use crate::evaluator::Evaluator;
@@ -217,7 +218,8 @@ fn inputs(args: &Args) -> [(&'static str, &Path); 3] {
 
 pub fn run(args: Args) -> Result<(), CliError> {
     crate::write::check(&args.out, &inputs(&args))?;
-    let machine = machine_file::load(&args.machine)?.machine;
+    let config = machine_file::load(&args.machine)?;
+    let machine = config.machine;
     let mut model = Evaluator::load(&args.model, &machine)?;
     let mut runs = model.load_runs(&args.run, &machine, &args.shape, args.time.as_deref())?;
     if runs.len() != 1 {
@@ -231,6 +233,9 @@ pub fn run(args: Args) -> Result<(), CliError> {
     }
     let cycles = runs.remove(0).1;
     let (k, error_now) = moment(&mut model, &cycles, &machine, args.at_s)?;
+    for (a, &e) in error_now.iter().enumerate() {
+        within_envelope(&machine, &config.axes, a, "the model's error now", e)?;
+    }
     let now = positions_now(&machine, &cycles, k);
     let header = vec![
         format!(
@@ -279,6 +284,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
             let p0 = per_axis(&machine, &args.p0, "--p0")?;
             let proj = project(&machine, &at_positions, &now, form, &p0)
                 .map_err(|e| CliError::refused(e.to_string()))?;
+            line_within_envelope(&machine, &config.axes, &proj)?;
             if args.to == To::Isg {
                 isg_file(&args, &machine, &proj, &header)?
             } else if args.to == To::Fanuc {
@@ -309,6 +315,47 @@ pub fn run(args: Args) -> Result<(), CliError> {
     } else {
         print!("{}", summary(&axes_json));
         println!("written: {}", args.out.display());
+    }
+    Ok(())
+}
+
+/// Refuses — whatever `--force` says — a value of axis `a` (µm) beyond the axis' envelope: the
+/// service never applies more, so a control must not be handed more either (a model predicting
+/// that is implausible, or the machine file's `max_offset_um` is set below what the machine
+/// truly drifts).
+fn within_envelope(
+    machine: &Machine,
+    axes: &[AxisConfig],
+    a: usize,
+    what: &str,
+    v: f64,
+) -> Result<(), CliError> {
+    let (Some(cfg), Some(axis)) = (axes.get(a), machine.axes.get(a)) else {
+        return Ok(());
+    };
+    if v.is_nan() || v.abs() > cfg.max_offset_um {
+        return Err(CliError::refused(format!(
+            "axis {}: {what} is {v:.3} µm, beyond the axis' envelope ±{} µm (axis.max_offset_um \
+             of machine `{}`); nothing written, --force does not pass it",
+            axis.name, cfg.max_offset_um, machine.name
+        )));
+    }
+    Ok(())
+}
+
+/// The control's line at both ends of each projected axis' travel within the envelope (a line
+/// is largest at an end).
+fn line_within_envelope(
+    machine: &Machine,
+    axes: &[AxisConfig],
+    proj: &[AxisProjection],
+) -> Result<(), CliError> {
+    for p in proj {
+        let x = &machine.axes[p.axis];
+        for pos in [x.travel_min, x.travel_max] {
+            let what = format!("the control's compensation at {} = {pos} mm", x.name);
+            within_envelope(machine, axes, p.axis, &what, 1000.0 * p.form.at(pos))?;
+        }
     }
     Ok(())
 }

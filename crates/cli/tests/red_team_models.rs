@@ -82,3 +82,77 @@ fn probe_deviations_beyond_the_envelope_are_left_out_by_reidentify() {
         assert!(!text.contains("999"), "{text}");
     }
 }
+
+/// The hand-made model of the example machine with its first coefficient set to `k0`.
+fn vmc3_model_with_k0(dir: &Path, k0: &str) -> std::path::PathBuf {
+    let text = std::fs::read_to_string(support::repo("examples/vmc3/model.toml")).unwrap();
+    let wild = text.replacen("k0_um_per_k = 2.0", &format!("k0_um_per_k = {k0}"), 1);
+    assert_ne!(wild, text);
+    let p = dir.join(format!("k0-{}.toml", k0.replace(['.', '-'], "_")));
+    std::fs::write(&p, wild).unwrap();
+    p
+}
+
+#[test]
+fn an_export_beyond_the_envelope_is_refused_for_every_control_even_forced() {
+    let dir = scratch("red-team-export");
+    for k0 in ["1e6", "1e300", "-1.7e308"] {
+        let model = vmc3_model_with_k0(&dir, k0);
+        for to in [
+            "siemens",
+            "heidenhain9231",
+            "heidenhain-tempcomp",
+            "isg",
+            "fanuc",
+        ] {
+            for force in [false, true] {
+                let out = dir.join(format!("{to}.out"));
+                let mut c = command();
+                c.args([
+                    "export",
+                    "--to",
+                    to,
+                    "--machine",
+                    "examples/vmc3/machine.toml",
+                ])
+                .arg("--model")
+                .arg(&model)
+                .args(["--run", "examples/vmc3/run.csv", "--out"])
+                .arg(&out);
+                if force {
+                    c.arg("--force");
+                }
+                let o = c.output().unwrap();
+                let err = String::from_utf8_lossy(&o.stderr);
+                assert_eq!(o.status.code(), Some(1), "{k0} {to} force={force}: {err}");
+                assert!(
+                    err.contains("beyond the axis' envelope")
+                        || err.contains("not a finite number")
+                        || err.contains("overflow"),
+                    "{k0} {to} force={force}: {err}"
+                );
+                assert!(!out.exists(), "{k0} {to}: {}", out.display());
+            }
+        }
+    }
+    // The model as shipped still exports.
+    let o = command()
+        .args([
+            "export",
+            "--to",
+            "siemens",
+            "--machine",
+            "examples/vmc3/machine.toml",
+        ])
+        .args([
+            "--model",
+            "examples/vmc3/model.toml",
+            "--run",
+            "examples/vmc3/run.csv",
+        ])
+        .arg("--out")
+        .arg(dir.join("ok.spf"))
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}
