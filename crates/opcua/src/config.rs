@@ -188,6 +188,11 @@ pub struct AxisNodes {
     pub value_type: ValueType,
 }
 
+/// A sink's request deadline at most, ms: a write the control has not confirmed by then is a
+/// failed sink, said within a second of it (a stale compensation on a warming machine must not
+/// go unannounced for longer).
+pub const SINK_TIMEOUT_LIMIT_MS: u64 = 5_000;
+
 /// The OPC UA sink (configuration, TOML).
 #[derive(Debug, Clone, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -316,6 +321,16 @@ impl SinkConfig {
         machine: &Machine,
     ) -> Result<(Identity, ResolvedAxes), ConfigError> {
         let identity = self.connection.check(dir)?;
+        if self.connection.timeout_ms > SINK_TIMEOUT_LIMIT_MS {
+            return Err(ConfigError::new(
+                "timeout_ms",
+                format!(
+                    "expected at most {SINK_TIMEOUT_LIMIT_MS} ms for a sink (the control holds its \
+                     last compensation while a write waits), found {}",
+                    self.connection.timeout_ms
+                ),
+            ));
+        }
         if !(self.rate_hz.is_finite() && (0.1..=10.0).contains(&self.rate_hz)) {
             return Err(ConfigError::new(
                 "rate_hz",

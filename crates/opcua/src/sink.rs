@@ -13,6 +13,7 @@ use opcua::types::{
     Variant, WriteValue,
 };
 use truepos_model::{Machine, Model};
+use truepos_runtime::events::Reason;
 use truepos_runtime::sources::{
     stop_thread, Backoff, ConfigError, LinkStatus, OutageReporter, STOP_LIMIT,
 };
@@ -70,8 +71,13 @@ pub struct OpcUaSink {
     stop: Arc<AtomicBool>,
     stats: Arc<Mutex<WriteStats>>,
     /// Set once the first session attempt is over: until then there is nothing to report (a
-    /// sink that is still opening its first session has not failed).
+    /// sink that is still opening its first session has not failed) — up to `first_deadline`.
     tried: Arc<AtomicBool>,
+    /// When a first attempt still under way counts as failed: the request deadline and one
+    /// second from the start, however long the connection library takes to give up.
+    first_deadline: Instant,
+    /// What is reported then.
+    first_missed: Reason,
     thread: Option<JoinHandle<()>>,
 }
 
@@ -129,6 +135,13 @@ impl OpcUaSink {
         let stats = Arc::new(Mutex::new(WriteStats::default()));
         let tried = Arc::new(AtomicBool::new(false));
         let name = format!("opcua {}", config.connection.endpoint);
+        let first_deadline = Instant::now()
+            + Duration::from_millis(config.connection.timeout_ms)
+            + Duration::from_secs(1);
+        let first_missed = Reason::new(&format!(
+            "no session open within {} ms",
+            config.connection.timeout_ms
+        ));
         let writer = Writer {
             config: config.clone(),
             identity,
@@ -159,6 +172,8 @@ impl OpcUaSink {
             stop,
             stats,
             tried,
+            first_deadline,
+            first_missed,
             thread: Some(thread),
         })
     }
@@ -176,7 +191,10 @@ impl Sink for OpcUaSink {
 
     fn write(&mut self, _output: &Output) -> Result<(), LinkError> {
         if !self.tried.load(Ordering::Acquire) {
-            return Ok(());
+            if Instant::now() < self.first_deadline {
+                return Ok(());
+            }
+            return Err(LinkError::Disconnected(self.first_missed));
         }
         self.outage.check(&self.status)
     }

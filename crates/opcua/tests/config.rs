@@ -48,6 +48,7 @@ fn the_examples_load() {
 fn mistakes_name_the_key_and_the_expectation() {
     let cases = [
         (format!("{CONN}rate_hz = 50\n{AXIS}"), "rate_hz: expected 0.1–10 writes per second, found 50"),
+        (format!("{CONN}timeout_ms = 60000\n{AXIS}"), "timeout_ms: expected at most 5000 ms for a sink"),
         (CONN.replace("opc.tcp://127.0.0.1:4840", "http://x"), "endpoint: expected opc.tcp://host:port"),
         (format!("{}{AXIS}", CONN.replace("user = \"u\"\npassword = \"p\"\n", "")), "user: expected `user` with `password` or `password_env` (anonymous sessions only with `anonymous = true`)"),
         (format!("{CONN}anonymous = true\n{AXIS}"), "anonymous: expected either a user and password or `anonymous = true`, not both"),
