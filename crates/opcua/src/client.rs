@@ -31,6 +31,44 @@ impl Open {
     pub fn lost(&self) -> bool {
         self.driver.is_finished()
     }
+
+    /// Why the connection ended, once it has (the stack's status, explained as at connect: a
+    /// server certificate that changed names the trust list); `None` while it runs.
+    pub async fn ended(&mut self, conn: &Connection) -> Option<String> {
+        if !self.driver.is_finished() {
+            return None;
+        }
+        Some(match (&mut self.driver).await {
+            Ok(status) => explain(conn, status),
+            Err(e) => format!("the session's task ended: {e}"),
+        })
+    }
+}
+
+/// A status that ended or refused a session, with what to do about it.
+fn explain(conn: &Connection, s: StatusCode) -> String {
+    let name = s.sub_code().name();
+    if s == StatusCode::BadCertificateUntrusted || s == StatusCode::BadSecurityChecksFailed {
+        format!(
+            "{}; the server's certificate is not in the trust list {} (it was put into {} for \
+             inspection: if it is your control's, move it into the trust list)",
+            describe(s),
+            conn.pki_dir.join("trusted").display(),
+            conn.pki_dir.join("rejected").display()
+        )
+    } else if name.starts_with("BadCertificate") {
+        format!("{}; the server's certificate is refused", describe(s))
+    } else if s == StatusCode::BadUserAccessDenied
+        || s == StatusCode::BadIdentityTokenRejected
+        || s == StatusCode::BadIdentityTokenInvalid
+    {
+        format!(
+            "{}; check the user and password (and that the user may open a session)",
+            describe(s)
+        )
+    } else {
+        describe(s)
+    }
 }
 
 /// A configured node id, checked again by the stack's own parser.
@@ -85,26 +123,6 @@ pub async fn connect(conn: &Connection, identity: &Identity) -> Result<Open, Str
     .map_err(|_| format!("no answer within {} ms", conn.timeout_ms))?
     .map_err(|e| format!("{e} (is there an endpoint with {policy:?}/{mode:?}?)"))?;
     let mut driver = event_loop.spawn();
-    let trusted = conn.pki_dir.join("trusted");
-    let rejected = conn.pki_dir.join("rejected");
-    let explain = |s: StatusCode| {
-        let name = s.sub_code().name();
-        if s == StatusCode::BadCertificateUntrusted || s == StatusCode::BadSecurityChecksFailed {
-            format!("{}; the server's certificate is not in the trust list {} (it was put into {} for inspection: if it is your control's, move it into the trust list)", describe(s), trusted.display(), rejected.display())
-        } else if name.starts_with("BadCertificate") {
-            format!("{}; the server's certificate is refused", describe(s))
-        } else if s == StatusCode::BadUserAccessDenied
-            || s == StatusCode::BadIdentityTokenRejected
-            || s == StatusCode::BadIdentityTokenInvalid
-        {
-            format!(
-                "{}; check the user and password (and that the user may open a session)",
-                describe(s)
-            )
-        } else {
-            describe(s)
-        }
-    };
     tokio::select! {
         up = tokio::time::timeout(timeout, session.wait_for_connection()) => match up {
             Ok(true) => Ok(Open { session, driver }),
@@ -118,7 +136,7 @@ pub async fn connect(conn: &Connection, identity: &Identity) -> Result<Open, Str
             }
         },
         ended = &mut driver => Err(match ended {
-            Ok(status) => explain(status),
+            Ok(status) => explain(conn, status),
             Err(e) => format!("the session's task ended: {e}"),
         }),
     }

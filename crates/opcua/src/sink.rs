@@ -311,7 +311,7 @@ impl Writer {
                     self.tried.store(true, Ordering::Release);
                     self.sleep(backoff.next_delay()).await;
                 }
-                Ok(open) => {
+                Ok(mut open) => {
                     backoff.reset();
                     self.lock_stats().sessions += 1;
                     self.status
@@ -319,7 +319,12 @@ impl Writer {
                     self.tried.store(true, Ordering::Release);
                     self.reported.store(0, Ordering::Relaxed);
                     let why = self.write_loop(&open).await;
+                    let ended = open.ended(conn).await;
                     open.close(timeout).await;
+                    let why = match (why, ended) {
+                        (Some(w), Some(r)) => Some(format!("{w}: {r}")),
+                        (why, _) => why,
+                    };
                     if let Some(why) = why {
                         self.say(&why);
                         self.status.set_lost(self.now_s(), why);

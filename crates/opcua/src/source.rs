@@ -128,17 +128,23 @@ impl Reader {
         while !self.stop.load(Ordering::Relaxed) {
             let why = match connect(conn, &self.identity).await {
                 Err(why) => why,
-                Ok(open) => {
-                    backoff.reset();
+                Ok(mut open) => {
                     self.status.set_connected(
                         seconds_since(self.epoch),
                         format!("session open on {}", conn.endpoint),
                     );
-                    let why = self.read_loop(&open.session, &open).await;
+                    let (why, delivered) = self.read_loop(&open.session, &open).await;
+                    // A session that opens and fails at its first read (a node the server
+                    // cannot encode) backs off like a refused connection, not 4 times a second.
+                    if delivered {
+                        backoff.reset();
+                    }
+                    let ended = open.ended(conn).await;
                     open.close(Duration::from_millis(conn.timeout_ms)).await;
-                    match why {
-                        Some(w) => w,
-                        None => return,
+                    match (why, ended) {
+                        (Some(w), Some(r)) => format!("{w}: {r}"),
+                        (Some(w), None) => w,
+                        (None, _) => return,
                     }
                 }
             };
@@ -155,8 +161,9 @@ impl Reader {
         &self,
         session: &opcua::client::Session,
         open: &crate::client::Open,
-    ) -> Option<String> {
+    ) -> (Option<String>, bool) {
         let conn = &self.config.connection;
+        let mut delivered = false;
         let ids: Vec<ReadValueId> = self.nodes.iter().cloned().map(ReadValueId::from).collect();
         let mut ticker = tokio::time::interval(Duration::from_millis(self.config.sample_ms));
         ticker.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
@@ -165,10 +172,10 @@ impl Reader {
         loop {
             ticker.tick().await;
             if self.stop.load(Ordering::Relaxed) {
-                return None;
+                return (None, delivered);
             }
             if open.lost() {
-                return Some("the session was lost".into());
+                return (Some("the session was lost".into()), delivered);
             }
             let values = match tokio::time::timeout(
                 timeout,
@@ -184,7 +191,7 @@ impl Reader {
                     continue;
                 }
                 Ok(Err(e)) if e.status() == StatusCode::BadTimeout => continue,
-                Ok(Err(e)) => return Some(format!("a read failed: {e}")),
+                Ok(Err(e)) => return (Some(format!("a read failed: {e}")), delivered),
                 Ok(Ok(v)) => v,
             };
             let now = seconds_since(self.epoch);
@@ -195,8 +202,12 @@ impl Reader {
                         self.channels.publish(k, x, now);
                         bad[k] = None;
                         any = true;
+                        delivered = true;
                     }
                     Err(why) => {
+                        // The channel fails now (not a number, this cycle) instead of going
+                        // stale after max_age_s while counted ok; the reason is the link's event.
+                        self.channels.publish(k, f64::NAN, now);
                         if bad[k].as_deref() != Some(why.as_str()) {
                             let msg = format!(
                                 "node {}: {why}; the channel is not updated",

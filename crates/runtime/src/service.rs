@@ -480,6 +480,8 @@ impl Service {
         }
     }
 
+    /// A position fault: an axis position that is not finite, never came, is older than
+    /// `position_max_age_s`, or is implausible (see [`plausible_position`]).
     fn check_positions(&mut self, now_s: f64) {
         let mut bad = None;
         for (a, (&p, &stamp)) in self
@@ -489,7 +491,11 @@ impl Service {
             .zip(&self.frame.position_stamp_s)
             .enumerate()
         {
-            if !p.is_finite() || stamp == NEVER || now_s - stamp > self.config.position_max_age_s {
+            if !p.is_finite()
+                || stamp == NEVER
+                || now_s - stamp > self.config.position_max_age_s
+                || !plausible_position(&self.machine.machine.axes[a], p)
+            {
                 bad = Some(a);
                 break;
             }
@@ -842,4 +848,13 @@ impl Service {
             self.records_dropped += 1;
         }
     }
+}
+
+/// Whether a position can come from the axis at all: within its travel widened by the travel's
+/// own length on each side. A position beyond travel by less is the model's business (it holds
+/// with the reason); one beyond that (1e308 from a retyped node, a wrong scale) is a faulty
+/// position source.
+fn plausible_position(axis: &truepos_model::Axis, p: f64) -> bool {
+    let span = (axis.travel_max - axis.travel_min).abs();
+    p >= axis.travel_min - span && p <= axis.travel_max + span
 }

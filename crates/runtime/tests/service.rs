@@ -173,6 +173,43 @@ fn a_bad_sensor_holds_and_ramps_to_zero() {
     assert!(events.contains(&EventKind::Holding { path: 1 }));
 }
 
+/// A position no axis can have (1e308 from a retyped node, a wrong scale) is a position fault,
+/// said as an event, and the service holds; back within reach, the positions recover.
+#[test]
+fn an_implausible_position_is_a_position_fault() {
+    let machine = vmc();
+    let n_t = machine.machine.temperatures.len();
+    let (source, values) = scripted(vec![20.0; n_t], vec![400.0, 250.0, 250.0]);
+    let mut service = Service::new(
+        machine,
+        vec![vmc_model("vmc3")],
+        vec![source],
+        vec![],
+        ServiceConfig::default(),
+    );
+    let mut t = 0.0;
+    let mut run = |service: &mut Service, until: f64| {
+        while t < until {
+            t += 0.01;
+            service.cycle(t);
+        }
+    };
+    run(&mut service, 1.0);
+    assert_eq!(service.path_states()[0], PathState::Model(0));
+    // 1 600 mm on an 800 mm axis is still a position (the model's business); 1e308 is not.
+    values.lock().unwrap().1[0] = 1e308;
+    run(&mut service, 2.0);
+    assert_eq!(service.path_states()[0], PathState::Holding);
+    values.lock().unwrap().1[0] = 400.0;
+    run(&mut service, 3.0);
+    let events = drain(&service);
+    assert!(
+        events.contains(&EventKind::PositionFault { axis: 0 }),
+        "{events:?}"
+    );
+    assert!(events.contains(&EventKind::PositionRecovered), "{events:?}");
+}
+
 /// With two models for the same axis combination, a fault on a sensor only the first reads
 /// makes the service substitute the second, bumplessly (seed C + seed D).
 #[test]
