@@ -364,7 +364,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
         &posdep,
         &machine,
         &args.out.join("position-dependent.model.toml"),
-        "the position-dependent model (seed A)",
+        "the position-dependent model",
         &args.train,
     )?;
 
@@ -437,7 +437,7 @@ fn headline(r: &Results) -> Vec<(String, String)> {
         ),
         (
             format!(
-                "… position-dependent (seed A), −{:.0} %",
+                "… position-dependent, −{:.0} %",
                 100.0 * r.reduction(&r.posdep)
             ),
             v(&r.posdep),
@@ -554,7 +554,7 @@ fn print_table(
     for (name, f) in [
         ("uncompensated", &r.none),
         ("prior art (position-independent)", &r.prior),
-        ("position-dependent (seed A)", &r.posdep),
+        ("position-dependent", &r.posdep),
     ] {
         println!(
             "{:<34} {:>6.2} µm {:>6.2} µm {:>6.2} µm {:>11.2} µm {:>9.0} %",

@@ -44,7 +44,8 @@ pub struct Args {
     /// Machine description (TOML).
     #[arg(long)]
     machine: PathBuf,
-    /// Model file (seed A/C TOML/JSON or a fitted dynamic model).
+    /// Model file (a position-dependent or reference-sensor model, TOML/JSON, or a fitted
+    /// dynamic model).
     #[arg(long)]
     model: PathBuf,
     /// Run CSV with the inputs up to the moment exported (a dynamic model's filters run through it).

@@ -49,8 +49,8 @@ pub struct Args {
     #[arg(long)]
     pub(crate) positions: Option<Patterns>,
     /// With a machine file: the axis whose part a difference measures, `<difference>=<axis>`
-    /// (repeat; e.g. `dT_y_saddle=Y`): adds seed A's embodiments 1 (own-axis) and 4 (serial),
-    /// whose terms follow that axis, to the candidates.
+    /// (repeat; e.g. `dT_y_saddle=Y`): adds the own-axis and serial position-dependent
+    /// models, whose terms follow that axis, to the candidates.
     #[arg(long = "difference-axis")]
     pub(crate) difference_axes: Vec<TargetAxis>,
     /// Which inputs are operating state (filtered as is, and squared) rather than temperatures.
@@ -66,12 +66,12 @@ pub struct Args {
     /// Validation: chrono:<train fraction>, runs (leave one run out) or kfold:<k>.
     #[arg(long, default_value = "chrono:0.6")]
     pub(crate) split: Split,
-    /// Fix the model family, comma-separated to choose among several: seed-c (reference-sensor
-    /// regression, needs --reference), static (temperature rises only), operating (+ filtered
+    /// Fix the model family, comma-separated to choose among several: reference (reference-sensor
+    /// regression on the rises, needs --reference), static (temperature rises only), operating (+ filtered
     /// spindle speed), dynamic (+ filtered temperatures), dynamic-rates (+ rates of change),
     /// dynamic-running, dynamic-rates-running (+ rises while the spindle runs), transfer (a lag
     /// per sensor at one identified time constant), transfer2 (two: second order; not among
-    /// the defaults); with a machine file also seed A/C's: prior-art, all-axes,
+    /// the defaults); with a machine file also the position-dependent ones: prior-art, all-axes,
     /// all-axes-squared, bed-factor, reference-sensor, and with --difference-axis own-axis and
     /// serial; baseline (the simple reference: rises and operating state at a small fixed
     /// ridge, always fitted and reported beside the choice). Default: chosen automatically among
@@ -81,9 +81,9 @@ pub struct Args {
     /// Fix the ridge parameter(s), comma-separated, each 0–10¹². Default: chosen automatically.
     #[arg(long)]
     pub(crate) ridge: Option<Ridges>,
-    /// How inner-CV scores choose a family's ridge: 1se (the most regularised candidate within
-    /// one standard error of the best) or min (the lowest CV error). Default: 1se, and min with
-    /// --selection paired.
+    /// How inner-CV scores choose a family's ridge: simplest (the most regularised candidate
+    /// within one standard error of the best) or lowest (the lowest CV error). Default:
+    /// simplest, and lowest with --selection paired.
     #[arg(long)]
     pub(crate) rule: Option<Rule>,
     /// How the families are decided between: blend (each family's out-of-fold predictions
@@ -96,7 +96,7 @@ pub struct Args {
     #[arg(long, value_parser = int_in(1usize, 1000))]
     pub(crate) max_sensors: Option<usize>,
     /// The reference sensor of the reference-sensor regression (an input temperature column,
-    /// e.g. the ambient or a reference spot on the machine): adds the family seed-c,
+    /// e.g. the ambient or a reference spot on the machine): adds the family reference,
     /// Y = Σ k_i·(t_i − t_r) + c, to the candidates.
     #[arg(long)]
     pub(crate) reference: Option<String>,
@@ -104,10 +104,10 @@ pub struct Args {
     #[arg(long, default_value_t = 8, value_parser = int_in(2usize, 100))]
     pub(crate) folds: usize,
     /// Which blocks train the model scored on a held-out block: blocked (all others) or rolling
-    /// (only those before it, rolling origin; the first two blocks only train).
+    /// (only those before it, as time goes; the first two blocks only train).
     #[arg(long, default_value = "blocked")]
     pub(crate) inner_cv: InnerCv,
-    /// A machine description (a path ending in `.toml`): seed A/C's families are fitted too,
+    /// A machine description (a path ending in `.toml`): the position-dependent families are fitted too,
     /// from its channels and axis positions, and targets are taken as measured. Otherwise the
     /// machine name written into the dynamic model file.
     #[arg(long, default_value = "unnamed")]

@@ -222,7 +222,7 @@ pub fn run(mut args: Args) -> Result<(), CliError> {
 fn form(chosen: &Chosen) -> &'static str {
     match chosen {
         Chosen::Dynamic(_) => "dynamic",
-        Chosen::Static(_) => "seed A/C",
+        Chosen::Static(_) => "position-dependent",
     }
 }
 

@@ -52,11 +52,11 @@ enum Command {
     /// Kinematics table with error tables: forward/inverse transforms, G-code rewrite.
     Kin(kin::Args),
     /// How often position-dependent terms must be updated: their worst-case error when the axis
-    /// moves at full feed and the terms are updated every T ms (seed A's timing argument).
+    /// moves at full feed and the terms are updated every T ms (the update-period error).
     #[command(alias = "lag")]
     UpdatePeriod(update_period::Args),
     /// Re-identify a model's parameters from probe measurements (the service's log or a run
-    /// CSV) and write a new model when the switch rule says so (exit 3: kept, nothing written).
+    /// CSV) and write a new model when the re-estimated parameters are clearly better (exit 3: kept, nothing written).
     Reidentify(reidentify::Args),
     /// Write an HTML report of a model on a run with measured errors (figures, coefficients).
     Report(report::Args),

@@ -44,7 +44,8 @@ pub struct Args {
     /// where the probe touched).
     #[arg(long)]
     run: Option<PathBuf>,
-    /// Where to write the re-identified model (TOML), only if the switch rule switches.
+    /// Where to write the re-identified model (TOML), only if the re-estimated parameters
+    /// are clearly better than the running ones.
     #[arg(long)]
     out: PathBuf,
     /// Forgetting factor of the recursive least squares, 0.5–1. The default 0.999 remembers
@@ -300,7 +301,7 @@ fn print(
         println!("  skipped: {s} (an input outside the model's valid range)");
     }
     println!(
-        "switch rule: {} switch(es); recent RMS error running {:.2} µm, candidate {:.2} µm (threshold {:.2} µm)",
+        "re-estimation: {} switch(es); recent RMS error running {:.2} µm, candidate {:.2} µm (threshold {:.2} µm)",
         o.switches, o.recent_rms_um.0, o.recent_rms_um.1, args.threshold_um
     );
     println!(

@@ -106,9 +106,9 @@ fn a_model_fitted_through_the_cli_reaches_the_demo_figures_on_another_day() {
         "bed-factor",
         "reference-sensor",
     ] {
-        assert!(has("seed A/C", f), "{f}: {v}");
+        assert!(has("position-dependent", f), "{f}: {v}");
     }
-    assert_eq!(v["selection"]["form"], "seed A/C", "{v}");
+    assert_eq!(v["selection"]["form"], "position-dependent", "{v}");
 
     // The one door loads it: a seed A/C model that reads the axis positions.
     let machine = truepos_io::machine_file::load(&repo("examples/twin/machine.toml"))

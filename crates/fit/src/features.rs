@@ -251,9 +251,9 @@ pub enum Family {
     /// First-order transfer functions from every temperature to the error: the rises and their
     /// low-pass at one time constant identified from the training data ([`crate::transfer`]).
     Transfer,
-    /// Seed C's regression: Y = Σ k_i·(t_i − t_r) + c, every selected sensor against one
+    /// The reference-sensor regression: Y = Σ k_i·(t_i − t_r) + c, every selected sensor against one
     /// reference sensor (`Settings::reference`); a candidate only when a reference is given.
-    SeedC,
+    Reference,
     /// Second-order transfer functions from every temperature to the error: the rises and their
     /// low-passes at two time constants identified from the training data ([`crate::transfer`]).
     /// Not among the defaults ([`Family::DEFAULT`]).
@@ -264,7 +264,7 @@ impl Family {
     /// Every family, simplest first.
     pub const ALL: [Family; 10] = [
         Family::Baseline,
-        Family::SeedC,
+        Family::Reference,
         Family::Static,
         Family::Transfer,
         Family::Transfer2,
@@ -281,7 +281,7 @@ impl Family {
     /// the second-order transfer functions because they cost FL_THERMAL's ch4 its 2.5 µm bar
     /// wherever they were measured (docs/fitting.md).
     pub const DEFAULT: [Family; 7] = [
-        Family::SeedC,
+        Family::Reference,
         Family::Transfer,
         Family::Operating,
         Family::Dynamic,
@@ -300,14 +300,18 @@ impl Family {
             Self::DynamicRates => "dynamic-rates",
             Self::DynamicRunning => "dynamic-running",
             Self::DynamicRatesRunning => "dynamic-rates-running",
-            Self::SeedC => "seed-c",
+            Self::Reference => "reference",
             Self::Transfer => "transfer",
             Self::Transfer2 => "transfer2",
         }
     }
 
-    /// The family of a [`Family::name`]; [`Family::from_str`] for what a person types.
+    /// The family of a [`Family::name`] (or of `seed-c`, the earlier name of `reference`, which
+    /// older files and scripts carry); [`Family::from_str`] for what a person types.
     pub fn parse(s: &str) -> Option<Self> {
+        if s == "seed-c" {
+            return Some(Self::Reference);
+        }
         Self::ALL.into_iter().find(|f| f.name() == s)
     }
 
@@ -318,16 +322,16 @@ impl Family {
             // The baseline keeps only the shortest operating time constant (`Problem::design`).
             FeatureKind::Operating { .. } => !matches!(
                 self,
-                Self::Static | Self::SeedC | Self::Transfer | Self::Transfer2
+                Self::Static | Self::Reference | Self::Transfer | Self::Transfer2
             ),
             FeatureKind::OperatingSquared { .. } => !matches!(
                 self,
-                Self::Baseline | Self::Static | Self::SeedC | Self::Transfer | Self::Transfer2
+                Self::Baseline | Self::Static | Self::Reference | Self::Transfer | Self::Transfer2
             ),
             // The transfer families keep only the low-passes at their identified τ (`train`).
             FeatureKind::LowPass { .. } => !matches!(
                 self,
-                Self::Baseline | Self::Static | Self::SeedC | Self::Operating
+                Self::Baseline | Self::Static | Self::Reference | Self::Operating
             ),
             FeatureKind::Rate { .. } => {
                 matches!(self, Self::DynamicRates | Self::DynamicRatesRunning)

@@ -317,7 +317,7 @@ fn static_selection(
                 }
             }
             candidates.push(CandidateFigures {
-                form: "seed A/C",
+                form: "position-dependent",
                 family: family.key().into(),
                 inputs: set.label.into(),
                 targets: scores,
@@ -340,7 +340,7 @@ fn static_selection(
         }
     }
     let model = Model::new(format!("{}-fit", machine.name), machine, parts)
-        .map_err(|e| format!("the chosen seed A/C model: {e}"))?;
+        .map_err(|e| format!("the chosen position-dependent model: {e}"))?;
     Ok(Some(StaticModel { model, choices }))
 }
 
@@ -429,7 +429,7 @@ pub fn select(
                 .filter(|(c, _)| c.2.skipped > 0)
                 .map(|(c, t)| {
                     format!(
-                        "{t}: {} of {} training samples left out of the seed A/C fit (an input invalid or outside its range)",
+                        "{t}: {} of {} training samples left out of the position-dependent fit (an input invalid or outside its range)",
                         c.2.skipped,
                         c.2.skipped + c.2.observations
                     )
@@ -602,7 +602,7 @@ pub fn fit_machine(
         validation: Validation {
             protocol: split,
             protocol_text: format!(
-                "{split}; selection among every family (dynamic and seed A/C) inside each training part: {}",
+                "{split}; selection among every family (dynamic and position-dependent) inside each training part: {}",
                 settings.describe_selection()
             ),
             metrics,

@@ -61,15 +61,13 @@ impl Family {
     /// The name used in reports.
     pub fn name(self) -> &'static str {
         match self {
-            Self::PositionIndependent => "position-independent (prior art, seed A eqs. 1–2)",
-            Self::AllAxes => "position-dependent, all axes (seed A embodiment 5)",
-            Self::AllAxesSquared => {
-                "position-dependent, all axes with squares (seed A emb. 5 + ex. 2)"
-            }
-            Self::BedFactor => "position-dependent with bed factor (seed A embodiments 5 + 6)",
-            Self::OwnAxis => "position-dependent, each difference its own axis (seed A emb. 1)",
-            Self::Serial => "position-dependent, serial axes (seed A embodiment 4)",
-            Self::ReferenceSensor => "reference-sensor regression (seed C)",
+            Self::PositionIndependent => "position-independent (prior art)",
+            Self::AllAxes => "position-dependent, all axes",
+            Self::AllAxesSquared => "position-dependent, all axes with squares",
+            Self::BedFactor => "position-dependent with bed factor",
+            Self::OwnAxis => "position-dependent, each difference its own axis",
+            Self::Serial => "position-dependent, serial axes",
+            Self::ReferenceSensor => "reference-sensor regression",
         }
     }
 

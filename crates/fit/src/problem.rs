@@ -306,7 +306,7 @@ impl<'a> Problem<'a> {
             })
         };
         let minus = match family {
-            Family::SeedC => Some(rise(reference?)?),
+            Family::Reference => Some(rise(reference?)?),
             _ => None,
         };
         let transfer_taus = self.transfer.of(family);

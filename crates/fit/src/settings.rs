@@ -41,7 +41,7 @@ pub struct Settings {
     /// Run with at most this many temperature sensors (chosen by correlation ranking and greedy
     /// forward selection); `None` = all.
     pub max_sensors: Option<usize>,
-    /// Seed C's reference sensor (dataset input index): with it, [`Family::SeedC`] is a
+    /// Seed C's reference sensor (dataset input index): with it, [`Family::Reference`] is a
     /// candidate and the reference is always among the sensors.
     #[serde(default)]
     pub reference: Option<usize>,
@@ -239,12 +239,13 @@ impl FromStr for InnerCv {
 impl FromStr for Rule {
     type Err = String;
 
-    /// `1se` ([`Rule::OneStandardError`]) or `min` ([`Rule::MinimumCv`]).
+    /// `simplest` ([`Rule::OneStandardError`]) or `lowest` ([`Rule::MinimumCv`]); the earlier
+    /// names `1se` and `min` are still read.
     fn from_str(s: &str) -> Result<Self, String> {
         match s.trim() {
-            "1se" => Ok(Self::OneStandardError),
-            "min" => Ok(Self::MinimumCv),
-            _ => Err(format!("expected 1se or min, got `{s}`")),
+            "simplest" | "1se" => Ok(Self::OneStandardError),
+            "lowest" | "min" => Ok(Self::MinimumCv),
+            _ => Err(format!("expected simplest or lowest, got `{s}`")),
         }
     }
 }
@@ -289,8 +290,8 @@ impl FromStr for Ridges {
 impl fmt::Display for Rule {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.write_str(match self {
-            Self::OneStandardError => "1se",
-            Self::MinimumCv => "min",
+            Self::OneStandardError => "simplest",
+            Self::MinimumCv => "lowest",
         })
     }
 }
@@ -318,7 +319,7 @@ mod tests {
         }
         assert_eq!(
             "median".parse::<Rule>().unwrap_err(),
-            "expected 1se or min, got `median`"
+            "expected simplest or lowest, got `median`"
         );
         assert!("random"
             .parse::<InnerCv>()

@@ -184,7 +184,7 @@ pub fn train(
         .all(|&f| p.design(f, &sensors, reference).is_none())
     {
         return Err(
-            "no candidate family can be built: seed-c needs a reference sensor (--reference)"
+            "no candidate family can be built: the family reference needs a reference sensor (--reference)"
                 .into(),
         );
     }
@@ -746,7 +746,7 @@ mod tests {
             }],
         };
         let settings = Settings {
-            families: vec![Family::SeedC],
+            families: vec![Family::Reference],
             ridges: vec![0.0],
             reference: Some(2),
             ..Settings::default()
@@ -754,7 +754,7 @@ mod tests {
         let cand = candidates(&ds, &settings.taus).unwrap();
         let rows: Rows = (0..n).map(|i| (0, i)).collect();
         let trained = train(&ds, &cand, &rows, &settings).unwrap();
-        assert_eq!(trained.choices[0].family, Some(Family::SeedC));
+        assert_eq!(trained.choices[0].family, Some(Family::Reference));
         let m = &trained.model;
         let names: Vec<String> = m
             .bank()
