@@ -23,6 +23,7 @@ mod report;
 mod run;
 mod shape;
 mod sim;
+mod status;
 mod update_period;
 mod volume_map;
 mod write;
@@ -67,7 +68,7 @@ enum Command {
     /// Run the thermal twin on a scenario and write the run as CSV (works with no files).
     Sim(sim::Args),
     /// Show the state of a running or finished service from its log.
-    Status(run::StatusArgs),
+    Status(status::StatusArgs),
 }
 
 fn main() -> ExitCode {
@@ -101,7 +102,7 @@ fn main() -> ExitCode {
         Command::Report(args) => report::run(args),
         Command::Log(args) => run::show_log(args),
         Command::Run(args) => run::run(args),
-        Command::Status(args) => run::show_status(args),
+        Command::Status(args) => status::show_status(args),
         Command::Sim(args) => sim::run(args),
     };
     match result {

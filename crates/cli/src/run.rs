@@ -1,5 +1,5 @@
-//! `truepos run`, `truepos status` and `truepos log`: the cyclic service beside a control, and
-//! the inspection of its log.
+//! `truepos run` and `truepos log`: the cyclic service beside a control, and its log's records
+//! (`truepos status` is in `status.rs`).
 
 use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
@@ -97,17 +97,6 @@ pub struct RunArgs {
 /// Longest run in s, a year: bounds `--duration-s` and a replay's length at its speed, so that a
 /// `--fast` run always ends.
 const MAX_RUN_S: f64 = 31_536_000.0;
-
-/// Arguments of `truepos status`.
-#[derive(clap::Args)]
-pub struct StatusArgs {
-    /// The service's log.
-    #[arg(long)]
-    log: PathBuf,
-    /// Print as JSON.
-    #[arg(long)]
-    json: bool,
-}
 
 /// Arguments of `truepos log`.
 #[derive(clap::Args)]
@@ -639,137 +628,6 @@ fn status(service: &Service, models: &[String], took_us: u32) -> String {
         health.len(),
         state_name(out.state)
     )
-}
-
-pub fn show_status(args: StatusArgs) -> Result<(), CliError> {
-    let (names, rows) = log::read_cycles(&args.log, Some(1))?;
-    let events = log::read_events(&args.log)?;
-    let last = rows.last();
-    // Sensor health from the last fault or recovery event of each sensor.
-    let mut faults: Vec<(String, String)> = Vec::new();
-    for e in &events {
-        match e.kind.as_str() {
-            "sensor-fault" => {
-                faults.retain(|(s, _)| s != &e.subject);
-                faults.push((e.subject.clone(), e.detail.clone()));
-            }
-            "sensor-recovered" => faults.retain(|(s, _)| s != &e.subject),
-            _ => {}
-        }
-    }
-    // A sensor that never delivered raises no event (the validator starts every channel as
-    // "never updated"): the last cycle, where it has no value, tells.
-    let meta = log::read_meta(&args.log)?;
-    let sensors = meta
-        .as_ref()
-        .and_then(|m| m["sensors"].as_array().cloned())
-        .unwrap_or_default();
-    for id in sensors.iter().filter_map(|v| v.as_str()) {
-        let empty = names
-            .iter()
-            .position(|n| n == id)
-            .and_then(|c| last.map(|row| row[c].is_empty()));
-        if empty == Some(true) && !faults.iter().any(|(s, _)| s == id) {
-            faults.push((id.to_string(), "no value in the last logged cycle".into()));
-        }
-    }
-    let links = link_faults(&events);
-    if args.json {
-        let cycle: serde_json::Map<String, serde_json::Value> = match last {
-            Some(row) => names
-                .iter()
-                .zip(row)
-                .map(|(n, v)| {
-                    let value = v
-                        .parse::<f64>()
-                        .map(serde_json::Value::from)
-                        .unwrap_or_else(|_| serde_json::Value::from(v.clone()));
-                    (n.clone(), value)
-                })
-                .collect(),
-            None => serde_json::Map::new(),
-        };
-        let v = serde_json::json!({
-            "last_cycle": cycle,
-            "events": events.len(),
-            "bad_sensors": faults.iter().map(|(s, d)| serde_json::json!({"sensor": s, "reason": d})).collect::<Vec<_>>(),
-            "failing": links.iter().map(|(s, d)| serde_json::json!({"what": s, "reason": d})).collect::<Vec<_>>(),
-            "recent_events": events.iter().rev().take(5).collect::<Vec<_>>(),
-        });
-        println!("{v}");
-        return Ok(());
-    }
-    match last {
-        Some(row) => {
-            for (n, v) in names.iter().zip(row) {
-                if n == "time_s"
-                    || n == "state"
-                    || n.starts_with("model_path")
-                    || n.ends_with("_offset_um")
-                {
-                    println!("{n:>16}: {v}");
-                }
-            }
-        }
-        None => println!("no cycle logged yet"),
-    }
-    for (what, d) in &links {
-        println!("{what}: {d}");
-    }
-    if last.is_none() {
-        println!("sensors: unknown (no cycle logged yet)");
-    } else if faults.is_empty() {
-        println!("sensors: all good");
-    } else {
-        for (s, d) in &faults {
-            println!("sensor {s}: {d}");
-        }
-    }
-    for e in events.iter().rev().take(5).rev() {
-        println!(
-            "{:>10.3} s  {:<18} {:<16} {}",
-            e.time_s, e.kind, e.subject, e.detail
-        );
-    }
-    Ok(())
-}
-
-/// Sources lost and sinks failing at the last event, and failures of the log itself: (what, why).
-fn link_faults(events: &[log::LoggedEvent]) -> Vec<(String, String)> {
-    let mut out: Vec<(String, String)> = Vec::new();
-    let mut log_failed = None;
-    for e in events {
-        match e.kind.as_str() {
-            "sink-failed" | "sink-back" => {
-                let what = format!("sink `{}`", e.subject);
-                out.retain(|(w, _)| w != &what);
-                if e.kind == "sink-failed" {
-                    let why = format!("FAILING since {:.1} s: {}", e.time_s, e.detail);
-                    out.push((what, why));
-                }
-            }
-            "source-lost" | "source-back" => {
-                let what = format!("source `{}`", e.subject);
-                out.retain(|(w, _)| w != &what);
-                if e.kind == "source-lost" {
-                    out.push((what, format!("LOST since {:.1} s: {}", e.time_s, e.detail)));
-                }
-            }
-            "log-failed" => log_failed = Some(e),
-            // The logger writes both once the disk takes them again: while it still fails,
-            // only the running service's status line and its exit message can tell.
-            "log-resumed" => {
-                let failed = log_failed.map_or(String::new(), |f| {
-                    format!(" at {:.1} s ({})", f.time_s, f.detail)
-                });
-                let why = format!("writing FAILED{failed}; {}", e.detail);
-                out.retain(|(w, _)| w != "log");
-                out.push(("log".into(), why));
-            }
-            _ => {}
-        }
-    }
-    out
 }
 
 pub fn show_log(args: LogArgs) -> Result<(), CliError> {

@@ -39,9 +39,29 @@ pub fn parse(text: &str) -> Result<i128, String> {
     ))
 }
 
+/// A clock time for a person, UTC to the second (`2026-11-28 20:05:03 UTC`), from seconds since
+/// 1970-01-01T00:00:00Z; `None` for a value no clock shows.
+pub fn format_utc(unix_s: f64) -> Option<String> {
+    if !unix_s.is_finite() {
+        return None;
+    }
+    let ts = jiff::Timestamp::from_second(unix_s.floor() as i64).ok()?;
+    Some(ts.strftime("%Y-%m-%d %H:%M:%S UTC").to_string())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn clock_times_for_a_person() {
+        assert_eq!(
+            format_utc(1_795_896_303.7).as_deref(),
+            Some("2026-11-28 20:05:03 UTC")
+        );
+        assert_eq!(format_utc(f64::NAN), None);
+        assert_eq!(format_utc(1e30), None);
+    }
 
     #[test]
     fn forms_users_have() {

@@ -431,7 +431,13 @@ impl Writer {
             sinks: setup.sinks.clone(),
             models: setup.models.clone(),
         };
+        // The clock time of the service's start (its time 0: the log opens before the first
+        // cycle), so that readers can show clock times; an appended log keeps the latest start.
+        let started_unix_s = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(f64::NAN, |d| d.as_secs_f64());
         let meta = serde_json::json!({
+            "started_unix_s": started_unix_s,
             "machine": m.name,
             "axes": names.axes,
             "sensors": names.sensors,
@@ -734,7 +740,7 @@ fn describe(e: &Event, n: &Names) -> (&'static str, String, String) {
         EventKind::PositionFault { axis } => (
             "position-fault",
             name(&n.axes, axis),
-            "position not a number or not current".into(),
+            "position not a number, not current or beyond reach".into(),
         ),
         EventKind::PositionRecovered => ("position-recovered", "axes".into(), String::new()),
         EventKind::ModelSelected { path, model } => (
