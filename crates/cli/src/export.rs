@@ -314,7 +314,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
         let v = serde_json::json!({"to": format!("{:?}", args.to), "at_s": cycles.time_s[k], "axes": axes_json, "out": args.out.display().to_string()});
         println!("{v}");
     } else {
-        print!("{}", summary(&axes_json));
+        print!("{}", summary(&axes_json, args.to));
         println!("written: {}", args.out.display());
     }
     Ok(())
@@ -492,10 +492,32 @@ fn projection_json(proj: &[AxisProjection]) -> Vec<serde_json::Value> {
         .collect()
 }
 
-fn summary(axes: &[serde_json::Value]) -> String {
+/// One line per axis in the control's own words: SINUMERIK's and ISG's K0/tanβ/P0, module
+/// 9231's offset in 0.1 µm, FANUC's macro variables, TEMPCOMP's formula.
+fn summary(axes: &[serde_json::Value], to: To) -> String {
     let mut out = String::new();
     for a in axes {
         let f = |k: &str| a[k].as_f64().unwrap_or(f64::NAN);
+        let name = a["axis"].as_str().unwrap_or("?");
+        if to == To::Heidenhain9231 {
+            out += &format!(
+                "{name}: module 9231 offset {:.0} × 0.1 µm; misses the model by up to {:.3} µm\n",
+                f("k0_mm") * 1e4,
+                f("worst_um")
+            );
+            continue;
+        }
+        if to == To::Fanuc {
+            let v = |k: &str| a["fanuc"][k].as_f64().unwrap_or(f64::NAN);
+            out += &format!(
+                "{name}: macro variables K0 {:.3} µm, slope {:.3} µm/m, P0 {:.3} mm; misses the model by up to {:.3} µm\n",
+                v("k0_um"),
+                v("slope_um_per_m"),
+                v("p0_mm"),
+                f("worst_um")
+            );
+            continue;
+        }
         match a.get("formula") {
             Some(formula) => {
                 out += &format!(

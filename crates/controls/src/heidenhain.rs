@@ -101,6 +101,7 @@ pub fn tempcomp(
             g[s] = e[a] - base[a];
         }
     }
+    check_words(machine, &gains, words)?;
     let mut out = Vec::new();
     for (a, g) in gains.iter().enumerate() {
         let used: Vec<usize> = (0..g.len()).filter(|&s| g[s].abs() > 1e-12).collect();
@@ -109,19 +110,6 @@ pub fn tempcomp(
         }
         let mut per_kelvin_mm = Vec::new();
         for &s in &used {
-            let ch = &machine.temperatures[s];
-            if ch.lag.is_some() {
-                return Err(ControlError::Form(format!(
-                    "axis {}: the model reads `{}`, a lag of another channel: a TEMPCOMP formula reads PLC words, not truepos's lags",
-                    machine.axes[a].name, ch.id
-                )));
-            }
-            if !words.iter().any(|w| w.sensor == s) {
-                return Err(ControlError::Form(format!(
-                    "axis {}: the model reads sensor `{}`, which has no PLC word (give --plc-word {}=W…)",
-                    machine.axes[a].name, ch.id, ch.id
-                )));
-            }
             per_kelvin_mm.push((s, -g[s] / 1000.0));
         }
         let e20 = base[a]
@@ -150,6 +138,53 @@ pub fn tempcomp(
         });
     }
     Ok(out)
+}
+
+/// Every sensor the formulas need has a PLC word and none is a lagged channel — all of them
+/// named in one message, so that one run finds every missing word.
+fn check_words(
+    machine: &Machine,
+    gains: &[Vec<f64>],
+    words: &[PlcWord],
+) -> Result<(), ControlError> {
+    let read: Vec<usize> = (0..machine.temperatures.len())
+        .filter(|&s| gains.iter().any(|g| g[s].abs() > 1e-12))
+        .collect();
+    let lagged: Vec<&str> = read
+        .iter()
+        .map(|&s| &machine.temperatures[s])
+        .filter(|ch| ch.lag.is_some())
+        .map(|ch| ch.id.as_str())
+        .collect();
+    let missing: Vec<&str> = read
+        .iter()
+        .filter(|&&s| machine.temperatures[s].lag.is_none() && !words.iter().any(|w| w.sensor == s))
+        .map(|&s| machine.temperatures[s].id.as_str())
+        .collect();
+    let mut problems = Vec::new();
+    if !lagged.is_empty() {
+        problems.push(format!(
+            "the model reads {}, lags of other channels: a TEMPCOMP formula reads PLC words, not truepos's lags",
+            lagged.iter().map(|id| format!("`{id}`")).collect::<Vec<_>>().join(", ")
+        ));
+    }
+    if !missing.is_empty() {
+        problems.push(format!(
+            "the model reads {} sensor(s) without a PLC word: {} (give --plc-word {})",
+            missing.len(),
+            missing.join(", "),
+            missing
+                .iter()
+                .map(|id| format!("{id}=W…"))
+                .collect::<Vec<_>>()
+                .join(",")
+        ));
+    }
+    if problems.is_empty() {
+        Ok(())
+    } else {
+        Err(ControlError::Form(problems.join("; ")))
+    }
 }
 
 #[cfg(test)]
@@ -251,7 +286,24 @@ mod tests {
         .unwrap_err();
         assert!(
             e.to_string()
-                .contains("sensor `bed`, which has no PLC word (give --plc-word bed=W…)"),
+                .contains("1 sensor(s) without a PLC word: bed (give --plc-word bed=W…)"),
+            "{e}"
+        );
+        // Every missing word in one message, not one per run.
+        let e = tempcomp(
+            &machine(false),
+            &model,
+            &[25.0, 22.0],
+            &[100.0],
+            &[],
+            &[],
+            &[],
+        )
+        .unwrap_err();
+        assert!(
+            e.to_string().contains(
+                "2 sensor(s) without a PLC word: spindle, bed (give --plc-word spindle=W…,bed=W…)"
+            ),
             "{e}"
         );
         let e = tempcomp(
@@ -265,7 +317,7 @@ mod tests {
         )
         .unwrap_err();
         assert!(
-            e.to_string().contains("`bed`, a lag of another channel"),
+            e.to_string().contains("`bed`, lags of other channels"),
             "{e}"
         );
     }
