@@ -59,6 +59,9 @@ pub enum HalError {
     /// A name contains a NUL byte or is longer than HAL's 47 characters (`HAL_NAME_LEN`).
     #[error("HAL name {0:?} must be at most 47 bytes long and contain no NUL")]
     BadName(String),
+    /// A machine channel whose id would make a pin name `halcmd` cannot take.
+    #[error("{0}")]
+    NotAPinName(String),
 }
 
 /// What to try when a call failed: `hal_init` fails when the name is taken or HAL is not up.

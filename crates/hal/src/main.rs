@@ -127,6 +127,8 @@ struct LoopStats {
 
 fn run(args: RunArgs) -> Result<(), Error> {
     let machine = truepos_io::machine_file::load(&args.machine)?;
+    // Before HAL is touched: a channel id that is no pin name is the machine file's mistake.
+    pins::check_names(&machine.machine)?;
     // Seed D: a model without an index in its file serves path 1's axes.
     let entries = load_set(&args.models, &machine)?;
 

@@ -184,9 +184,67 @@ pub struct Pins {
     pub outputs: OutputPins,
 }
 
+/// Whether `id` can stand in a pin name that `halcmd` and HAL files take: letters, digits and
+/// `_`, `-`, `.`, nothing else (a space ends a word in a HAL file; brackets, `#` and `$` are
+/// syntax), within HAL's 47 bytes once the component's prefix is added.
+pub fn check_pin_id(what: &str, id: &str, pin: &str) -> Result<(), HalError> {
+    let full = format!("truepos.{pin}");
+    let chars_ok = !id.is_empty()
+        && id
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || matches!(c, '_' | '-' | '.'));
+    if chars_ok && full.len() <= 47 {
+        return Ok(());
+    }
+    Err(HalError::NotAPinName(format!(
+        "{what} `{id}` would be the HAL pin `{full}`, which HAL cannot take ({}); give the \
+         channel an id such as `{}` in the machine file",
+        if chars_ok {
+            "longer than 47 bytes"
+        } else {
+            "only letters, digits, `_`, `-` and `.`"
+        },
+        suggested_id(id)
+    )))
+}
+
+/// A pin-safe id for a column name like `Spindel vorne [°C]`: lower case, the unit in brackets
+/// dropped, every other character an `_`, at most 30 bytes.
+fn suggested_id(id: &str) -> String {
+    let base = id.split(['[', '(']).next().unwrap_or(id);
+    let mut out = String::new();
+    for c in base.trim().chars() {
+        let c = c.to_ascii_lowercase();
+        if c.is_ascii_alphanumeric() {
+            out.push(c);
+        } else if !out.ends_with('_') {
+            out.push('_');
+        }
+    }
+    let out = out.trim_matches('_');
+    let out: String = out.chars().take(30).collect();
+    if out.is_empty() {
+        "sensor_1".into()
+    } else {
+        out
+    }
+}
+
+/// Every measured temperature and operating channel of `machine` makes a valid pin name.
+pub fn check_names(machine: &Machine) -> Result<(), HalError> {
+    for t in machine.temperatures.iter().filter(|t| t.lag.is_none()) {
+        check_pin_id("temperature channel", &t.id, &temperature_pin(&t.id))?;
+    }
+    for o in &machine.operating {
+        check_pin_id("operating channel", &o.id, &operating_pin(&o.id))?;
+    }
+    Ok(())
+}
+
 /// Creates every pin of `machine` on `component` (before [`Component::ready`]); `paths` is the
 /// number of paths of the control (one `path.<n>.model` pin each).
 pub fn create(component: &Component, machine: &Machine, paths: usize) -> Result<Pins, HalError> {
+    check_names(machine)?;
     let mut positions = Vec::new();
     let mut axis_paths = Vec::new();
     let mut axes = Vec::new();
@@ -277,6 +335,23 @@ mod tests {
     fn names_follow_linuxcnc() {
         assert_eq!(axis_prefix("X"), "axis.x");
         assert_eq!(temperature_pin("x_slide_top"), "temp.x_slide_top");
+        assert!(check_pin_id("t", "x_slide_top", &temperature_pin("x_slide_top")).is_ok());
+        let e = check_pin_id(
+            "temperature channel",
+            "Spindel vorne [°C]",
+            &temperature_pin("Spindel vorne [°C]"),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.contains("temperature channel `Spindel vorne [°C]`") && e.contains("`spindel_vorne`"),
+            "{e}"
+        );
+        let long = "a".repeat(40);
+        let e = check_pin_id("t", &long, &temperature_pin(&long))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("longer than 47 bytes"), "{e}");
         assert_eq!(operating_pin("spindle_rpm"), "operating.spindle_rpm");
         assert_eq!(status_code(CompensationState::Active), 1);
         assert_eq!(status_code(CompensationState::NoModel), 3);
