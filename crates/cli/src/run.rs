@@ -11,6 +11,7 @@ use crate::error::CliError;
 use truepos_io::compensation::load_set;
 use truepos_io::limits::{check_in, finite_in};
 use truepos_io::{cycles, machine_file};
+use truepos_runtime::cycle_budget;
 use truepos_runtime::host::{ModelLoader, ReloadSetup};
 use truepos_runtime::log;
 use truepos_runtime::probe::ProbeReplay;
@@ -203,6 +204,10 @@ impl Timing {
 pub fn run(args: RunArgs) -> Result<(), CliError> {
     let machine = machine_file::load(&args.machine)?;
     let entries = load_set(&args.models, &machine)?;
+    let period_s = args.period_ms / 1000.0;
+    for e in &entries {
+        cycle_budget::check(e, &machine.machine, period_s).map_err(CliError::refused)?;
+    }
     // The service clock's zero, shared with network sources that stamp values themselves.
     let epoch = Instant::now();
     let (sources, replay_end_s) = open_sources(&args, &machine.machine, epoch)?;
@@ -218,9 +223,11 @@ pub fn run(args: RunArgs) -> Result<(), CliError> {
         ReloadSetup {
             files: args.models.clone(),
             loader: Box::new(move |path: &std::path::Path| {
-                load_set(&[path.to_path_buf()], &loader_machine)
+                let entry = load_set(&[path.to_path_buf()], &loader_machine)
                     .map(|mut entries| entries.remove(0))
-                    .map_err(|e| e.to_string())
+                    .map_err(|e| e.to_string())?;
+                cycle_budget::check(&entry, &loader_machine.machine, period_s)?;
+                Ok(entry)
             }) as ModelLoader,
             watch: true,
         }

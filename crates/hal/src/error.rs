@@ -24,6 +24,9 @@ pub enum Error {
     /// The cycle-timing figures (`--stats`) could not be written.
     #[error(transparent)]
     Stats(std::io::Error),
+    /// A model whose evaluation does not fit the cycle (`cycle_budget`).
+    #[error("{0}")]
+    TooSlow(String),
 }
 
 #[cfg(test)]

@@ -16,6 +16,7 @@ use truepos_hal::source::Edge;
 use truepos_hal::{pins, Error, HalSink, HalSource};
 use truepos_io::compensation::load_set;
 use truepos_io::limits::{finite_in, int_in};
+use truepos_runtime::cycle_budget;
 use truepos_runtime::host::ReloadSetup;
 use truepos_runtime::{MachineConfig, PathState, Running, Service, ServiceConfig, ServiceHost};
 
@@ -131,6 +132,10 @@ fn run(args: RunArgs) -> Result<(), Error> {
     pins::check_names(&machine.machine)?;
     // Seed D: a model without an index in its file serves path 1's axes.
     let entries = load_set(&args.models, &machine)?;
+    let period_s = args.period_ms / 1000.0;
+    for e in &entries {
+        cycle_budget::check(e, &machine.machine, period_s).map_err(Error::TooSlow)?;
+    }
 
     let stop = Arc::new(AtomicBool::new(false));
     signal_hook::flag::register(signal_hook::consts::SIGTERM, Arc::clone(&stop))
@@ -159,9 +164,11 @@ fn run(args: RunArgs) -> Result<(), Error> {
     let reload = ReloadSetup {
         files: args.models.clone(),
         loader: Box::new(move |path| {
-            load_set(&[path.to_path_buf()], &loader_machine)
+            let entry = load_set(&[path.to_path_buf()], &loader_machine)
                 .map(|mut entries| entries.remove(0))
-                .map_err(|e| e.to_string())
+                .map_err(|e| e.to_string())?;
+            cycle_budget::check(&entry, &loader_machine.machine, period_s)?;
+            Ok(entry)
         }),
         watch: false,
     };

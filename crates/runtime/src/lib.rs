@@ -6,6 +6,7 @@
 #![warn(missing_docs)]
 
 pub mod config;
+pub mod cycle_budget;
 pub mod envelope;
 pub mod events;
 pub mod frame;
