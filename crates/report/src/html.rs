@@ -163,12 +163,29 @@ fn merit_table(html: &mut String, data: &ReportData) {
     } else {
         "over the whole run"
     };
+    // The figures count the rows that carry a measurement (a probe every 5 minutes in a
+    // 1 s log leaves most rows empty), not the rows of the run.
+    let measured = test
+        .clone()
+        .filter(|&i| {
+            data.channels
+                .iter()
+                .any(|c| c.measured.get(i).is_some_and(|v| v.is_finite()))
+        })
+        .count();
+    let count = if measured == test.len() {
+        format!("{measured} samples")
+    } else {
+        format!(
+            "{measured} samples with a measurement, of {} rows",
+            test.len()
+        )
+    };
     let _ = write!(
         html,
-        "<h2>Figures of merit</h2><p>Residual = measured − predicted, {which} ({} samples).</p>\
+        "<h2>Figures of merit</h2><p>Residual = measured − predicted, {which} ({count}).</p>\
          <table><tr><th class=\"l\">channel</th><th>RMSE</th><th>max |residual|</th><th>peak-to-peak</th>\
-         <th>uncompensated RMS</th><th>reduction</th></tr>",
-        test.len()
+         <th>uncompensated RMS</th><th>reduction</th></tr>"
     );
     for ch in &data.channels {
         let m = channel_metrics(ch, test.clone());
@@ -293,6 +310,31 @@ fn key_value_tables(html: &mut String, data: &ReportData) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A probe every fifth row: the figures say how many rows carry a measurement.
+    #[test]
+    fn the_sample_count_counts_measured_rows() {
+        let n = 20;
+        let measured: Vec<f64> = (0..n)
+            .map(|i| if i % 5 == 0 { i as f64 } else { f64::NAN })
+            .collect();
+        let data = ReportData {
+            time_s: (0..n).map(|i| i as f64).collect(),
+            channels: vec![crate::Channel {
+                name: "dz_um".into(),
+                unit: "µm".into(),
+                predicted: measured.clone(),
+                measured,
+            }],
+            ..Default::default()
+        };
+        let mut html = String::new();
+        merit_table(&mut html, &data);
+        assert!(
+            html.contains("(4 samples with a measurement, of 20 rows)"),
+            "{html}"
+        );
+    }
 
     #[test]
     fn a_failed_write_leaves_no_partial_file() {
