@@ -44,12 +44,28 @@ pub struct Args {
     /// merit are computed from there on, −10¹⁰–10¹⁰ (epoch seconds fit). Default: the whole run.
     #[arg(long, value_parser = truepos_io::limits::finite_in(-1e10, 1e10))]
     test_from_s: Option<f64>,
+    /// Take the measured errors as measured. Default: as the model was fitted — a fitted
+    /// dynamic model learnt the drift from each run's first sample (`truepos fit` without a
+    /// machine file), so its measured errors are taken relative to each channel's first sample
+    /// with a measurement; a position-dependent or reference-sensor model predicts the error as
+    /// measured.
+    #[arg(long)]
+    absolute: bool,
     /// Output folder.
     #[arg(long, default_value = "report")]
     out: PathBuf,
     /// Print the figures of merit as JSON.
     #[arg(long)]
     json: bool,
+}
+
+/// `values` relative to their first finite value, the reference point `truepos fit` uses.
+fn relative_to_first(values: &mut [f64]) {
+    if let Some(first) = values.iter().copied().find(|v| v.is_finite()) {
+        for v in values.iter_mut() {
+            *v -= first;
+        }
+    }
 }
 
 /// The run to report, and its measured-error columns by name (in µm, NaN where a row has no
@@ -211,7 +227,13 @@ pub fn run(args: Args) -> Result<(), CliError> {
         pairs.push((a, column.to_string()));
     }
     let columns: Vec<String> = pairs.iter().map(|p| p.1.clone()).collect();
-    let (run_name, measured) = read_measured(&args, &columns)?;
+    let (run_name, mut measured) = read_measured(&args, &columns)?;
+    let relative = !args.absolute && model.model().as_dynamic().is_some();
+    if relative {
+        for m in &mut measured {
+            relative_to_first(m);
+        }
+    }
     let run = runs
         .into_iter()
         .find(|(name, _)| *name == run_name)
@@ -273,7 +295,14 @@ pub fn run(args: Args) -> Result<(), CliError> {
         ),
         (
             "sign".to_string(),
-            "error = actual − nominal; residual = measured − predicted; uncompensated = measured relative to the first sample".to_string(),
+            format!(
+                "error = actual − nominal; residual = measured − predicted; measured {}; uncompensated = measured relative to the first sample",
+                if relative {
+                    "relative to each channel's first sample with a measurement, as the fit took it"
+                } else {
+                    "as in the file"
+                }
+            ),
         ),
     ];
     protocol.push((

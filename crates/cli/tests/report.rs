@@ -102,3 +102,53 @@ fn report_names_a_missing_measured_column() {
         "{err}"
     );
 }
+
+/// One reference point (issue 28): a fitted dynamic model learnt the drift from each run's
+/// first sample, so `report` takes its measured errors the same way — a measured column that
+/// sits at 100 µm all day is no drift at all — while `--absolute` takes them as measured.
+#[test]
+fn a_dynamic_model_is_reported_on_the_drift_it_was_fitted_on() {
+    let dir = std::env::temp_dir().join(format!("truepos-report-ref-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let original = std::fs::read_to_string(repo("examples/vmc3/run.csv")).unwrap();
+    let mut lines = original.lines();
+    let mut text = format!("{},z_meas_um\n", lines.next().unwrap());
+    for l in lines {
+        text.push_str(&format!("{l},100\n"));
+    }
+    let run = dir.join("run.csv");
+    std::fs::write(&run, text).unwrap();
+    let rmse = |absolute: bool| -> f64 {
+        let mut c = Command::new(env!("CARGO_BIN_EXE_truepos"));
+        c.current_dir(repo(""))
+            .args(["report", "--machine", "examples/vmc3/machine.toml"])
+            .args([
+                "--model",
+                "tests/linuxcnc/model_d.json",
+                "--measured",
+                "Z=z_meas_um",
+            ])
+            .arg("--run")
+            .arg(&run)
+            .arg("--out")
+            .arg(dir.join(format!("r{absolute}")))
+            .arg("--json");
+        if absolute {
+            c.arg("--absolute");
+        }
+        let out = c.output().unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        v["channels"][0]["metrics"]["rmse_um"].as_f64().unwrap()
+    };
+    let (relative, absolute) = (rmse(false), rmse(true));
+    assert!(absolute - relative > 10.0, "{relative} vs {absolute}");
+    let html = std::fs::read_to_string(dir.join("rfalse/report.html")).unwrap();
+    assert!(html.contains("as the fit took it"), "protocol");
+    std::fs::remove_dir_all(&dir).ok();
+}
