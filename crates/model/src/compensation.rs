@@ -13,6 +13,7 @@ use alloc::vec::Vec;
 use core::fmt;
 
 use crate::dynamic::DynamicModel;
+use crate::envelope::TrainingEnvelope;
 use crate::evaluate::{check_lengths, CycleInput, EvalError};
 use crate::machine::MAX_AXES;
 use crate::model::Model;
@@ -102,6 +103,8 @@ pub struct BoundDynamicModel {
     sensors: Vec<usize>,
     /// This cycle's input values, in the model's order.
     buffer: Vec<f64>,
+    /// Where it was trained, if its file says ([`crate::envelope`]).
+    envelope: Option<TrainingEnvelope>,
 }
 
 /// Equal when model (with its filters' state) and mapping are; the input buffer is scratch.
@@ -113,6 +116,7 @@ impl PartialEq for BoundDynamicModel {
             && self.axes == other.axes
             && self.unused_outputs == other.unused_outputs
             && self.channels == other.channels
+            && self.envelope == other.envelope
     }
 }
 
@@ -171,7 +175,18 @@ impl BoundDynamicModel {
             unused_outputs,
             channels,
             sensors,
+            envelope: None,
         })
+    }
+
+    /// Where the model was trained, if known.
+    pub fn envelope(&self) -> Option<&TrainingEnvelope> {
+        self.envelope.as_ref()
+    }
+
+    /// Stores where the model was trained (from its file or its fit).
+    pub fn set_envelope(&mut self, envelope: Option<TrainingEnvelope>) {
+        self.envelope = envelope;
     }
 
     /// Name for events and reports (the file's stem).
@@ -302,6 +317,14 @@ impl CompensationModel {
         match self {
             Self::Static(m) => m.used_sensors(),
             Self::Dynamic(d) => d.temperature_channels(),
+        }
+    }
+
+    /// Where it was trained, if its file says ([`crate::envelope`]).
+    pub fn envelope(&self) -> Option<&TrainingEnvelope> {
+        match self {
+            Self::Static(m) => m.envelope(),
+            Self::Dynamic(d) => d.envelope(),
         }
     }
 

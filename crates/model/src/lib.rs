@@ -64,6 +64,7 @@ extern crate std;
 
 pub mod compensation;
 pub mod dynamic;
+pub mod envelope;
 pub mod evaluate;
 pub mod lag;
 pub mod machine;

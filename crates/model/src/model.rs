@@ -16,6 +16,7 @@ use alloc::string::String;
 use alloc::vec::Vec;
 use core::fmt;
 
+use crate::envelope::TrainingEnvelope;
 use crate::machine::{Machine, Reference, MAX_AXES};
 
 /// Most temperature differences one model may read. Differences are evaluated into a stack array
@@ -220,6 +221,8 @@ pub struct Model {
     pub(crate) terms: Vec<(usize, f64)>,
     pub(crate) constants: Vec<(usize, usize, f64)>,
     pub(crate) part_enabled: Vec<bool>,
+    /// Where it was trained, if its file says ([`crate::envelope`]).
+    envelope: Option<TrainingEnvelope>,
 }
 
 impl Model {
@@ -323,6 +326,7 @@ impl Model {
             name: name.into(),
             machine: machine.name.clone(),
             part_enabled: parts.iter().map(|p| p.enabled).collect(),
+            envelope: None,
             parts,
             axes: machine
                 .axes
@@ -389,6 +393,16 @@ impl Model {
             }
             None => false,
         }
+    }
+
+    /// Where the model was trained, if known.
+    pub fn envelope(&self) -> Option<&TrainingEnvelope> {
+        self.envelope.as_ref()
+    }
+
+    /// Stores where the model was trained (from its file or its fit).
+    pub fn set_envelope(&mut self, envelope: Option<TrainingEnvelope>) {
+        self.envelope = envelope;
     }
 
     /// Whether a part contributes now.

@@ -69,6 +69,25 @@ pub enum EventKind {
         /// True for the rate limit, false for the magnitude limit.
         rate: bool,
     },
+    /// A path's model was evaluated beyond its training envelope: the input farthest beyond
+    /// was clamped to its widened training range, and the output capped
+    /// (`truepos_model::envelope`). Raised when it starts and when the input farthest beyond
+    /// changes.
+    Extrapolating {
+        /// Path, 1-based.
+        path: u32,
+        /// The machine channel.
+        input: truepos_model::MachineInput,
+        /// Its value.
+        value: f64,
+        /// The edge of its widened training range.
+        limit: f64,
+    },
+    /// Every input of the path's model is back inside its training envelope.
+    ExtrapolationEnded {
+        /// Path, 1-based.
+        path: u32,
+    },
     /// The envelope stopped clamping an axis.
     ClampReleased {
         /// Machine axis.

@@ -71,6 +71,7 @@ pub(crate) fn err(file: &Path) -> impl Fn(rusqlite::Error) -> LogError + '_ {
 struct Names {
     axes: Vec<String>,
     sensors: Vec<String>,
+    operating: Vec<String>,
     sources: Vec<String>,
     sinks: Vec<String>,
     models: Vec<String>,
@@ -427,6 +428,7 @@ impl Writer {
         let names = Names {
             axes: m.axes.iter().map(|a| a.name.clone()).collect(),
             sensors: m.temperatures.iter().map(|t| t.id.clone()).collect(),
+            operating: m.operating.iter().map(|o| o.id.clone()).collect(),
             sources: setup.sources.clone(),
             sinks: setup.sinks.clone(),
             models: setup.models.clone(),
@@ -786,6 +788,26 @@ fn describe(e: &Event, n: &Names) -> (&'static str, String, String) {
             },
         ),
         EventKind::ClampReleased { axis } => ("clamp-released", name(&n.axes, axis), String::new()),
+        EventKind::Extrapolating {
+            path,
+            input,
+            value,
+            limit,
+        } => ("extrapolating", format!("path {path}"), {
+            let (what, unit) = match input {
+                truepos_model::MachineInput::Temperature(c) => (name(&n.sensors, c), " °C"),
+                truepos_model::MachineInput::Operating(c) => (name(&n.operating, c), ""),
+            };
+            format!(
+                    "{what} at {value:.2}{unit} is beyond the model's training range (widened) by {:.2}{unit}: clamped to {limit:.2}{unit}, the output capped",
+                    (value - limit).abs()
+                )
+        }),
+        EventKind::ExtrapolationEnded { path } => (
+            "extrapolation-ended",
+            format!("path {path}"),
+            "every input back inside the model's training range".into(),
+        ),
         EventKind::SourceLost { source, reason } => {
             ("source-lost", name(&n.sources, source), reason.to_string())
         }

@@ -2,6 +2,7 @@
 //! B = (b1, b2, b3), b_i = 100·path + axis number; the service builds the target index D of each
 //! path from the control's axis configuration and sets the matching model for that path.
 
+use truepos_model::envelope::{Beyond, TrainingEnvelope};
 use truepos_model::{CompensationModel, CycleInput, DynamicError, EvalError, MAX_AXES};
 
 /// Slots of an axis-combination index (seed D uses three).
@@ -18,6 +19,8 @@ struct Stepped {
     valid: bool,
     /// Service time of the last good step, NaN before the first.
     last_s: f64,
+    /// The input farthest beyond the model's training envelope in its last evaluation.
+    beyond: Option<Beyond>,
 }
 
 impl Stepped {
@@ -25,6 +28,7 @@ impl Stepped {
         error_um: [0.0; MAX_AXES],
         valid: false,
         last_s: f64::NAN,
+        beyond: None,
     };
 }
 
@@ -58,6 +62,9 @@ pub struct ModelSet {
     /// This cycle's temperatures with every channel the validator refused as NaN, for the
     /// models that keep state (capacity reserved at construction).
     masked: Vec<f64>,
+    /// A model's inputs clamped to its training envelope (capacity reserved, as `masked`).
+    guarded_t: Vec<f64>,
+    guarded_o: Vec<f64>,
     /// Per path: the target index D and the matching models in set order (preferred first).
     targets: Vec<[u32; INDEX_SLOTS]>,
     candidates: Vec<Vec<usize>>,
@@ -73,9 +80,12 @@ impl ModelSet {
             .map(|d| d.channels().temperatures)
             .max()
             .unwrap_or(0);
+        let (t, o) = envelope_channels(&entries);
         Self {
             stepped: vec![Stepped::NEW; n],
             masked: Vec::with_capacity(channels),
+            guarded_t: Vec::with_capacity(t),
+            guarded_o: Vec::with_capacity(o),
             entries,
             targets: vec![[0; INDEX_SLOTS]; paths],
             // Capacity for every model, so that re-selecting never allocates.
@@ -104,6 +114,13 @@ impl ModelSet {
             let channels = d.channels().temperatures;
             self.masked
                 .reserve(channels.saturating_sub(self.masked.len()));
+        }
+        if let Some(env) = entry.model.envelope() {
+            let (t, o) = (env.temperatures.len(), env.operating.len());
+            self.guarded_t
+                .reserve(t.saturating_sub(self.guarded_t.capacity()));
+            self.guarded_o
+                .reserve(o.saturating_sub(self.guarded_o.capacity()));
         }
         self.stepped[i] = Stepped::NEW;
         Some(std::mem::replace(slot, entry))
@@ -146,11 +163,17 @@ impl ModelSet {
             } else {
                 0.0
             };
-            match e.model.step(dt, &input) {
-                Ok(error_um) => {
+            match guarded_step(
+                &mut e.model,
+                dt,
+                &input,
+                (&mut self.guarded_t, &mut self.guarded_o),
+            ) {
+                Ok((error_um, beyond)) => {
                     st.error_um = error_um;
                     st.valid = true;
                     st.last_s = now_s;
+                    st.beyond = beyond;
                 }
                 // Two cycles at one instant: nothing to advance.
                 Err(EvalError::Filter(DynamicError::BadTimeStep)) if dt <= 0.0 => {}
@@ -179,8 +202,18 @@ impl ModelSet {
             st.error_um
         } else {
             // A model without state ignores the time step.
-            match e.model.step(0.0, input) {
-                Ok(error_um) => error_um,
+            match guarded_step(
+                &mut e.model,
+                0.0,
+                input,
+                (&mut self.guarded_t, &mut self.guarded_o),
+            ) {
+                Ok((error_um, beyond)) => {
+                    if let Some(st) = self.stepped.get_mut(i) {
+                        st.beyond = beyond;
+                    }
+                    error_um
+                }
                 Err(_) => return false,
             }
         };
@@ -189,6 +222,12 @@ impl ModelSet {
             *f = 0.0 - e;
         }
         true
+    }
+
+    /// The input farthest beyond model `i`'s training envelope in its last evaluation (its
+    /// inputs were clamped and its output capped), if any.
+    pub fn beyond(&self, i: usize) -> Option<Beyond> {
+        self.stepped.get(i).and_then(|st| st.beyond)
     }
 
     /// Number of paths.
@@ -231,6 +270,48 @@ impl ModelSet {
         }
         changed
     }
+}
+
+/// The most temperature and operating channels any model's envelope clamps: the capacity of
+/// the scratch, so that guarding never allocates.
+fn envelope_channels(entries: &[ModelEntry]) -> (usize, usize) {
+    entries
+        .iter()
+        .filter_map(|e| e.model.envelope())
+        .map(|env: &TrainingEnvelope| (env.temperatures.len(), env.operating.len()))
+        .fold((0, 0), |(t, o), (a, b)| (t.max(a), o.max(b)))
+}
+
+/// One step of `model` on `input` — its inputs clamped to its training envelope and its output
+/// capped, when it has one (`truepos_model::envelope`): the error per axis and the input
+/// farthest beyond the envelope. Allocates nothing: the scratch holds every envelope's
+/// channels.
+fn guarded_step(
+    model: &mut CompensationModel,
+    dt: f64,
+    input: &CycleInput<'_>,
+    (t, o): (&mut Vec<f64>, &mut Vec<f64>),
+) -> Result<([f64; MAX_AXES], Option<Beyond>), EvalError> {
+    let beyond = match model.envelope() {
+        None => return model.step(dt, input).map(|e| (e, None)),
+        Some(env) => {
+            t.clear();
+            t.resize(input.temperatures_c.len(), 0.0);
+            o.clear();
+            o.resize(input.operating.len(), 0.0);
+            env.clamp(input, t, o)
+        }
+    };
+    let guarded = CycleInput {
+        temperatures_c: t,
+        positions: input.positions,
+        operating: o,
+    };
+    let mut error_um = model.step(dt, &guarded)?;
+    if let Some(env) = model.envelope() {
+        env.cap(&mut error_um);
+    }
+    Ok((error_um, beyond))
 }
 
 #[cfg(test)]

@@ -7,7 +7,8 @@
 use std::sync::Arc;
 
 use crossbeam_queue::ArrayQueue;
-use truepos_model::{CycleInput, LagFilters, MAX_AXES};
+use truepos_model::envelope::Beyond;
+use truepos_model::{CycleInput, LagFilters, MachineInput, MAX_AXES};
 
 use crate::config::MachineConfig;
 use crate::envelope::Envelope;
@@ -137,6 +138,8 @@ pub struct Service {
     enabled: bool,
     codes: Vec<u32>,
     states: Vec<PathState>,
+    /// Per path: the input its model is extrapolating on now (beyond its training envelope).
+    extrapolating: Vec<Option<MachineInput>>,
     preferred: Vec<Option<usize>>,
     axis_path: [Option<usize>; MAX_AXES],
     /// Per axis: where its target comes from, and the target of this cycle.
@@ -211,6 +214,7 @@ impl Service {
             enabled: true,
             codes,
             states: vec![PathState::Disabled; n_paths],
+            extrapolating: vec![None; n_paths],
             preferred: vec![None; n_paths],
             axis_path: [None; MAX_AXES],
             origin: [Origin::Zero; MAX_AXES],
@@ -639,10 +643,44 @@ impl Service {
         });
     }
 
+    /// Raises `extrapolating` when path `p`'s model goes beyond its training envelope or the
+    /// input farthest beyond changes, and `extrapolation-ended` when it is back inside.
+    fn note_extrapolation(&mut self, p: usize, beyond: Option<Beyond>, now_s: f64) {
+        let now = beyond.map(|b| b.input);
+        if now == self.extrapolating[p] {
+            return;
+        }
+        self.extrapolating[p] = now;
+        let path = p as u32 + 1;
+        let kind = match beyond {
+            Some(b) => EventKind::Extrapolating {
+                path,
+                input: b.input,
+                value: b.value,
+                limit: b.limit,
+            },
+            None => EventKind::ExtrapolationEnded { path },
+        };
+        self.events.push(Event {
+            time_s: now_s,
+            kind,
+        });
+    }
+
+    /// Whether any path's model is extrapolating now (beyond its training envelope).
+    pub fn extrapolating(&self) -> bool {
+        self.extrapolating.iter().any(Option::is_some)
+    }
+
     fn update_path(&mut self, p: usize, now_s: f64) {
         let mut fresh = [0.0; MAX_AXES];
         let wanted = self.evaluate_path(p, &mut fresh);
         self.note_path_state(p, wanted, now_s);
+        let beyond = match wanted {
+            PathState::Model(m) => self.set.beyond(m),
+            _ => None,
+        };
+        self.note_extrapolation(p, beyond, now_s);
         let origin = match wanted {
             PathState::Model(model) => Origin::Model { path: p, model },
             PathState::Holding => Origin::Hold { path: p },

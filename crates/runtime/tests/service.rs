@@ -173,6 +173,76 @@ fn a_bad_sensor_holds_and_ramps_to_zero() {
     assert!(events.contains(&EventKind::Holding { path: 1 }));
 }
 
+/// A model that knows where it was trained: a sensor far beyond its training range is clamped
+/// to the range widened by its margin, the event names it, the output stays what the edge of
+/// the range gives (never the extrapolation), and the end is an event too.
+#[test]
+fn a_model_beyond_its_training_envelope_is_clamped_and_said() {
+    let machine = vmc();
+    let n_t = machine.machine.temperatures.len();
+    let mut entry = vmc_model("vmc3");
+    entry.model.as_static_mut().unwrap().set_envelope(Some(
+        truepos_model::envelope::TrainingEnvelope {
+            temperatures: vec![Some((19.0, 21.0)); n_t],
+            operating: vec![None; machine.machine.operating.len()],
+            max_abs_um: vec![Some(40.0); 3],
+        },
+    ));
+    let mut temps = vec![20.0; n_t];
+    temps[1] = 22.0; // x_slide_bottom: dT_x_slide = 2 K → Z error 2·(2 + 4·1) = 12 µm at X 800
+    let (source, values) = scripted(temps, vec![800.0, 250.0, 250.0]);
+    let mut service = Service::new(
+        machine,
+        vec![entry],
+        vec![source],
+        vec![],
+        ServiceConfig::default(),
+    );
+    let mut t = 0.0;
+    // Moves x_slide_bottom to `to` at 1 K/min (the validator refuses faster), then holds 20 s.
+    let mut ramp = |service: &mut Service, to: f64| -> f64 {
+        let mut z = 0.0;
+        let mut hold = 0.0;
+        while hold < 20.0 {
+            t += 0.1;
+            let mut v = values.lock().unwrap();
+            let now = v.0[1];
+            let step = (to - now).clamp(-0.1 / 60.0, 0.1 / 60.0);
+            v.0[1] = now + step;
+            drop(v);
+            if step == 0.0 {
+                hold += 0.1;
+            }
+            z = service.cycle(t).offset_um[2];
+        }
+        z
+    };
+    assert!((ramp(&mut service, 22.0) + 12.0).abs() < 1e-9);
+    assert!(!service.extrapolating());
+    // 27 °C where training saw at most 21: clamped to 21 + 2 K → dT 3 K → 18 µm, not 42.
+    let z = ramp(&mut service, 27.0);
+    assert!((z + 18.0).abs() < 1e-9, "{z}");
+    assert!(service.extrapolating());
+    assert!((ramp(&mut service, 22.0) + 12.0).abs() < 1e-6);
+    assert!(!service.extrapolating());
+    let events = drain(&service);
+    let beyond = events.iter().find_map(|e| match e {
+        EventKind::Extrapolating {
+            path: 1,
+            input,
+            value,
+            limit,
+        } => Some((*input, *value > 23.0, *limit)),
+        _ => None,
+    });
+    assert_eq!(
+        beyond,
+        Some((truepos_model::MachineInput::Temperature(1), true, 23.0)),
+        "{events:?}"
+    );
+    assert!(events.contains(&EventKind::ExtrapolationEnded { path: 1 }));
+}
+
 /// A position no axis can have (1e308 from a retyped node, a wrong scale) is a position fault,
 /// said as an event, and the service holds; back within reach, the positions recover.
 #[test]
