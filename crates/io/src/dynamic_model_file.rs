@@ -27,6 +27,7 @@ use truepos_model::{
     BoundDynamicModel, Channels, DynamicModel, FeatureBank, FeatureSpec, Machine, MachineInput,
 };
 
+use crate::envelope_file::EnvelopeEntry;
 use crate::error::{json_key_offset, parse_json, read_text, InputError};
 
 /// A problem at a key of the file (`outputs[0].coefficients`): the key and what was expected.
@@ -106,6 +107,10 @@ pub struct DynamicModelFile {
     pub provenance: serde_json::Value,
     /// Validation figures.
     pub validation: serde_json::Value,
+    /// Where it was trained (`truepos_model::envelope`), outputs by their names; absent: not
+    /// known.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub training_envelope: Option<EnvelopeEntry>,
 }
 
 impl DynamicModelFile {
@@ -150,6 +155,7 @@ impl DynamicModelFile {
             axis_index: None,
             provenance,
             validation,
+            training_envelope: None,
         }
     }
 
@@ -375,8 +381,17 @@ impl DynamicModelFile {
         };
         // Everything the core checks was checked above with names; what is left is an axis
         // beyond the core's MAX_AXES.
-        BoundDynamicModel::new(name, model, inputs, axes, unused_outputs, channels)
-            .map_err(|e| ("outputs".to_string(), e.to_string()))
+        let mut bound =
+            BoundDynamicModel::new(name, model, inputs, axes.clone(), unused_outputs, channels)
+                .map_err(|e| ("outputs".to_string(), e.to_string()))?;
+        if let Some(env) = &self.training_envelope {
+            let output_axis = |name: &str| {
+                let k = self.outputs.iter().position(|o| o.name == name)?;
+                axes[k]
+            };
+            bound.set_envelope(Some(env.bind(machine, output_axis)?));
+        }
+        Ok(bound)
     }
 }
 

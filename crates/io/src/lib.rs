@@ -28,6 +28,7 @@ pub mod comp_table;
 pub mod compensation;
 pub mod cycles;
 pub mod dynamic_model_file;
+pub mod envelope_file;
 pub mod error;
 pub mod kinematics_file;
 pub mod limits;

@@ -43,6 +43,7 @@ use truepos_model::{
     Carriage, Machine, Model, Part, PartForm, PositionFactor, PositionTerm, Reference, Summand,
 };
 
+use crate::envelope_file::EnvelopeEntry;
 use crate::error::{parse_toml, read_text, InputError};
 
 /// The `format` every model file carries.
@@ -80,6 +81,9 @@ pub struct ModelFile {
     /// How it was validated and what it achieved: free-form.
     #[serde(default, skip_serializing_if = "toml::Table::is_empty")]
     pub validation: toml::Table,
+    /// Where it was trained (`truepos_model::envelope`); absent: not known.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub training_envelope: Option<EnvelopeEntry>,
 }
 
 /// The inputs a model was made for.
@@ -365,8 +369,17 @@ impl ModelFile {
         for (pi, p) in self.part.iter().enumerate() {
             parts.push(self.bind_part(machine, pi, p)?);
         }
-        Model::new(self.name.get_ref().clone(), machine, parts)
-            .map_err(|e| (self.name.span(), "part".into(), e.to_string()))
+        let mut model = Model::new(self.name.get_ref().clone(), machine, parts)
+            .map_err(|e| (self.name.span(), "part".into(), e.to_string()))?;
+        if let Some(env) = &self.training_envelope {
+            // The table has no position of its own here: the error points at the model's name
+            // and names the key.
+            let bound = env
+                .bind(machine, |axis| machine.axis_index(axis))
+                .map_err(|(key, message)| (self.name.span(), key, message))?;
+            model.set_envelope(Some(bound));
+        }
+        Ok(model)
     }
 
     /// The file is a truepos model file of the version this build reads, made for this machine.
@@ -753,6 +766,9 @@ impl ModelFile {
             part,
             provenance: toml::Table::new(),
             validation: toml::Table::new(),
+            training_envelope: model
+                .envelope()
+                .map(|env| EnvelopeEntry::from_envelope(env, machine)),
         }
     }
 
