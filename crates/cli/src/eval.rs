@@ -153,6 +153,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
             "cycles": rows,
             "failed_cycles": failed,
             "first_failure": first_failure,
+            "rows_beyond_training": model.rows_beyond(),
             "axes": axes,
             "runs": per_run,
         });
@@ -185,6 +186,12 @@ pub fn run(args: Args) -> Result<(), CliError> {
         }
         if let Some(f) = &first_failure {
             eprintln!("  first failed cycle: {f}");
+        }
+        if model.rows_beyond() > 0 {
+            eprintln!(
+                "  {} cycles with an input beyond the model's training range (widened): clamped, the output capped at 1.5 × the largest in training, as on the machine",
+                model.rows_beyond()
+            );
         }
     }
     Ok(())

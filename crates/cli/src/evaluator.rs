@@ -12,6 +12,10 @@ use truepos_model::{CompensationModel, CycleInput, Machine, MAX_AXES};
 pub struct Evaluator {
     model: CompensationModel,
     last_s: Option<f64>,
+    /// The inputs clamped to the model's training envelope, as the service does.
+    scratch: (Vec<f64>, Vec<f64>),
+    /// Rows evaluated beyond the training envelope so far.
+    beyond: usize,
 }
 
 impl Evaluator {
@@ -26,6 +30,8 @@ impl Evaluator {
         Ok(Self {
             model: loaded.model,
             last_s: None,
+            scratch: (Vec::new(), Vec::new()),
+            beyond: 0,
         })
     }
 
@@ -77,6 +83,12 @@ impl Evaluator {
         self.last_s = None;
     }
 
+    /// Rows evaluated so far with an input beyond the model's training envelope (clamped,
+    /// the output capped, as on the machine).
+    pub fn rows_beyond(&self) -> usize {
+        self.beyond
+    }
+
     /// Axes it gives an error for.
     pub fn axis_count(&self) -> usize {
         self.model.axis_count()
@@ -97,10 +109,12 @@ impl Evaluator {
         };
         let t = cycles.time_s[i];
         let dt = self.last_s.map_or(0.0, |l| t - l);
-        let error_um = self
+        let (t_scratch, o_scratch) = &mut self.scratch;
+        let (error_um, beyond) = self
             .model
-            .step(dt, &input)
+            .step_guarded(dt, &input, (t_scratch, o_scratch))
             .map_err(|e| CliError::Model(describe(&e, machine)))?;
+        self.beyond += usize::from(beyond.is_some());
         self.last_s = Some(t);
         Ok(error_um)
     }

@@ -185,7 +185,7 @@ pub fn run(mut args: Args) -> Result<(), CliError> {
         warnings.extend(what.into_iter().map(|w| format!("--force: {w}")));
     }
     if let Some(out) = &args.model {
-        let text = model_text(&ds, &settings, &machine, &outcome, &data.target_axes)?;
+        let text = model_text(&ds, &settings, &machine, &outcome, &data)?;
         crate::write::write_whole(out, text, &crate::fit::input_files(&args))?;
     }
     if let Some(p) = &args.predictions {
@@ -278,8 +278,9 @@ fn model_text(
     settings: &truepos_fit::settings::Settings,
     machine: &Machine,
     outcome: &MachineOutcome,
-    axes: &[usize],
+    data: &MachineData,
 ) -> Result<String, CliError> {
+    let axes = &data.target_axes;
     let created_by = format!("truepos fit {}", env!("CARGO_PKG_VERSION"));
     let text = match &outcome.selection.chosen {
         Chosen::Dynamic(trained) => {
@@ -293,7 +294,7 @@ fn model_text(
                     axis: machine.axes[a].name.clone(),
                 })
                 .collect();
-            dynamic_model_file(
+            let mut file = dynamic_model_file(
                 ds,
                 settings,
                 trained,
@@ -302,12 +303,23 @@ fn model_text(
                 &axes,
                 &created_by,
             )
-            .map_err(CliError::context("--axis: "))?
-            .to_json()
-                + "\n"
+            .map_err(CliError::context("--axis: "))?;
+            file.training_envelope = Some(truepos_fit::export::training_envelope(
+                ds,
+                &trained.inputs,
+                &outcome.fitted,
+                &outcome.training_rows,
+            ));
+            file.to_json() + "\n"
         }
         Chosen::Static(s) => {
-            let mut file = ModelFile::from_model(&s.model, machine);
+            let mut model = s.model.clone();
+            model.set_envelope(Some(truepos_fit::export::machine_envelope(
+                &model,
+                data,
+                &outcome.training_rows,
+            )));
+            let mut file = ModelFile::from_model(&model, machine);
             file.description = format!(
                 "fitted by `truepos fit --machine` on {}",
                 ds.runs

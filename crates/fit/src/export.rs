@@ -8,6 +8,8 @@ use std::fmt;
 use std::str::FromStr;
 
 use truepos_io::dynamic_model_file::{DynamicModelFile, InputEntry};
+use truepos_io::envelope_file::EnvelopeEntry;
+use truepos_model::envelope::TrainingEnvelope;
 
 use crate::dataset::Dataset;
 use crate::settings::Settings;
@@ -76,7 +78,7 @@ pub fn model_file(
     axes: &[TargetAxis],
     created_by: &str,
 ) -> Result<DynamicModelFile, ExportError> {
-    dynamic_model_file(
+    let mut file = dynamic_model_file(
         dataset,
         settings,
         &outcome.trained,
@@ -84,7 +86,53 @@ pub fn model_file(
         machine,
         axes,
         created_by,
-    )
+    )?;
+    file.training_envelope = Some(training_envelope(
+        dataset,
+        &outcome.trained.inputs,
+        &outcome.fitted,
+        &outcome.training_rows,
+    ));
+    Ok(file)
+}
+
+/// Where a model was trained (`truepos_model::envelope`): the range of each input it reads over
+/// its training rows and, per target, the largest finite |prediction| there — the figures the
+/// runtime's guard clamps and caps by. An input or target without a finite value is left out.
+pub fn training_envelope(
+    dataset: &Dataset,
+    inputs: &[usize],
+    fitted: &Predictions,
+    training_rows: &[(usize, usize)],
+) -> EnvelopeEntry {
+    let mut entry = EnvelopeEntry::default();
+    for &i in inputs {
+        let range = training_rows
+            .iter()
+            .map(|&(r, row)| dataset.runs[r].inputs[i][row])
+            .filter(|v| v.is_finite())
+            .fold(None, |acc: Option<(f64, f64)>, v| {
+                Some(acc.map_or((v, v), |(lo, hi)| (lo.min(v), hi.max(v))))
+            });
+        if let Some((lo, hi)) = range {
+            entry
+                .inputs
+                .insert(dataset.input_names[i].clone(), [lo, hi]);
+        }
+    }
+    for (k, name) in dataset.target_names.iter().enumerate() {
+        let max = training_rows
+            .iter()
+            .filter_map(|&(r, row)| fitted.get(r)?.get(k)?.get(row).copied())
+            .filter(|v| v.is_finite())
+            .fold(None, |acc: Option<f64>, v| {
+                Some(acc.unwrap_or(0.0).max(v.abs()))
+            });
+        if let Some(m) = max {
+            entry.max_abs_prediction_um.insert(name.clone(), m);
+        }
+    }
+    entry
 }
 
 /// [`model_file`] of any trained dynamic model with its validation figures (JSON).
@@ -131,6 +179,45 @@ pub fn dynamic_model_file(
         output.axis = Some(a.axis.clone());
     }
     Ok(file)
+}
+
+/// Where a model of the machine (position-dependent, reference-sensor) was trained: the
+/// range of every temperature channel it reads over the training rows and, per axis, the
+/// largest |predicted error| there (the model evaluated at each training row).
+pub fn machine_envelope(
+    model: &truepos_model::Model,
+    data: &crate::machine_fit::MachineData,
+    training_rows: &[(usize, usize)],
+) -> TrainingEnvelope {
+    let m = &data.machine;
+    let mut env = TrainingEnvelope {
+        temperatures: vec![None; m.temperatures.len()],
+        operating: vec![None; m.operating.len()],
+        max_abs_um: vec![None; m.axes.len()],
+    };
+    for &(r, row) in training_rows {
+        let run = &data.runs[r];
+        for &c in model.used_sensors() {
+            let v = run.temperatures_c[row][c];
+            if v.is_finite() {
+                let slot = &mut env.temperatures[c];
+                *slot = Some(slot.map_or((v, v), |(lo, hi)| (lo.min(v), hi.max(v))));
+            }
+        }
+        let input = truepos_model::CycleInput {
+            temperatures_c: &run.temperatures_c[row],
+            positions: &run.positions[row],
+            operating: &run.operating[row],
+        };
+        if let Ok(c) = model.evaluate(&input) {
+            for (slot, e) in env.max_abs_um.iter_mut().zip(c.error_um()) {
+                if e.is_finite() {
+                    *slot = Some(slot.unwrap_or(0.0).max(e.abs()));
+                }
+            }
+        }
+    }
+    env
 }
 
 /// How far beyond the largest measured |error| a model's prediction on its own training data may

@@ -13,7 +13,7 @@ use alloc::vec::Vec;
 use core::fmt;
 
 use crate::dynamic::DynamicModel;
-use crate::envelope::TrainingEnvelope;
+use crate::envelope::{Beyond, TrainingEnvelope};
 use crate::evaluate::{check_lengths, CycleInput, EvalError};
 use crate::machine::MAX_AXES;
 use crate::model::Model;
@@ -389,6 +389,39 @@ impl CompensationModel {
             }
             Self::Dynamic(d) => d.step(dt_s, input),
         }
+    }
+
+    /// [`Self::step`] with the model's training envelope applied, when it has one
+    /// ([`crate::envelope`]): the inputs clamped to their widened training ranges (into
+    /// `scratch`, temperatures and operating inputs) and each axis' error capped. Returns the
+    /// error per axis and the input farthest beyond the envelope. Allocates nothing once the
+    /// scratch holds the machine's channels.
+    pub fn step_guarded(
+        &mut self,
+        dt_s: f64,
+        input: &CycleInput<'_>,
+        (t, o): (&mut Vec<f64>, &mut Vec<f64>),
+    ) -> Result<([f64; MAX_AXES], Option<Beyond>), EvalError> {
+        let beyond = match self.envelope() {
+            None => return self.step(dt_s, input).map(|e| (e, None)),
+            Some(env) => {
+                t.clear();
+                t.resize(input.temperatures_c.len(), 0.0);
+                o.clear();
+                o.resize(input.operating.len(), 0.0);
+                env.clamp(input, t, o)
+            }
+        };
+        let guarded = CycleInput {
+            temperatures_c: t,
+            positions: input.positions,
+            operating: o,
+        };
+        let mut error_um = self.step(dt_s, &guarded)?;
+        if let Some(env) = self.envelope() {
+            env.cap(&mut error_um);
+        }
+        Ok((error_um, beyond))
     }
 
     /// Forgets a dynamic model's history (nothing for a static model).

@@ -163,12 +163,10 @@ impl ModelSet {
             } else {
                 0.0
             };
-            match guarded_step(
-                &mut e.model,
-                dt,
-                &input,
-                (&mut self.guarded_t, &mut self.guarded_o),
-            ) {
+            match e
+                .model
+                .step_guarded(dt, &input, (&mut self.guarded_t, &mut self.guarded_o))
+            {
                 Ok((error_um, beyond)) => {
                     st.error_um = error_um;
                     st.valid = true;
@@ -202,12 +200,10 @@ impl ModelSet {
             st.error_um
         } else {
             // A model without state ignores the time step.
-            match guarded_step(
-                &mut e.model,
-                0.0,
-                input,
-                (&mut self.guarded_t, &mut self.guarded_o),
-            ) {
+            match e
+                .model
+                .step_guarded(0.0, input, (&mut self.guarded_t, &mut self.guarded_o))
+            {
                 Ok((error_um, beyond)) => {
                     if let Some(st) = self.stepped.get_mut(i) {
                         st.beyond = beyond;
@@ -280,38 +276,6 @@ fn envelope_channels(entries: &[ModelEntry]) -> (usize, usize) {
         .filter_map(|e| e.model.envelope())
         .map(|env: &TrainingEnvelope| (env.temperatures.len(), env.operating.len()))
         .fold((0, 0), |(t, o), (a, b)| (t.max(a), o.max(b)))
-}
-
-/// One step of `model` on `input` — its inputs clamped to its training envelope and its output
-/// capped, when it has one (`truepos_model::envelope`): the error per axis and the input
-/// farthest beyond the envelope. Allocates nothing: the scratch holds every envelope's
-/// channels.
-fn guarded_step(
-    model: &mut CompensationModel,
-    dt: f64,
-    input: &CycleInput<'_>,
-    (t, o): (&mut Vec<f64>, &mut Vec<f64>),
-) -> Result<([f64; MAX_AXES], Option<Beyond>), EvalError> {
-    let beyond = match model.envelope() {
-        None => return model.step(dt, input).map(|e| (e, None)),
-        Some(env) => {
-            t.clear();
-            t.resize(input.temperatures_c.len(), 0.0);
-            o.clear();
-            o.resize(input.operating.len(), 0.0);
-            env.clamp(input, t, o)
-        }
-    };
-    let guarded = CycleInput {
-        temperatures_c: t,
-        positions: input.positions,
-        operating: o,
-    };
-    let mut error_um = model.step(dt, &guarded)?;
-    if let Some(env) = model.envelope() {
-        env.cap(&mut error_um);
-    }
-    Ok((error_um, beyond))
 }
 
 #[cfg(test)]
