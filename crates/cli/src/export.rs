@@ -361,10 +361,29 @@ fn line_within_envelope(
     Ok(())
 }
 
+/// The model's error at `input`, guarded by its training envelope as on the machine (inputs
+/// clamped, output capped), so that a control is handed what truepos itself would apply.
 fn evaluate(m: &Model, input: &CycleInput<'_>) -> Result<Vec<f64>, String> {
-    m.evaluate(input)
+    let Some(env) = m.envelope() else {
+        return m
+            .evaluate(input)
+            .map(|c| c.error_um().to_vec())
+            .map_err(|e| e.to_string());
+    };
+    let mut t = vec![0.0; input.temperatures_c.len()];
+    let mut o = vec![0.0; input.operating.len()];
+    env.clamp(input, &mut t, &mut o);
+    let guarded = CycleInput {
+        temperatures_c: &t,
+        positions: input.positions,
+        operating: &o,
+    };
+    let mut error = m
+        .evaluate(&guarded)
         .map(|c| c.error_um().to_vec())
-        .map_err(|e| e.to_string())
+        .map_err(|e| e.to_string())?;
+    env.cap(&mut error);
+    Ok(error)
 }
 
 /// Refuses (unless `--force`) an axis whose form misses the model by more than

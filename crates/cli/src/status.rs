@@ -162,6 +162,7 @@ fn snapshot(args: &StatusArgs) -> Result<Snapshot, CliError> {
     } else {
         reasons(&events, &positions, &sensor_faults, &links, &clock)
     };
+    let extrapolating = extrapolating(&events);
     let time_s = number("time_s");
     let text = render(&Parts {
         machine: meta["machine"].as_str().unwrap_or("?"),
@@ -170,6 +171,7 @@ fn snapshot(args: &StatusArgs) -> Result<Snapshot, CliError> {
         time_s,
         state: &state,
         why: &why,
+        extrapolating: &extrapolating,
         path_models: &path_models,
         rows: [
             ("offsets", &offsets, 2, true),
@@ -187,21 +189,7 @@ fn snapshot(args: &StatusArgs) -> Result<Snapshot, CliError> {
             .map(|x| (x.name.clone(), finite(x.value)))
             .collect()
     };
-    let last_cycle: serde_json::Map<String, serde_json::Value> = last
-        .map(|row| {
-            names
-                .iter()
-                .zip(row)
-                .map(|(n, v)| {
-                    let value = v
-                        .parse::<f64>()
-                        .map(serde_json::Value::from)
-                        .unwrap_or_else(|_| serde_json::Value::from(v.clone()));
-                    (n.clone(), value)
-                })
-                .collect()
-        })
-        .unwrap_or_default();
+    let last_cycle = cycle_map(&names, last);
     let json = serde_json::json!({
         "last_cycle": last_cycle,
         "machine": meta["machine"],
@@ -209,6 +197,7 @@ fn snapshot(args: &StatusArgs) -> Result<Snapshot, CliError> {
         "clock_utc": last.map(|_| clock(time_s)),
         "state": state,
         "why": why,
+        "extrapolating": extrapolating,
         "models": path_models.iter().map(|(p, m)| serde_json::json!({"path": p, "model": m})).collect::<Vec<_>>(),
         "offsets_um": named(&offsets),
         "positions": named(&positions),
@@ -230,6 +219,7 @@ struct Parts<'a> {
     time_s: f64,
     state: &'a str,
     why: &'a [String],
+    extrapolating: &'a [String],
     path_models: &'a [(String, String)],
     /// (title, values, decimals, signed) per line.
     rows: [(&'a str, &'a [Value], usize, bool); 4],
@@ -252,6 +242,9 @@ fn render(p: &Parts<'_>) -> String {
         text += &format!("state: {}\n", p.state.to_uppercase());
         for w in p.why {
             text += &format!("  why: {w}\n");
+        }
+        for e in p.extrapolating {
+            text += &format!("EXTRAPOLATING: {e}\n");
         }
         for (path, m) in p.path_models {
             text += &format!("path {path}: model {m}\n");
@@ -286,6 +279,27 @@ fn render(p: &Parts<'_>) -> String {
     text
 }
 
+/// The last cycle as JSON, column by column (numbers as numbers, the state as text).
+fn cycle_map(
+    names: &[String],
+    last: Option<&Vec<String>>,
+) -> serde_json::Map<String, serde_json::Value> {
+    let Some(row) = last else {
+        return serde_json::Map::new();
+    };
+    names
+        .iter()
+        .zip(row)
+        .map(|(n, v)| {
+            let value = v
+                .parse::<f64>()
+                .map(serde_json::Value::from)
+                .unwrap_or_else(|_| serde_json::Value::from(v.clone()));
+            (n.clone(), value)
+        })
+        .collect()
+}
+
 fn finite(v: f64) -> serde_json::Value {
     if v.is_finite() {
         v.into()
@@ -313,6 +327,23 @@ fn line(title: &str, values: &[Value], decimals: usize, signed: bool) -> String 
         })
         .collect();
     format!("{title}: {}\n", items.join(", "))
+}
+
+/// Paths whose model is beyond its training envelope now: the last `extrapolating` event of
+/// each path not followed by its `extrapolation-ended`.
+fn extrapolating(events: &[LoggedEvent]) -> Vec<String> {
+    let mut open: Vec<(&str, String)> = Vec::new();
+    for e in events {
+        match e.kind.as_str() {
+            "extrapolating" => {
+                open.retain(|(p, _)| *p != e.subject);
+                open.push((e.subject.as_str(), format!("{}: {}", e.subject, e.detail)));
+            }
+            "extrapolation-ended" => open.retain(|(p, _)| *p != e.subject),
+            _ => {}
+        }
+    }
+    open.into_iter().map(|(_, d)| d).collect()
 }
 
 /// Sensors faulty now: from the last fault or recovery event of each, and — since a sensor that

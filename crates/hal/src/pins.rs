@@ -19,6 +19,7 @@
 //! | `truepos.status` | s32 | out | 0 disabled, 1 active, 2 holding, 3 no model |
 //! | `truepos.path.<n>.model` | s32 | out | model in effect on path n (index of `--model`), −1 none |
 //! | `truepos.clamped` | bit | out | the safety envelope limited an axis this cycle |
+//! | `truepos.extrapolating` | bit | out | a model's input is beyond its training envelope (clamped, the output capped) |
 //! | `truepos.cycle-us` | float | out | duration of the last cycle's work, µs |
 //! | `truepos.cycles` | s32 | out | cycles run (wraps) |
 //! | `truepos.probe.trigger` | bit | in | a rising edge is one probe event (seed C's probe measurement) |
@@ -163,6 +164,8 @@ pub struct OutputPins {
     pub path_models: Vec<S32Pin>,
     /// `truepos.clamped`.
     pub clamped: BitPin,
+    /// `truepos.extrapolating`.
+    pub extrapolating: BitPin,
     /// `truepos.cycle-us`.
     pub cycle_us: FloatPin,
     /// `truepos.cycles`.
@@ -315,6 +318,7 @@ pub fn create(component: &Component, machine: &Machine, paths: usize) -> Result<
             .map(|n| component.s32_pin(&path_model_pin(n), Direction::Out))
             .collect::<Result<Vec<_>, _>>()?,
         clamped: component.bit_pin("clamped", Direction::Out)?,
+        extrapolating: component.bit_pin("extrapolating", Direction::Out)?,
         cycle_us: component.float_pin("cycle-us", Direction::Out)?,
         cycles: component.s32_pin("cycles", Direction::Out)?,
         motion_enabled: component.bit_pin("motion-enabled", Direction::In)?,

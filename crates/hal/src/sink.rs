@@ -82,6 +82,7 @@ impl Sink for HalSink {
         }
         self.pins.status.set(status_code(output.state));
         self.pins.clamped.set(output.clamped);
+        self.pins.extrapolating.set(output.extrapolating);
         Ok(())
     }
 

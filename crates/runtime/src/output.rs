@@ -31,6 +31,9 @@ pub struct Output {
     pub state: CompensationState,
     /// Whether the envelope clamped any axis this cycle.
     pub clamped: bool,
+    /// Whether a path's model is extrapolating: an input beyond its training envelope was
+    /// clamped this cycle (`truepos_model::envelope`).
+    pub extrapolating: bool,
 }
 
 impl Output {
@@ -43,6 +46,7 @@ impl Output {
             positions: [0.0; MAX_AXES],
             state: CompensationState::Disabled,
             clamped: false,
+            extrapolating: false,
         }
     }
 

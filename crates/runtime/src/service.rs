@@ -412,6 +412,7 @@ impl Service {
         );
         self.output.time_s = now_s;
         self.output.clamped = clamped;
+        self.output.extrapolating = self.extrapolating();
         self.output.state = self.overall_state();
         for (a, p) in self.output.positions[..n].iter_mut().enumerate() {
             *p = self.frame.positions[a];
