@@ -10,7 +10,8 @@ use std::sync::{Arc, Mutex};
 
 use proptest::prelude::*;
 use truepos_io::{cycles, model_file};
-use truepos_model::{CycleInput, Model};
+use truepos_model::envelope::TrainingEnvelope;
+use truepos_model::{CycleInput, EvalError, Model};
 use truepos_runtime::model_set::ModelEntry;
 use truepos_runtime::*;
 
@@ -18,9 +19,17 @@ mod support;
 use support::{repo, vmc};
 
 /// The example model and a fallback without its spindle part (no spindle sensors), both for
-/// the machine's one path.
+/// the machine's one path. The example carries a training envelope narrower than the
+/// schedules' warm-ups (up to 8 K), so that extrapolation — inputs clamped, output capped —
+/// is part of the campaign.
 fn models(machine: &MachineConfig) -> Vec<ModelEntry> {
-    let full = model_file::load(&repo("examples/vmc3/model.toml"), &machine.machine).unwrap();
+    let mut full = model_file::load(&repo("examples/vmc3/model.toml"), &machine.machine).unwrap();
+    let m = &machine.machine;
+    full.set_envelope(Some(TrainingEnvelope {
+        temperatures: vec![Some((19.5, 23.0)); m.temperatures.len()],
+        operating: vec![None; m.operating.len()],
+        max_abs_um: vec![Some(12.0); m.axes.len()],
+    }));
     let parts = full.parts()[..1].to_vec();
     let fallback = Model::new("structure-only", &machine.machine, parts).unwrap();
     vec![
@@ -35,6 +44,44 @@ fn models(machine: &MachineConfig) -> Vec<ModelEntry> {
             index: [101, 102, 103],
         },
     ]
+}
+
+/// The compensation (−error) per axis of `model` at `input` as the service must apply it:
+/// guarded by its training envelope when it has one. Restated here, independently of
+/// `truepos_model::envelope`: each input clamped to its range widened by 25 % (temperatures at
+/// least 2 K), each axis' error limited to 1.5 × its training maximum.
+fn reference_compensation(model: &Model, input: &CycleInput<'_>) -> Result<Vec<f64>, EvalError> {
+    let mut t = input.temperatures_c.to_vec();
+    let mut o = input.operating.to_vec();
+    let axes = input.positions.len();
+    let mut limit = vec![f64::INFINITY; axes];
+    if let Some(env) = model.envelope() {
+        let widen = |v: &mut f64, range: &Option<(f64, f64)>, least: f64| {
+            if let (Some((lo, hi)), true) = (range, v.is_finite()) {
+                let m = (0.25 * (hi - lo)).max(least);
+                *v = v.clamp(lo - m, hi + m);
+            }
+        };
+        for (v, r) in t.iter_mut().zip(&env.temperatures) {
+            widen(v, r, 2.0);
+        }
+        for (v, r) in o.iter_mut().zip(&env.operating) {
+            widen(v, r, 0.0);
+        }
+        for (l, m) in limit.iter_mut().zip(&env.max_abs_um) {
+            if let Some(m) = m {
+                *l = 1.5 * m;
+            }
+        }
+    }
+    let c = model.evaluate(&CycleInput {
+        temperatures_c: &t,
+        positions: input.positions,
+        operating: &o,
+    })?;
+    Ok((0..axes)
+        .map(|a| 0.0 - c.error_um()[a].clamp(-limit[a], limit[a]))
+        .collect())
 }
 
 /// What the test delivers in one cycle.
@@ -448,16 +495,15 @@ impl Campaign {
             "t {t}: active with positions {:?}",
             self.held_p
         );
-        let c = model
-            .evaluate(&CycleInput {
+        reference_compensation(
+            model,
+            &CycleInput {
                 temperatures_c: &self.held_t,
                 positions: &self.held_p,
                 operating: &self.operating,
-            })
-            .map_err(|e| TestCaseError::fail(format!("t {t}: active but the model fails: {e}")))?;
-        Ok((0..self.held_p.len())
-            .map(|a| c.compensation_um(a))
-            .collect())
+            },
+        )
+        .map_err(|e| TestCaseError::fail(format!("t {t}: active but the model fails: {e}")))
     }
 }
 
@@ -592,16 +638,18 @@ fn an_intermittent_nan_does_not_run_the_output_away() {
             path: vec![0, 1, 2],
             lost: false,
         };
-        let model = c.reference[0]
-            .evaluate(&CycleInput {
+        let model = reference_compensation(
+            &c.reference[0],
+            &CycleInput {
                 temperatures_c: &run.temperatures_c[row],
                 positions: &run.positions[row],
                 operating: &run.operating[row],
-            })
-            .unwrap();
+            },
+        )
+        .unwrap();
         for a in 0..3 {
-            lo[a] = lo[a].min(model.compensation_um(a));
-            hi[a] = hi[a].max(model.compensation_um(a));
+            lo[a] = lo[a].min(model[a]);
+            hi[a] = hi[a].max(model[a]);
         }
         let out = c.step(t, d).map_err(|e| e.to_string()).unwrap();
         for a in 0..3 {
