@@ -7,6 +7,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
+use crate::envelope_check;
 use crate::error::CliError;
 use truepos_io::compensation::load_set;
 use truepos_io::limits::{check_in, finite_in};
@@ -131,7 +132,11 @@ pub struct LogArgs {
 /// The twin in the loop: the reference twin runs `scenario` (a built-in name or a TOML file)
 /// and its sensors are delivered by their ids, as a temperature module would; the axis
 /// positions stay with the control's source.
-fn twin_source(scenario: &str, machine: &truepos_model::Machine) -> Result<ReplaySource, CliError> {
+fn twin_source(
+    scenario: &str,
+    machine: &truepos_model::Machine,
+    check: EnvelopeCheck<'_>,
+) -> Result<ReplaySource, CliError> {
     let sc = match truepos_sim::Scenario::builtin(scenario) {
         Some(s) => s,
         None => {
@@ -170,6 +175,7 @@ fn twin_source(scenario: &str, machine: &truepos_model::Machine) -> Result<Repla
             .collect(),
         time_s,
     };
+    check(&format!("the twin's `{scenario}` day"), &run);
     Ok(ReplaySource::new(format!("twin {scenario}"), run).without_positions())
 }
 
@@ -218,7 +224,23 @@ pub fn run(args: RunArgs) -> Result<(), CliError> {
     let clock = run_clock(&args)?;
     // The service clock's zero, shared with network sources that stamp values themselves.
     let epoch = Instant::now();
-    let (sources, replay_end_s) = open_sources(&args, &machine.machine, epoch)?;
+    // Said before the first cycle: a model that runs into the envelope on the data it is about
+    // to replay would be held at the limit, safe but not what its figures promise.
+    let check = |what: &str, run: &Recording| {
+        let rows = envelope_check::Rows {
+            time_s: &run.time_s,
+            temperatures_c: &run.temperatures_c,
+            positions: &run.positions,
+            operating: &run.operating,
+        };
+        for e in &entries {
+            let beyond = envelope_check::beyond(&machine, &e.model, &rows);
+            for w in envelope_check::warnings(&machine, &args.machine, &e.name, what, &beyond) {
+                eprintln!("{w}");
+            }
+        }
+    };
+    let (sources, replay_end_s) = open_sources(&args, &machine.machine, epoch, &check)?;
     let sinks = open_sinks(&args, &machine, &entries)?;
     let config = ServiceConfig {
         blend_s: args.blend_s,
@@ -285,6 +307,10 @@ pub fn run(args: RunArgs) -> Result<(), CliError> {
 
 /// The service's sources, in the order given.
 type Sources = Vec<Box<dyn Source>>;
+
+/// Says when a model's predictions on a recorded source's data (named by the text) go beyond
+/// the envelope.
+type EnvelopeCheck<'a> = &'a dyn Fn(&str, &Recording);
 
 /// How the service's clock runs against real time.
 #[derive(Clone, Copy)]
@@ -355,6 +381,7 @@ fn open_sources(
     args: &RunArgs,
     m: &truepos_model::Machine,
     epoch: Instant,
+    check: EnvelopeCheck<'_>,
 ) -> Result<(Sources, Option<f64>), CliError> {
     let mut sources: Sources = Vec::new();
     let mut replay_end_s = None;
@@ -363,6 +390,7 @@ fn open_sources(
         let source: Box<dyn Source> = match kind {
             "replay" => {
                 let run = Recording::from(cycles::load(std::path::Path::new(what), m, &[])?);
+                check(&format!("replay {what}"), &run);
                 let replay = ReplaySource::new(format!("replay {what}"), run);
                 replay_end_s = Some(replay.duration_s());
                 if args.duration_s.is_none() && replay.duration_s() > MAX_RUN_S {
@@ -370,7 +398,7 @@ fn open_sources(
                 }
                 Box::new(replay)
             }
-            "twin" => Box::new(twin_source(what, m)?),
+            "twin" => Box::new(twin_source(what, m, check)?),
             "probes" => {
                 let path = std::path::Path::new(what);
                 let (events, start) = crate::reidentify::probes_csv::read_inputs(path, m)?;
