@@ -333,8 +333,8 @@ impl Results {
 }
 
 pub fn run(args: Args) -> Result<(), CliError> {
-    let machine =
-        machine_file::parse(Path::new("examples/twin/machine.toml"), TWIN_MACHINE)?.machine;
+    let config = machine_file::parse(Path::new("examples/twin/machine.toml"), TWIN_MACHINE)?;
+    let machine = config.machine.clone();
     let twin = Twin::reference();
     let chatty = !args.json && std::io::stderr().is_terminal();
     let say = |m: &str| {
@@ -368,6 +368,11 @@ pub fn run(args: Args) -> Result<(), CliError> {
         &args.train,
     )?;
 
+    for (selected, name) in [(&prior, "prior art"), (&posdep, "position-dependent")] {
+        for w in envelope_warnings(&config, &selected.model.model, name, &[&train, &test]) {
+            eprintln!("{w}");
+        }
+    }
     say("evaluate: test day, at the tool's path and over the working volume …");
     let results = Results::new(
         &twin,
@@ -384,6 +389,38 @@ pub fn run(args: Args) -> Result<(), CliError> {
         print_table(&args, &machine, &results, &prior, &posdep, &html);
     }
     Ok(())
+}
+
+/// What `truepos run` would say at start when replaying the training or the test day: a model
+/// whose predictions at the tool's path go beyond the twin's envelope (its machine file's
+/// `max_offset_um`) would be held at the limit, and the figures printed here would not be the
+/// machine's.
+fn envelope_warnings(
+    config: &truepos_runtime::MachineConfig,
+    model: &Model,
+    name: &str,
+    days: &[&Day],
+) -> Vec<String> {
+    let model = truepos_model::CompensationModel::from(model.clone());
+    let mut out = Vec::new();
+    for (d, which) in days.iter().zip(["training day", "test day"]) {
+        let time_s: Vec<f64> = d.run.rows.iter().map(|r| r.time_s).collect();
+        let rows = crate::envelope_check::Rows {
+            time_s: &time_s,
+            temperatures_c: &d.temps,
+            positions: &d.positions,
+            operating: &d.operating,
+        };
+        let beyond = crate::envelope_check::beyond(config, &model, &rows);
+        out.extend(crate::envelope_check::warnings(
+            config,
+            Path::new("examples/twin/machine.toml"),
+            name,
+            &format!("the twin's {which}"),
+            &beyond,
+        ));
+    }
+    out
 }
 
 /// The twin's error over the working volume before and after the position-dependent model, at

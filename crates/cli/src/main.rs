@@ -10,6 +10,7 @@ use std::process::ExitCode;
 use clap::{Parser, Subcommand};
 
 mod demo;
+mod envelope_check;
 mod error;
 mod eval;
 mod evaluator;

@@ -7,6 +7,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
+use crate::envelope_check;
 use crate::error::CliError;
 use truepos_io::compensation::load_set;
 use truepos_io::limits::{check_in, finite_in};
@@ -48,13 +49,17 @@ pub struct RunArgs {
         default_value = "examples/vmc3/model.toml"
     )]
     models: Vec<PathBuf>,
-    /// Sources: `replay:RUN.csv[@SPEED]` (a recorded run at SPEED × real time, 0.001–10⁶), and
-    /// `twin:SCENARIO[@SPEED]` (the thermal twin's sensors on a built-in scenario or scenario
-    /// file; temperatures and operating state only, positions come from the other sources),
-    /// `probes:RUN.csv[@SPEED]` (the probe events of a run: its `probe_<axis>_mm` and
-    /// `probe_d<axis>_um` columns, on the replay's clock), `modbus:CONFIG.toml` (temperature
-    /// modules) and `shdr:CONFIG.toml` (an MTConnect adapter);
-    /// see docs/network_sources.md for their configuration.
+    /// Sources: `replay:RUN.csv[@SPEED]` (a recorded run), `twin:SCENARIO[@SPEED]` (the
+    /// thermal twin's sensors on a built-in scenario or scenario file; temperatures and
+    /// operating state only, positions come from the other sources), `probes:RUN.csv[@SPEED]`
+    /// (the probe events of a run: its `probe_<axis>_mm` and `probe_d<axis>_um` columns),
+    /// `modbus:CONFIG.toml` (temperature modules), `shdr:CONFIG.toml` (an MTConnect adapter)
+    /// and `opcua:CONFIG.toml`; see docs/network_sources.md for their configuration. SPEED
+    /// (0.001–10⁶, one for the whole run) plays the recorded sources SPEED × faster than real
+    /// time: the service then runs on the data's clock, so lags, rates, blends and every other
+    /// time-dependent state follow the recorded time and the outputs are those of speed 1. A
+    /// speed other than 1 is refused beside a live source (Modbus, SHDR, OPC UA), whose values
+    /// arrive in real time.
     #[arg(long = "source", default_value = "replay:examples/vmc3/run.csv")]
     sources: Vec<String>,
     /// Sinks: `csv:OUT.csv` (one row per `--sink-every-s`) and `opcua:MAPPING.toml` (the model's
@@ -64,7 +69,8 @@ pub struct RunArgs {
     /// SQLite log of inputs, outputs and events (WAL mode).
     #[arg(long)]
     log: Option<PathBuf>,
-    /// Cycle period in ms, 0.1–10 000.
+    /// Cycle period in ms on the service's clock, 0.1–10 000 (with `@SPEED`, the data's
+    /// clock: cycles come SPEED × as often in real time).
     #[arg(long, default_value_t = 1.0, value_parser = finite_in(0.1, 10_000.0))]
     period_ms: f64,
     /// Stop after this many seconds, 0.001–31 536 000 (a year; default: when a replay ends).
@@ -119,7 +125,7 @@ pub struct LogArgs {
 fn twin_source(
     scenario: &str,
     machine: &truepos_model::Machine,
-    speed: f64,
+    check: EnvelopeCheck<'_>,
 ) -> Result<ReplaySource, CliError> {
     let sc = match truepos_sim::Scenario::builtin(scenario) {
         Some(s) => s,
@@ -159,7 +165,8 @@ fn twin_source(
             .collect(),
         time_s,
     };
-    Ok(ReplaySource::new(format!("twin {scenario}"), run, speed).without_positions())
+    check(&format!("the twin's `{scenario}` day"), &run);
+    Ok(ReplaySource::new(format!("twin {scenario}"), run).without_positions())
 }
 
 /// Cycle-time statistics in µs.
@@ -208,9 +215,26 @@ pub fn run(args: RunArgs) -> Result<(), CliError> {
     for e in &entries {
         cycle_budget::check(e, &machine.machine, period_s).map_err(CliError::refused)?;
     }
+    let clock = run_clock(&args)?;
     // The service clock's zero, shared with network sources that stamp values themselves.
     let epoch = Instant::now();
-    let (sources, replay_end_s) = open_sources(&args, &machine.machine, epoch)?;
+    // Said before the first cycle: a model that runs into the envelope on the data it is about
+    // to replay would be held at the limit, safe but not what its figures promise.
+    let check = |what: &str, run: &Recording| {
+        let rows = envelope_check::Rows {
+            time_s: &run.time_s,
+            temperatures_c: &run.temperatures_c,
+            positions: &run.positions,
+            operating: &run.operating,
+        };
+        for e in &entries {
+            let beyond = envelope_check::beyond(&machine, &e.model, &rows);
+            for w in envelope_check::warnings(&machine, &args.machine, &e.name, what, &beyond) {
+                eprintln!("{w}");
+            }
+        }
+    };
+    let (sources, replay_end_s) = open_sources(&args, &machine.machine, epoch, &check)?;
     let sinks = open_sinks(&args, &machine, &entries)?;
     let config = ServiceConfig {
         blend_s: args.blend_s,
@@ -250,7 +274,8 @@ pub fn run(args: RunArgs) -> Result<(), CliError> {
         .or(replay_end_s.map(|e| e + args.period_ms / 1000.0));
     let status_line = !args.json && std::io::stderr().is_terminal();
     let cpu_start = cpu_time_s();
-    let (mut timing, last_status) = cycle_loop(&args, &mut host, epoch, end_s, &stop, status_line);
+    let (mut timing, last_status) =
+        cycle_loop(&args, &mut host, (epoch, clock), end_s, &stop, status_line);
     if status_line {
         eprintln!();
     }
@@ -279,40 +304,101 @@ pub fn run(args: RunArgs) -> Result<(), CliError> {
 /// The service's sources, in the order given.
 type Sources = Vec<Box<dyn Source>>;
 
+/// Says when a model's predictions on a recorded source's data (named by the text) go beyond
+/// the envelope.
+type EnvelopeCheck<'a> = &'a dyn Fn(&str, &Recording);
+
+/// How the service's clock runs against real time.
+#[derive(Clone, Copy)]
+struct Clock {
+    /// Service seconds per real second: the `@SPEED` of the recorded sources (1 without).
+    speed: f64,
+    /// Whether a live source (Modbus, SHDR, OPC UA) stamps values on the real clock since the
+    /// epoch: then the service's clock is that one, from the epoch on.
+    live: bool,
+}
+
+/// A `--source` as (kind, what, speed if `@SPEED` is given).
+fn split_source(spec: &str) -> Result<(&str, &str, Option<f64>), CliError> {
+    let (kind, rest) = spec.split_once(':').unwrap_or(("", spec));
+    if !matches!(kind, "replay" | "twin" | "probes") {
+        return Ok((kind, rest, None));
+    }
+    Ok(match rest.rsplit_once('@') {
+        Some((what, s)) => (
+            kind,
+            what,
+            Some(check_in(s.parse().unwrap_or(f64::NAN), 0.001, 1e6).map_err(
+                CliError::context(format!("--source `{spec}`: speed after @: ")),
+            )?),
+        ),
+        None => (kind, rest, None),
+    })
+}
+
+/// The run's clock: one speed for every recorded source, since the service has one clock and
+/// it is the data's (a recorded source has no speed of its own); a speed other than 1 only
+/// with no live source and no OPC UA sink, whose values come and go in real time.
+fn run_clock(args: &RunArgs) -> Result<Clock, CliError> {
+    let mut speed: Option<(f64, &str)> = None;
+    let mut live = None;
+    for spec in &args.sources {
+        let (kind, _, s) = split_source(spec)?;
+        if matches!(kind, "modbus" | "shdr" | "opcua") {
+            live.get_or_insert(spec.as_str());
+        }
+        let Some(s) = s else { continue };
+        match speed {
+            Some((first, other)) if first != s => {
+                return Err(CliError::refused(format!(
+                    "--source `{spec}`: speed {s}, but `{other}` plays at {first}: a run has one clock, give every recorded source the same @SPEED"
+                )))
+            }
+            _ => speed = Some((s, spec)),
+        }
+    }
+    let speed = speed.map_or(1.0, |(s, _)| s);
+    if speed != 1.0 {
+        let sink = args.sinks.iter().find(|s| s.starts_with("opcua:"));
+        if let Some(other) = live.or(sink.map(String::as_str)) {
+            return Err(CliError::refused(format!(
+                "`{other}` delivers in real time, so the recorded sources cannot play at speed {speed} beside it: leave out @SPEED (or run them separately)"
+            )));
+        }
+    }
+    Ok(Clock {
+        speed,
+        live: live.is_some(),
+    })
+}
+
 /// The sources of `--source`, and when the last replay ends (service time, s).
 fn open_sources(
     args: &RunArgs,
     m: &truepos_model::Machine,
     epoch: Instant,
+    check: EnvelopeCheck<'_>,
 ) -> Result<(Sources, Option<f64>), CliError> {
     let mut sources: Sources = Vec::new();
     let mut replay_end_s = None;
     for spec in &args.sources {
-        let (kind, rest) = spec.split_once(':').unwrap_or(("", spec));
-        let (what, speed) = match rest.rsplit_once('@') {
-            Some((f, s)) => (
-                f,
-                check_in(s.parse().unwrap_or(f64::NAN), 0.001, 1e6).map_err(CliError::context(
-                    format!("--source `{spec}`: speed after @: "),
-                ))?,
-            ),
-            None => (rest, 1.0),
-        };
+        let (kind, what, _) = split_source(spec)?;
         let source: Box<dyn Source> = match kind {
             "replay" => {
                 let run = Recording::from(cycles::load(std::path::Path::new(what), m, &[])?);
-                let replay = ReplaySource::new(format!("replay {what}"), run, speed);
-                replay_end_s = Some(replay.duration_s() / speed);
-                if args.duration_s.is_none() && replay.duration_s() / speed > MAX_RUN_S {
-                    return Err(CliError::refused(format!("--source `{spec}`: lasts {} s at speed {speed}, over the {MAX_RUN_S} s (a year) a run may last; give --duration-s or a higher speed", replay.duration_s() / speed)));
+                check(&format!("replay {what}"), &run);
+                let replay = ReplaySource::new(format!("replay {what}"), run);
+                replay_end_s = Some(replay.duration_s());
+                if args.duration_s.is_none() && replay.duration_s() > MAX_RUN_S {
+                    return Err(CliError::refused(format!("--source `{spec}`: lasts {} s, over the {MAX_RUN_S} s (a year) a run may last; give --duration-s", replay.duration_s())));
                 }
                 Box::new(replay)
             }
-            "twin" => Box::new(twin_source(what, m, speed)?),
+            "twin" => Box::new(twin_source(what, m, check)?),
             "probes" => {
                 let path = std::path::Path::new(what);
                 let (events, start) = crate::reidentify::probes_csv::read_inputs(path, m)?;
-                Box::new(ProbeReplay::new(format!("probes {what}"), events, start, speed))
+                Box::new(ProbeReplay::new(format!("probes {what}"), events, start))
             }
             "modbus" => {
                 let cfg = ModbusConfig::load(std::path::Path::new(what))?;
@@ -324,7 +410,7 @@ fn open_sources(
             }
             "opcua" => {
                 let (cfg, identity, targets) =
-                    truepos_opcua::SourceConfig::load(std::path::Path::new(rest), m)?;
+                    truepos_opcua::SourceConfig::load(std::path::Path::new(what), m)?;
                 Box::new(truepos_opcua::OpcUaSource::start(
                     &cfg, identity, targets, epoch,
                 )?)
@@ -381,16 +467,20 @@ fn open_sinks(
 }
 
 /// Runs the cycles until `stop`, `end_s`, or the axes become unreachable; returns the timing
-/// figures and the last status line.
+/// figures and the last status line. Cycle k runs at service time k × period, due at
+/// k × period / speed of real time after the clock's start: the same service times at every
+/// speed, so that a replay's outputs do not depend on how fast it plays.
 fn cycle_loop(
     args: &RunArgs,
     host: &mut Running,
-    start: Instant,
+    (epoch, clock): (Instant, Clock),
     end_s: Option<f64>,
     stop: &AtomicBool,
     status_line: bool,
 ) -> (Timing, String) {
-    let period = Duration::from_secs_f64(args.period_ms / 1000.0);
+    let period_s = args.period_ms / 1000.0;
+    // Real time between two cycles; a late cycle counts as an overrun against this.
+    let period = Duration::from_secs_f64(period_s / clock.speed);
     let period_ns = period.as_nanos() as u64;
     let mut timing = Timing {
         samples: Vec::with_capacity(1 << 20),
@@ -400,20 +490,25 @@ fn cycle_loop(
         wall_s: 0.0,
         cpu_percent: None,
     };
-    // The first deadline after start-up: the time spent loading is not a backlog of cycles.
-    let mut k: u64 = if args.fast {
-        0
+    // A live source stamps values on the real clock since the epoch, so the service's clock is
+    // that one and the first deadline is the first after start-up (the time spent loading is
+    // not a backlog of cycles). Recorded sources alone start their data clock at the first
+    // cycle, which then sees their first row whatever the loading took.
+    let (start, mut k): (Instant, u64) = if args.fast || !clock.live {
+        (Instant::now(), 0)
     } else {
-        (Instant::now().saturating_duration_since(start).as_nanos() as u64)
-            .div_ceil(period_ns.max(1))
+        let k = (Instant::now().saturating_duration_since(epoch).as_nanos() as u64)
+            .div_ceil(period_ns.max(1));
+        (epoch, k)
     };
-    let mut next_status = 1.0;
+    // A status line every second of real time at the run's pace.
+    let status_every_s = clock.speed.max(1.0);
+    let mut next_status = status_every_s;
     let mut last_status = String::new();
     loop {
         let deadline = start + Duration::from_nanos(period_ns.saturating_mul(k));
-        let now_s = if args.fast {
-            k as f64 * period.as_secs_f64()
-        } else {
+        let now_s = k as f64 * period_s;
+        if !args.fast {
             let now = Instant::now();
             if now < deadline {
                 std::thread::sleep(deadline - now);
@@ -424,8 +519,7 @@ fn cycle_loop(
             if late > period {
                 timing.overruns += 1;
             }
-            (deadline - start).as_secs_f64()
-        };
+        }
         if stop.load(Ordering::Relaxed) || end_s.is_some_and(|e| now_s > e) {
             break;
         }
@@ -460,7 +554,7 @@ fn cycle_loop(
         }
         k += 1;
         if now_s >= next_status {
-            next_status += 1.0;
+            next_status += status_every_s;
             last_status = status(&host.service, host.model_names(), took);
             last_status += &faults_status(&host.service, host.log_health());
             if status_line {

@@ -433,10 +433,11 @@ fn a_running_service_reloads_a_rewritten_model_file() {
         .args([
             "--source",
             "replay:examples/vmc3/run.csv@100",
+            // On the data's clock: 12 000 s of the run in 120 s, a cycle every 10 ms.
             "--duration-s",
-            "120",
+            "12000",
             "--period-ms",
-            "10",
+            "1000",
             "--reload-on-change",
             "--json",
             "--log",

@@ -102,29 +102,23 @@ pub fn check(probe: &ProbeInput, axes: &[Axis]) -> Result<(), Reason> {
 
 /// Replays recorded probe events as a source (for controls without the HAL pin group, and for
 /// testing): an event is delivered in the cycle whose service time reaches its run time
-/// (relative to `start_s`, the run's first row, scaled by `speed` as [`crate::replay::ReplaySource`]
-/// scales it), one event per cycle so that none is lost when two fall into one cycle.
+/// (relative to `start_s`, the run's first row: the service's clock is the run's, as for
+/// [`crate::replay::ReplaySource`]), one event per cycle so that none is lost when two fall
+/// into one cycle.
 pub struct ProbeReplay {
     name: String,
     events: Vec<(f64, ProbeInput)>,
     start_s: f64,
-    speed: f64,
     next: usize,
 }
 
 impl ProbeReplay {
     /// Events as (run time in s, event), in time order.
-    pub fn new(
-        name: impl Into<String>,
-        events: Vec<(f64, ProbeInput)>,
-        start_s: f64,
-        speed: f64,
-    ) -> Self {
+    pub fn new(name: impl Into<String>, events: Vec<(f64, ProbeInput)>, start_s: f64) -> Self {
         Self {
             name: name.into(),
             events,
             start_s,
-            speed: if speed > 0.0 { speed } else { 1.0 },
             next: 0,
         }
     }
@@ -136,7 +130,7 @@ impl crate::Source for ProbeReplay {
     }
 
     fn read(&mut self, frame: &mut crate::Frame) -> Result<(), crate::LinkError> {
-        let run_time = self.start_s + frame.time_s * self.speed;
+        let run_time = self.start_s + frame.time_s;
         if let Some((t, p)) = self.events.get(self.next) {
             if *t <= run_time {
                 frame.probe = Some(*p);

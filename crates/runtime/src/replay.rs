@@ -21,28 +21,30 @@ pub struct Recording {
     pub operating: Vec<Vec<f64>>,
 }
 
-/// Replays a recorded run: at service time t it delivers the last row whose run time (relative
-/// to the first row, scaled by `speed`) is ≤ t. Temperatures, positions and operating state
-/// that the run holds are delivered; channels it lacks (NaN) are left untouched, so another
-/// source may feed them.
+/// Replays a recorded run: at service time t it delivers the last row whose run time, relative
+/// to the first row, is ≤ t. Temperatures, positions and operating state that the run holds are
+/// delivered; channels it lacks (NaN) are left untouched, so another source may feed them.
+///
+/// The replay has no speed of its own: service time is the run's time, so every time-dependent
+/// state of the service (lags, rates, staleness, blends, a dynamic model's filters) follows the
+/// data's clock. A caller that plays a run faster than real time paces the service's cycles
+/// faster (`truepos run`'s `@SPEED`), never the replay against the service.
 pub struct ReplaySource {
     name: String,
     run: Recording,
     start_s: f64,
-    speed: f64,
     next: usize,
     positions: bool,
 }
 
 impl ReplaySource {
-    /// A replay of `run` at `speed` × real time (1 = as recorded).
-    pub fn new(name: impl Into<String>, run: Recording, speed: f64) -> Self {
+    /// A replay of `run` on the service's clock (its first row at service time 0).
+    pub fn new(name: impl Into<String>, run: Recording) -> Self {
         let start_s = run.time_s.first().copied().unwrap_or(0.0);
         Self {
             name: name.into(),
             run,
             start_s,
-            speed: if speed > 0.0 { speed } else { 1.0 },
             next: 0,
             positions: true,
         }
@@ -55,7 +57,7 @@ impl ReplaySource {
         self
     }
 
-    /// Run time in s covered by the replay at `speed` 1.
+    /// Run time in s covered by the replay, which is the service time it takes.
     pub fn duration_s(&self) -> f64 {
         self.run.time_s.last().copied().unwrap_or(0.0) - self.start_s
     }
@@ -67,7 +69,7 @@ impl Source for ReplaySource {
     }
 
     fn read(&mut self, frame: &mut Frame) -> Result<(), LinkError> {
-        let run_time = self.start_s + frame.time_s * self.speed;
+        let run_time = self.start_s + frame.time_s;
         let mut row = None;
         while self.next < self.run.time_s.len() && self.run.time_s[self.next] <= run_time {
             row = Some(self.next);

@@ -20,7 +20,7 @@ fn a_hosted_service_logs_under_its_own_names_and_stops_cleanly() {
     let dir = scratch("host");
     let db = dir.join("log.sqlite");
     let mut running = ServiceHost::new(machine, entries)
-        .source(Box::new(ReplaySource::new("replay r", run, 1.0)))
+        .source(Box::new(ReplaySource::new("replay r", run)))
         .log(Some(db.clone()))
         .start()
         .unwrap();

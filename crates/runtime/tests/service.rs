@@ -71,7 +71,7 @@ fn replay_gives_the_model_output() {
     let machine = vmc();
     let run = cycles::load(&repo("examples/vmc3/run.csv"), &machine.machine, &[]).unwrap();
     let reference = model_file::load(&repo("examples/vmc3/model.toml"), &machine.machine).unwrap();
-    let source = ReplaySource::new("replay", Recording::from(run.clone()), 1.0);
+    let source = ReplaySource::new("replay", Recording::from(run.clone()));
     let mut service = Service::new(
         machine,
         vec![vmc_model("vmc3")],
@@ -528,7 +528,7 @@ fn enable_and_disable_are_bumpless() {
 fn a_cycle_allocates_nothing() {
     let machine = vmc();
     let run = cycles::load(&repo("examples/vmc3/run.csv"), &machine.machine, &[]).unwrap();
-    let source = ReplaySource::new("replay", Recording::from(run.clone()), 60.0);
+    let source = ReplaySource::new("replay", Recording::from(run.clone()));
     let mut service = Service::new(
         machine,
         vec![vmc_model("vmc3")],
@@ -546,9 +546,10 @@ fn a_cycle_allocates_nothing() {
     service.cycle(0.0);
     let events = service.events();
     let mut t = 0.0;
+    // 60 ms cycles: 300 s of the run, so that the replay moves through its rows.
     let counted = allocation_counter::measure(|| {
         for _ in 0..5000 {
-            t += 0.001;
+            t += 0.06;
             service.cycle(t);
         }
     });

@@ -87,7 +87,7 @@ pub fn run(config: &TimingConfig, stop: &AtomicBool) -> Result<Value, Error> {
     let entries = load_set(&config.models, &machine)?;
     let cycles = truepos_io::cycles::load(&config.run, m, &[])?;
     let run = Recording::from(cycles);
-    let replay = ReplaySource::new(format!("replay {}", config.run.display()), run, 1.0);
+    let replay = ReplaySource::new(format!("replay {}", config.run.display()), run);
     if replay.duration_s() < config.duration_s {
         eprintln!(
             "truepos-hal-check timing: the run lasts {:.0} s, less than {} s; its last values stay",
