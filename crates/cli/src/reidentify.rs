@@ -118,8 +118,10 @@ pub fn run(args: Args) -> Result<ExitCode, CliError> {
     };
     let outcome = reidentify(model, &machine, &events, settings);
     let parent = Parent::of(&args.model, &parent_text);
-    if let Some(new) = &outcome.model {
+    let mut outcome = outcome;
+    if let Some(new) = &mut outcome.model {
         plausible::check_model(new, &events, &machine, &config.axes)?;
+        plausible::check_move(model, new, &machine)?;
     }
     let written = match &outcome.model {
         Some(new) => Some(write_model(

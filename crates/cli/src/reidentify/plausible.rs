@@ -8,6 +8,7 @@
 //! reaches 1.5 times its 100 µm default.
 
 use truepos_fit::reidentify::ProbeEvent;
+use truepos_model::envelope::TrainingEnvelope;
 use truepos_model::{CycleInput, Machine, Model};
 use truepos_runtime::config::AxisConfig;
 
@@ -84,6 +85,95 @@ pub fn check_model(
     Ok(())
 }
 
+/// How far a re-identified model may move the prediction at its parent's training inputs, as
+/// a multiple of the parent's largest |prediction| there: the error may double or vanish, not
+/// more — re-identification corrects a drift of the machine, it does not make a new model.
+pub const MOVE_FRACTION: f64 = 1.0;
+
+/// The training inputs of a model with an envelope: every channel it knows at the middle of its
+/// range, then each in turn at both ends, then all at each end; positions at the middle of the
+/// travel. Channels it does not know stay at 20 °C.
+fn training_points(env: &TrainingEnvelope, machine: &Machine) -> Vec<Vec<f64>> {
+    let mid: Vec<f64> = env
+        .temperatures
+        .iter()
+        .map(|r| r.map_or(20.0, |(lo, hi)| 0.5 * (lo + hi)))
+        .collect();
+    let known: Vec<usize> = (0..mid.len())
+        .filter(|&c| env.temperatures[c].is_some())
+        .collect();
+    let mut points = vec![mid.clone()];
+    let end =
+        |c: usize, hi: bool| env.temperatures[c].map_or(20.0, |(l, h)| if hi { h } else { l });
+    for &c in &known {
+        for hi in [false, true] {
+            let mut p = mid.clone();
+            p[c] = end(c, hi);
+            points.push(p);
+        }
+    }
+    for hi in [false, true] {
+        let mut p = mid.clone();
+        for &c in &known {
+            p[c] = end(c, hi);
+        }
+        points.push(p);
+    }
+    points.retain(|p| p.len() == machine.temperatures.len());
+    points
+}
+
+/// Refuses a re-identified model that moves the prediction at its parent's training inputs by
+/// more than [`MOVE_FRACTION`] × the parent's largest |prediction| there (per axis, at least
+/// 1 µm), and gives the new model the parent's envelope, each axis' largest |prediction| the
+/// larger of the parent's and the new model's at those inputs. A parent without an envelope
+/// gives nothing to compare with: the new model has none either.
+pub fn check_move(old: &Model, new: &mut Model, machine: &Machine) -> Result<(), CliError> {
+    let Some(env) = old.envelope().cloned() else {
+        return Ok(());
+    };
+    let positions: Vec<f64> = machine
+        .axes
+        .iter()
+        .map(|a| 0.5 * (a.travel_min + a.travel_max))
+        .collect();
+    let operating = vec![0.0; machine.operating.len()];
+    let mut moved = vec![0.0f64; machine.axes.len()];
+    let mut largest = vec![0.0f64; machine.axes.len()];
+    for t in training_points(&env, machine) {
+        let input = CycleInput {
+            temperatures_c: &t,
+            positions: &positions,
+            operating: &operating,
+        };
+        let (Ok(a), Ok(b)) = (old.evaluate(&input), new.evaluate(&input)) else {
+            continue;
+        };
+        for (k, (x, y)) in a.error_um().iter().zip(b.error_um()).enumerate() {
+            moved[k] = moved[k].max((y - x).abs());
+            largest[k] = largest[k].max(y.abs());
+        }
+    }
+    for (k, m) in moved.iter().enumerate() {
+        let parent = env.max_abs_um.get(k).copied().flatten().unwrap_or(0.0);
+        let limit = MOVE_FRACTION * parent.max(1.0);
+        if m.is_nan() || *m > limit {
+            return Err(CliError::refused(format!(
+                "the re-identified model moves the prediction on {} by {m:.1} µm at its \
+                 parent's training inputs, more than {MOVE_FRACTION} × the parent's largest \
+                 prediction there ({parent:.1} µm); nothing written",
+                machine.axes[k].name
+            )));
+        }
+    }
+    let mut kept = env;
+    for (slot, l) in kept.max_abs_um.iter_mut().zip(&largest) {
+        *slot = slot.map(|m| m.max(*l));
+    }
+    new.set_envelope(Some(kept));
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -139,6 +229,38 @@ mod tests {
             "{}",
             out[0]
         );
+    }
+
+    #[test]
+    fn a_model_that_moves_the_training_prediction_too_far_is_refused() {
+        let machine = machine();
+        let part = |k0: f64| truepos_model::Part {
+            name: "structure".into(),
+            enabled: true,
+            form: truepos_model::PartForm::Regression,
+            summands: vec![],
+            constants_um: vec![(0, k0)],
+        };
+        let mut old = Model::new("old", &machine, vec![part(40.0)]).unwrap();
+        old.set_envelope(Some(TrainingEnvelope {
+            temperatures: vec![],
+            operating: vec![],
+            max_abs_um: vec![Some(40.0)],
+        }));
+        let mut far = Model::new("far", &machine, vec![part(200.0)]).unwrap();
+        let err = check_move(&old, &mut far, &machine)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("moves the prediction on Z by 160.0 µm"),
+            "{err}"
+        );
+        let mut near = Model::new("near", &machine, vec![part(60.0)]).unwrap();
+        check_move(&old, &mut near, &machine).unwrap();
+        assert_eq!(near.envelope().unwrap().max_abs_um, vec![Some(60.0)]);
+        // A parent without an envelope: nothing to compare with.
+        let bare = Model::new("bare", &machine, vec![part(40.0)]).unwrap();
+        check_move(&bare, &mut far, &machine).unwrap();
     }
 
     #[test]
