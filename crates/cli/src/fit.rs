@@ -268,7 +268,16 @@ pub fn run(args: Args) -> Result<(), CliError> {
         }
         warnings.extend(what.into_iter().map(|w| format!("--force: {w}")));
     }
+    let beyond = held_out_beyond(&ds, &outcome);
+    if beyond > 0 {
+        warnings.push(format!(
+            "{beyond} held-out rows have an input beyond the model's training range (widened by \
+             its margin): the figures above extrapolate there, while on the machine the model is \
+             clamped to that range and capped (docs/fitting.md, \"Where a model was trained\")"
+        ));
+    }
     let report = serde_json::json!({
+        "held_out_rows_beyond_training": beyond,
         "runs": ds.runs.iter().map(|r| serde_json::json!({"name": r.name, "samples": r.len(), "measured": r.measured_rows()})).collect::<Vec<_>>(),
         "inputs": ds.input_names,
         "targets": ds.target_names,
@@ -419,4 +428,27 @@ fn late_first_measurements(ds: &Dataset) -> Vec<String> {
             })
         })
         .collect()
+}
+
+/// Held-out rows with a measurement and an input beyond the (last) trained model's training
+/// range, widened by its margin.
+fn held_out_beyond(ds: &truepos_fit::dataset::Dataset, outcome: &Outcome) -> usize {
+    let env = truepos_fit::export::training_envelope(
+        ds,
+        &outcome.trained.inputs,
+        &outcome.fitted,
+        &outcome.training_rows,
+    );
+    let rows: Vec<(usize, usize)> = outcome
+        .held_out
+        .iter()
+        .enumerate()
+        .flat_map(|(r, held)| {
+            held.iter()
+                .enumerate()
+                .filter(|(_, h)| **h)
+                .map(move |(i, _)| (r, i))
+        })
+        .collect();
+    truepos_fit::export::rows_beyond(ds, &env, &rows)
 }

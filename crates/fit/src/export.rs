@@ -7,7 +7,7 @@
 use std::fmt;
 use std::str::FromStr;
 
-use truepos_io::dynamic_model_file::{DynamicModelFile, InputEntry};
+use truepos_io::dynamic_model_file::{DynamicModelFile, InputEntry, InputKind};
 use truepos_io::envelope_file::EnvelopeEntry;
 use truepos_model::envelope::TrainingEnvelope;
 
@@ -179,6 +179,35 @@ pub fn dynamic_model_file(
         output.axis = Some(a.axis.clone());
     }
     Ok(file)
+}
+
+/// The rows of `rows` (run, row) with an input beyond its widened training range in `env`
+/// (the margins of `truepos_model::envelope`): where the model, on the machine, is clamped.
+pub fn rows_beyond(dataset: &Dataset, env: &EnvelopeEntry, rows: &[(usize, usize)]) -> usize {
+    use truepos_model::envelope::{OPERATING_MARGIN, TEMPERATURE_MARGIN, TEMPERATURE_MARGIN_MIN_K};
+    let limits: Vec<(usize, f64, f64)> = dataset
+        .input_names
+        .iter()
+        .enumerate()
+        .filter_map(|(i, name)| {
+            let [lo, hi] = *env.inputs.get(name)?;
+            let margin = match dataset.input_kinds[i] {
+                InputKind::Temperature => {
+                    (TEMPERATURE_MARGIN * (hi - lo)).max(TEMPERATURE_MARGIN_MIN_K)
+                }
+                InputKind::Operating => OPERATING_MARGIN * (hi - lo),
+            };
+            Some((i, lo - margin, hi + margin))
+        })
+        .collect();
+    rows.iter()
+        .filter(|&&(r, row)| {
+            limits.iter().any(|&(i, lo, hi)| {
+                let v = dataset.runs[r].inputs[i][row];
+                v < lo || v > hi
+            })
+        })
+        .count()
 }
 
 /// Where a model of the machine (position-dependent, reference-sensor) was trained: the
