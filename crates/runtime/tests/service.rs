@@ -529,9 +529,19 @@ fn a_cycle_allocates_nothing() {
     let machine = vmc();
     let run = cycles::load(&repo("examples/vmc3/run.csv"), &machine.machine, &[]).unwrap();
     let source = ReplaySource::new("replay", Recording::from(run.clone()));
+    // A second model that carries a training envelope narrower than the run: the guard (inputs
+    // clamped into the set's scratch, the output capped) runs every cycle and allocates nothing.
+    let mut guarded = vmc_model("vmc3-guarded");
+    guarded.model.as_static_mut().unwrap().set_envelope(Some(
+        truepos_model::envelope::TrainingEnvelope {
+            temperatures: vec![Some((20.0, 20.5)); machine.machine.temperatures.len()],
+            operating: vec![None; machine.machine.operating.len()],
+            max_abs_um: vec![Some(1.0); 3],
+        },
+    ));
     let mut service = Service::new(
         machine,
-        vec![vmc_model("vmc3")],
+        vec![guarded, vmc_model("vmc3")],
         vec![
             Box::new(source),
             Box::new(PathSwitcher {
