@@ -156,3 +156,45 @@ fn an_export_beyond_the_envelope_is_refused_for_every_control_even_forced() {
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
 }
+
+/// A model file written in two steps, the first of which is valid TOML on its own: the loader
+/// (every command and the hot reload) refuses it by its checksum instead of taking half a model.
+#[test]
+fn a_model_file_written_in_part_is_refused_by_its_checksum() {
+    let dir = scratch("red-team-half");
+    let machine = truepos_io::machine_file::load(&support::repo("examples/vmc3/machine.toml"))
+        .unwrap()
+        .machine;
+    let model =
+        truepos_io::model_file::load(&support::repo("examples/vmc3/model.toml"), &machine).unwrap();
+    let text = truepos_io::model_file::ModelFile::from_model(&model, &machine).to_toml();
+    assert!(text.starts_with("# sha256 "), "{text}");
+    // The first write: everything before the last part.
+    let cut = text.rfind("[[part]]").unwrap();
+    let half = &text[..cut];
+    let path = |name: &str, body: &str| {
+        let p = dir.join(name);
+        std::fs::write(&p, body).unwrap();
+        p
+    };
+    let eval = |p: &Path| {
+        command()
+            .args(["eval", "--machine", "examples/vmc3/machine.toml", "--run"])
+            .arg("examples/vmc3/run.csv")
+            .arg("--model")
+            .arg(p)
+            .output()
+            .unwrap()
+    };
+    let o = eval(&path("half.toml", half));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("half.toml:1:1") && err.contains("checksum"),
+        "{err}"
+    );
+    // The whole file loads; so does one edited by hand without the checksum line.
+    assert!(eval(&path("whole.toml", &text)).status.success());
+    let edited = text.split_once('\n').unwrap().1.replace("2.0", "2.5");
+    assert!(eval(&path("edited.toml", &edited)).status.success());
+}

@@ -313,8 +313,48 @@ pub fn load(path: &Path, machine: &Machine) -> Result<Model, InputError> {
     }
 }
 
+/// The first line of a model file truepos writes: the SHA-256 of everything after it, so that a
+/// file written in part — two writes, the first of which is valid TOML on its own — is refused
+/// instead of loaded half. A file without the line (written by hand) is read as it is.
+const CHECKSUM_PREFIX: &str = "# sha256 ";
+
+/// The SHA-256 of `text` in lower-case hex.
+fn sha256_hex(text: &str) -> String {
+    use sha2::{Digest, Sha256};
+    Sha256::digest(text.as_bytes())
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect()
+}
+
+/// `text` with its checksum line in front.
+fn with_checksum(text: &str) -> String {
+    format!("{CHECKSUM_PREFIX}{}\n{text}", sha256_hex(text))
+}
+
+/// Refuses a file whose checksum line does not match what follows it.
+fn check_checksum(path: &Path, text: &str) -> Result<(), InputError> {
+    let Some(rest) = text.strip_prefix(CHECKSUM_PREFIX) else {
+        return Ok(());
+    };
+    let (stated, body) = rest.split_once('\n').unwrap_or((rest, ""));
+    if stated.trim() == sha256_hex(body) {
+        return Ok(());
+    }
+    Err(InputError::at(
+        path,
+        1,
+        1,
+        "",
+        "the content does not match the checksum on its first line: the file was written in \
+         part (or edited by hand — then remove that line to accept the edit)"
+            .to_string(),
+    ))
+}
+
 /// Reads model-file TOML text and binds it to a machine; `path` only names it in errors.
 pub fn parse(path: &Path, text: &str, machine: &Machine) -> Result<Model, InputError> {
+    check_checksum(path, text)?;
     let file: ModelFile = parse_toml(path, text)?;
     file.bind(machine)
         .map_err(|(span, key, message)| InputError::at_span(path, text, span, key, message))
@@ -772,9 +812,12 @@ impl ModelFile {
         }
     }
 
-    /// The file as TOML text.
+    /// The file as TOML text, its checksum on the first line.
     pub fn to_toml(&self) -> String {
-        toml::to_string_pretty(self).unwrap_or_else(|e| format!("# cannot serialise: {e}\n"))
+        match toml::to_string_pretty(self) {
+            Ok(text) => with_checksum(&text),
+            Err(e) => format!("# cannot serialise: {e}\n"),
+        }
     }
 }
 
