@@ -209,8 +209,26 @@ impl Table {
     pub fn times(&self, time: &Time) -> Result<Vec<f64>, InputError> {
         match time {
             Time::Period(p) => Ok((0..self.rows()).map(|i| i as f64 * p).collect()),
-            Time::Column(name) => self.time(self.select(&[name.as_str()])?[0]),
+            Time::Column(name) => match self.select(&[name.as_str()]) {
+                Ok(cols) => self.time(cols[0]),
+                Err(e) if *time == Time::default() => self.time(self.date_column().ok_or(e)?),
+                Err(e) => Err(e),
+            },
         }
+    }
+
+    /// Without the default `time_s` column, a run's time is found by its cells: the first
+    /// column whose first cell is a date-time (a workbook's date cell, ISO 8601 or day-first
+    /// text) — shops name it in their own words (`Datum/Uhrzeit`, `Zeitstempel`).
+    fn date_column(&self) -> Option<usize> {
+        if self.table.is_empty() {
+            return None;
+        }
+        let first = self.table.row(0);
+        (0..self.columns.len()).find(|&c| match first.cell(c).map(|cell| cell.value) {
+            Some(table::Value::Text(x)) => timestamp::parse(x).is_ok(),
+            _ => false,
+        })
     }
 
     /// A time column: seconds, or ISO 8601 date-times as seconds since the first row (the first

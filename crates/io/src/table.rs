@@ -570,20 +570,29 @@ pub fn read_csv(
     parse_csv(file, &bytes, options)
 }
 
+/// CSV bytes as text: UTF-8 (with or without a byte-order mark) when they are valid UTF-8, else
+/// Windows-1252 — what Excel on a German or English Windows writes with "CSV (semicolon
+/// separated)", `°` as one byte 0xB0. Windows-1252 decodes every byte and Latin-1 is its subset
+/// for the letters shops use; a UTF-8 file almost never reads as valid UTF-8 by accident in the
+/// other direction, so the order decides safely.
+fn decode(bytes: &[u8]) -> std::borrow::Cow<'_, str> {
+    match std::str::from_utf8(bytes) {
+        Ok(text) => std::borrow::Cow::Borrowed(text),
+        Err(_) => {
+            encoding_rs::WINDOWS_1252
+                .decode_without_bom_handling(bytes)
+                .0
+        }
+    }
+}
+
 /// Parses CSV text: the first record holds the column names, every further record is a row.
-/// The only errors are about the text itself (not UTF-8); what the rows must hold is the
+/// The only errors are about the text itself (a line too long); what the rows must hold is the
 /// caller's to check ([`Table::width_error`], [`Value::number`], [`Table::at`]).
 pub fn parse_csv(file: &Path, bytes: &[u8], options: CsvOptions) -> Result<Table, InputError> {
     check_line_lengths(file, bytes)?;
-    let text = std::str::from_utf8(bytes).map_err(|e| {
-        let line = bytes[..e.valid_up_to()]
-            .iter()
-            .filter(|&&b| b == b'\n')
-            .count()
-            + 1;
-        InputError::at(file, line, 1, "", "expected UTF-8 text")
-    })?;
-    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
+    let text = decode(bytes);
+    let text = text.strip_prefix('\u{feff}').unwrap_or(&text);
     let stripped;
     let text = if options.comments {
         stripped = strip_comments(text);
@@ -779,6 +788,10 @@ pub fn read_workbook(file: &Path, sheet: Option<&str>) -> Result<Vec<Table>, Inp
                     Some(Data::Int(v)) => Value::Number(*v as f64),
                     Some(Data::Empty) | None => Value::Empty,
                     Some(Data::String(s)) => Value::Text(s.as_str()),
+                    Some(Data::DateTime(d)) => {
+                        text = workbook_date_time(d);
+                        Value::Text(&text)
+                    }
                     Some(other) => {
                         text = other.to_string();
                         Value::Text(&text)
@@ -809,6 +822,19 @@ pub fn read_workbook(file: &Path, sheet: Option<&str>) -> Result<Vec<Table>, Inp
         ));
     }
     Ok(out)
+}
+
+/// A workbook's date-time cell as the ISO 8601 text a time column reads
+/// ([`crate::timestamp::parse`]), to the millisecond the workbook keeps: the cell holds days
+/// since the workbook's epoch, and read as a number it would pass for seconds. A duration cell
+/// (`[h]:mm:ss`) is its length in seconds.
+#[cfg(feature = "xlsx")]
+fn workbook_date_time(cell: &calamine::ExcelDateTime) -> String {
+    if cell.is_duration() {
+        return format!("{}", cell.as_f64() * 86_400.0);
+    }
+    let (y, mo, d, h, mi, s, ms) = cell.to_ymd_hms_milli();
+    format!("{y:04}-{mo:02}-{d:02}T{h:02}:{mi:02}:{s:02}.{ms:03}")
 }
 
 /// Without the `xlsx` feature there is no workbook reader: a workbook is refused by name rather
@@ -947,11 +973,18 @@ mod tests {
     }
 
     #[test]
-    fn not_utf8_names_the_line() {
-        let e = parse_csv(Path::new("t.csv"), b"a\n1\n\xff\n", CsvOptions::default())
-            .unwrap_err()
-            .to_string();
-        assert_eq!(e, "t.csv:3:1: expected UTF-8 text");
+    fn windows_1252_is_read_when_the_bytes_are_not_utf8() {
+        let bytes = b"Zeit;Spindel vorne [\xb0C];Preis [\x80]\n0;21,5;1\n";
+        let t = parse_csv(Path::new("t.csv"), bytes, CsvOptions::default()).unwrap();
+        assert_eq!(t.columns, ["Zeit", "Spindel vorne [°C]", "Preis [€]"]);
+        assert_eq!(t.row(0).number(1), Number::Value(21.5));
+        // The same text in UTF-8, with a byte-order mark, reads the same.
+        let utf8 = format!(
+            "\u{feff}{}",
+            "Zeit;Spindel vorne [°C];Preis [€]\n0;21,5;1\n"
+        );
+        let u = parse_csv(Path::new("u.csv"), utf8.as_bytes(), CsvOptions::default()).unwrap();
+        assert_eq!(u.columns, t.columns);
     }
 
     #[cfg(not(feature = "xlsx"))]

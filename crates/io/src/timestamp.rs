@@ -2,7 +2,10 @@
 //! crate built with `std` only, one small dependency).
 //!
 //! Accepted: a date and a time separated by `T` or a space, seconds optional, fractional
-//! seconds (`.` or `,`), and optionally `Z` or an offset (`+02:00`). A date-time without an
+//! seconds (`.` or `,`), and optionally `Z` or an offset (`+02:00`). Also the day-first form
+//! of German-speaking shops and their exports, `dd.mm.yyyy HH:MM[:SS[,fff]]` (the dots make it
+//! day-first; a slash form like `03/04/2024` is ambiguous between day- and month-first and is
+//! refused). A date-time without an
 //! offset is taken as written, as if in UTC: without a zone a local clock's daylight-saving
 //! jump cannot be known, so it shows as an hour's gap or as time going backwards (refused).
 //!
@@ -12,6 +15,7 @@
 //! let b = parse("2024-03-01 08:00:01.5").unwrap();
 //! assert_eq!(b - a, 1_500_000_000);
 //! assert_eq!(parse("2024-03-01T10:00:00+02:00"), Ok(a));
+//! assert_eq!(parse("01.03.2024 08:00"), Ok(a));
 //! assert!(parse("yesterday").is_err());
 //! ```
 
@@ -34,9 +38,34 @@ pub fn parse(text: &str) -> Result<i128, String> {
             }
         }
     }
+    if let Some(ns) = day_first(text) {
+        return Ok(ns);
+    }
     Err(format!(
-        "expected seconds (a number) or an ISO 8601 date-time like 2024-03-01T08:00:00, got `{text}`"
+        "expected seconds (a number), an ISO 8601 date-time like 2024-03-01T08:00:00 or a \
+         day-first one like 01.03.2024 08:00:00, got `{text}`"
     ))
+}
+
+/// A day-first date-time, `dd.mm.yyyy HH:MM[:SS[.fff]]` (a decimal comma read as a point).
+fn day_first(text: &str) -> Option<i128> {
+    let (day, month, rest) = {
+        let mut parts = text.splitn(3, '.');
+        (parts.next()?, parts.next()?, parts.next()?)
+    };
+    let (year, time) = rest.split_once([' ', 'T'])?;
+    let digits = |s: &str, n: std::ops::RangeInclusive<usize>| {
+        n.contains(&s.len()) && s.bytes().all(|b| b.is_ascii_digit())
+    };
+    if !(digits(day, 1..=2) && digits(month, 1..=2) && digits(year, 4..=4)) {
+        return None;
+    }
+    let iso = format!(
+        "{year}-{month:0>2}-{day:0>2}T{}",
+        time.trim().replace(',', ".")
+    );
+    let dt = iso.parse::<jiff::civil::DateTime>().ok()?;
+    Some(jiff::tz::Offset::UTC.to_timestamp(dt).ok()?.as_nanosecond())
 }
 
 /// A clock time for a person, UTC to the second (`2026-11-28 20:05:03 UTC`), from seconds since
@@ -75,7 +104,15 @@ mod tests {
         assert_eq!(s("2024-03-01T09:00:00+01:00"), 0.0);
         assert_eq!(s("2024-03-01T07:30:00-00:30"), 0.0);
         assert_eq!(s("2024-03-02T08:00:00"), 86_400.0);
+        assert_eq!(s("01.03.2024 08:00:00"), 0.0);
+        assert_eq!(s("1.3.2024 08:00"), 0.0);
+        assert_eq!(s("01.03.2024 08:00:00,5"), 0.5);
+        assert_eq!(s("02.03.2024 08:00:00"), 86_400.0);
         for bad in [
+            "03/01/2024 08:00",
+            "31.02.2024 08:00",
+            "01.03.24 08:00",
+            "01.03.2024",
             "",
             "12.5",
             "08:00:00",
@@ -111,6 +148,8 @@ mod tests {
             let expect = (i128::from(h) * 3600 + i128::from(mi) * 60 + i128::from(s)) * 1_000_000_000
                 + i128::from(ms) * 1_000_000;
             proptest::prop_assert_eq!(t - day, expect);
+            let german = format!("{d:02}.{mo:02}.{y:04} {h:02}:{mi:02}:{s:02},{ms:03}");
+            proptest::prop_assert_eq!(parse(&german), Ok(t));
         }
     }
 }
