@@ -112,13 +112,18 @@ pub struct Args {
     /// machine name written into the dynamic model file.
     #[arg(long, default_value = "unnamed")]
     pub(crate) machine: String,
-    /// Write the model fitted on the (last) training part here (JSON).
+    /// Write the model here (JSON): the same selection and fit on every row of every run — the
+    /// validation measures that procedure on its folds and the figures are theirs.
     #[arg(long)]
     pub(crate) model: Option<PathBuf>,
     /// The machine axis a target compensates, `<target>=<axis>` (repeat; e.g. `ch5_um=Z`). A
     /// target named `Z`, `Z_um` or `dz_um` needs none; others without one are not applied.
     #[arg(long = "axis")]
     pub(crate) axes: Vec<TargetAxis>,
+    /// Write the model even if a target names no axis (by --axis or by its name): that target
+    /// is then not applied. Without it such a model is refused, naming the --axis to give.
+    #[arg(long)]
+    pub(crate) allow_unmapped: bool,
     /// Write measured and predicted values of every run here (CSV), for reports: each row
     /// predicted by the model of the fold that held it out; column `held_out` says which rows
     /// no fold held out (a chronological split's training part, predicted in-sample).
@@ -238,7 +243,17 @@ pub fn run(args: Args) -> Result<(), CliError> {
     let inputs = args.inputs.clone().ok_or_else(|| {
         CliError::refused("--inputs is required without a machine file (--machine MACHINE.toml)")
     })?;
+    if let Some(path) = &args.model {
+        model_name(
+            path,
+            &["json"],
+            "a model fitted without a machine file is a dynamic model",
+        )?;
+    }
     let (ds, _) = load(&args, &inputs)?;
+    if args.model.is_some() && !args.allow_unmapped {
+        unmapped(&ds, &args.axes)?;
+    }
     let settings = settings(&args, &ds)?;
     let mut progress = Progress {
         start: Instant::now(),
@@ -268,16 +283,9 @@ pub fn run(args: Args) -> Result<(), CliError> {
         }
         warnings.extend(what.into_iter().map(|w| format!("--force: {w}")));
     }
-    let beyond = held_out_beyond(&ds, &outcome);
-    if beyond > 0 {
-        warnings.push(format!(
-            "{beyond} held-out rows have an input beyond the model's training range (widened by \
-             its margin): the figures above extrapolate there, while on the machine the model is \
-             clamped to that range and capped (docs/fitting.md, \"Where a model was trained\")"
-        ));
-    }
+    warnings.extend(beyond_training(validation.held_out_rows_beyond_training));
     let report = serde_json::json!({
-        "held_out_rows_beyond_training": beyond,
+        "held_out_rows_beyond_training": validation.held_out_rows_beyond_training,
         "runs": ds.runs.iter().map(|r| serde_json::json!({"name": r.name, "samples": r.len(), "measured": r.measured_rows()})).collect::<Vec<_>>(),
         "inputs": ds.input_names,
         "targets": ds.target_names,
@@ -430,25 +438,82 @@ fn late_first_measurements(ds: &Dataset) -> Vec<String> {
         .collect()
 }
 
-/// Held-out rows with a measurement and an input beyond the (last) trained model's training
-/// range, widened by its margin.
-fn held_out_beyond(ds: &truepos_fit::dataset::Dataset, outcome: &Outcome) -> usize {
-    let env = truepos_fit::export::training_envelope(
-        ds,
-        &outcome.trained.inputs,
-        &outcome.fitted,
-        &outcome.training_rows,
-    );
-    let rows: Vec<(usize, usize)> = outcome
-        .held_out
+/// Refuses a model file name whose extension is not one of `forms` (`json`, `toml`): a loader
+/// tells the forms apart by the name, so a JSON model named `.toml` could not be read back.
+pub(crate) fn model_name(path: &Path, forms: &[&str], why: &str) -> Result<(), CliError> {
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    if ext.as_deref().is_some_and(|e| forms.contains(&e)) {
+        return Ok(());
+    }
+    let stem = path.with_extension(forms[0]);
+    Err(CliError::refused(format!(
+        "--model {}: {why}, written as {}: name it {}",
+        path.display(),
+        forms
+            .iter()
+            .map(|f| f.to_uppercase())
+            .collect::<Vec<_>>()
+            .join(" or "),
+        stem.display()
+    )))
+}
+
+/// The machine axis a target serves by its name alone, as the model file's loader reads it
+/// (`Z`, `Z_um`, `dz_um`; axis letters X, Y, Z, A, B, C, U, V, W).
+fn axis_by_name(target: &str) -> Option<char> {
+    let lower = target.to_ascii_lowercase();
+    let stem = lower.strip_suffix("_um").unwrap_or(&lower);
+    let stem = if stem.len() == 2 {
+        stem.strip_prefix('d').unwrap_or(stem)
+    } else {
+        stem
+    };
+    let mut chars = stem.chars();
+    match (chars.next(), chars.next()) {
+        (Some(c), None) if "xyzabcuvw".contains(c) => Some(c.to_ascii_uppercase()),
+        _ => None,
+    }
+}
+
+/// Refuses a fit whose model would leave a target unapplied: one named by no --axis and by no
+/// axis name, with the exact option to give.
+fn unmapped(ds: &Dataset, axes: &[TargetAxis]) -> Result<(), CliError> {
+    let missing: Vec<&String> = ds
+        .target_names
         .iter()
-        .enumerate()
-        .flat_map(|(r, held)| {
-            held.iter()
-                .enumerate()
-                .filter(|(_, h)| **h)
-                .map(move |(i, _)| (r, i))
-        })
+        .filter(|t| axis_by_name(t).is_none() && !axes.iter().any(|a| &a.target == *t))
         .collect();
-    truepos_fit::export::rows_beyond(ds, &env, &rows)
+    if missing.is_empty() {
+        return Ok(());
+    }
+    let options: Vec<String> = missing
+        .iter()
+        .map(|t| format!("--axis '{t}=<axis>'"))
+        .collect();
+    Err(CliError::refused(format!(
+        "the model would compensate no axis for {}: its name names none; give {} (e.g. \
+         --axis '{}=Z'), or --allow-unmapped to write it with that target not applied",
+        missing
+            .iter()
+            .map(|t| format!("target `{t}`"))
+            .collect::<Vec<_>>()
+            .join(", "),
+        options.join(" "),
+        missing[0]
+    )))
+}
+
+/// The warning for held-out rows with an input beyond their fold's training range, if any.
+pub(crate) fn beyond_training(rows: usize) -> Option<String> {
+    (rows > 0).then(|| {
+        format!(
+            "{rows} held-out rows have an input beyond the range their fold's model was trained on \
+             (widened by its margin): the figures above extrapolate there, while on the machine \
+             the model is clamped to that range and capped (docs/fitting.md, \"Where a model was \
+             trained\")"
+        )
+    })
 }

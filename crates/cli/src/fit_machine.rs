@@ -101,6 +101,9 @@ fn owners(args: &Args, machine: &Machine) -> Result<Vec<Option<usize>>, CliError
 
 /// Runs `truepos fit --machine MACHINE.toml`.
 pub fn run(mut args: Args) -> Result<(), CliError> {
+    if let Some(out) = &args.model {
+        crate::fit::model_name(out, &["toml", "json"], "a model of the machine")?;
+    }
     let path = Path::new(&args.machine).to_path_buf();
     let machine = truepos_io::machine_file::load(&path)?.machine;
     let (dynamic, fixed) = families(&args)?;
@@ -171,6 +174,9 @@ pub fn run(mut args: Args) -> Result<(), CliError> {
     )
     .map_err(CliError::Refused)?;
     let mut warnings = outcome.validation.warnings.clone();
+    warnings.extend(crate::fit::beyond_training(
+        outcome.validation.held_out_rows_beyond_training,
+    ));
     if let Err(bad) = plausible_predictions(&ds, &outcome.fitted, &outcome.training_rows, true) {
         let what: Vec<String> = bad.iter().map(ToString::to_string).collect();
         if !args.force {
@@ -185,7 +191,7 @@ pub fn run(mut args: Args) -> Result<(), CliError> {
         warnings.extend(what.into_iter().map(|w| format!("--force: {w}")));
     }
     if let Some(out) = &args.model {
-        let text = model_text(&ds, &settings, &machine, &outcome, &data)?;
+        let text = model_text(out, &ds, &settings, &machine, &outcome, &data)?;
         crate::write::write_whole(out, text, &crate::fit::input_files(&args))?;
     }
     if let Some(p) = &args.predictions {
@@ -271,9 +277,11 @@ fn print_screen(ds: &Dataset, outcome: &MachineOutcome) {
     }
 }
 
-/// The chosen model in its own form: a seed A/C model as the model file (TOML) `eval`, `run`
-/// and the LinuxCNC component read; a dynamic model as the dynamic model file (JSON).
+/// The chosen model in its own form: a position-dependent or reference-sensor model as the
+/// model file `eval`, `run` and the LinuxCNC component read (TOML, or JSON when `out` ends in
+/// `.json`); a dynamic model as the dynamic model file (JSON, so `out` must end in `.json`).
 fn model_text(
+    out: &Path,
     ds: &Dataset,
     settings: &truepos_fit::settings::Settings,
     machine: &Machine,
@@ -284,6 +292,11 @@ fn model_text(
     let created_by = format!("truepos fit {}", env!("CARGO_PKG_VERSION"));
     let text = match &outcome.selection.chosen {
         Chosen::Dynamic(trained) => {
+            crate::fit::model_name(
+                out,
+                &["json"],
+                "the fit chose a fitted dynamic model (filtered temperatures)",
+            )?;
             // Outputs name their axis explicitly: the machine fit mapped every target to one.
             let axes: Vec<truepos_fit::export::TargetAxis> = ds
                 .target_names
@@ -330,6 +343,10 @@ fn model_text(
             );
             file.provenance.insert("tool".into(), created_by.into());
             file.provenance.insert(
+                "fitted_on".into(),
+                "every row of every run; the validation figures are those of the folds".into(),
+            );
+            file.provenance.insert(
                 "validation".into(),
                 outcome.validation.protocol_text.clone().into(),
             );
@@ -346,7 +363,11 @@ fn model_text(
                 file.provenance
                     .insert(format!("{t}_inner_cv_rmse_um"), fitted.score_um.into());
             }
-            file.to_toml()
+            if crate::fit::model_name(out, &["json"], "").is_ok() {
+                serde_json::to_string_pretty(&file)? + "\n"
+            } else {
+                file.to_toml()
+            }
         }
     };
     Ok(text)

@@ -276,3 +276,96 @@ fn an_absurd_target_is_refused_at_its_cell() {
     assert!(!model.exists());
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// The model written after a chronological split is fitted on every row, not on the training
+/// part the figures came from: the rows no fold held out are predicted in sample by it, so they
+/// lie on the straight line through all 60 rows, not through the first 12 of each run.
+#[test]
+fn the_model_written_after_a_chronological_split_saw_every_row() {
+    let dir = scratch("fit-truth-written");
+    let (hands, paths) = three_runs(&dir);
+    let pred_csv = dir.join("pred.csv");
+    let model = dir.join("m.json");
+    let (ok, _, err) = run(&fit_args(
+        &paths,
+        &[
+            "--split",
+            "chrono:0.6",
+            "--predictions",
+            pred_csv.to_str().unwrap(),
+            "--model",
+            model.to_str().unwrap(),
+        ],
+    ));
+    assert!(ok, "{err}");
+    let (x, y): (Vec<f64>, Vec<f64>) = hands
+        .iter()
+        .flat_map(|h| h.rise().into_iter().zip(h.target()))
+        .unzip();
+    let (b0, k) = line(&x, &y);
+    let text = std::fs::read_to_string(&pred_csv).unwrap();
+    let rows: Vec<Vec<&str>> = text
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').collect())
+        .collect();
+    for (r, hand) in hands.iter().enumerate() {
+        for (i, rise) in hand.rise().iter().enumerate().take(12) {
+            let row = &rows[20 * r + i];
+            assert_eq!(row[2], "false");
+            let predicted: f64 = row[4].parse().unwrap();
+            assert!((predicted - (b0 + k * rise)).abs() < 1e-6, "{row:?}");
+        }
+    }
+    let file = std::fs::read_to_string(&model).unwrap();
+    assert!(file.contains("every row of every run"), "{file}");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// A model for a target that names no axis would compensate nothing: refused before the fit
+/// with the exact option, written with it or with --allow-unmapped; a dynamic model is JSON and
+/// a name that says otherwise is refused before anything is fitted.
+#[test]
+fn a_model_for_no_axis_or_under_the_wrong_name_is_refused() {
+    let dir = scratch("fit-truth-unmapped");
+    let (_, paths) = three_runs(&dir);
+    for p in &paths {
+        let text = std::fs::read_to_string(p).unwrap();
+        std::fs::write(p, text.replacen("dz_um", "Z-Drift [µm]", 1)).unwrap();
+    }
+    let args = |model: &Path, extra: &[&str]| -> (bool, String, String) {
+        let mut a: Vec<&str> = vec!["fit"];
+        for p in &paths {
+            a.extend(["--run", p.to_str().unwrap()]);
+        }
+        a.extend([
+            "--inputs", "t1_c", "--target", "Z-Drift*", "--family", "static",
+        ]);
+        a.extend(["--split", "runs", "--model", model.to_str().unwrap()]);
+        a.extend(extra);
+        run(&a)
+    };
+    let model = dir.join("m.json");
+    let (ok, _, err) = args(&model, &[]);
+    assert!(!ok);
+    assert!(
+        err.contains("target `Z-Drift [µm]`") && err.contains("--axis 'Z-Drift [µm]=Z'"),
+        "{err}"
+    );
+    assert!(!model.exists());
+    for extra in [&["--axis", "Z-Drift [µm]=Z"][..], &["--allow-unmapped"][..]] {
+        let (ok, _, err) = args(&model, extra);
+        assert!(ok, "{extra:?}: {err}");
+        assert!(model.exists());
+        std::fs::remove_file(&model).unwrap();
+    }
+    let toml = dir.join("pd.toml");
+    let (ok, _, err) = args(&toml, &["--axis", "Z-Drift [µm]=Z"]);
+    assert!(!ok);
+    assert!(
+        err.contains("written as JSON: name it") && err.contains("pd.json"),
+        "{err}"
+    );
+    assert!(!toml.exists());
+    std::fs::remove_dir_all(&dir).ok();
+}

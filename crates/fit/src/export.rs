@@ -161,7 +161,7 @@ pub fn dynamic_model_file(
         serde_json::json!({
             "created_by": created_by,
             "runs": dataset.runs.iter().map(|r| r.name.clone()).collect::<Vec<_>>(),
-            "fitted_on": "the training part of the (last) validation fold",
+            "fitted_on": "every row of every run; the validation figures are those of the folds",
             "settings": settings,
             "choices": trained.choices,
         }),
@@ -430,13 +430,13 @@ mod tests {
         o.fitted = predict(&ds, &o.trained).unwrap();
         let bad = plausible(&ds, &o).unwrap_err();
         assert_eq!(bad.len(), 1);
-        // The largest measured |error| on the training rows (the first 36 samples of each
-        // run) is run a's at its last training sample: 2 µm/K × 0.1 K × 35 = 7 µm; there the
-        // prediction is largest too.
+        // The written model is trained on every row: the largest measured |error| there is run
+        // a's at its last sample, 2 µm/K × 0.1 K × 59 = 11.8 µm; there the prediction is
+        // largest too.
         assert_eq!(
             bad[0].to_string(),
-            "output `dz_um` predicts 1.000e9 µm on its own training data (a.csv, sample 35), \
-             more than 10 × the largest measured |error| there (7.000 µm)"
+            "output `dz_um` predicts 1.000e9 µm on its own training data (a.csv, sample 59), \
+             more than 10 × the largest measured |error| there (11.800 µm)"
         );
         o.fitted[1][0][20] = f64::NAN;
         let bad = plausible(&ds, &o).unwrap_err();

@@ -17,7 +17,7 @@ use truepos_model::{CycleInput, LagSource, Machine, Model, Part, Reference};
 
 use crate::dataset::Dataset;
 use crate::features::Candidates;
-use crate::out_of_fold::OutOfFold;
+use crate::out_of_fold::{cross_validate, Procedure};
 use crate::position_model::{
     family_differences, fit_blocks, input_sets, structure_owned, CvOptions, Family, Fitted,
     Observation,
@@ -25,7 +25,7 @@ use crate::position_model::{
 use crate::settings::{InnerCv, Settings};
 use crate::train::{train, Trained};
 use crate::validate::{
-    all_rows, per_run, predict, worse_than_uncompensated, Metrics, Predictions, Split, Validation,
+    per_run, predict, worse_than_uncompensated, Metrics, Predictions, Split, Validation,
 };
 
 /// What the control knew at every row of one run, in the machine's channel order.
@@ -530,8 +530,63 @@ fn figures(target: &str, measured: &[f64], predicted: &[f64]) -> (Metrics, usize
     (Metrics::new(target, &m, &p), measured.len() - m.len())
 }
 
-/// The outer protocol over [`select`]: for each fold, select and fit on its training rows,
-/// predict its test rows; the model to write as [`crate::validate::outcome`] says.
+/// The machine fit as the outer loop's procedure: [`select`] on the rows, [`predict_chosen`].
+struct MachineFit<'a> {
+    ds: &'a Dataset,
+    data: &'a MachineData,
+    cand: Option<&'a Candidates>,
+    settings: &'a Settings,
+    families: &'a [Family],
+}
+
+impl Procedure for MachineFit<'_> {
+    type Model = Selection;
+
+    fn fit(&mut self, rows: &[(usize, usize)]) -> Result<Selection, String> {
+        select(
+            self.ds,
+            self.data,
+            self.cand,
+            rows,
+            self.settings,
+            self.families,
+        )
+    }
+
+    fn predict(&self, model: &Selection) -> Result<Predictions, String> {
+        predict_chosen(self.ds, self.data, &model.chosen)
+    }
+
+    fn rows_beyond(
+        &self,
+        model: &Selection,
+        predicted: &Predictions,
+        train: &[(usize, usize)],
+        rows: &[(usize, usize)],
+    ) -> usize {
+        match &model.chosen {
+            Chosen::Dynamic(t) => {
+                let env = crate::export::training_envelope(self.ds, &t.inputs, predicted, train);
+                crate::export::rows_beyond(self.ds, &env, rows)
+            }
+            Chosen::Static(s) => {
+                let env = crate::export::machine_envelope(&s.model, self.data, train);
+                let m = &self.data.machine;
+                let (mut t, mut o) = (
+                    vec![0.0; m.temperatures.len()],
+                    vec![0.0; m.operating.len()],
+                );
+                rows.iter()
+                    .filter(|&&(r, i)| env.clamp(&self.data.input(r, i), &mut t, &mut o).is_some())
+                    .count()
+            }
+        }
+    }
+}
+
+/// The outer protocol ([`crate::out_of_fold::cross_validate`]) over [`select`]: for each fold,
+/// select and fit on its training rows, predict its test rows; then the model to write, the same
+/// selection on every row.
 pub fn fit_machine(
     ds: &Dataset,
     data: &MachineData,
@@ -541,40 +596,36 @@ pub fn fit_machine(
     families: &[Family],
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<MachineOutcome, String> {
-    let folds = split.folds(ds)?;
     let nt = ds.target_names.len();
     let rel: Vec<Vec<Vec<f64>>> = ds.targets(settings.absolute_targets);
-    let mut held = OutOfFold::new(ds);
-    let mut fold_selections = Vec::new();
-    let mut chosen_names = Vec::new();
-    let mut choices = Vec::new();
+    let mut procedure = MachineFit {
+        ds,
+        data,
+        cand,
+        settings,
+        families,
+    };
+    let cv = cross_validate(ds, split, &rel, &mut procedure, progress)?;
     let mut warnings = Vec::new();
-    let mut last = None;
-    for (f, (tr, te)) in folds.iter().enumerate() {
-        progress(f, folds.len());
-        if te.is_empty() {
-            return Err(format!("fold {}: no test rows", f + 1));
-        }
-        let sel = select(ds, data, cand, tr, settings, families)?;
-        let pred = predict_chosen(ds, data, &sel.chosen)?;
-        held.record(f, te, &rel, &pred);
+    let mut choices = Vec::new();
+    let mut fold_selections = Vec::new();
+    for fold in &cv.folds {
+        let sel = &fold.model;
         choices.push(match &sel.chosen {
             Chosen::Dynamic(t) => t.choices.clone(),
             Chosen::Static(_) => Vec::new(),
         });
-        chosen_names.push(sel.labels.clone());
         fold_selections.push(FoldSelection {
             candidates: sel.candidates.clone(),
             chosen: sel.labels.clone(),
             cv_rmse_um: sel.cv_rmse_um.clone(),
         });
         warnings.extend(sel.warnings.iter().cloned());
-        last = Some((sel, pred, tr.clone()));
     }
-    progress(folds.len(), folds.len());
+    let chosen_names: Vec<Vec<String>> = fold_selections.iter().map(|f| f.chosen.clone()).collect();
     let mut metrics = Vec::new();
     for k in 0..nt {
-        let (m, failed) = figures(&ds.target_names[k], &held.measured[k], &held.predicted[k]);
+        let (m, failed) = figures(&ds.target_names[k], &cv.measured[k], &cv.predicted[k]);
         if failed > 0 {
             warnings.push(format!(
                 "{}: {failed} held-out samples could not be predicted (an input invalid or outside its range) and are not in the figures",
@@ -583,14 +634,7 @@ pub fn fit_machine(
         }
         metrics.push(m);
     }
-    let (mut selection, mut fitted, mut training_rows) = last.ok_or("no folds")?;
-    if held.every_measured_row_held_out(ds) {
-        let all = all_rows(ds);
-        selection = select(ds, data, cand, &all, settings, families)?;
-        fitted = predict_chosen(ds, data, &selection.chosen)?;
-        training_rows = all;
-    }
-    let done = held.finish(&fitted);
+    let done = cv.done;
     let per_run = per_run(ds, &rel, &done.predictions, &done.fold_of, &chosen_names);
     warnings.extend(worse_than_uncompensated(&per_run));
     let inner: Vec<Vec<f64>> = fold_selections
@@ -611,13 +655,14 @@ pub fn fit_machine(
             sensors: Vec::new(),
             inner_vs_test,
             baseline_metrics: None,
+            held_out_rows_beyond_training: cv.held_out_beyond,
             warnings,
         },
         folds: fold_selections,
-        selection,
+        selection: cv.model,
         predictions: done.predictions,
         held_out: done.held_out,
-        fitted,
-        training_rows,
+        fitted: cv.fitted,
+        training_rows: cv.training_rows,
     })
 }

@@ -1,10 +1,110 @@
-//! The outer validation's bookkeeping, one door for the dynamic fit ([`crate::validate`]) and
-//! the machine fit ([`crate::machine_fit`]): which fold held each row out, every held-out row's
-//! measured and predicted value per target (the pooled figures), and the prediction each row of
-//! every run gets — its own fold's when a fold held it out or owns it, else the final model's.
+//! The outer validation, one loop for the dynamic fit ([`crate::validate`]) and the machine fit
+//! ([`crate::machine_fit`]): [`cross_validate`] selects and fits on each fold's training rows,
+//! predicts its test rows, and then fits the model to write on every row. Its bookkeeping
+//! ([`OutOfFold`]): which fold held each row out, every held-out row's measured and predicted
+//! value per target (the pooled figures), and the prediction each row of every run gets — its
+//! own fold's when a fold held it out or owns it, else the final model's.
 
 use crate::dataset::Dataset;
-use crate::validate::Predictions;
+use crate::validate::{all_rows, Predictions, Split};
+
+/// Rows as (run, row).
+pub(crate) type Rows = Vec<(usize, usize)>;
+
+/// What the outer loop asks of a fit procedure.
+pub(crate) trait Procedure {
+    /// What a selection and fit on some rows gives.
+    type Model;
+    /// Selects and fits on `rows`.
+    fn fit(&mut self, rows: &[(usize, usize)]) -> Result<Self::Model, String>;
+    /// The model's predictions of every row of every run.
+    fn predict(&self, model: &Self::Model) -> Result<Predictions, String>;
+    /// How many of `rows` have an input beyond the widened range the model saw on `train`
+    /// (`predicted`: its predictions of every row): rows where, on the machine, it is clamped.
+    fn rows_beyond(
+        &self,
+        model: &Self::Model,
+        predicted: &Predictions,
+        train: &[(usize, usize)],
+        rows: &[(usize, usize)],
+    ) -> usize;
+}
+
+/// One outer fold: its test rows and the model fitted on its training rows.
+pub(crate) struct Fold<M> {
+    pub test: Rows,
+    pub model: M,
+}
+
+/// What [`cross_validate`] returns.
+pub(crate) struct CrossValidated<M> {
+    /// Every outer fold in order.
+    pub folds: Vec<Fold<M>>,
+    /// Per target, every held-out row's measured value and its fold's prediction.
+    pub measured: Vec<Vec<f64>>,
+    /// See `measured`.
+    pub predicted: Vec<Vec<f64>>,
+    /// The predictions of every row ([`OutOfFold::finish`]).
+    pub done: Finished,
+    /// Held-out rows with an input beyond what their fold's model was trained on.
+    pub held_out_beyond: usize,
+    /// The model to write: the same procedure on every row the user gave, whatever the split —
+    /// the folds measure the procedure, and a model fitted on a part would leave the rest of
+    /// the data unused on the machine.
+    pub model: M,
+    /// [`Self::model`]'s predictions of every row.
+    pub fitted: Predictions,
+    /// The rows [`Self::model`] was fitted on: every measured row.
+    pub training_rows: Rows,
+}
+
+/// The outer protocol of every fit: for each fold of `split`, `procedure` selects and fits on
+/// its training rows and predicts its test rows (targets `rel`); then it fits on every row.
+/// `progress` gets (done, total) steps, the final fit the last one.
+pub(crate) fn cross_validate<P: Procedure>(
+    dataset: &Dataset,
+    split: Split,
+    rel: &[Vec<Vec<f64>>],
+    procedure: &mut P,
+    progress: &mut dyn FnMut(usize, usize),
+) -> Result<CrossValidated<P::Model>, String> {
+    let splits = split.folds(dataset)?;
+    let steps = splits.len() + 1;
+    let mut held = OutOfFold::new(dataset);
+    let mut folds = Vec::with_capacity(splits.len());
+    let mut beyond = 0;
+    for (f, (train, test)) in splits.into_iter().enumerate() {
+        progress(f, steps);
+        if test.is_empty() {
+            return Err(format!("fold {}: no test rows", f + 1));
+        }
+        let model = procedure.fit(&train)?;
+        let predicted = procedure.predict(&model)?;
+        held.record(f, &test, rel, &predicted);
+        beyond += procedure.rows_beyond(&model, &predicted, &train, &test);
+        folds.push(Fold { test, model });
+    }
+    if folds.is_empty() {
+        return Err("no folds".into());
+    }
+    progress(folds.len(), steps);
+    let training_rows = all_rows(dataset);
+    let model = procedure.fit(&training_rows)?;
+    let fitted = procedure.predict(&model)?;
+    progress(steps, steps);
+    let measured = std::mem::take(&mut held.measured);
+    let predicted = std::mem::take(&mut held.predicted);
+    Ok(CrossValidated {
+        folds,
+        measured,
+        predicted,
+        done: held.finish(&fitted),
+        held_out_beyond: beyond,
+        model,
+        fitted,
+        training_rows,
+    })
+}
 
 /// The outer folds' predictions, filled fold by fold ([`OutOfFold::record`]) and completed by
 /// the final model ([`OutOfFold::finish`]).
@@ -67,18 +167,6 @@ impl OutOfFold {
                 }
             }
         }
-    }
-
-    /// Whether every measured row was held out once (leave-one-run-out, blocked k-fold): the
-    /// folds then only measure the procedure, and the model to write is the same procedure on
-    /// every row — else it would be the last fold's, which never saw the last run or block. A
-    /// chronological split keeps its training part's model: the one its test figures describe.
-    pub(crate) fn every_measured_row_held_out(&self, dataset: &Dataset) -> bool {
-        dataset
-            .runs
-            .iter()
-            .zip(&self.fold_of)
-            .all(|(run, folds)| (0..run.len()).all(|i| !run.measured(i) || folds[i].is_some()))
     }
 
     /// The predictions of every row, whether each is out of fold, and which fold held each out.
@@ -179,7 +267,6 @@ mod tests {
         o.record(0, &[(0, 1), (0, 3)], &rel, &pred(&ds, 0));
         o.record(1, &[(1, 1), (1, 3)], &rel, &pred(&ds, 1));
         // The unmeasured rows are never in a fold's test rows: the rule asks for measured ones.
-        assert!(o.every_measured_row_held_out(&ds));
         assert_eq!(o.measured[0], vec![1.0, 3.0, 1.0, 3.0]);
         assert_eq!(o.predicted[0], vec![10.0, 10.0, 20.0, 20.0]);
         let fitted = vec![vec![vec![-1.0; 5]]; 2];
@@ -198,7 +285,6 @@ mod tests {
         let mut o = OutOfFold::new(&ds);
         // A chronological split: only each run's last measured row is tested.
         o.record(0, &[(0, 3), (1, 3)], &rel, &pred(&ds, 0));
-        assert!(!o.every_measured_row_held_out(&ds));
         let fitted = vec![vec![vec![-1.0; 5]]; 2];
         let done = o.finish(&fitted);
         // Rows 0–2 belong to row 1's stretch (not held out), row 4 to row 3's (held out).

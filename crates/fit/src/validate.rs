@@ -10,7 +10,7 @@ use std::str::FromStr;
 
 use crate::dataset::Dataset;
 use crate::features::{candidates, Candidates};
-use crate::out_of_fold::OutOfFold;
+use crate::out_of_fold::{cross_validate, Procedure};
 use crate::selection::CLEARLY_BETTER;
 use crate::settings::Settings;
 use crate::train::{train, Choice, Trained};
@@ -244,6 +244,9 @@ pub struct Validation {
     /// Per target, the baseline's figures pooled over the same held-out rows (`None` when a fold
     /// could not build it).
     pub baseline_metrics: Option<Vec<Metrics>>,
+    /// Held-out rows with an input beyond the widened range their fold's model was trained on:
+    /// rows where the figures extrapolate while on the machine the model is clamped.
+    pub held_out_rows_beyond_training: usize,
     /// Warnings from the fits, every held-out run the model makes worse than uncompensated, and
     /// every one the baseline would have done better on.
     pub warnings: Vec<String>,
@@ -308,9 +311,8 @@ pub(crate) fn all_rows(dataset: &Dataset) -> Vec<(usize, usize)> {
 }
 
 /// Runs the protocol: for each outer fold, select and fit on its training rows, predict its test
-/// rows. Returns the figures, the model to write (a chronological split's training-part model;
-/// after leave-one-run-out or blocked k-fold the same selection and fit on every row) and the
-/// out-of-fold predictions ([`Outcome::predictions`]).
+/// rows. Returns the figures, the model to write (the same selection and fit on every row) and
+/// the out-of-fold predictions ([`Outcome::predictions`]).
 pub fn validate(
     dataset: &Dataset,
     cand: &Candidates,
@@ -322,6 +324,37 @@ pub fn validate(
     Ok((o.validation, o.trained, o.predictions))
 }
 
+/// The dynamic fit as the outer loop's procedure: [`train`] on the rows, the real-time model
+/// stepped through every run.
+struct DynamicFit<'a> {
+    dataset: &'a Dataset,
+    cand: &'a Candidates,
+    settings: &'a Settings,
+}
+
+impl Procedure for DynamicFit<'_> {
+    type Model = Trained;
+
+    fn fit(&mut self, rows: &[(usize, usize)]) -> Result<Trained, String> {
+        train(self.dataset, self.cand, rows, self.settings)
+    }
+
+    fn predict(&self, model: &Trained) -> Result<Predictions, String> {
+        predict(self.dataset, model)
+    }
+
+    fn rows_beyond(
+        &self,
+        model: &Trained,
+        predicted: &Predictions,
+        train: &[(usize, usize)],
+        rows: &[(usize, usize)],
+    ) -> usize {
+        let env = crate::export::training_envelope(self.dataset, &model.inputs, predicted, train);
+        crate::export::rows_beyond(self.dataset, &env, rows)
+    }
+}
+
 /// [`validate`], with everything a report or a model file needs.
 pub fn outcome(
     dataset: &Dataset,
@@ -330,59 +363,45 @@ pub fn outcome(
     settings: &Settings,
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<Outcome, String> {
-    let folds = split.folds(dataset)?;
     let nt = dataset.target_names.len();
     let rel: Vec<Vec<Vec<f64>>> = dataset.targets(settings.absolute_targets);
-    let mut held = OutOfFold::new(dataset);
-    let mut choices = Vec::new();
-    let mut sensors = Vec::new();
-    let mut warnings = Vec::new();
-    let mut last = None;
+    let mut procedure = DynamicFit {
+        dataset,
+        cand,
+        settings,
+    };
+    let cv = cross_validate(dataset, split, &rel, &mut procedure, progress)?;
     let mut baseline = Some(Baseline::new(dataset));
-    for (f, (tr, te)) in folds.iter().enumerate() {
-        progress(f, folds.len());
-        if te.is_empty() {
-            return Err(format!("fold {}: no test rows", f + 1));
-        }
-        let trained = train(dataset, cand, tr, settings)?;
-        let pred = predict(dataset, &trained)?;
-        held.record(f, te, &rel, &pred);
-        baseline = match (baseline, &trained.baseline) {
+    let mut warnings = Vec::new();
+    for fold in &cv.folds {
+        baseline = match (baseline, &fold.model.baseline) {
             (Some(mut b), Some(model)) => {
-                b.record(te, &predict_with(dataset, &model.model, &model.inputs)?);
+                b.record(
+                    &fold.test,
+                    &predict_with(dataset, &model.model, &model.inputs)?,
+                );
                 Some(b)
             }
             _ => None,
         };
-        choices.push(trained.choices.clone());
-        sensors.push(
-            trained
+        warnings.extend(fold.model.warnings.iter().cloned());
+    }
+    let choices: Vec<Vec<Choice>> = cv.folds.iter().map(|f| f.model.choices.clone()).collect();
+    let sensors: Vec<Vec<String>> = cv
+        .folds
+        .iter()
+        .map(|f| {
+            f.model
                 .sensors
                 .iter()
                 .map(|&s| dataset.input_names[s].clone())
-                .collect(),
-        );
-        warnings.extend(trained.warnings.iter().cloned());
-        last = Some((trained, pred, tr.clone()));
-    }
-    progress(folds.len(), folds.len());
-    let metrics: Vec<Metrics> = (0..nt)
-        .map(|k| {
-            Metrics::new(
-                &dataset.target_names[k],
-                &held.measured[k],
-                &held.predicted[k],
-            )
+                .collect()
         })
         .collect();
-    let (mut trained, mut fitted, mut training_rows) = last.ok_or("no folds")?;
-    if held.every_measured_row_held_out(dataset) {
-        let all = all_rows(dataset);
-        trained = train(dataset, cand, &all, settings)?;
-        fitted = predict(dataset, &trained)?;
-        training_rows = all;
-    }
-    let done = held.finish(&fitted);
+    let metrics: Vec<Metrics> = (0..nt)
+        .map(|k| Metrics::new(&dataset.target_names[k], &cv.measured[k], &cv.predicted[k]))
+        .collect();
+    let done = cv.done;
     let chosen: Vec<Vec<String>> = choices
         .iter()
         .map(|c| c.iter().map(|c| c.label()).collect())
@@ -409,13 +428,14 @@ pub fn outcome(
             sensors,
             inner_vs_test,
             baseline_metrics,
+            held_out_rows_beyond_training: cv.held_out_beyond,
             warnings,
         },
-        trained,
+        trained: cv.model,
         predictions: done.predictions,
         held_out: done.held_out,
-        fitted,
-        training_rows,
+        fitted: cv.fitted,
+        training_rows: cv.training_rows,
         absolute_targets: settings.absolute_targets,
     })
 }
@@ -580,18 +600,18 @@ pub fn baseline_better(per_run: &[RunFigures]) -> Vec<String> {
         .collect()
 }
 
-/// A fit from a dataset: the validation figures, the model fitted on the (last) training part,
-/// and the predictions behind the figures.
+/// A fit from a dataset: the validation figures, the model fitted on every row, and the predictions behind the figures.
 #[derive(Debug, Clone)]
 pub struct Outcome {
     /// Figures pooled over the outer folds, and per run.
     pub validation: Validation,
-    /// The model to write: a chronological split's training-part model; after leave-one-run-out
-    /// or blocked k-fold, the same selection and fit on every row.
+    /// The model to write: the same selection and fit on every row the user gave, whatever the
+    /// split (the folds measure the procedure; the figures are theirs).
     pub trained: Trained,
     /// Out-of-fold predictions, per run, target and row: each held-out row predicted by the
     /// model of the fold that held it out (so every row, with leave-one-run-out and blocked
-    /// k-fold); a row no fold held out (a chronological split's training part) by [`Self::trained`].
+    /// k-fold); a row no fold held out (a chronological split's training part) by [`Self::trained`],
+    /// in sample.
     pub predictions: Predictions,
     /// Per run and row, whether a fold held it out (whether its prediction is out of sample).
     pub held_out: Vec<Vec<bool>>,
@@ -687,9 +707,10 @@ pub(crate) mod tests {
                 }
             }
         }
-        // The model to write is fitted on every run, not the last fold's (which never saw c):
-        // it is what training on all rows gives, and its rows are all of them.
-        for split in ["runs", "kfold:3"] {
+        // The model to write is fitted on every run, not the last fold's (which never saw c) nor
+        // a chronological split's training part (which never saw the ends of the runs): it is
+        // what training on all rows gives, and its rows are all of them.
+        for split in ["runs", "kfold:3", "chrono:0.6"] {
             let o = run_outcome(&ds, split);
             let all: Vec<(usize, usize)> = (0..3)
                 .flat_map(|r| (0..ds.runs[r].len()).map(move |i| (r, i)))
@@ -700,6 +721,18 @@ pub(crate) mod tests {
         }
     }
 
+    /// A run 20 K hotter than the others, held out, lies beyond the range its fold's model was
+    /// trained on (widened by the margins) in every row; the others lie inside theirs.
+    #[test]
+    fn held_out_rows_beyond_their_folds_training_range_are_counted() {
+        let mut ds = three_runs();
+        for t in &mut ds.runs[1].inputs[0] {
+            *t += 20.0;
+        }
+        let o = run_outcome(&ds, "runs");
+        assert_eq!(o.validation.held_out_rows_beyond_training, 60);
+    }
+
     /// A chronological split holds out the end of each run only, and says so.
     #[test]
     fn a_chronological_split_marks_its_training_rows() {
@@ -708,7 +741,12 @@ pub(crate) mod tests {
             assert_eq!(run.iter().filter(|&&h| !h).count(), 36);
             assert!(run[..36].iter().all(|&h| !h) && run[36..].iter().all(|&h| h));
         }
-        assert_eq!(o.predictions, o.fitted);
+        // The rows no fold held out carry the written model's in-sample predictions.
+        for (r, run) in o.held_out.iter().enumerate() {
+            for (i, _) in run.iter().enumerate().filter(|(_, h)| !**h) {
+                assert_eq!(o.predictions[r][0][i], o.fitted[r][0][i]);
+            }
+        }
     }
 
     /// Per run: the held-out run c, predicted by the slope of a and b (2 µm/K) where it moves
