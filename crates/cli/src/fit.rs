@@ -34,9 +34,10 @@ pub struct Args {
     pub(crate) sheet: Option<String>,
     /// Target columns (measured errors): names or globs, comma-separated. Converted to µm by
     /// the unit in the name (`_mm`, `(µm)`, …; none = µm); an empty cell is a row without a
-    /// measurement, which steps the filters but neither trains nor scores.
-    #[arg(long, default_value = "*_um")]
-    pub(crate) target: Patterns,
+    /// measurement, which steps the filters but neither trains nor scores. Default: every
+    /// column whose name states µm or nm (`dz_um`, `Z-Drift [µm]`, `dz (nm)`).
+    #[arg(long)]
+    pub(crate) target: Option<Patterns>,
     /// Input columns of the dynamic families (what the control knows): names or globs,
     /// comma-separated. Temperatures are converted to °C by the unit in the name (`_f`, `(K)`,
     /// …; none = °C). Required without a machine file; with one, default: the machine's
@@ -151,13 +152,36 @@ pub(crate) fn load(args: &Args, inputs: &Patterns) -> Result<(Dataset, Vec<Table
             .time(Some(&args.time))
             .unwrap_or(Time::Column(args.time.clone())),
         inputs: inputs.clone(),
-        targets: args.target.clone(),
+        targets: match &args.target {
+            Some(t) => t.clone(),
+            None => default_targets(tables.first().map_or(&[][..], |t| &t.columns))?,
+        },
         operating: args.operating.clone(),
     };
     let ds = Dataset::from_tables(&tables, &columns)?;
     let rows = ds.runs.iter().map(|r| r.time_s.len()).sum();
     truepos_fit::dataset::check_budget(ds.input_names.len(), rows).map_err(CliError::Refused)?;
     Ok((ds, tables))
+}
+
+/// The columns a fit takes as targets when `--target` is not given: those whose name states a
+/// displacement unit finer than a millimetre (µm, nm), as measured drifts are written —
+/// positions in mm are not targets.
+fn default_targets(columns: &[String]) -> Result<Patterns, CliError> {
+    use truepos_io::units::{unit_of, Unit};
+    let found: Vec<String> = columns
+        .iter()
+        .filter(|c| matches!(unit_of(c), Ok(Some(Unit::Micrometre | Unit::Nanometre))))
+        .cloned()
+        .collect();
+    if found.is_empty() {
+        return Err(CliError::refused(format!(
+            "no column states µm or nm as its unit (`dz_um`, `Z-Drift [µm]`), so there is no \
+             default target; name the measured errors with --target. The columns are: {}",
+            columns.join(", ")
+        )));
+    }
+    Ok(Patterns(found))
 }
 
 /// The run tables named on the command line.

@@ -110,7 +110,7 @@ fn sigkill_loses_at_most_the_last_second_and_never_corrupts_the_log() {
 
 /// The learning loop closed through the service: the twin records a day, `truepos fit` writes a
 /// dynamic model file, `truepos run` loads it for the twin's machine and replays the day; the
-/// offsets applied are the negated predictions of the fit. The service holds each sample until
+/// offsets applied are the negated in-sample predictions of the model written. The service holds each sample until
 /// the next one arrives while the fit lets each sample act over the interval before it, so the
 /// two differ by one sample's worth of filter input (≈ 0.1 µm here), not more.
 #[test]
@@ -195,7 +195,9 @@ fn a_fitted_dynamic_model_runs_in_the_service() {
     let (oh, orows) = read(&offsets);
     let col = |h: &[String], name: &str| h.iter().position(|c| c == name).unwrap();
     let mut predicted = std::collections::HashMap::new();
-    for r in &prows {
+    // The rows no fold held out are predicted by the model written (the rest by the fold's
+    // model, which the service never sees).
+    for r in prows.iter().filter(|r| r[col(&ph, "held_out")] == "false") {
         let t: f64 = r[col(&ph, "time_s")].parse().unwrap();
         predicted.insert(t as i64, r.clone());
     }
@@ -216,9 +218,10 @@ fn a_fitted_dynamic_model_runs_in_the_service() {
         }
         compared += 1;
     }
-    assert!(compared > 2000, "{compared}");
+    assert!(compared > 1000, "{compared}");
 
-    // `truepos eval` steps the model through the rows as the fit did: the same numbers.
+    // `truepos eval` steps the model through the rows as the fit did: the same numbers where the
+    // fit predicted with the model written.
     let evaluated = dir.join("eval.csv");
     let st = truepos()
         .args(["eval", "--machine", "examples/twin/machine.toml", "--model"])
@@ -236,7 +239,14 @@ fn a_fitted_dynamic_model_runs_in_the_service() {
     );
     let (eh, erows) = read(&evaluated);
     assert_eq!(erows.len(), prows.len());
-    for (e, p) in erows.iter().zip(&prows) {
+    let in_sample = |p: &&(&Vec<String>, &Vec<String>)| p.1[col(&ph, "held_out")] == "false";
+    for (e, p) in erows
+        .iter()
+        .zip(&prows)
+        .collect::<Vec<_>>()
+        .iter()
+        .filter(in_sample)
+    {
         for (axis, target) in [("X", "dx_um"), ("Y", "dy_um"), ("Z", "dz_um")] {
             let a: f64 = e[col(&eh, &format!("{axis}_error_um"))].parse().unwrap();
             let b: f64 = p[col(&ph, &format!("{target}_predicted"))].parse().unwrap();

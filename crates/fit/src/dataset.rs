@@ -402,7 +402,10 @@ impl Dataset {
         let input_kinds: Vec<InputKind> = input_names
             .iter()
             .map(|n| {
-                if columns.operating.matches(n) {
+                // A speed, load or power is operating state by its unit too (`S [1/min]`).
+                let by_unit = truepos_io::units::unit_of(n)
+                    .is_ok_and(|u| u.is_some_and(|u| u.is_operating()));
+                if columns.operating.matches(n) || by_unit {
                     InputKind::Operating
                 } else {
                     InputKind::Temperature

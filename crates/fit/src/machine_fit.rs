@@ -12,6 +12,7 @@
 //! [`Model`] holds them all). The form is chosen by the pooled inner-CV RMSE over the targets.
 
 use truepos_io::run::Table;
+use truepos_io::units::{find_channel, Role};
 use truepos_io::InputError;
 use truepos_model::{CycleInput, LagSource, Machine, Model, Part, Reference};
 
@@ -59,6 +60,31 @@ pub struct MachineData {
     pub owners: Vec<Option<usize>>,
 }
 
+/// Axis `a`'s positions from column `name` of `t`, in mm (or degrees), converted by the unit the
+/// column states. Without `--positions` the machine's own column is found by the axis name and
+/// any unit (`X_mm`, `X [mm]`, `X (in)`).
+fn position_column(
+    machine: &Machine,
+    t: &Table,
+    a: usize,
+    name: &str,
+    given: bool,
+) -> Result<Vec<f64>, InputError> {
+    let axis = &machine.axes[a];
+    let role = match axis.kind {
+        truepos_model::AxisKind::Linear => Role::Position,
+        truepos_model::AxisKind::Rotary => Role::Angle,
+    };
+    let found = (!given)
+        .then(|| find_channel(&t.columns, name).or_else(|| find_channel(&t.columns, &axis.name)))
+        .flatten();
+    let col = match found {
+        Some(c) => c,
+        None => t.select(&[name])?[0],
+    };
+    t.numbers_as(col, role)
+}
+
 impl MachineData {
     /// The machine's channels of every table (the dataset's runs, in order): its measured
     /// temperature channels and operating channels by id, the lagged channels computed from
@@ -88,27 +114,35 @@ impl MachineData {
         let mut present_o = vec![true; machine.operating.len()];
         let mut runs = Vec::new();
         for (t, run) in tables.iter().zip(&dataset.runs) {
-            let column = |name: &str| t.columns.iter().position(|c| c == name);
-            let read = |name: &str, present: &mut bool| -> Result<Vec<f64>, InputError> {
-                match column(name) {
-                    Some(c) => t.numbers(c),
-                    None => {
-                        *present = false;
-                        Ok(vec![f64::NAN; t.rows()])
-                    }
+            // A channel's column by its id with or without a unit (`t1`, `t1 [°F]`);
+            // temperatures in °C, operating state as written.
+            let read = |name: &str, role: Option<Role>, present: &mut bool| match find_channel(
+                &t.columns, name,
+            ) {
+                Some(c) => match role {
+                    Some(role) => t.numbers_as(c, role),
+                    None => t.numbers(c),
+                },
+                None => {
+                    *present = false;
+                    Ok(vec![f64::NAN; t.rows()])
                 }
             };
             let mut pos_cols = Vec::new();
-            for name in &position_names {
-                pos_cols.push(t.numbers(t.select(&[name])?[0])?);
+            for (a, name) in position_names.iter().enumerate() {
+                pos_cols.push(position_column(machine, t, a, name, positions.is_some())?);
             }
             let mut temp_cols = Vec::new();
             for &c in &measured {
-                temp_cols.push(read(&machine.temperatures[c].id, &mut present_t[c])?);
+                temp_cols.push(read(
+                    &machine.temperatures[c].id,
+                    Some(Role::Temperature),
+                    &mut present_t[c],
+                )?);
             }
             let mut op_cols = Vec::new();
             for (o, present) in machine.operating.iter().zip(present_o.iter_mut()) {
-                op_cols.push(read(&o.id, present)?);
+                op_cols.push(read(&o.id, None, present)?);
             }
             let rows = t.rows();
             let by_row = |cols: &[Vec<f64>]| -> Vec<Vec<f64>> {

@@ -38,6 +38,12 @@ pub enum Unit {
     Kelvin,
     /// degree of angle (rotary axes).
     Degree,
+    /// Revolutions per minute (a spindle or feed speed; operating state).
+    PerMinute,
+    /// Percent (a load or override; operating state).
+    Percent,
+    /// Kilowatt (a spindle or drive power; operating state).
+    Kilowatt,
 }
 
 /// What a column is used as, which fixes the unit it is converted to.
@@ -95,6 +101,16 @@ const BRACKETED: &[(&str, Unit)] = &[
     ("K", Unit::Kelvin),
     ("°", Unit::Degree),
     ("deg", Unit::Degree),
+    ("1/min", Unit::PerMinute),
+    ("U/min", Unit::PerMinute),
+    ("u/min", Unit::PerMinute),
+    ("r/min", Unit::PerMinute),
+    ("rev/min", Unit::PerMinute),
+    ("rpm", Unit::PerMinute),
+    ("min⁻¹", Unit::PerMinute),
+    ("min-1", Unit::PerMinute),
+    ("%", Unit::Percent),
+    ("kW", Unit::Kilowatt),
 ];
 
 /// The units a name may carry as a suffix after its last `_` (compared in lower case).
@@ -124,6 +140,9 @@ impl Unit {
             Unit::Fahrenheit => "°F",
             Unit::Kelvin => "K",
             Unit::Degree => "°",
+            Unit::PerMinute => "1/min",
+            Unit::Percent => "%",
+            Unit::Kilowatt => "kW",
         }
     }
 
@@ -138,6 +157,12 @@ impl Unit {
             Unit::Inch => Some(25_400.0),
             _ => None,
         }
+    }
+
+    /// Whether this is a unit of operating state (a speed, a load, a power): a column stating it
+    /// is operating state whatever its name, and is read as written.
+    pub fn is_operating(self) -> bool {
+        matches!(self, Unit::PerMinute | Unit::Percent | Unit::Kilowatt)
     }
 
     /// Whether values in this unit can be used in `role`.
@@ -257,6 +282,13 @@ mod tests {
             ("t1 (°F)", "t1", Some(Unit::Fahrenheit)),
             ("t1 (K)", "t1", Some(Unit::Kelvin)),
             ("A_deg", "A", Some(Unit::Degree)),
+            ("S [1/min]", "S", Some(Unit::PerMinute)),
+            ("Spindel (U/min)", "Spindel", Some(Unit::PerMinute)),
+            ("n [min⁻¹]", "n", Some(Unit::PerMinute)),
+            ("S [rpm]", "S", Some(Unit::PerMinute)),
+            ("Last [%]", "Last", Some(Unit::Percent)),
+            ("Spindel vorne [°C]", "Spindel vorne", Some(Unit::Celsius)),
+            ("Z-Drift [µm]", "Z-Drift", Some(Unit::Micrometre)),
             ("spindle_rpm", "spindle_rpm", None),
             ("time_s", "time_s", None),
             ("_mm", "_mm", None),
