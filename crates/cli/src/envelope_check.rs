@@ -1,7 +1,8 @@
 //! Whether a model's largest prediction on the data a command runs it on lies beyond the
 //! machine's safety envelope (`max_offset_um` per axis). The service would then hold the axis at
 //! the limit (`clamped`), safe but not what the model's figures promise, so `truepos run` and
-//! `truepos demo` say so at start and name the key to change.
+//! `truepos demo` say so at start, `truepos fit --machine` when it writes the model, and each
+//! names the key to change.
 
 use std::path::Path;
 

@@ -105,7 +105,8 @@ pub fn run(mut args: Args) -> Result<(), CliError> {
         crate::fit::model_name(out, &["toml", "json"], "a model of the machine")?;
     }
     let path = Path::new(&args.machine).to_path_buf();
-    let machine = truepos_io::machine_file::load(&path)?.machine;
+    let config = truepos_io::machine_file::load(&path)?;
+    let machine = config.machine.clone();
     let (dynamic, fixed) = families(&args)?;
     args.family = dynamic;
     let first = tables(&args)?;
@@ -190,6 +191,16 @@ pub fn run(mut args: Args) -> Result<(), CliError> {
         }
         warnings.extend(what.into_iter().map(|w| format!("--force: {w}")));
     }
+    let beyond = beyond_envelope(&ds, &outcome, &data.target_axes, &config);
+    let name = args
+        .model
+        .as_ref()
+        .map_or("fitted".to_string(), |p| p.display().to_string());
+    warnings.extend(
+        crate::envelope_check::warnings(&config, &path, &name, "its training runs", &beyond)
+            .into_iter()
+            .map(|w| w.trim_start_matches("warning: ").to_string()),
+    );
     if let Some(out) = &args.model {
         let text = model_text(out, &ds, &settings, &machine, &outcome, &data)?;
         crate::write::write_whole(out, text, &crate::fit::input_files(&args))?;
@@ -223,6 +234,34 @@ pub fn run(mut args: Args) -> Result<(), CliError> {
     }
     print_screen(&ds, &outcome);
     Ok(())
+}
+
+/// The axes on which the model written predicts, on its own training rows, more than the
+/// machine's safety envelope allows (`max_offset_um`): there the service would hold the axis at
+/// the limit and the figures above would not be what the machine gets.
+fn beyond_envelope(
+    ds: &Dataset,
+    outcome: &MachineOutcome,
+    target_axes: &[usize],
+    config: &truepos_runtime::MachineConfig,
+) -> Vec<crate::envelope_check::Beyond> {
+    let mut out = Vec::new();
+    for (k, &axis) in target_axes.iter().enumerate() {
+        let largest = outcome
+            .training_rows
+            .iter()
+            .map(|&(r, i)| (outcome.fitted[r][k][i].abs(), ds.runs[r].time_s[i]))
+            .filter(|(e, _)| e.is_finite())
+            .fold((0.0, 0.0), |a: (f64, f64), b| if b.0 > a.0 { b } else { a });
+        if largest.0 > config.axes[axis].max_offset_um {
+            out.push(crate::envelope_check::Beyond {
+                axis,
+                largest_um: largest.0,
+                at_s: largest.1,
+            });
+        }
+    }
+    out
 }
 
 fn form(chosen: &Chosen) -> &'static str {

@@ -474,7 +474,7 @@ fn a_time_that_is_neither_seconds_nor_iso_is_located() {
     assert_eq!(
         err.trim(),
         format!(
-            "error: {}:3:1: `time_s`: expected seconds (a number) or an ISO 8601 date-time like 2024-03-01T08:00:00, got `noon`",
+            "error: {}:3:1: `time_s`: expected seconds (a number), an ISO 8601 date-time like 2024-03-01T08:00:00 or a day-first one like 01.03.2024 08:00:00, got `noon`",
             bad.display()
         )
     );

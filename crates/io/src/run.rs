@@ -274,7 +274,7 @@ impl Table {
         let Some(first) = (!t.is_empty()).then(|| iso(0)).transpose()?.flatten() else {
             return self.numbers(col).map_err(|mut e| {
                 if let Some(rest) = e.message.strip_prefix("expected a number, got ") {
-                    e.message = format!("expected seconds (a number) or an ISO 8601 date-time like 2024-03-01T08:00:00, got {rest}");
+                    e.message = format!("expected seconds (a number), an ISO 8601 date-time like 2024-03-01T08:00:00 or a day-first one like 01.03.2024 08:00:00, got {rest}");
                 }
                 e
             });
