@@ -36,7 +36,7 @@ CHECK=(--machine examples/vmc3/machine.toml --model examples/vmc3/model.toml
        --expect-event "sensor-fault:x_slide_top" --expect-event "sensor-recovered:x_slide_top"
        --expect-event "holding:path 1" --expect-event "model-selected:path 1:vmc3-e2e-alternative"
        --expect-event "axis-switch" --expect-event "model-selected:path 1:vmc3-e2e-xy"
-       --expect-event "model-selected:path 1:model_d")
+       --expect-event "model-selected:path 1:model_d" --expect-event "extrapolating:path 1")
 truepos-hal-check check "${CHECK[@]}" || fail=1
 truepos-hal-check check --json "${CHECK[@]}" > "$OUT/check.json" || true
 

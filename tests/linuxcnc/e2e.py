@@ -8,7 +8,9 @@ model switch (truepos.model-select 0 -> 1) and an axis switch (Z leaves path 1 f
 truepos.axis.z.path 1 -> 0 -> 1, so seed D's rule selects model_c.toml, which serves X and Y alone,
 and back), and at last Y leaves path 1 (truepos.axis.y.path 1 -> 0), whose index 101, 103 only
 model_d.json has, a fitted dynamic model (`truepos fit`'s file) on sensors no fault touches,
-which the check steps through the recorded cycles. Two faults are injected in the servo thread (vmc3.hal.in: a `streamer` fed by
+which the check steps through the recorded cycles; its training envelope (the first 15 minutes
+of run.csv) lies below the played temperatures, so the component clamps its inputs, caps its
+output and logs `extrapolating`. Two faults are injected in the servo thread (vmc3.hal.in: a `streamer` fed by
 halstreamer drives two `mux2`): x_slide_top reads NaN on every third servo cycle for 2 s (an
 intermittent fault) and y_slide_bottom alternates between two adjacent 0.1 K levels on every
 servo cycle for 4 s (a quantisation flicker). Two halsampler processes record every servo cycle

@@ -1,6 +1,7 @@
 //! What every model of the set gave on every recorded cycle, as the component computes it: each
-//! model stepped through the recorded cycles in order, through the one door
-//! ([`CompensationModel::step`]). For seed A/C's form that is an evaluation of the cycle's
+//! model stepped through the recorded cycles in order, through the one door the component uses
+//! ([`CompensationModel::step_guarded`]: a model with a training envelope has its inputs clamped
+//! to it and its output capped, as on the machine). For seed A/C's form that is an evaluation of the cycle's
 //! temperatures and nominal positions; a fitted dynamic model's filters advance by the real
 //! length of each servo cycle, so its output carries the history the component's carries.
 //!
@@ -45,6 +46,7 @@ impl Replay {
         let operating = vec![0.0; machine.operating.len()];
         let mut errors_um = Vec::with_capacity(models.len() * samples.len() * axes);
         let mut masked = Vec::new();
+        let mut guarded = (Vec::new(), Vec::new());
         for entry in models {
             let mut model: CompensationModel = entry.model.clone();
             model.reset();
@@ -72,8 +74,8 @@ impl Replay {
                     operating: &operating,
                 };
                 let dt = last_good_s.map_or(0.0, |l| time_s - l);
-                match model.step(dt, &input) {
-                    Ok(e) => {
+                match model.step_guarded(dt, &input, (&mut guarded.0, &mut guarded.1)) {
+                    Ok((e, _)) => {
                         errors_um.extend_from_slice(&e[..axes]);
                         last_good_s = Some(time_s);
                     }
