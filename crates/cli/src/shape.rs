@@ -21,6 +21,11 @@ pub struct ShapeArgs {
     /// 10⁻⁶–10⁶ s.
     #[arg(long, value_parser = truepos_io::limits::finite_in(1e-6, 1e6))]
     sample_period: Option<f64>,
+    /// How the time column's date-times are written, `strftime`-style, when neither ISO 8601
+    /// nor day-first `dd.mm.yyyy HH:MM[:SS]`: e.g. `%m/%d/%Y %I:%M %p` for `03/01/2024 08:00 PM`
+    /// (`%z` for an offset; else taken as written).
+    #[arg(long)]
+    time_format: Option<String>,
 }
 
 impl ShapeArgs {
@@ -29,6 +34,7 @@ impl ShapeArgs {
         Shape {
             delimiter: self.delimiter,
             run_column: self.run_column.clone(),
+            time_format: self.time_format.clone(),
         }
     }
 

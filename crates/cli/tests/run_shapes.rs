@@ -148,6 +148,16 @@ fn iso_times_and_a_sample_period_fit_like_seconds() {
             }),
         ),
         (
+            "day-first",
+            "time,t1_c,dz_um",
+            Box::new(|i: usize, t: f64, y: f64| format!("01.03.2024 08:{i:02},{t},{y}")),
+        ),
+        (
+            "us",
+            "time,t1_c,dz_um",
+            Box::new(|i: usize, t: f64, y: f64| format!("03/01/2024 08:{i:02} PM,{t},{y}")),
+        ),
+        (
             "none",
             "t1_c,dz_um",
             Box::new(|_: usize, t: f64, y: f64| format!("{t},{y}")),
@@ -156,10 +166,10 @@ fn iso_times_and_a_sample_period_fit_like_seconds() {
         let d = dir.join(sub);
         std::fs::create_dir_all(&d).unwrap();
         let paths = write_each(&d, header, &*row);
-        let extra: &[&str] = if sub == "none" {
-            &["--sample-period", "60"]
-        } else {
-            &["--time", "time"]
+        let extra: &[&str] = match sub {
+            "none" => &["--sample-period", "60"],
+            "us" => &["--time", "time", "--time-format", "%m/%d/%Y %I:%M %p"],
+            _ => &["--time", "time"],
         };
         let mut args = vec!["--inputs", "t1_c", "--json"];
         args.extend(extra);

@@ -39,6 +39,9 @@ pub struct Table {
     pub columns: Vec<String>,
     /// The cells as read, with their places.
     pub table: table::Table,
+    /// How the time column's date-times are written, when not in a form read by itself
+    /// ([`Shape::time_format`]).
+    pub time_format: Option<String>,
 }
 
 /// How run files are laid out, beyond what the reader sees by itself.
@@ -49,6 +52,9 @@ pub struct Shape {
     /// A column whose value names the run each row belongs to: a file holding several runs is
     /// split into one run per value, in order of first appearance.
     pub run_column: Option<String>,
+    /// A `strftime`-style format of the time column's date-times (`%m/%d/%Y %I:%M %p`), for
+    /// forms [`crate::timestamp::parse`] does not read by itself.
+    pub time_format: Option<String>,
 }
 
 /// Where a run's time comes from.
@@ -74,6 +80,7 @@ impl Table {
             run: None,
             columns: table.columns.clone(),
             table,
+            time_format: None,
         }
     }
 
@@ -135,6 +142,7 @@ impl Table {
             run: self.run.clone(),
             columns: self.columns.clone(),
             table: self.table.clone_header(),
+            time_format: self.time_format.clone(),
         }
     }
 
@@ -257,6 +265,9 @@ impl Table {
     }
 
     fn time_values(&self, col: usize) -> Result<Vec<f64>, InputError> {
+        if let Some(format) = &self.time_format {
+            return self.formatted_times(col, format);
+        }
         let t = &self.table;
         let iso = |r: usize| -> Result<Option<i128>, InputError> {
             match t.row(r).cell(col).map(|c| c.value) {
@@ -287,6 +298,24 @@ impl Table {
                     col,
                     "expected an ISO 8601 date-time as in the first row, got a number or an empty cell",
                 )),
+            })
+            .collect()
+    }
+
+    /// A time column of date-times written as `format` says, as seconds since the first row.
+    fn formatted_times(&self, col: usize, format: &str) -> Result<Vec<f64>, InputError> {
+        let t = &self.table;
+        let mut first = None;
+        (0..t.len())
+            .map(|r| {
+                let ns = match t.row(r).cell(col).map(|c| c.value) {
+                    Some(table::Value::Text(x)) => timestamp::parse_with(format, x),
+                    Some(table::Value::Number(v)) => timestamp::parse_with(format, &v.to_string()),
+                    _ => Err(format!("expected a date-time in the form `{format}` (--time-format), got an empty cell")),
+                }
+                .map_err(|e| t.at(r, col, e))?;
+                let first = *first.get_or_insert(ns);
+                Ok((ns - first) as f64 / 1e9)
             })
             .collect()
     }
@@ -406,6 +435,13 @@ pub fn read_shaped(
         };
         vec![csv_run(table::load_csv(file, options)?)?]
     };
+    let tables: Vec<Table> = tables
+        .into_iter()
+        .map(|t| Table {
+            time_format: shape.time_format.clone(),
+            ..t
+        })
+        .collect();
     match &shape.run_column {
         None => Ok(tables),
         Some(column) => {

@@ -47,6 +47,25 @@ pub fn parse(text: &str) -> Result<i128, String> {
     ))
 }
 
+/// Nanoseconds since 1970-01-01T00:00:00Z of `text` read by a `strftime`-style `format`
+/// (`%m/%d/%Y %I:%M %p`; `%z` for an offset, else taken as UTC like every date-time without
+/// one); the error sentence names the format.
+pub fn parse_with(format: &str, text: &str) -> Result<i128, String> {
+    let text = text.trim();
+    let bad = |why: String| {
+        format!("expected a date-time in the form `{format}` (--time-format), got `{text}`: {why}")
+    };
+    let parsed = jiff::fmt::strtime::parse(format, text).map_err(|e| bad(e.to_string()))?;
+    if let Ok(ts) = parsed.to_timestamp() {
+        return Ok(ts.as_nanosecond());
+    }
+    let dt = parsed.to_datetime().map_err(|e| bad(e.to_string()))?;
+    jiff::tz::Offset::UTC
+        .to_timestamp(dt)
+        .map(|ts| ts.as_nanosecond())
+        .map_err(|e| bad(e.to_string()))
+}
+
 /// A day-first date-time, `dd.mm.yyyy HH:MM[:SS[.fff]]` (a decimal comma read as a point).
 fn day_first(text: &str) -> Option<i128> {
     let (day, month, rest) = {
@@ -124,11 +143,30 @@ mod tests {
         }
     }
 
+    #[test]
+    fn a_stated_format_reads_the_forms_no_default_reads() {
+        let base = parse("2024-03-01T20:00:00").unwrap();
+        let us = "%m/%d/%Y %I:%M %p";
+        assert_eq!(parse_with(us, "03/01/2024 08:00 PM"), Ok(base));
+        assert_eq!(parse_with("%Y%m%d%H%M%S", "20240301200000"), Ok(base));
+        assert_eq!(
+            parse_with("%d/%m/%Y %H:%M %z", "01/03/2024 21:00 +0100"),
+            Ok(base)
+        );
+        let e = parse_with(us, "13/01/2024 08:00 PM").unwrap_err();
+        assert!(
+            e.starts_with("expected a date-time in the form `%m/%d/%Y %I:%M %p`"),
+            "{e}"
+        );
+        assert!(parse_with(us, "").is_err());
+    }
+
     proptest::proptest! {
         /// Never a panic on any text.
         #[test]
-        fn any_text(text in "\\PC{0,40}") {
+        fn any_text(text in "\\PC{0,40}", format in "(%[a-zA-Z.:%]|[ /.:0-9a-z-]){0,12}") {
             let _ = parse(&text);
+            let _ = parse_with(&format, &text);
         }
 
         /// Every date-time written the documented ways reads back to the same instant.

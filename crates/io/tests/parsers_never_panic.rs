@@ -130,6 +130,9 @@ fn read_every_way(text: &str, delimiter: truepos_io::table::Delimiter) {
         let _ = r.measured(c);
         let _ = r.numbers_as(c, Role::Temperature);
         let _ = r.time(c);
+        let mut formatted = r.clone();
+        formatted.time_format = Some("%d/%m/%Y %I:%M %p".into());
+        let _ = formatted.time(c);
         if let Ok(runs) = r.clone().split_runs(&r.columns[c]) {
             for run in runs {
                 let _ = run.times(&Time::Period(0.5));
@@ -143,6 +146,7 @@ fn read_every_way(text: &str, delimiter: truepos_io::table::Delimiter) {
         shape: Shape {
             delimiter,
             run_column: None,
+            time_format: None,
         },
         time: Some(Time::Period(1.0)),
     };
