@@ -181,11 +181,11 @@ pub fn dynamic_model_file(
     Ok(file)
 }
 
-/// The rows of `rows` (run, row) with an input beyond its widened training range in `env`
-/// (the margins of `truepos_model::envelope`): where the model, on the machine, is clamped.
-pub fn rows_beyond(dataset: &Dataset, env: &EnvelopeEntry, rows: &[(usize, usize)]) -> usize {
+/// Per dataset input the envelope knows: (input, lower, upper) of its training range widened by
+/// the runtime's margins (`truepos_model::envelope`), where the machine clamps it.
+pub(crate) fn widened_limits(dataset: &Dataset, env: &EnvelopeEntry) -> Vec<(usize, f64, f64)> {
     use truepos_model::envelope::{OPERATING_MARGIN, TEMPERATURE_MARGIN, TEMPERATURE_MARGIN_MIN_K};
-    let limits: Vec<(usize, f64, f64)> = dataset
+    dataset
         .input_names
         .iter()
         .enumerate()
@@ -199,7 +199,13 @@ pub fn rows_beyond(dataset: &Dataset, env: &EnvelopeEntry, rows: &[(usize, usize
             };
             Some((i, lo - margin, hi + margin))
         })
-        .collect();
+        .collect()
+}
+
+/// The rows of `rows` (run, row) with an input beyond its widened training range in `env`
+/// (the margins of `truepos_model::envelope`): where the model, on the machine, is clamped.
+pub fn rows_beyond(dataset: &Dataset, env: &EnvelopeEntry, rows: &[(usize, usize)]) -> usize {
+    let limits = widened_limits(dataset, env);
     rows.iter()
         .filter(|&&(r, row)| {
             limits.iter().any(|&(i, lo, hi)| {
