@@ -248,11 +248,11 @@ fn fit_both(
             ));
         }
         match sel.chosen {
-            Chosen::Static(model) => Ok(Selected {
+            Chosen::Position(model) => Ok(Selected {
                 model,
                 labels: sel.labels,
             }),
-            Chosen::Dynamic(_) => Err(CliError::refused("internal: a dynamic model was chosen")),
+            Chosen::Filtered(_) => Err(CliError::refused("internal: a dynamic model was chosen")),
         }
     };
     let prior = fit(&[Family::PositionIndependent])?;

@@ -266,8 +266,8 @@ fn beyond_envelope(
 
 fn form(chosen: &Chosen) -> &'static str {
     match chosen {
-        Chosen::Dynamic(_) => "dynamic",
-        Chosen::Static(_) => "position-dependent",
+        Chosen::Filtered(_) => "dynamic",
+        Chosen::Position(_) => "position-dependent",
     }
 }
 
@@ -330,7 +330,7 @@ fn model_text(
     let axes = &data.target_axes;
     let created_by = format!("truepos fit {}", env!("CARGO_PKG_VERSION"));
     let text = match &outcome.selection.chosen {
-        Chosen::Dynamic(trained) => {
+        Chosen::Filtered(trained) => {
             crate::fit::model_name(
                 out,
                 &["json"],
@@ -364,7 +364,7 @@ fn model_text(
             ));
             file.to_json() + "\n"
         }
-        Chosen::Static(s) => {
+        Chosen::Position(s) => {
             let mut model = s.model.clone();
             model.set_envelope(Some(truepos_fit::export::machine_envelope(
                 &model,

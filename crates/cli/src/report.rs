@@ -319,8 +319,8 @@ pub fn run(args: Args) -> Result<(), CliError> {
         channels,
         temperatures,
         coefficients: match model.model() {
-            CompensationModel::Static(m) => coefficients(m, &machine),
-            CompensationModel::Dynamic(d) => dynamic_coefficients(d, &machine),
+            CompensationModel::Position(m) => coefficients(m, &machine),
+            CompensationModel::Filtered(d) => dynamic_coefficients(d, &machine),
         },
         protocol,
         volume: volume(&machine, model.model(), &run),

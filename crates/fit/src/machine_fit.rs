@@ -241,10 +241,10 @@ pub struct StaticModel {
 /// The model the selection chose: one form.
 #[derive(Debug, Clone)]
 pub enum Chosen {
-    /// A fitted dynamic model.
-    Dynamic(Trained),
-    /// A seed A/C model.
-    Static(StaticModel),
+    /// A fitted filtered (dynamic) model: its filters carry history from cycle to cycle.
+    Filtered(Trained),
+    /// A position-dependent or reference-sensor model: a function of this cycle's values.
+    Position(StaticModel),
 }
 
 /// The selection on one training part.
@@ -469,13 +469,13 @@ pub fn select(
                     )
                 })
                 .collect();
-            (Chosen::Static(s), labels, cv, warnings)
+            (Chosen::Position(s), labels, cv, warnings)
         }
         (_, Some(t), _) => {
             let labels = t.choices.iter().map(|c| c.describe()).collect();
             let cv = t.choices.iter().map(|c| c.cv_rmse_um).collect();
             let warnings = t.warnings.clone();
-            (Chosen::Dynamic(t), labels, cv, warnings)
+            (Chosen::Filtered(t), labels, cv, warnings)
         }
         _ => return Err("internal: no chosen form".into()),
     };
@@ -496,8 +496,8 @@ pub fn predict_chosen(
     chosen: &Chosen,
 ) -> Result<Predictions, String> {
     match chosen {
-        Chosen::Dynamic(t) => predict(ds, t),
-        Chosen::Static(s) => Ok(ds
+        Chosen::Filtered(t) => predict(ds, t),
+        Chosen::Position(s) => Ok(ds
             .runs
             .iter()
             .enumerate()
@@ -599,11 +599,11 @@ impl Procedure for MachineFit<'_> {
         rows: &[(usize, usize)],
     ) -> usize {
         match &model.chosen {
-            Chosen::Dynamic(t) => {
+            Chosen::Filtered(t) => {
                 let env = crate::export::training_envelope(self.ds, &t.inputs, predicted, train);
                 crate::export::rows_beyond(self.ds, &env, rows)
             }
-            Chosen::Static(s) => {
+            Chosen::Position(s) => {
                 let env = crate::export::machine_envelope(&s.model, self.data, train);
                 let m = &self.data.machine;
                 let (mut t, mut o) = (
@@ -646,8 +646,8 @@ pub fn fit_machine(
     for fold in &cv.folds {
         let sel = &fold.model;
         choices.push(match &sel.chosen {
-            Chosen::Dynamic(t) => t.choices.clone(),
-            Chosen::Static(_) => Vec::new(),
+            Chosen::Filtered(t) => t.choices.clone(),
+            Chosen::Position(_) => Vec::new(),
         });
         fold_selections.push(FoldSelection {
             candidates: sel.candidates.clone(),

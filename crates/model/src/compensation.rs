@@ -279,27 +279,29 @@ impl BoundDynamicModel {
     }
 }
 
-/// A compensation model the control runs: seed A/C's form or a fitted dynamic model.
+/// A compensation model the control runs, in one of two forms: position-dependent (with the
+/// reference-sensor regression) or filtered (a fitted dynamic model).
 // Built once at load time and kept in one Vec: the variants' sizes cost nothing on the cycle,
 // a Box would cost an indirection on it.
 #[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone, PartialEq)]
 pub enum CompensationModel {
-    /// Seed A's general form / seed C's regression: a function of this cycle's values.
-    Static(Model),
-    /// A fitted dynamic model: its filters carry history from cycle to cycle.
-    Dynamic(BoundDynamicModel),
+    /// A position-dependent model or the reference-sensor regression: a function of this
+    /// cycle's values.
+    Position(Model),
+    /// A fitted filtered (dynamic) model: its filters carry history from cycle to cycle.
+    Filtered(BoundDynamicModel),
 }
 
 impl From<Model> for CompensationModel {
     fn from(m: Model) -> Self {
-        Self::Static(m)
+        Self::Position(m)
     }
 }
 
 impl From<BoundDynamicModel> for CompensationModel {
     fn from(m: BoundDynamicModel) -> Self {
-        Self::Dynamic(m)
+        Self::Filtered(m)
     }
 }
 
@@ -307,67 +309,67 @@ impl CompensationModel {
     /// Its name.
     pub fn name(&self) -> &str {
         match self {
-            Self::Static(m) => m.name(),
-            Self::Dynamic(d) => d.name(),
+            Self::Position(m) => m.name(),
+            Self::Filtered(d) => d.name(),
         }
     }
 
     /// The temperature channels it reads (lagged channels count as what they are), sorted.
     pub fn used_sensors(&self) -> &[usize] {
         match self {
-            Self::Static(m) => m.used_sensors(),
-            Self::Dynamic(d) => d.temperature_channels(),
+            Self::Position(m) => m.used_sensors(),
+            Self::Filtered(d) => d.temperature_channels(),
         }
     }
 
     /// Where it was trained, if its file says ([`crate::envelope`]).
     pub fn envelope(&self) -> Option<&TrainingEnvelope> {
         match self {
-            Self::Static(m) => m.envelope(),
-            Self::Dynamic(d) => d.envelope(),
+            Self::Position(m) => m.envelope(),
+            Self::Filtered(d) => d.envelope(),
         }
     }
 
     /// Whether it keeps state between cycles (its filters), so that it must be stepped every
     /// cycle, in order, to be current.
     pub fn keeps_state(&self) -> bool {
-        matches!(self, Self::Dynamic(_))
+        matches!(self, Self::Filtered(_))
     }
 
     /// Whether it reads axis positions (a fitted dynamic model does not).
     pub fn reads_positions(&self) -> bool {
-        matches!(self, Self::Static(_))
+        matches!(self, Self::Position(_))
     }
 
     /// Number of axes it gives an error for (the machine's).
     pub fn axis_count(&self) -> usize {
         match self {
-            Self::Static(m) => m.axis_count(),
-            Self::Dynamic(d) => d.channels().axes.min(MAX_AXES),
+            Self::Position(m) => m.axis_count(),
+            Self::Filtered(d) => d.channels().axes.min(MAX_AXES),
         }
     }
 
     /// The static model, if it is one.
     pub fn as_static(&self) -> Option<&Model> {
         match self {
-            Self::Static(m) => Some(m),
-            Self::Dynamic(_) => None,
+            Self::Position(m) => Some(m),
+            Self::Filtered(_) => None,
         }
     }
 
     /// The static model, if it is one, to switch its parts.
     pub fn as_static_mut(&mut self) -> Option<&mut Model> {
         match self {
-            Self::Static(m) => Some(m),
-            Self::Dynamic(_) => None,
+            Self::Position(m) => Some(m),
+            Self::Filtered(_) => None,
         }
     }
 
     /// The dynamic model, if it is one.
     pub fn as_dynamic(&self) -> Option<&BoundDynamicModel> {
         match self {
-            Self::Static(_) => None,
-            Self::Dynamic(d) => Some(d),
+            Self::Position(_) => None,
+            Self::Filtered(d) => Some(d),
         }
     }
 
@@ -381,13 +383,13 @@ impl CompensationModel {
         input: &CycleInput<'_>,
     ) -> Result<[f64; MAX_AXES], EvalError> {
         match self {
-            Self::Static(m) => {
+            Self::Position(m) => {
                 let c = m.evaluate(input)?;
                 let mut error_um = [0.0; MAX_AXES];
                 error_um[..c.axis_count()].copy_from_slice(c.error_um());
                 Ok(error_um)
             }
-            Self::Dynamic(d) => d.step(dt_s, input),
+            Self::Filtered(d) => d.step(dt_s, input),
         }
     }
 
@@ -426,7 +428,7 @@ impl CompensationModel {
 
     /// Forgets a dynamic model's history (nothing for a static model).
     pub fn reset(&mut self) {
-        if let Self::Dynamic(d) = self {
+        if let Self::Filtered(d) = self {
             d.reset();
         }
     }
