@@ -618,7 +618,7 @@ impl Procedure for MachineFit<'_> {
     }
 }
 
-/// The outer protocol ([`crate::out_of_fold::cross_validate`]) over [`select`]: for each fold,
+/// The outer protocol (`out_of_fold::cross_validate`) over [`select`]: for each fold,
 /// select and fit on its training rows, predict its test rows; then the model to write, the same
 /// selection on every row.
 pub fn fit_machine(
