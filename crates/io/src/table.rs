@@ -570,12 +570,19 @@ pub fn read_csv(
     parse_csv(file, &bytes, options)
 }
 
-/// CSV bytes as text: UTF-8 (with or without a byte-order mark) when they are valid UTF-8, else
+/// CSV bytes as text: UTF-16 when a byte-order mark says so, UTF-8 (with or without a
+/// byte-order mark) when they are valid UTF-8, else
 /// Windows-1252 — what Excel on a German or English Windows writes with "CSV (semicolon
 /// separated)", `°` as one byte 0xB0. Windows-1252 decodes every byte and Latin-1 is its subset
 /// for the letters shops use; a UTF-8 file almost never reads as valid UTF-8 by accident in the
 /// other direction, so the order decides safely.
 fn decode(bytes: &[u8]) -> std::borrow::Cow<'_, str> {
+    // "Unicode text" from Excel is UTF-16 with a byte-order mark: read by the mark.
+    if let Some((encoding, _)) = encoding_rs::Encoding::for_bom(bytes) {
+        if encoding != encoding_rs::UTF_8 {
+            return encoding.decode_with_bom_removal(bytes).0;
+        }
+    }
     match std::str::from_utf8(bytes) {
         Ok(text) => std::borrow::Cow::Borrowed(text),
         Err(_) => {
@@ -848,6 +855,16 @@ mod tests {
         );
         let u = parse_csv(Path::new("u.csv"), utf8.as_bytes(), CsvOptions::default()).unwrap();
         assert_eq!(u.columns, t.columns);
+        // And in UTF-16 with its byte-order mark, as Excel's "Unicode text" writes it.
+        let mut utf16 = vec![0xff, 0xfe];
+        utf16.extend(
+            utf8.trim_start_matches('\u{feff}')
+                .encode_utf16()
+                .flat_map(u16::to_le_bytes),
+        );
+        let w = parse_csv(Path::new("w.csv"), &utf16, CsvOptions::default()).unwrap();
+        assert_eq!(w.columns, t.columns);
+        assert_eq!(w.row(0).number(1), Number::Value(21.5));
     }
 
     #[cfg(not(feature = "xlsx"))]
