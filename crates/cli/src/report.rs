@@ -296,7 +296,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
         (
             "sign".to_string(),
             format!(
-                "error = actual − nominal; residual = measured − predicted; measured {}; uncompensated = measured relative to the first sample",
+                "error = actual − nominal; residual = measured − predicted; measured {}; uncompensated = measured, taken the same way",
                 if relative {
                     "relative to each channel's first sample with a measurement, as the fit took it"
                 } else {

@@ -8,8 +8,8 @@ use support::repo;
 /// The cross-slide example run with measured errors added: measured X = predicted X + 1 µm on
 /// every row (predicted 4.5, 0, 9, 12, 8 → measured 5.5, 1, 10, 13, 9). Held out from
 /// t = 120 s (rows 3–5): residual 1, 1, 1 → RMSE 1, max 1, peak-to-peak 0; uncompensated =
-/// measured − first measured = 4.5, 7.5, 3.5 → RMS √((20.25 + 56.25 + 12.25)/3) = √29.583 =
-/// 5.4391.
+/// measured as taken for a position-dependent model (the residual's reference point) = 10, 13,
+/// 9 → RMS √((100 + 169 + 81)/3) = √116.667 = 10.8012.
 #[test]
 fn report_metrics_and_files() {
     let dir = std::env::temp_dir().join(format!("truepos-report-{}", std::process::id()));
@@ -57,7 +57,7 @@ fn report_metrics_and_files() {
     assert!((m["rmse_um"].as_f64().unwrap() - 1.0).abs() < 1e-9, "{v}");
     assert!((m["max_abs_um"].as_f64().unwrap() - 1.0).abs() < 1e-9);
     assert!(m["peak_to_peak_um"].as_f64().unwrap().abs() < 1e-9);
-    assert!((m["uncompensated_rmse_um"].as_f64().unwrap() - 5.439_056).abs() < 1e-5);
+    assert!((m["uncompensated_rmse_um"].as_f64().unwrap() - 10.801_234).abs() < 1e-5);
     let html = std::fs::read_to_string(dir.join("report/report.html")).unwrap();
     assert!(html.contains("<svg"));
     assert!(html.contains("Validation protocol"));

@@ -154,7 +154,8 @@ pub struct Metrics {
     pub max_abs_um: f64,
     /// Peak-to-peak of the residual.
     pub peak_to_peak_um: f64,
-    /// RMS of the uncompensated error: measured relative to the first sample of the run.
+    /// RMS of the uncompensated error: the measured error as the channel holds it (the same
+    /// reference point as the residual).
     pub uncompensated_rmse_um: f64,
     /// 1 − rmse / uncompensated rmse.
     pub reduction: f64,

@@ -4,16 +4,12 @@ use std::ops::Range;
 
 use crate::{Channel, Metrics};
 
-/// Metrics of a channel over `range` (NaN samples skipped). The uncompensated error is taken
-/// relative to the first measured sample of the run, as a machine is zeroed when it starts
-/// (with sparse measurements the first rows may have none).
+/// Metrics of a channel over `range` (NaN samples skipped). The uncompensated error is the
+/// measured error as the channel holds it — the same reference point as the residual: the caller
+/// takes the measured errors relative to the run's first sample, or as measured, once
+/// (`truepos report` as the model was fitted, `fit --report` relative, the demo as measured), so
+/// a headline and a table of one report never disagree.
 pub fn channel_metrics(ch: &Channel, range: Range<usize>) -> Metrics {
-    let first = ch
-        .measured
-        .iter()
-        .copied()
-        .find(|m| m.is_finite())
-        .unwrap_or(0.0);
     let (mut se, mut su, mut n) = (0.0, 0.0, 0usize);
     let (mut max_abs, mut lo, mut hi) = (0.0_f64, f64::INFINITY, f64::NEG_INFINITY);
     for i in range.clone() {
@@ -25,7 +21,7 @@ pub fn channel_metrics(ch: &Channel, range: Range<usize>) -> Metrics {
             continue;
         }
         se += r * r;
-        su += (m - first) * (m - first);
+        su += m * m;
         n += 1;
         max_abs = max_abs.max(r.abs());
         lo = lo.min(r);
@@ -135,8 +131,8 @@ pub(crate) fn range_of<'a>(series: impl Iterator<Item = &'a [f64]>) -> (f64, f64
 mod tests {
     use super::*;
 
-    /// RMSE of residuals (1, −1, 1, −1) = 1; max 1; peak-to-peak 2; measured relative to the
-    /// first sample (0, 2, 4, 6) → RMS √((0 + 4 + 16 + 36)/4) = √14 = 3.742; reduction 1 − 1/√14.
+    /// RMSE of residuals (1, −1, 1, −1) = 1; max 1; peak-to-peak 2; measured as given (10, 12,
+    /// 14, 16) → RMS √((100 + 144 + 196 + 256)/4) = √174; reduction 1 − 1/√174.
     #[test]
     fn metrics_by_hand() {
         let ch = Channel {
@@ -149,12 +145,12 @@ mod tests {
         assert!((m.rmse_um - 1.0).abs() < 1e-12);
         assert_eq!(m.max_abs_um, 1.0);
         assert_eq!(m.peak_to_peak_um, 2.0);
-        assert!((m.uncompensated_rmse_um - 14f64.sqrt()).abs() < 1e-12);
-        assert!((m.reduction - (1.0 - 1.0 / 14f64.sqrt())).abs() < 1e-12);
-        // Over the last two samples only: residuals 1, −1; measured − first = 4, 6.
+        assert!((m.uncompensated_rmse_um - 174f64.sqrt()).abs() < 1e-12);
+        assert!((m.reduction - (1.0 - 1.0 / 174f64.sqrt())).abs() < 1e-12);
+        // Over the last two samples only: residuals 1, −1; measured 14, 16.
         let m = channel_metrics(&ch, 2..4);
         assert!((m.rmse_um - 1.0).abs() < 1e-12);
-        assert!((m.uncompensated_rmse_um - 26f64.sqrt()).abs() < 1e-12);
+        assert!((m.uncompensated_rmse_um - 226f64.sqrt()).abs() < 1e-12);
     }
 
     #[test]
