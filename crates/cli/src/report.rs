@@ -209,6 +209,94 @@ fn volume(
     crate::volume_map::of_model(machine, model.as_static()?, &rows, &run.time_s)
 }
 
+/// What the report describes and how, first what a shop files with it: the machine, the model
+/// file and its SHA-256, the run file, when and by which truepos it was made.
+fn protocol(
+    args: &Args,
+    machine: &str,
+    model: &str,
+    run_name: &str,
+    relative: bool,
+    failed: usize,
+    cycles: usize,
+) -> Vec<(String, String)> {
+    let sha = truepos_files::read::read(&args.model, truepos_files::MODEL).map_or_else(
+        |e| format!("cannot be read again: {e}"),
+        |b| truepos_io::model_file::sha256_hex(&b),
+    );
+    let made = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .ok()
+        .and_then(|d| truepos_io::timestamp::format_utc(d.as_secs_f64()))
+        .unwrap_or_default();
+    vec![
+        ("machine".to_string(), machine.to_string()),
+        (
+            "model".to_string(),
+            format!("`{model}`, file {} (sha256 {sha})", args.model.display()),
+        ),
+        (
+            "run".to_string(),
+            format!("{run_name}, file {}", args.run.display()),
+        ),
+        (
+            "made".to_string(),
+            format!("{made} by truepos {}", env!("CARGO_PKG_VERSION")),
+        ),
+        (
+            "evaluation".to_string(),
+            format!(
+                "the model file evaluated cycle by cycle as the control would ({failed} of \
+                 {cycles} cycles failed validation and show no prediction)"
+            ),
+        ),
+        (
+            "sign".to_string(),
+            format!(
+                "error = actual − nominal; residual = measured − predicted; measured {}; \
+                 uncompensated = measured, taken the same way",
+                if relative {
+                    "relative to each channel's first sample with a measurement, as the fit took it"
+                } else {
+                    "as in the file"
+                }
+            ),
+        ),
+        (
+            "held-out part".to_string(),
+            match args.test_from_s {
+                Some(t) => format!("from t = {t} s on; the figures of merit cover only this part"),
+                None => "none given: the figures of merit cover the whole run".to_string(),
+            },
+        ),
+    ]
+}
+
+/// The conclusion first, in plain words, one card per axis: how much of the error the model
+/// removes on this run (or that it makes it worse).
+fn conclusions(channels: &[Channel], range: std::ops::Range<usize>) -> Vec<(String, String)> {
+    channels
+        .iter()
+        .map(|c| {
+            let m = channel_metrics(c, range.clone());
+            let what = if m.reduction >= 0.0 {
+                format!(
+                    "{}: the model removes {:.0} % of the error",
+                    c.name,
+                    100.0 * m.reduction
+                )
+            } else {
+                format!("{}: the model makes the error worse", c.name)
+            };
+            (
+                what,
+                format!("{:.2} → {:.2} µm RMS", m.uncompensated_rmse_um, m.rmse_um),
+            )
+        })
+        .collect()
+}
+
+/// Runs `truepos report`.
 pub fn run(args: Args) -> Result<(), CliError> {
     let machine = machine_file::load(&args.machine)?.machine;
     let mut model = Evaluator::load(&args.model, &machine)?;
@@ -281,37 +369,17 @@ pub fn run(args: Args) -> Result<(), CliError> {
             )
         })
         .collect();
-    let mut protocol = vec![
-        ("machine".to_string(), machine.name.clone()),
-        ("model".to_string(), model.name().to_string()),
-        ("run".to_string(), run_name.clone()),
-        (
-            "evaluation".to_string(),
-            format!(
-                "the model file evaluated cycle by cycle as the control would ({} of {} cycles failed validation and show no prediction)",
-                failed,
-                run.time_s.len()
-            ),
-        ),
-        (
-            "sign".to_string(),
-            format!(
-                "error = actual − nominal; residual = measured − predicted; measured {}; uncompensated = measured, taken the same way",
-                if relative {
-                    "relative to each channel's first sample with a measurement, as the fit took it"
-                } else {
-                    "as in the file"
-                }
-            ),
-        ),
-    ];
-    protocol.push((
-        "held-out part".to_string(),
-        match args.test_from_s {
-            Some(t) => format!("from t = {t} s on; the figures of merit cover only this part"),
-            None => "none given: the figures of merit cover the whole run".to_string(),
-        },
-    ));
+    let protocol = protocol(
+        &args,
+        &machine.name,
+        model.name(),
+        &run_name,
+        relative,
+        failed,
+        run.time_s.len(),
+    );
+    let range = test_from.unwrap_or(0)..run.time_s.len();
+    let headline = conclusions(&channels, range.clone());
     let data = ReportData {
         title: format!("truepos report: model `{}` on {}", model.name(), run_name),
         time_s: run.time_s.clone(),
@@ -324,11 +392,10 @@ pub fn run(args: Args) -> Result<(), CliError> {
         },
         protocol,
         volume: volume(&machine, model.model(), &run),
-        headline: Vec::new(),
+        headline,
         runs: Vec::new(),
     };
     let html = write_report(&args.out, &data)?;
-    let range = test_from.unwrap_or(0)..run.time_s.len();
     let metrics: Vec<_> = data
         .channels
         .iter()

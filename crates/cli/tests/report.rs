@@ -61,6 +61,16 @@ fn report_metrics_and_files() {
     let html = std::fs::read_to_string(dir.join("report/report.html")).unwrap();
     assert!(html.contains("<svg"));
     assert!(html.contains("Validation protocol"));
+    // For the shop floor: the conclusion first (1 − 1/10.80 = 91 %), and the model file named
+    // with its SHA-256 and the truepos that made the report.
+    assert!(
+        html.contains("the model removes 91 % of the error"),
+        "conclusion"
+    );
+    let bytes = std::fs::read(repo("examples/cross-slide/model.toml")).unwrap();
+    let sha = truepos_io::model_file::sha256_hex(&bytes);
+    assert!(html.contains(&format!("sha256 {sha}")), "model checksum");
+    assert!(html.contains("by truepos "), "version");
     assert!(
         html.contains("dT_bed · bed(Z) · KFA(Z)"),
         "coefficient names"

@@ -318,10 +318,11 @@ pub fn load(path: &Path, machine: &Machine) -> Result<Model, InputError> {
 /// instead of loaded half. A file without the line (written by hand) is read as it is.
 const CHECKSUM_PREFIX: &str = "# sha256 ";
 
-/// The SHA-256 of `text` in lower-case hex.
-fn sha256_hex(text: &str) -> String {
+/// The SHA-256 of `bytes` in lower-case hex (a model file's checksum line; reports name the
+/// model file they describe by it).
+pub fn sha256_hex(bytes: &[u8]) -> String {
     use sha2::{Digest, Sha256};
-    Sha256::digest(text.as_bytes())
+    Sha256::digest(bytes)
         .iter()
         .map(|b| format!("{b:02x}"))
         .collect()
@@ -329,7 +330,7 @@ fn sha256_hex(text: &str) -> String {
 
 /// `text` with its checksum line in front.
 fn with_checksum(text: &str) -> String {
-    format!("{CHECKSUM_PREFIX}{}\n{text}", sha256_hex(text))
+    format!("{CHECKSUM_PREFIX}{}\n{text}", sha256_hex(text.as_bytes()))
 }
 
 /// Refuses a file whose checksum line does not match what follows it.
@@ -338,7 +339,7 @@ fn check_checksum(path: &Path, text: &str) -> Result<(), InputError> {
         return Ok(());
     };
     let (stated, body) = rest.split_once('\n').unwrap_or((rest, ""));
-    if stated.trim() == sha256_hex(body) {
+    if stated.trim() == sha256_hex(body.as_bytes()) {
         return Ok(());
     }
     Err(InputError::at(
