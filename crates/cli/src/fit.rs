@@ -485,21 +485,12 @@ pub(crate) fn model_name(path: &Path, forms: &[&str], why: &str) -> Result<(), C
     )))
 }
 
-/// The machine axis a target serves by its name alone, as the model file's loader reads it
-/// (`Z`, `Z_um`, `dz_um`; axis letters X, Y, Z, A, B, C, U, V, W).
-fn axis_by_name(target: &str) -> Option<char> {
-    let lower = target.to_ascii_lowercase();
-    let stem = lower.strip_suffix("_um").unwrap_or(&lower);
-    let stem = if stem.len() == 2 {
-        stem.strip_prefix('d').unwrap_or(stem)
-    } else {
-        stem
-    };
-    let mut chars = stem.chars();
-    match (chars.next(), chars.next()) {
-        (Some(c), None) if "xyzabcuvw".contains(c) => Some(c.to_ascii_uppercase()),
-        _ => None,
-    }
+/// Whether a target serves an axis by its name alone, as the model file's loader reads it
+/// (`Z`, `Z_um`, `dz_um`), for any of the axis letters a machine file uses.
+fn names_an_axis(target: &str) -> bool {
+    ["X", "Y", "Z", "A", "B", "C", "U", "V", "W"]
+        .iter()
+        .any(|a| truepos_io::dynamic_model_file::names_axis(target, a))
 }
 
 /// Refuses a fit whose model would leave a target unapplied: one named by no --axis and by no
@@ -508,7 +499,7 @@ fn unmapped(ds: &Dataset, axes: &[TargetAxis]) -> Result<(), CliError> {
     let missing: Vec<&String> = ds
         .target_names
         .iter()
-        .filter(|t| axis_by_name(t).is_none() && !axes.iter().any(|a| &a.target == *t))
+        .filter(|t| !names_an_axis(t) && !axes.iter().any(|a| &a.target == *t))
         .collect();
     if missing.is_empty() {
         return Ok(());

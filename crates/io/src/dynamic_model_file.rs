@@ -263,12 +263,16 @@ impl DynamicModelFile {
 /// The axis a target or output named `name` serves by its name alone: `Z`, `Z_um` or `dz_um`
 /// (case-insensitive) serve axis Z.
 pub fn axis_named_like(name: &str, machine: &Machine) -> Option<usize> {
+    machine.axes.iter().position(|a| names_axis(name, &a.name))
+}
+
+/// Whether a target or output named `name` serves the axis named `axis` by its name alone
+/// (`Z`, `Z_um` or `dz_um` for Z, case-insensitive).
+pub fn names_axis(name: &str, axis: &str) -> bool {
     let lower = name.to_ascii_lowercase();
     let stem = lower.strip_suffix("_um").unwrap_or(&lower);
-    machine.axes.iter().position(|a| {
-        let a = a.name.to_ascii_lowercase();
-        stem == a || stem.strip_prefix('d') == Some(a.as_str())
-    })
+    let axis = axis.to_ascii_lowercase();
+    stem == axis || stem.strip_prefix('d') == Some(axis.as_str())
 }
 
 impl DynamicModelFile {
