@@ -2,7 +2,9 @@
 //! file is given, as its output, a symbolic link to a victim, a dangling link, a FIFO, a
 //! device, one of its own inputs, a file in a missing directory or a directory. Each must be
 //! refused, naming the output, within a deadline, and leave the victim, the input and the path
-//! exactly as they were.
+//! exactly as they were. `run` is here through its CSV sink (whose final file is the output);
+//! `report` and `fit --report` write a folder of files, each through the same door
+//! (`truepos_files::write`), and are not cases here.
 
 mod support;
 
@@ -33,10 +35,12 @@ enum Kind {
 
 /// The commands that write a file: each with its input (a copy in the case's directory, so
 /// that the output can be it) and the arguments around `OUT`.
-const COMMANDS: [&str; 8] = [
+const COMMANDS: [&str; 10] = [
     "export",
     "eval",
     "fit",
+    "predictions",
+    "run",
     "sim",
     "log",
     "reidentify",
@@ -94,6 +98,19 @@ fn case(cmd: &str, dir: &Path, out: &Path) -> (PathBuf, Vec<String>) {
             copy(&repo(RUN), "run.csv"),
             vec!["fit", "--inputs", "*bearing", "--target", "X_mm", "--run"],
         ),
+        "predictions" => (
+            copy(&repo(RUN), "run.csv"),
+            vec!["fit", "--inputs", "*bearing", "--target", "X_mm", "--run"],
+        ),
+        "run" => {
+            let i = copy(&repo(RUN), "run.csv");
+            let source = format!("replay:{}", i.display());
+            let sink = format!("csv:{o}");
+            let args = vec!["run", "--fast", "--duration-s", "1", "--source"];
+            let mut args: Vec<String> = args.into_iter().map(String::from).collect();
+            args.extend([source, "--sink".into(), sink]);
+            return (i, args);
+        }
         "sim" => (
             copy(&repo("examples/twin/twin.toml"), "twin.toml"),
             vec!["sim", "--scenario", "spindle-warmup", "--twin"],
@@ -122,6 +139,7 @@ fn case(cmd: &str, dir: &Path, out: &Path) -> (PathBuf, Vec<String>) {
     args.push(input.display().to_string());
     let flag = match cmd {
         "fit" => "--model",
+        "predictions" => "--predictions",
         "log" => "--csv",
         "gcode" => "--output",
         _ => "--out",
@@ -170,7 +188,12 @@ fn check(cmd: &str, kind: Kind, n: u32) {
     let (input, mut args) = case(cmd, &dir, &planned);
     let out = if matches!(kind, Kind::Input) {
         let last = args.len() - 1;
-        args[last] = input.display().to_string();
+        let prefix = if args[last].starts_with("csv:") {
+            "csv:"
+        } else {
+            ""
+        };
+        args[last] = format!("{prefix}{}", input.display());
         input.clone()
     } else {
         planned
