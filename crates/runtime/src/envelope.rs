@@ -30,6 +30,8 @@ pub struct Envelope {
     clamping: [bool; MAX_AXES],
     /// Service time of the latest clamped cycle per axis.
     clamp_seen_s: [f64; MAX_AXES],
+    /// Clamps per axis since start (each `clamped` event counts one).
+    clamps: [u64; MAX_AXES],
     last_time: f64,
     started: bool,
 }
@@ -46,6 +48,7 @@ impl Envelope {
             blending: [false; MAX_AXES],
             clamping: [false; MAX_AXES],
             clamp_seen_s: [f64::NEG_INFINITY; MAX_AXES],
+            clamps: [0; MAX_AXES],
             last_time: 0.0,
             started: false,
         }
@@ -54,6 +57,16 @@ impl Envelope {
     /// The offsets last sent.
     pub fn last(&self) -> &[f64] {
         &self.last_out[..self.limits.len()]
+    }
+
+    /// Whether `axis` is being clamped now (from its `clamped` event to its `clamp-released`).
+    pub fn clamping(&self, axis: usize) -> bool {
+        axis < self.limits.len() && self.clamping[axis]
+    }
+
+    /// How many times `axis` has been clamped since start (one per `clamped` event).
+    pub fn clamps(&self, axis: usize) -> u64 {
+        self.clamps.get(axis).copied().unwrap_or(0)
     }
 
     /// The value `axis`' running blend started from, if a blend is running.
@@ -144,6 +157,7 @@ impl Envelope {
             let report = clamped || now_s - self.clamp_seen_s[a] >= CLAMP_RELEASE_S;
             if report && clamped != self.clamping[a] {
                 let kind = if clamped {
+                    self.clamps[a] += 1;
                     EventKind::Clamped {
                         axis: a,
                         rate: clamped_rate,

@@ -134,6 +134,7 @@ impl ServiceHost {
         Ok(Running {
             service,
             logger,
+            generations: vec![1; models.len()],
             models,
             reloader,
         })
@@ -146,6 +147,8 @@ pub struct Running {
     pub service: Service,
     logger: Option<Logger>,
     models: Vec<String>,
+    /// Per model of the set: 1 as started, one more for every reload applied.
+    generations: Vec<u64>,
     reloader: Option<Reloader>,
 }
 
@@ -193,6 +196,9 @@ impl Running {
                     if let Some(log) = &self.logger {
                         log.note(time_s, "model-reloaded", name, file);
                     }
+                    if let Some(g) = self.generations.get_mut(l.model) {
+                        *g += 1;
+                    }
                     report.reloaded.push((l.model, l.file));
                 }
                 Err(why) => {
@@ -220,6 +226,12 @@ impl Running {
     /// Names of the models of the set, in set order.
     pub fn model_names(&self) -> &[String] {
         &self.models
+    }
+
+    /// Per model of the set, in set order, its generation: 1 as started, one more for every
+    /// reload applied.
+    pub fn model_generations(&self) -> &[u64] {
+        &self.generations
     }
 
     /// How the log is doing now (`None`: no log).

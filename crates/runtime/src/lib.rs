@@ -12,6 +12,7 @@ pub mod events;
 pub mod frame;
 pub mod host;
 pub mod io_traits;
+pub mod live;
 pub mod log;
 pub mod model_set;
 pub mod output;

@@ -29,9 +29,11 @@ use std::time::{Duration, Instant};
 use crossbeam_queue::ArrayQueue;
 use rusqlite::{params_from_iter, Connection};
 
+mod history;
 mod probes;
 mod read;
 
+pub use history::{last_rows, read_events_after, read_history, Bucket, History, Rows};
 pub use probes::{axis_columns as probe_axis_columns, read_probes, ProbeRow, ProbeTable};
 use read::open_read;
 pub use read::{integrity_check, read_cycles, read_events, read_meta, CycleTable, LoggedEvent};

@@ -319,6 +319,27 @@ impl Service {
             .position(|(h, s)| h.failing_since_s.is_some() && s.drives_axes())
     }
 
+    /// This cycle's target per axis: the compensation its origin asks for (a model's value, a
+    /// held value or zero), before blending and the envelope.
+    pub fn targets(&self) -> &[f64] {
+        &self.target[..self.output.axes]
+    }
+
+    /// The safety envelope (blends and clamps per axis).
+    pub fn envelope(&self) -> &Envelope {
+        &self.envelope
+    }
+
+    /// Per path, whether its model is extrapolating now (beyond its training envelope).
+    pub fn path_extrapolating(&self, path: usize) -> bool {
+        self.extrapolating.get(path).is_some_and(Option::is_some)
+    }
+
+    /// Events dropped because the event queue was full.
+    pub fn events_dropped(&self) -> u64 {
+        self.events.dropped()
+    }
+
     /// Cycles run.
     pub fn cycles(&self) -> u64 {
         self.cycles
