@@ -12,7 +12,7 @@ use crate::error::CliError;
 use truepos_io::compensation::load_set;
 use truepos_io::limits::{check_in, finite_in};
 use truepos_io::{cycles, machine_file};
-use truepos_runtime::cycle_budget;
+use truepos_runtime::admission;
 use truepos_runtime::host::{ModelLoader, ReloadSetup};
 use truepos_runtime::log;
 use truepos_runtime::probe::ProbeReplay;
@@ -213,7 +213,7 @@ pub fn run(args: RunArgs) -> Result<(), CliError> {
     let entries = load_set(&args.models, &machine)?;
     let period_s = args.period_ms / 1000.0;
     for e in &entries {
-        cycle_budget::check(e, &machine.machine, period_s).map_err(CliError::refused)?;
+        admission::admit(e, &machine, period_s).map_err(CliError::refused)?;
     }
     let clock = run_clock(&args)?;
     // The service clock's zero, shared with network sources that stamp values themselves.
@@ -250,7 +250,7 @@ pub fn run(args: RunArgs) -> Result<(), CliError> {
                 let entry = load_set(&[path.to_path_buf()], &loader_machine)
                     .map(|mut entries| entries.remove(0))
                     .map_err(|e| e.to_string())?;
-                cycle_budget::check(&entry, &loader_machine.machine, period_s)?;
+                admission::admit(&entry, &loader_machine, period_s)?;
                 Ok(entry)
             }) as ModelLoader,
             watch: true,

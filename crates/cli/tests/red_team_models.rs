@@ -198,3 +198,60 @@ fn a_model_file_written_in_part_is_refused_by_its_checksum() {
     let edited = text.split_once('\n').unwrap().1.replace("2.0", "2.5");
     assert!(eval(&path("edited.toml", &edited)).status.success());
 }
+
+/// Red team item 6: a model no machine has is refused at start, and a hot reload to it leaves
+/// the running model (the log says why) instead of pinning every axis at the envelope.
+#[test]
+fn an_implausible_model_is_refused_at_start_and_at_hot_reload() {
+    let dir = scratch("red-team-admission");
+    for k0 in ["1e6", "1e300", "-1.7e308"] {
+        let wild = vmc3_model_with_k0(&dir, k0);
+        let out = command()
+            .args(["run", "--fast", "--duration-s", "1", "--models"])
+            .arg(&wild)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{k0}: started");
+        assert!(
+            err.contains("one kelvin on sensor") && err.contains("max_offset_um"),
+            "{k0}: {err}"
+        );
+    }
+
+    let model = dir.join("model.toml");
+    std::fs::copy(support::repo("examples/vmc3/model.toml"), &model).unwrap();
+    let log = dir.join("log.db");
+    let mut child = command()
+        .args(["run", "--duration-s", "3", "--reload-on-change", "--json"])
+        .arg("--models")
+        .arg(&model)
+        .arg("--log")
+        .arg(&log)
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(800));
+    std::fs::rename(vmc3_model_with_k0(&dir, "1e6"), &model).unwrap();
+    let start = std::time::Instant::now();
+    while child.try_wait().unwrap().is_none() {
+        assert!(start.elapsed().as_secs() < 30, "the run did not end");
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    let events = truepos_runtime::log::read_events(&log).unwrap();
+    let failed: Vec<_> = events
+        .iter()
+        .filter(|e| e.kind == "model-reload-failed")
+        .collect();
+    assert!(
+        failed
+            .iter()
+            .any(|e| e.detail.contains("one kelvin on sensor")),
+        "{events:?}"
+    );
+    assert!(
+        !events.iter().any(|e| e.kind == "model-reloaded"),
+        "{events:?}"
+    );
+}

@@ -24,9 +24,10 @@ pub enum Error {
     /// The cycle-timing figures (`--stats`) could not be written.
     #[error(transparent)]
     Stats(std::io::Error),
-    /// A model whose evaluation does not fit the cycle (`cycle_budget`).
+    /// A model implausible for the machine or whose evaluation does not fit the cycle
+    /// (`truepos_runtime::admission`).
     #[error("{0}")]
-    TooSlow(String),
+    Refused(String),
 }
 
 #[cfg(test)]

@@ -16,7 +16,7 @@ use truepos_hal::source::Edge;
 use truepos_hal::{pins, Error, HalSink, HalSource};
 use truepos_io::compensation::load_set;
 use truepos_io::limits::{finite_in, int_in};
-use truepos_runtime::cycle_budget;
+use truepos_runtime::admission;
 use truepos_runtime::host::ReloadSetup;
 use truepos_runtime::{MachineConfig, PathState, Running, Service, ServiceConfig, ServiceHost};
 
@@ -134,7 +134,7 @@ fn run(args: RunArgs) -> Result<(), Error> {
     let entries = load_set(&args.models, &machine)?;
     let period_s = args.period_ms / 1000.0;
     for e in &entries {
-        cycle_budget::check(e, &machine.machine, period_s).map_err(Error::TooSlow)?;
+        admission::admit(e, &machine, period_s).map_err(Error::Refused)?;
     }
 
     let stop = Arc::new(AtomicBool::new(false));
@@ -167,7 +167,7 @@ fn run(args: RunArgs) -> Result<(), Error> {
             let entry = load_set(&[path.to_path_buf()], &loader_machine)
                 .map(|mut entries| entries.remove(0))
                 .map_err(|e| e.to_string())?;
-            cycle_budget::check(&entry, &loader_machine.machine, period_s)?;
+            admission::admit(&entry, &loader_machine, period_s)?;
             Ok(entry)
         }),
         watch: false,
