@@ -272,7 +272,9 @@ fn an_output_that_is_an_input_is_refused_and_the_input_kept() {
 #[test]
 fn devices_and_fifos_are_refused_as_inputs_at_once() {
     let d = scratch("rt-inputs");
-    let cases: [(&str, Vec<&str>); 3] = [
+    let cases: [(&str, Vec<&str>); 5] = [
+        ("/dev/zero", vec!["status", "--log", "/dev/zero"]),
+        ("/dev/zero", vec!["log", "--log", "/dev/zero"]),
         (
             "/dev/zero",
             vec![
@@ -328,6 +330,18 @@ fn devices_and_fifos_are_refused_as_inputs_at_once() {
         !ok && err.contains("is a FIFO (named pipe), not a regular file"),
         "{err}"
     );
+    // The campaign's second round: a log that is a FIFO or a directory, named as such (a FIFO
+    // opened by SQLite would wait for a writer; a directory gave "disk I/O error").
+    for (what, log) in [
+        ("a FIFO (named pipe)", fifo.clone()),
+        ("a directory", d.clone()),
+    ] {
+        let (ok, err) = within(10, &["log", "--log", s(&log)]);
+        assert!(
+            !ok && err.contains(&format!("is {what}, not a regular file")),
+            "{err}"
+        );
+    }
 }
 
 #[test]

@@ -86,6 +86,14 @@ pub const CONFIG: Limit = Limit {
     bytes: 4 * MIB,
     env: None,
 };
+/// The service's SQLite log, read by `status`, `log`, `reidentify` and the live view: SQLite
+/// reads it page by page, so its size bounds no memory and is not limited; only its type is
+/// checked (a directory or a device is refused by name).
+pub const LOG: Limit = Limit {
+    kind: "log",
+    bytes: u64::MAX,
+    env: None,
+};
 /// A controller's compensation table or a kinematics error table.
 pub const TABLE: Limit = Limit {
     kind: "table",

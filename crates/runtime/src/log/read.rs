@@ -21,10 +21,17 @@ pub struct LoggedEvent {
 }
 
 pub(crate) fn open_read(path: &Path) -> Result<Connection, LogError> {
-    if !path.exists() {
+    if let Err(e) = truepos_files::read::open(path, truepos_files::LOG) {
         return Err(LogError {
             file: path.to_path_buf(),
-            message: "no such log".into(),
+            message: if e.is_not_found() {
+                "no such log".into()
+            } else {
+                match e.source {
+                    Some(why) => format!("{}: {why}", e.message),
+                    None => e.message,
+                }
+            },
         });
     }
     let conn = Connection::open_with_flags(path, rusqlite::OpenFlags::SQLITE_OPEN_READ_ONLY)
