@@ -22,6 +22,7 @@ mod kin;
 mod reidentify;
 mod report;
 mod run;
+mod run_live;
 mod shape;
 mod sim;
 mod status;

@@ -9,6 +9,7 @@ use std::time::{Duration, Instant};
 
 use crate::envelope_check;
 use crate::error::CliError;
+use crate::run_live::{HttpArgs, Live};
 use truepos_io::compensation::load_set;
 use truepos_io::limits::{check_in, finite_in};
 use truepos_io::{cycles, machine_file};
@@ -99,6 +100,14 @@ pub struct RunArgs {
     /// Print a summary as JSON at the end (and no status line).
     #[arg(long)]
     json: bool,
+    /// Serve the live view (page, JSON, Server-Sent Events, Prometheus `/metrics`) on ADDR:
+    /// `127.0.0.1:8080`, or a port alone for loopback; port 0 picks a free one. An address
+    /// beyond loopback needs a token (TRUEPOS_HTTP_TOKEN or --http-token-file); docs/live_view.md.
+    #[arg(long, value_name = "ADDR")]
+    http: Option<String>,
+    /// The live view's token: the first line of FILE (at least 16 characters).
+    #[arg(long, value_name = "FILE")]
+    http_token_file: Option<PathBuf>,
 }
 
 /// Longest run in s, a year: bounds `--duration-s` and a replay's length at its speed, so that a
@@ -209,6 +218,7 @@ impl Timing {
 }
 
 pub fn run(args: RunArgs) -> Result<(), CliError> {
+    let http = HttpArgs::check(args.http.as_deref(), args.http_token_file.as_deref())?;
     let machine = machine_file::load(&args.machine)?;
     let entries = load_set(&args.models, &machine)?;
     let period_s = args.period_ms / 1000.0;
@@ -236,6 +246,7 @@ pub fn run(args: RunArgs) -> Result<(), CliError> {
     };
     let (sources, replay_end_s) = open_sources(&args, &machine.machine, epoch, &check)?;
     let sinks = open_sinks(&args, &machine, &entries)?;
+    let source_names: Vec<String> = sources.iter().map(|s| s.name().to_string()).collect();
     let config = ServiceConfig {
         blend_s: args.blend_s,
         hold_ramp_s: args.hold_ramp_s,
@@ -263,6 +274,10 @@ pub fn run(args: RunArgs) -> Result<(), CliError> {
         .config(config)
         .log(args.log.clone())
         .start()?;
+    let mut live = match http {
+        Some(h) => Some(Live::start(h, &host, source_names, args.log.as_ref())?),
+        None => None,
+    };
     let stop = Arc::new(AtomicBool::new(false));
     for signal in [signal_hook::consts::SIGTERM, signal_hook::consts::SIGINT] {
         signal_hook::flag::register(signal, Arc::clone(&stop))
@@ -274,8 +289,17 @@ pub fn run(args: RunArgs) -> Result<(), CliError> {
         .or(replay_end_s.map(|e| e + args.period_ms / 1000.0));
     let status_line = !args.json && std::io::stderr().is_terminal();
     let cpu_start = cpu_time_s();
-    let (mut timing, last_status) =
-        cycle_loop(&args, &mut host, (epoch, clock), end_s, &stop, status_line);
+    let (mut timing, last_status) = cycle_loop(
+        &args,
+        (&mut host, live.as_mut()),
+        (epoch, clock),
+        end_s,
+        &stop,
+        status_line,
+    );
+    if let Some(l) = live {
+        l.stop(&host, timing.overruns);
+    }
     if status_line {
         eprintln!();
     }
@@ -472,7 +496,7 @@ fn open_sinks(
 /// speed, so that a replay's outputs do not depend on how fast it plays.
 fn cycle_loop(
     args: &RunArgs,
-    host: &mut Running,
+    (host, mut live): (&mut Running, Option<&mut Live>),
     (epoch, clock): (Instant, Clock),
     end_s: Option<f64>,
     stop: &AtomicBool,
@@ -553,6 +577,9 @@ fn cycle_loop(
             timing.histogram[bucket] += 1;
         }
         k += 1;
+        if let Some(l) = live.as_deref_mut() {
+            l.publish(host, timing.overruns, f64::from(took));
+        }
         if now_s >= next_status {
             next_status += status_every_s;
             last_status = status(&host.service, host.model_names(), took);

@@ -1,0 +1,423 @@
+//! `truepos run --http`: the live view of a replay served over HTTP, checked with a plain TCP
+//! client (std only): the page, the JSON API, the history from the log, the Server-Sent
+//! Events stream resuming with `Last-Event-ID`, `/metrics` through `promtool check metrics`
+//! (Debian `prometheus`, installed by scripts/install_prometheus.sh; missing, the test fails),
+//! and the token beyond loopback. Every wait is bounded and every service is stopped.
+
+use std::io::{BufRead, BufReader, Read, Write};
+use std::net::{SocketAddr, TcpStream};
+use std::path::Path;
+use std::process::{Child, Command, Stdio};
+use std::sync::mpsc;
+use std::time::{Duration, Instant};
+
+mod support;
+use support::{command as truepos, scratch};
+
+const TOKEN: &str = "live-view-token-0123456789abcdef";
+
+/// A `truepos run` with the live view, stopped (SIGTERM, then SIGKILL) when dropped.
+struct Running {
+    child: Child,
+    addr: SocketAddr,
+    stderr: mpsc::Receiver<String>,
+}
+
+impl Running {
+    fn start(extra: &[&str], db: &Path, token: Option<&str>) -> Self {
+        let mut c = truepos();
+        c.args([
+            "run",
+            "--source",
+            "replay:examples/vmc3/run.csv@100",
+            "--period-ms",
+            "100",
+            "--log",
+        ])
+        .arg(db)
+        .args(extra)
+        .env_remove("TRUEPOS_HTTP_TOKEN")
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped());
+        if let Some(t) = token {
+            c.env("TRUEPOS_HTTP_TOKEN", t);
+        }
+        let mut child = c.spawn().unwrap();
+        let (tx, rx) = mpsc::channel();
+        let err = child.stderr.take().unwrap();
+        std::thread::spawn(move || {
+            for line in BufReader::new(err).lines().map_while(Result::ok) {
+                if tx.send(line).is_err() {
+                    break;
+                }
+            }
+        });
+        let deadline = Instant::now() + Duration::from_secs(60);
+        let mut seen = Vec::new();
+        let addr = loop {
+            let left = deadline.saturating_duration_since(Instant::now());
+            match rx.recv_timeout(left) {
+                Ok(line) => {
+                    if let Some(a) = line.strip_prefix("live view on http://") {
+                        break a.trim_end_matches('/').parse::<SocketAddr>().unwrap();
+                    }
+                    seen.push(line);
+                }
+                Err(_) => {
+                    let _ = child.kill();
+                    panic!("no `live view on` line within 60 s: {seen:?}");
+                }
+            }
+        };
+        // A server bound to every address is reached through loopback.
+        let addr = SocketAddr::from(([127, 0, 0, 1], addr.port()));
+        Self {
+            child,
+            addr,
+            stderr: rx,
+        }
+    }
+
+    /// SIGTERM and wait (at most 20 s) for a clean exit; its success and stderr.
+    fn stop(mut self) -> (bool, String) {
+        let _ = Command::new("kill")
+            .args(["-TERM", &self.child.id().to_string()])
+            .status();
+        let deadline = Instant::now() + Duration::from_secs(20);
+        let status = loop {
+            if let Some(s) = self.child.try_wait().unwrap() {
+                break Some(s);
+            }
+            if Instant::now() > deadline {
+                break None;
+            }
+            std::thread::sleep(Duration::from_millis(50));
+        };
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+        let text: Vec<String> = self.stderr.try_iter().collect();
+        (status.is_some_and(|s| s.success()), text.join("\n"))
+    }
+}
+
+impl Drop for Running {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// One response: status, head (lower-cased names), body.
+struct Reply {
+    status: u16,
+    head: String,
+    body: String,
+}
+
+/// A GET with the given extra header lines, over a fresh connection, bounded to 10 s.
+fn get(addr: SocketAddr, target: &str, headers: &[&str]) -> Reply {
+    request(addr, "GET", target, headers)
+}
+
+fn request(addr: SocketAddr, method: &str, target: &str, headers: &[&str]) -> Reply {
+    let mut s = TcpStream::connect_timeout(&addr, Duration::from_secs(5)).unwrap();
+    s.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
+    let mut req = format!("{method} {target} HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n");
+    for h in headers {
+        req += h;
+        req += "\r\n";
+    }
+    req += "\r\n";
+    s.write_all(req.as_bytes()).unwrap();
+    let mut raw = Vec::new();
+    s.read_to_end(&mut raw).unwrap();
+    let text = String::from_utf8_lossy(&raw).into_owned();
+    let (head, body) = text.split_once("\r\n\r\n").unwrap_or((&text, ""));
+    let status = head
+        .split_whitespace()
+        .nth(1)
+        .and_then(|c| c.parse().ok())
+        .unwrap_or(0);
+    Reply {
+        status,
+        head: head.to_lowercase(),
+        body: body.to_string(),
+    }
+}
+
+fn json(r: &Reply) -> serde_json::Value {
+    assert_eq!(r.status, 200, "{}", r.body);
+    serde_json::from_str(&r.body).unwrap_or_else(|e| panic!("{e}: {}", r.body))
+}
+
+/// Reads the event stream for `for_`: the (id, event type, data) of each message.
+fn stream(
+    addr: SocketAddr,
+    last_event_id: Option<u64>,
+    for_: Duration,
+) -> Vec<(u64, String, String)> {
+    let mut s = TcpStream::connect_timeout(&addr, Duration::from_secs(5)).unwrap();
+    s.set_read_timeout(Some(Duration::from_millis(100)))
+        .unwrap();
+    let mut req = format!("GET /events HTTP/1.1\r\nHost: {addr}\r\nAccept: text/event-stream\r\n");
+    if let Some(id) = last_event_id {
+        req += &format!("Last-Event-ID: {id}\r\n");
+    }
+    req += "\r\n";
+    s.write_all(req.as_bytes()).unwrap();
+    let deadline = Instant::now() + for_;
+    let mut raw = Vec::new();
+    let mut buf = [0u8; 65536];
+    while Instant::now() < deadline {
+        match s.read(&mut buf) {
+            Ok(0) => break,
+            Ok(n) => raw.extend_from_slice(&buf[..n]),
+            Err(_) => continue,
+        }
+    }
+    let text = String::from_utf8_lossy(&raw).into_owned();
+    let (head, body) = text.split_once("\r\n\r\n").unwrap();
+    assert!(
+        head.to_lowercase()
+            .contains("content-type: text/event-stream"),
+        "{head}"
+    );
+    body.split("\n\n")
+        .filter_map(|block| {
+            let mut id = None;
+            let (mut kind, mut data) = (String::new(), String::new());
+            for line in block.lines() {
+                if let Some(v) = line.strip_prefix("id: ") {
+                    id = v.parse().ok();
+                } else if let Some(v) = line.strip_prefix("event: ") {
+                    kind = v.into();
+                } else if let Some(v) = line.strip_prefix("data: ") {
+                    data = v.into();
+                }
+            }
+            // A message cut by the end of the read has no data yet.
+            Some((id?, kind, data)).filter(|m| !m.2.is_empty() && data_complete(&m.2))
+        })
+        .collect()
+}
+
+fn data_complete(data: &str) -> bool {
+    serde_json::from_str::<serde_json::Value>(data).is_ok()
+}
+
+fn promtool_check(text: &str) {
+    let promtool = ["/usr/bin/promtool", "/usr/local/bin/promtool"]
+        .into_iter()
+        .find(|p| Path::new(p).exists())
+        .unwrap_or_else(|| {
+            panic!("promtool is missing: run `bash scripts/install_prometheus.sh` (scripts/test.sh does)")
+        });
+    let mut child = Command::new(promtool)
+        .args(["check", "metrics"])
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    child
+        .stdin
+        .take()
+        .unwrap()
+        .write_all(text.as_bytes())
+        .unwrap();
+    let out = child.wait_with_output().unwrap();
+    assert!(
+        out.status.success() && out.stdout.is_empty() && out.stderr.is_empty(),
+        "promtool check metrics: {}{}\n{text}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+#[test]
+fn the_live_view_serves_the_page_state_history_stream_and_metrics() {
+    let dir = scratch("live-view");
+    let db = dir.join("log.sqlite");
+    let run = Running::start(&["--http", "127.0.0.1:0"], &db, None);
+    let a = run.addr;
+
+    let page = get(a, "/", &[]);
+    assert_eq!(page.status, 200);
+    assert!(
+        page.head.contains("content-type: text/html"),
+        "{}",
+        page.head
+    );
+    assert!(page.body.len() < 100_000, "page {} bytes", page.body.len());
+    assert!(page.body.contains("<canvas") && page.body.contains("EventSource"));
+    for external in ["src=\"http", "href=\"http", "@import", "cdn"] {
+        assert!(
+            !page.body.contains(external),
+            "the page fetches `{external}`"
+        );
+    }
+
+    let info = json(&get(a, "/api/info", &[]));
+    assert_eq!(info["axes"].as_array().unwrap().len(), 3, "{info}");
+    assert_eq!(info["axes"][0]["unit"], "µm");
+    assert_eq!(info["temperatures"][0]["unit"], "°C");
+    assert_eq!(info["log"], true);
+
+    let first = json(&get(a, "/api/state", &[]));
+    std::thread::sleep(Duration::from_millis(600));
+    let second = json(&get(a, "/api/state", &[]));
+    assert_eq!(second["state"], "active", "{second}");
+    assert!(
+        second["time_s"].as_f64().unwrap() > first["time_s"].as_f64().unwrap(),
+        "the state advances: {} then {}",
+        first["time_s"],
+        second["time_s"]
+    );
+    assert_eq!(second["paths"][0]["model"], "vmc3-example");
+    assert_eq!(second["paths"][0]["generation"], 1);
+    assert_eq!(second["temperatures"][0]["validation"], "ok");
+
+    // The log commits every 250 ms: a second of history is there.
+    std::thread::sleep(Duration::from_millis(700));
+    let h = json(&get(a, "/api/history?window_s=100000&buckets=10", &[]));
+    let buckets = h["buckets"].as_array().unwrap();
+    assert!(!buckets.is_empty() && buckets.len() <= 11, "{h}");
+    let cols: Vec<&str> = h["columns"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| c.as_str().unwrap())
+        .collect();
+    let z = cols.iter().position(|c| *c == "Z_offset_um").unwrap();
+    for b in buckets {
+        let (lo, hi) = (b["min"][z].as_f64().unwrap(), b["max"][z].as_f64().unwrap());
+        assert!(lo <= hi, "{b}");
+    }
+    let events = json(&get(a, "/api/events", &[]));
+    assert!(
+        events["events"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|e| e["kind"] == "model-selected"),
+        "{events}"
+    );
+
+    // The stream: a state message at least every 250 ms, numbered; resumed after an id.
+    let got = stream(a, None, Duration::from_millis(1500));
+    let states: Vec<&(u64, String, String)> = got.iter().filter(|m| m.1 == "state").collect();
+    assert!(
+        states.len() >= 5,
+        "{} state messages in 1.5 s",
+        states.len()
+    );
+    assert!(got.windows(2).all(|w| w[1].0 > w[0].0), "ids rise");
+    let times: Vec<f64> = states
+        .iter()
+        .map(|m| {
+            serde_json::from_str::<serde_json::Value>(&m.2).unwrap()["time_s"]
+                .as_f64()
+                .unwrap()
+        })
+        .collect();
+    assert!(
+        times.windows(2).all(|w| w[1] >= w[0]) && times.last() > times.first(),
+        "{times:?}"
+    );
+    let from = got[1].0;
+    let resumed = stream(a, Some(from), Duration::from_millis(400));
+    assert_eq!(
+        resumed.first().map(|m| m.0),
+        Some(from + 1),
+        "resumes after Last-Event-ID"
+    );
+
+    let m = get(a, "/metrics", &[]);
+    assert_eq!(m.status, 200);
+    assert!(
+        m.head.contains("content-type: text/plain; version=0.0.4"),
+        "{}",
+        m.head
+    );
+    for name in [
+        "truepos_cycles_total ",
+        "truepos_late_cycles_total ",
+        "truepos_sensor_faults{kind=\"stale\"} 0",
+        "truepos_axis_clamps_total{axis=\"X\"} 0",
+        "truepos_axis_offset_metres{axis=\"Z\"} ",
+        "truepos_model_generation{model=\"vmc3-example\"} 1",
+        "truepos_source_up{source=\"replay examples/vmc3/run.csv\"} 1",
+        "truepos_compensation_active 1",
+    ] {
+        assert!(m.body.contains(name), "no `{name}` in\n{}", m.body);
+    }
+    promtool_check(&m.body);
+
+    assert_eq!(get(a, "/nothing", &[]).status, 404);
+    assert_eq!(
+        request(a, "POST", "/api/state", &["Content-Length: 0"]).status,
+        405
+    );
+
+    let (ok, stderr) = run.stop();
+    assert!(ok, "the run ends cleanly on SIGTERM: {stderr}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn beyond_loopback_the_live_view_needs_the_token_on_every_request() {
+    let dir = scratch("live-token");
+    let db = dir.join("log.sqlite");
+    // Refused before anything runs: no token, or a short one.
+    for (token, says) in [
+        (None, "TRUEPOS_HTTP_TOKEN"),
+        (Some("short"), "fewer than 16"),
+    ] {
+        let mut c = truepos();
+        c.args(["run", "--fast", "--http", "0.0.0.0:0"])
+            .env_remove("TRUEPOS_HTTP_TOKEN");
+        if let Some(t) = token {
+            c.env("TRUEPOS_HTTP_TOKEN", t);
+        }
+        let out = c.output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{err}");
+        assert!(err.contains(says), "{err}");
+        assert!(!err.contains("live view on"), "{err}");
+    }
+
+    let run = Running::start(&["--http", "0.0.0.0:0"], &db, Some(TOKEN));
+    let a = run.addr;
+    let wrong = "Authorization: Bearer live-view-token-0123456789abcdeX";
+    for target in ["/", "/api/state", "/metrics", "/events", "/api/history"] {
+        assert_eq!(get(a, target, &[]).status, 401, "{target} without a token");
+        assert_eq!(
+            get(a, target, &[wrong]).status,
+            401,
+            "{target} with a wrong token"
+        );
+        let q = format!("{target}?token=nope-nope-nope-nope");
+        assert_eq!(get(a, &q, &[]).status, 401, "{q}");
+    }
+    let right = format!("Authorization: Bearer {TOKEN}");
+    assert_eq!(get(a, "/api/state", &[&right]).status, 200);
+    assert_eq!(get(a, &format!("/metrics?token={TOKEN}"), &[]).status, 200);
+    assert_eq!(get(a, &format!("/?token={TOKEN}"), &[]).status, 200);
+    let (ok, stderr) = run.stop();
+    assert!(ok, "{stderr}");
+
+    // The token from a file, the same way.
+    let file = dir.join("token");
+    std::fs::write(&file, format!("{TOKEN}\n")).unwrap();
+    let file = file.display().to_string();
+    let run = Running::start(
+        &["--http", "0.0.0.0:0", "--http-token-file", &file],
+        &db,
+        None,
+    );
+    assert_eq!(get(run.addr, "/api/info", &[]).status, 401);
+    assert_eq!(get(run.addr, "/api/info", &[&right]).status, 200);
+    let (ok, stderr) = run.stop();
+    assert!(ok, "{stderr}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
