@@ -323,6 +323,12 @@ fn a_fit_beyond_the_envelope_says_so_and_names_the_key() {
             && err.contains("raise `max_offset_um` in axis Z's `[[axis]]` table"),
         "{err}"
     );
+    // A model the service would refuse for this machine is written, with the reason.
+    assert!(
+        err.contains("`truepos run` and truepos-hal will refuse this model: model `")
+            && err.contains("more than the axis' whole envelope of 5 µm"),
+        "{err}"
+    );
     assert!(model.exists());
     std::fs::remove_dir_all(&dir).ok();
 }

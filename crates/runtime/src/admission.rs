@@ -39,25 +39,26 @@ pub fn admit(
     config: &MachineConfig,
     period_s: f64,
 ) -> Result<Duration, String> {
-    plausible(entry, config)?;
+    plausible(&entry.model, config)?;
     cycle_budget::check(entry, &config.machine, period_s)
 }
 
 /// The two bounds of the module's doc at every position of [`positions`].
-pub fn plausible(entry: &ModelEntry, config: &MachineConfig) -> Result<(), String> {
+pub fn plausible(model: &CompensationModel, config: &MachineConfig) -> Result<(), String> {
+    let name = model.name();
     let m = &config.machine;
     let base_t = vec![20.0; m.temperatures.len()];
     let operating = vec![0.0; m.operating.len()];
-    let points = match entry.model {
+    let points = match model {
         CompensationModel::Position(_) => positions(config),
         CompensationModel::Filtered(_) => positions(config).into_iter().take(1).collect(),
     };
     for p in &points {
         let at = |t: &[f64]| {
-            settled(&entry.model, &base_t, t, p, &operating).map_err(|e| {
+            settled(model, &base_t, t, p, &operating).map_err(|e| {
                 format!(
                     "model `{}` cannot be evaluated at {}: {e}",
-                    entry.name,
+                    name,
                     state(config, p)
                 )
             })
@@ -69,7 +70,7 @@ pub fn plausible(entry: &ModelEntry, config: &MachineConfig) -> Result<(), Strin
                     "model `{}` asks a correction of {} µm on axis {} of a cold machine \
                      (every temperature alike, standing, {}), beyond the axis' whole envelope \
                      of {} µm (`max_offset_um`): not a model of this machine's drift",
-                    entry.name,
+                    name,
                     micrometres(c),
                     m.axes[axis].name,
                     state(config, p),
@@ -89,7 +90,7 @@ pub fn plausible(entry: &ModelEntry, config: &MachineConfig) -> Result<(), Strin
                          ({}), more than the axis' whole envelope of {} µm \
                          (`max_offset_um`): no machine drifts so (a unit mistaken, or a model \
                          of another machine)",
-                        entry.name,
+                        name,
                         channel.id,
                         m.axes[axis].name,
                         micrometres(by),

@@ -57,7 +57,7 @@ fn a_kelvin_that_moves_an_axis_beyond_its_envelope_is_refused() {
     }
     // 24 µm/K at the far end of X (k0 + k·r = 20 + 4) is a strong machine, not an absurd one.
     let entry = vmc3_with("k0_um_per_k = 2.0", "k0_um_per_k = 20.0");
-    let strong = admission::plausible(&entry, &vmc());
+    let strong = admission::plausible(&entry.model, &vmc());
     assert!(strong.is_ok(), "{strong:?}");
 }
 
@@ -106,7 +106,7 @@ fn a_filtered_model_scaled_a_thousandfold_is_refused() {
     let path = dir.join("model_d.json");
     std::fs::write(&path, json.to_string()).unwrap();
     let entry = load_set(&[path], &vmc()).unwrap().remove(0);
-    let err = admission::plausible(&entry, &vmc()).unwrap_err();
+    let err = admission::plausible(&entry.model, &vmc()).unwrap_err();
     assert!(err.contains("one kelvin on sensor"), "{err}");
 }
 
