@@ -421,3 +421,156 @@ fn beyond_loopback_the_live_view_needs_the_token_on_every_request() {
     assert!(ok, "{stderr}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// Headless Chromium (/usr/bin/chromium, scripts/install_chromium.sh) on `url`: the page's
+/// `?selftest=N` verdict from `--dump-dom`, or a screenshot into `png`. Bounded to 60 s.
+fn chromium(url: &str, window: &str, png: Option<&Path>, profile: &Path) -> String {
+    let bin = Path::new("/usr/bin/chromium");
+    assert!(
+        bin.exists(),
+        "/usr/bin/chromium is missing: run `bash scripts/install_chromium.sh` (scripts/test.sh does)"
+    );
+    let mut c = Command::new(bin);
+    c.args([
+        "--headless",
+        "--no-sandbox",
+        "--disable-gpu",
+        "--no-first-run",
+        "--hide-scrollbars",
+        "--virtual-time-budget=3000",
+    ])
+    .arg(format!("--window-size={window}"))
+    .arg(format!("--user-data-dir={}", profile.display()))
+    .stdout(Stdio::piped())
+    .stderr(Stdio::null());
+    match png {
+        Some(p) => c.arg(format!("--screenshot={}", p.display())),
+        None => c.arg("--dump-dom"),
+    };
+    let mut child = c.arg(url).spawn().unwrap();
+    let mut out = child.stdout.take().unwrap();
+    let reader = std::thread::spawn(move || {
+        let mut s = String::new();
+        let _ = out.read_to_string(&mut s);
+        s
+    });
+    let deadline = Instant::now() + Duration::from_secs(60);
+    while child.try_wait().unwrap().is_none() {
+        if Instant::now() > deadline {
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!("chromium did not finish within 60 s on {url}");
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    reader.join().unwrap()
+}
+
+/// The page's own verdict after `n` streamed state messages.
+fn selftest(addr: SocketAddr, n: u32, profile: &Path) -> serde_json::Value {
+    let dom = chromium(
+        &format!("http://{addr}/?selftest={n}"),
+        "1280,1000",
+        None,
+        profile,
+    );
+    // The last: the page's script mentions the element too.
+    let start = dom
+        .rfind("<pre id=\"selftest\">")
+        .unwrap_or_else(|| panic!("no verdict from the page: {dom}"));
+    let rest = &dom[start + "<pre id=\"selftest\">".len()..];
+    let text = rest[..rest.find("</pre>").unwrap()]
+        .replace("&quot;", "\"")
+        .replace("&amp;", "&")
+        .replace("&lt;", "<")
+        .replace("&gt;", ">");
+    serde_json::from_str(&text).unwrap_or_else(|e| panic!("{e}: {text}"))
+}
+
+/// The example run with temperature `x_slide_top`, which the model reads, out of its valid range
+/// from 180 s of service time on.
+fn faulty_run(dir: &Path) -> std::path::PathBuf {
+    let text = std::fs::read_to_string(support::repo("examples/vmc3/run.csv")).unwrap();
+    let mut lines = text.lines();
+    let header = lines.next().unwrap();
+    let col = header.split(',').position(|c| c == "x_slide_top").unwrap();
+    let mut out = vec![header.to_string()];
+    for line in lines {
+        let mut cells: Vec<String> = line.split(',').map(str::to_string).collect();
+        if cells[0].parse::<f64>().unwrap() >= 180.0 {
+            cells[col] = "900".into();
+        }
+        out.push(cells.join(","));
+    }
+    let path = dir.join("faulty.csv");
+    std::fs::write(&path, out.join("\n") + "\n").unwrap();
+    path
+}
+
+#[test]
+fn a_real_browser_draws_the_traces_and_cannot_miss_a_fault() {
+    let dir = scratch("live-browser");
+    let shots = Path::new(env!("CARGO_TARGET_TMPDIR")).parent().unwrap();
+    let profile = dir.join("chromium-profile");
+
+    let run = Running::start(&["--http", "127.0.0.1:0"], &dir.join("a.sqlite"), None);
+    let v = selftest(run.addr, 5, &profile);
+    assert_eq!(v["errors"], serde_json::json!([]), "console errors: {v}");
+    assert_eq!(v["streamed"], 5, "{v}");
+    assert_eq!(v["traces"], 3, "a trace per axis: {v}");
+    assert!(
+        v["last_t"].as_f64().unwrap() > v["first_t"].as_f64().unwrap(),
+        "the traces advance: {v}"
+    );
+    assert_eq!(v["banner"], "", "no banner while active: {v}");
+    for (name, window) in [("desktop", "1280,1100"), ("phone", "390,1700")] {
+        let png = shots.join(format!("live_view_{name}.png"));
+        let _ = std::fs::remove_file(&png);
+        chromium(
+            &format!("http://{}/?selftest=8", run.addr),
+            window,
+            Some(&png),
+            &profile,
+        );
+        assert!(
+            std::fs::metadata(&png).is_ok_and(|m| m.len() > 10_000),
+            "{}",
+            png.display()
+        );
+    }
+    let (ok, stderr) = run.stop();
+    assert!(ok, "{stderr}");
+
+    let faulty = faulty_run(&dir);
+    let source = format!("replay:{}@100", faulty.display());
+    let run = Running::start(
+        &["--source", &source, "--http", "127.0.0.1:0"],
+        &dir.join("b.sqlite"),
+        None,
+    );
+    let deadline = Instant::now() + Duration::from_secs(20);
+    while json(&get(run.addr, "/api/state", &[]))["state"] == "active" {
+        assert!(Instant::now() < deadline, "the fault never took effect");
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    // The log commits every 250 ms; the page reads the events at load.
+    std::thread::sleep(Duration::from_millis(600));
+    let v = selftest(run.addr, 3, &profile);
+    assert_eq!(v["errors"], serde_json::json!([]), "console errors: {v}");
+    let banner = v["banner"].as_str().unwrap();
+    assert!(banner.contains("COMPENSATION NOT ACTIVE: holding"), "{v}");
+    assert!(
+        v["events"].as_u64().unwrap() >= 2,
+        "sensor-fault listed: {v}"
+    );
+    let png = shots.join("live_view_fault.png");
+    chromium(
+        &format!("http://{}/?selftest=3", run.addr),
+        "1280,1100",
+        Some(&png),
+        &profile,
+    );
+    let (ok, stderr) = run.stop();
+    assert!(ok, "{stderr}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
