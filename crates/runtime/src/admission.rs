@@ -43,7 +43,7 @@ pub fn admit(
     cycle_budget::check(entry, &config.machine, period_s)
 }
 
-/// The two bounds of the module's doc at every position of [`positions`].
+/// The two bounds of the module's doc, at the middle and every corner of the travel.
 pub fn plausible(model: &CompensationModel, config: &MachineConfig) -> Result<(), String> {
     let name = model.name();
     let m = &config.machine;
