@@ -14,7 +14,7 @@ use truepos_fit::position_model::{reference_sensor, Family};
 use truepos_fit::settings::Settings;
 use truepos_io::{machine_file, model_file::ModelFile};
 use truepos_model::{CycleInput, Machine, Model};
-use truepos_report::{write_report, Channel, Coefficient, ReportData, VolumeMap};
+use truepos_report::{write_report, Channel, ReportData, VolumeMap};
 use truepos_sim::{Scenario, SimRun, Twin};
 
 /// The twin's machine description, built into the binary so the demo needs no files.
@@ -520,8 +520,6 @@ fn report(
             predicted,
         });
     }
-    let params = posdep.model.parameters();
-    let names = coefficient_names(&posdep.model, machine);
     let data = ReportData {
         title: "truepos demo: position-dependent model of the twin, on a test day it never saw".into(),
         time_s: test.run.rows.iter().map(|r| r.time_s).collect(),
@@ -533,11 +531,9 @@ fn report(
             .enumerate()
             .map(|(i, t)| (t.id.clone(), test.temps.iter().map(|r| r[i]).collect()))
             .collect(),
-        coefficients: names
+        coefficients: crate::report::coefficients::of_model(&posdep.model, machine)
             .into_iter()
-            .zip(params)
-            .filter(|(_, v)| *v != 0.0)
-            .map(|((channel, feature), value)| Coefficient { channel, feature, value })
+            .filter(|c| c.value != 0.0)
             .collect(),
         protocol: vec![
             ("machine".into(), format!("{} (the built-in thermal twin)", machine.name)),
@@ -612,26 +608,4 @@ fn print_table(
         args.out.display()
     );
     println!("report: {}", html.display());
-}
-
-/// (channel, feature) of each parameter, in parameter order.
-fn coefficient_names(model: &Model, machine: &Machine) -> Vec<(String, String)> {
-    let mut out = Vec::new();
-    for p in model.parts() {
-        for s in &p.summands {
-            let ch = machine.axes[s.axis].name.clone();
-            let dt = machine.differences[s.difference].name.clone();
-            out.push((ch.clone(), dt.clone()));
-            for t in &s.position_terms {
-                out.push((
-                    ch.clone(),
-                    format!("{dt} · {}({})", t.factor.name(), machine.axes[t.axis].name),
-                ));
-            }
-        }
-        for c in &p.constants_um {
-            out.push((machine.axes[c.0].name.clone(), "constant (µm)".into()));
-        }
-    }
-    out
 }

@@ -36,6 +36,20 @@ fn end_to_end(ds: &Dataset) -> Vec<f64> {
     out
 }
 
+/// Where each run starts on that axis (its first sample) and its name, for the drift plots'
+/// run boundaries.
+fn run_starts(ds: &Dataset) -> Vec<(usize, String)> {
+    let mut start = 0;
+    ds.runs
+        .iter()
+        .map(|run| {
+            let here = start;
+            start += run.time_s.len();
+            (here, run.name.clone())
+        })
+        .collect()
+}
+
 fn channels(ds: &Dataset, outcome: &Outcome) -> Vec<Channel> {
     (0..ds.target_names.len())
         .map(|k| {
@@ -167,6 +181,7 @@ pub fn write(
             ds.runs.len()
         ),
         time_s: end_to_end(ds),
+        run_starts: run_starts(ds),
         test_from: Some(0),
         channels: channels(ds, outcome),
         temperatures,

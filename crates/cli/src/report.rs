@@ -1,16 +1,20 @@
 //! `truepos report`: a model on a recorded run with measured errors, as one HTML file with
-//! figures — measured, predicted and residual per axis, residual histogram, temperatures,
-//! correlation heat map, coefficients and the validation protocol.
+//! figures for the shop floor — the conclusion per axis first, the figures of merit, the drift
+//! plot per axis over the run's clock time, residual histogram, temperatures, correlation heat
+//! map, the coefficients grouped by input with their units ([`coefficients`]) and the
+//! protocol; printable to A4 PDF from the browser.
 
 use std::path::PathBuf;
 
 use truepos_io::machine_file;
-use truepos_model::{CompensationModel, Model, PartForm};
+use truepos_model::CompensationModel;
 
 use crate::error::CliError;
 use crate::evaluator::Evaluator;
 use crate::shape::ShapeArgs;
-use truepos_report::{channel_metrics, write_report, Channel, Coefficient, ReportData};
+use truepos_report::{channel_metrics, write_report, Channel, ReportData};
+
+pub(crate) mod coefficients;
 
 /// Arguments of `truepos report`.
 #[derive(clap::Args)]
@@ -68,9 +72,42 @@ fn relative_to_first(values: &mut [f64]) {
     }
 }
 
+/// The clock time (s since 1970-01-01 UTC) of a run's first row when its time column holds
+/// date-times — the column `--time` names, else `time_s`, the one the cycles are timed by —, so
+/// that the drift plots read the shop's clock; `None` for seconds, row numbers or a period.
+fn clock_start(args: &Args, table: &truepos_io::run::Table) -> Option<f64> {
+    let period = matches!(
+        args.shape.time(None),
+        Some(truepos_io::run::Time::Period(_))
+    );
+    if period || table.table.is_empty() {
+        return None;
+    }
+    let name = args.time.as_deref().unwrap_or("time_s");
+    let col = table.columns.iter().position(|h| h == name)?;
+    let ns = match table.table.row(0).cell(col)?.value {
+        truepos_io::table::Value::Text(text) => match &table.time_format {
+            Some(format) => truepos_io::timestamp::parse_with(format, text),
+            None => truepos_io::timestamp::parse(text),
+        },
+        _ => return None,
+    };
+    ns.ok().map(|ns| ns as f64 / 1e9)
+}
+
+/// What is read of the run to report beside its cycles.
+struct Measured {
+    /// The run's name.
+    name: String,
+    /// The measured-error columns in µm, NaN where a row has no measurement.
+    columns: Vec<Vec<f64>>,
+    /// The clock time of its first row, if its time column is a clock.
+    clock_start_s: Option<f64>,
+}
+
 /// The run to report, and its measured-error columns by name (in µm, NaN where a row has no
 /// measurement), read by io's one run reader with the file's shape.
-fn read_measured(args: &Args, names: &[String]) -> Result<(String, Vec<Vec<f64>>), CliError> {
+fn read_measured(args: &Args, names: &[String]) -> Result<Measured, CliError> {
     let tables = truepos_io::run::read_shaped(&args.run, None, &args.shape.shape())?;
     let listed = || {
         tables
@@ -111,86 +148,11 @@ fn read_measured(args: &Args, names: &[String]) -> Result<(String, Vec<Vec<f64>>
             Ok(table.measured(c)?)
         })
         .collect::<Result<_, CliError>>()?;
-    Ok((table.name(), columns))
-}
-
-/// A dynamic model's coefficients: per applied output, the intercept and every non-zero feature.
-fn dynamic_coefficients(
-    bound: &truepos_model::BoundDynamicModel,
-    machine: &truepos_model::Machine,
-) -> Vec<Coefficient> {
-    use truepos_model::MachineInput;
-    let features = bound.model().bank().features();
-    let n = features.len();
-    let input_name = |k: usize| match bound.inputs()[k] {
-        MachineInput::Temperature(c) => machine.temperatures[c].id.as_str(),
-        MachineInput::Operating(c) => machine.operating[c].id.as_str(),
-    };
-    let mut out = Vec::new();
-    for (k, axis) in bound.axes().iter().enumerate() {
-        let Some(a) = axis else { continue };
-        let channel = machine.axes[*a].name.clone();
-        out.push(Coefficient {
-            channel: channel.clone(),
-            feature: "intercept (µm)".into(),
-            value: bound.model().intercepts()[k],
-        });
-        for (j, f) in features.iter().enumerate() {
-            let value = bound.model().coefficients()[k * n + j];
-            if value != 0.0 {
-                out.push(Coefficient {
-                    channel: channel.clone(),
-                    feature: f.name(input_name),
-                    value,
-                });
-            }
-        }
-    }
-    out
-}
-
-/// The model's coefficients as (channel, feature, value) for the table.
-fn coefficients(model: &Model, machine: &truepos_model::Machine) -> Vec<Coefficient> {
-    let mut out = Vec::new();
-    for p in model.parts() {
-        for s in &p.summands {
-            let channel = machine.axes[s.axis].name.clone();
-            let dt = &machine.differences[s.difference].name;
-            let mult = s
-                .bed_multiplier
-                .map(|b| format!(" · KFA({})", machine.axes[b].name))
-                .unwrap_or_default();
-            let form = match p.form {
-                PartForm::Regression => "regression",
-                PartForm::PositionDependent => "position-dependent",
-            };
-            out.push(Coefficient {
-                channel: channel.clone(),
-                feature: format!("[{}/{form}] {dt}{mult}", p.name),
-                value: s.k0_um_per_k,
-            });
-            for t in &s.position_terms {
-                out.push(Coefficient {
-                    channel: channel.clone(),
-                    feature: format!(
-                        "[{}] {dt} · {}({}){mult}",
-                        p.name,
-                        t.factor.name(),
-                        machine.axes[t.axis].name
-                    ),
-                    value: t.k_um_per_k,
-                });
-            }
-        }
-        for &(a, v) in &p.constants_um {
-            out.push(Coefficient {
-                channel: machine.axes[a].name.clone(),
-                feature: format!("[{}] constant (µm)", p.name),
-                value: v,
-            });
-        }
-    }
-    out
+    Ok(Measured {
+        name: table.name(),
+        columns,
+        clock_start_s: clock_start(args, table),
+    })
 }
 
 /// The volume map of a position-dependent model over the run's states.
@@ -315,7 +277,11 @@ pub fn run(args: Args) -> Result<(), CliError> {
         pairs.push((a, column.to_string()));
     }
     let columns: Vec<String> = pairs.iter().map(|p| p.1.clone()).collect();
-    let (run_name, mut measured) = read_measured(&args, &columns)?;
+    let Measured {
+        name: run_name,
+        columns: mut measured,
+        clock_start_s,
+    } = read_measured(&args, &columns)?;
     let relative = !args.absolute && model.model().as_dynamic().is_some();
     if relative {
         for m in &mut measured {
@@ -383,12 +349,14 @@ pub fn run(args: Args) -> Result<(), CliError> {
     let data = ReportData {
         title: format!("truepos report: model `{}` on {}", model.name(), run_name),
         time_s: run.time_s.clone(),
+        clock_start_s,
+        run_starts: Vec::new(),
         test_from,
         channels,
         temperatures,
         coefficients: match model.model() {
-            CompensationModel::Position(m) => coefficients(m, &machine),
-            CompensationModel::Filtered(d) => dynamic_coefficients(d, &machine),
+            CompensationModel::Position(m) => coefficients::of_model(m, &machine),
+            CompensationModel::Filtered(d) => coefficients::of_dynamic(d, &machine),
         },
         protocol,
         volume: volume(&machine, model.model(), &run),

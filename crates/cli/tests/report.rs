@@ -75,6 +75,14 @@ fn report_metrics_and_files() {
         html.contains("dT_bed · bed(Z) · KFA(Z)"),
         "coefficient names"
     );
+    // Coefficients grouped by the sensor they read, what the symbol stands for said once, each
+    // value with its unit (the example model's K of the bed term is 4 µm/K).
+    assert!(
+        html.contains("<h3>bed_top (temperature)</h3><p>dT_bed = bed_top − bed_bottom</p>"),
+        "coefficients grouped by input"
+    );
+    assert!(html.contains("(position-dependent)</td><td>4.000 µm/K</td>"));
+    assert!(html.contains("<h3>constants</h3>"));
     for f in [
         "X__x_measured_um__over_time.svg",
         "residual_histogram.svg",
@@ -160,5 +168,82 @@ fn a_dynamic_model_is_reported_on_the_drift_it_was_fitted_on() {
     assert!(absolute - relative > 10.0, "{relative} vs {absolute}");
     let html = std::fs::read_to_string(dir.join("rfalse/report.html")).unwrap();
     assert!(html.contains("as the fit took it"), "protocol");
+    // A fitted dynamic model's terms in words, under the sensor they read, with units.
+    assert!(html.contains("<h3>spindle_front_bearing (temperature)</h3>"));
+    assert!(
+        html.contains("<td class=\"l\">rise, lagged τ = 1 h</td>"),
+        "lag in words"
+    );
+    assert!(!html.contains("lp3600("), "the model file's symbol");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// The drift plots read the run's clock when its time column holds date-times, and the figures
+/// of merit are those of the same run timed in seconds: the axis changes, not the numbers.
+#[test]
+fn drift_plots_read_the_runs_clock() {
+    let dir = std::env::temp_dir().join(format!("truepos-report-clock-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let original = std::fs::read_to_string(repo("examples/vmc3/run.csv")).unwrap();
+    let mut lines = original.lines();
+    let header = lines.next().unwrap();
+    let (mut seconds, mut clock) = (
+        format!("{header},z_meas_um\n"),
+        format!(
+            "{},z_meas_um\n",
+            header.replacen("time_s", "Zeitstempel", 1)
+        ),
+    );
+    for (i, l) in lines.enumerate() {
+        let (t, rest) = l.split_once(',').unwrap();
+        let t: f64 = t.parse().unwrap();
+        // The run starts on 4 March 2024 at 06:00; 30 µm of drift settling over the day.
+        let s = 6.0 * 3600.0 + t;
+        let (h, m, sec) = ((s / 3600.0) as u32, (s % 3600.0 / 60.0) as u32, s % 60.0);
+        let z = 30.0 * (1.0 - (-(i as f64) / 60.0).exp());
+        seconds.push_str(&format!("{l},{z}\n"));
+        clock.push_str(&format!("04.03.2024 {h:02}:{m:02}:{sec:02},{rest},{z}\n"));
+    }
+    let report = |name: &str, text: &str, time: &str| -> serde_json::Value {
+        let run = dir.join(format!("{name}.csv"));
+        std::fs::write(&run, text).unwrap();
+        let out = Command::new(env!("CARGO_BIN_EXE_truepos"))
+            .current_dir(repo(""))
+            .args(["report", "--machine", "examples/vmc3/machine.toml"])
+            .args([
+                "--model",
+                "tests/linuxcnc/model_d.json",
+                "--measured",
+                "Z=z_meas_um",
+            ])
+            .args(["--time", time, "--json", "--run"])
+            .arg(&run)
+            .arg("--out")
+            .arg(dir.join(name))
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        serde_json::from_slice(&out.stdout).unwrap()
+    };
+    let (by_seconds, by_clock) = (
+        report("seconds", &seconds, "time_s"),
+        report("clock", &clock, "Zeitstempel"),
+    );
+    assert_eq!(by_seconds["channels"], by_clock["channels"]);
+    let svg = std::fs::read_to_string(dir.join("clock/Z__z_meas_um__over_time.svg")).unwrap();
+    assert!(
+        svg.contains("clock time, UTC (from 2024-03-04 06:00)"),
+        "axis title"
+    );
+    assert!(svg.contains("\n08:00\n"), "a tick at 08:00");
+    let plain = std::fs::read_to_string(dir.join("seconds/Z__z_meas_um__over_time.svg")).unwrap();
+    assert!(plain.contains("time / h") && !plain.contains("clock time"));
+    let html = std::fs::read_to_string(dir.join("clock/report.html")).unwrap();
+    assert!(html.contains("Z (z_meas_um): drift over clock time — measured, predicted, residual"));
     std::fs::remove_dir_all(&dir).ok();
 }

@@ -4,7 +4,9 @@
 //! run made worse (`truepos fit --report`), temperatures as small multiples beyond six
 //! channels; then headless Chromium (installed by `scripts/install_chromium.sh`) lays every
 //! report out with real fonts and `tests/browser/layout_check.js` checks that each figure has
-//! a size and no two labels overlap or leave their figure.
+//! a size and no two labels overlap or leave their figure; and prints every report to PDF as
+//! a user would from the browser, which must give A4 pages in the expected number with no
+//! figure cut by a page break.
 
 mod support;
 
@@ -56,6 +58,148 @@ fn browser_check(html: &Path) -> (u64, Vec<String>) {
         .map(|p| p.as_str().unwrap().to_string())
         .collect();
     (v["figures"].as_u64().unwrap(), problems)
+}
+
+/// Marks the top and the bottom of every figure with a tiny link whose address names the
+/// figure: Chromium keeps links in the PDF as link annotations of the page they are on, so a
+/// figure cut by a page break has its two marks on different pages.
+fn with_figure_marks(html: &str) -> (String, usize) {
+    let mark = |k: usize, end: &str| {
+        format!(
+            "<a style=\"position:absolute;left:0;{end}:0;width:4px;height:4px;display:block\" \
+             href=\"https://truepos.invalid/figure{k}/{end}\"></a>"
+        )
+    };
+    let mut out = String::new();
+    let mut rest = html;
+    let mut k = 0;
+    while let Some(at) = rest.find("<figure>") {
+        let close = at
+            + rest[at..]
+                .find("</figure>")
+                .expect("a figure without its end");
+        out.push_str(&rest[..at]);
+        out.push_str("<figure style=\"position:relative\">");
+        out.push_str(&mark(k, "top"));
+        out.push_str(&rest[at + "<figure>".len()..close]);
+        out.push_str(&mark(k, "bottom"));
+        out.push_str("</figure>");
+        rest = &rest[close + "</figure>".len()..];
+        k += 1;
+    }
+    out.push_str(rest);
+    (out, k)
+}
+
+/// The pages of a PDF as Chromium writes it (no object streams): per page object, the
+/// addresses of the links on it. Page objects are `/Type /Page` (not `/Pages`, the tree).
+fn pdf_pages_and_links(pdf: &[u8]) -> Vec<Vec<String>> {
+    let text = String::from_utf8_lossy(pdf);
+    let objects: Vec<(&str, &str)> = text
+        .split("endobj")
+        .filter_map(|chunk| {
+            let head = chunk.find(" 0 obj")?;
+            let number = chunk[..head].rsplit(|c: char| !c.is_ascii_digit()).next()?;
+            Some((number, &chunk[head..]))
+        })
+        .collect();
+    let uri_of = |number: &str| -> Option<String> {
+        let body = objects.iter().find(|(n, _)| *n == number)?.1;
+        let at = body.find("/URI (")? + "/URI (".len();
+        Some(body[at..at + body[at..].find(')')?].to_string())
+    };
+    objects
+        .iter()
+        .filter(|(_, body)| {
+            body.match_indices("/Type /Page")
+                .any(|(i, m)| !body[i + m.len()..].starts_with('s'))
+        })
+        .map(|(_, body)| {
+            let Some(at) = body.find("/Annots [") else {
+                return Vec::new();
+            };
+            let list = &body[at + "/Annots [".len()..];
+            list[..list.find(']').unwrap()]
+                .split(" 0 R")
+                .filter_map(|r| uri_of(r.trim()))
+                .collect()
+        })
+        .collect()
+}
+
+/// Prints a report to PDF with headless Chromium, as "Print → Save as PDF" does, and checks
+/// the page count is within `pages` and that every figure lies whole on one page. The ranges
+/// are the pages these reports printed to when the print stylesheet was written (3, 5 and 20
+/// A4 pages), widened for fonts that differ between machines: a figure scaled to nothing or
+/// spread over several pages falls outside.
+fn assert_prints(html: &Path, pages: std::ops::RangeInclusive<usize>) {
+    let (marked, figures) = with_figure_marks(&std::fs::read_to_string(html).unwrap());
+    let page = html.with_file_name("print-check.html");
+    std::fs::write(&page, marked).unwrap();
+    let pdf = html.with_file_name("print-check.pdf");
+    let out = Command::new("/usr/bin/chromium")
+        .args([
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--no-first-run",
+            "--no-pdf-header-footer",
+        ])
+        .arg(format!(
+            "--user-data-dir={}",
+            html.with_file_name("chromium-print-profile").display()
+        ))
+        .arg(format!("--print-to-pdf={}", pdf.display()))
+        .arg(format!("file://{}", page.display()))
+        .output()
+        .unwrap();
+    let bytes = std::fs::read(&pdf).unwrap_or_else(|e| {
+        panic!(
+            "{}: no PDF ({e}): {}",
+            pdf.display(),
+            String::from_utf8_lossy(&out.stderr)
+        )
+    });
+    // A4 portrait, 595 × 842 points, as the print stylesheet's `@page` asks (Chromium's own
+    // default is US Letter, 612 × 792).
+    let text = String::from_utf8_lossy(&bytes);
+    let media = &text[text.find("/MediaBox [0 0 ").expect("no page size") + 15..];
+    let size: Vec<f64> = media[..media.find(']').unwrap()]
+        .split_whitespace()
+        .map(|v| v.parse().unwrap())
+        .collect();
+    assert!(
+        (size[0] - 595.3).abs() < 1.0 && (size[1] - 841.9).abs() < 1.0,
+        "{}: pages of {size:?} points, not A4",
+        html.display()
+    );
+    let on_pages = pdf_pages_and_links(&bytes);
+    assert!(
+        pages.contains(&on_pages.len()),
+        "{}: {} pages, expected {pages:?}",
+        html.display(),
+        on_pages.len()
+    );
+    let page_of = |link: &str| on_pages.iter().position(|p| p.iter().any(|l| l == link));
+    let mut cut = Vec::new();
+    for k in 0..figures {
+        let top = page_of(&format!("https://truepos.invalid/figure{k}/top"));
+        let bottom = page_of(&format!("https://truepos.invalid/figure{k}/bottom"));
+        assert!(
+            top.is_some() && bottom.is_some(),
+            "figure {k}: a mark is missing from the PDF"
+        );
+        if top != bottom {
+            cut.push(format!(
+                "figure {k}: starts on page {top:?}, ends on page {bottom:?}"
+            ));
+        }
+    }
+    assert!(
+        cut.is_empty(),
+        "{}: figures cut by a page break: {cut:#?}",
+        html.display()
+    );
 }
 
 fn assert_clean_in_browser(html: &Path, min_figures: u64) {
@@ -115,7 +259,14 @@ fn fit_report_has_a_row_per_held_out_run_and_marks_a_run_made_worse() {
     assert!(worse_row.split("</tr>").next().unwrap().contains("odd.csv"));
     assert!(html.contains("held-out runs made worse than uncompensated"));
     assert!(html.contains("out of fold only"));
+    // The drift plot lays the runs end to end and marks where each starts, by name.
+    let drift = std::fs::read_to_string(out.join("dz_um_over_time.svg")).unwrap();
+    assert!(drift.contains("start of a run"));
+    for name in ["a.csv", "b.csv", "odd.csv"] {
+        assert!(drift.contains(&format!("\n{name}\n")), "{name} marked");
+    }
     assert_clean_in_browser(&out.join("report.html"), 3);
+    assert_prints(&out.join("report.html"), 2..=4);
     std::fs::remove_dir_all(&dir).ok();
 }
 
@@ -165,6 +316,7 @@ fn report_of_a_position_dependent_model_maps_the_working_volume() {
         1
     );
     assert_clean_in_browser(&out.join("report.html"), 4);
+    assert_prints(&out.join("report.html"), 4..=6);
     std::fs::remove_dir_all(&dir).ok();
 }
 
@@ -186,5 +338,6 @@ fn demo_report_shows_the_volume_before_and_after() {
     let temps = std::fs::read_to_string(dir.join("report/temperatures.svg")).unwrap();
     assert!(temps.contains("one panel per sensor"));
     assert_clean_in_browser(&html_path, 9);
+    assert_prints(&html_path, 17..=23);
     std::fs::remove_dir_all(&dir).ok();
 }

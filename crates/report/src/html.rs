@@ -3,6 +3,7 @@
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
+use crate::coefficients::coefficient_tables;
 use crate::correlation::correlation_figure;
 use crate::histogram::histogram_figure;
 use crate::metrics::channel_metrics;
@@ -10,7 +11,7 @@ use crate::time_series::{channel_figure, temperature_figure};
 use crate::volume::{max_abs, volume_figure};
 use crate::{ReportData, ReportError, RunRow, VolumeMap};
 
-fn escape(s: &str) -> String {
+pub(crate) fn escape(s: &str) -> String {
     s.replace('&', "&amp;")
         .replace('<', "&lt;")
         .replace('>', "&gt;")
@@ -54,7 +55,15 @@ fn figures(data: &ReportData) -> Result<Vec<Figure>, ReportError> {
     for ch in &data.channels {
         out.push(Figure {
             file: format!("{}_over_time.svg", file_stem(&ch.name)),
-            caption: format!("{}: measured, predicted, residual", ch.name),
+            caption: format!(
+                "{}: drift over {} — measured, predicted, residual",
+                ch.name,
+                if data.clock_start_s.is_some() {
+                    "clock time"
+                } else {
+                    "time"
+                }
+            ),
             svg: channel_figure(data, ch)?,
         });
     }
@@ -93,11 +102,7 @@ pub fn write_report(dir: &Path, data: &ReportData) -> Result<PathBuf, ReportErro
     let _ = write!(
         html,
         "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>{t}</title>\
-         <style>body{{font-family:sans-serif;max-width:1000px;margin:2em auto;color:#222}}\
-         table{{border-collapse:collapse;margin:1em 0}}td,th{{border:1px solid #ccc;padding:4px 8px;text-align:right}}\
-         th{{background:#f3f3f3}}td.l,th.l{{text-align:left}}tr.worse td{{background:#fde0dc}}figure{{margin:1.5em 0}}\
-         .cards{{display:flex;flex-wrap:wrap;gap:12px}}.card{{border:1px solid #ccc;border-radius:6px;padding:8px 14px}}\
-         .card b{{display:block;font-size:1.5em}}</style></head><body><h1>{t}</h1>",
+         <style>{STYLE}</style></head><body><h1>{t}</h1>",
         t = escape(&data.title)
     );
     headline(&mut html, data);
@@ -120,6 +125,26 @@ pub fn write_report(dir: &Path, data: &ReportData) -> Result<PathBuf, ReportErro
     write_whole(&path, &html)?;
     Ok(path)
 }
+
+/// The page's style: on screen a column of at most 1000 px; in print A4 with margins a
+/// printer can reach, every figure scaled to the page width and kept whole on one page (a
+/// figure is read as a whole: half a drift plot on each of two pages shows neither), headings
+/// kept with what follows, no background a printer would waste ink on except the shading
+/// that marks a run made worse.
+const STYLE: &str = "body{font-family:sans-serif;max-width:1000px;margin:2em auto;color:#222}\
+table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #ccc;padding:4px 8px;text-align:right}\
+th{background:#f3f3f3}td.l,th.l{text-align:left}tr.worse td{background:#fde0dc}figure{margin:1.5em 0}\
+figure svg{max-width:100%;height:auto}\
+.cards{display:flex;flex-wrap:wrap;gap:12px}.card{border:1px solid #ccc;border-radius:6px;padding:8px 14px}\
+.card b{display:block;font-size:1.5em}\
+@media print{@page{size:A4;margin:15mm 12mm}\
+body{max-width:none;margin:0;font-size:10pt;color:#000;background:#fff}\
+figure{break-inside:avoid;page-break-inside:avoid;margin:0.8em 0}\
+figure svg{width:100%;height:auto}\
+h1,h2,h3{break-after:avoid;page-break-after:avoid}\
+tr,.card{break-inside:avoid;page-break-inside:avoid}\
+th{background:none}\
+tr.worse td{-webkit-print-color-adjust:exact;print-color-adjust:exact}}";
 
 fn io_error(p: &Path) -> impl Fn(std::io::Error) -> ReportError {
     let p = p.to_path_buf();
@@ -280,19 +305,7 @@ fn volume_table(html: &mut String, map: &VolumeMap) {
 }
 
 fn key_value_tables(html: &mut String, data: &ReportData) {
-    if !data.coefficients.is_empty() {
-        html.push_str("<h2>Coefficients</h2><table><tr><th class=\"l\">channel</th><th class=\"l\">feature</th><th>value</th></tr>");
-        for c in &data.coefficients {
-            let _ = write!(
-                html,
-                "<tr><td class=\"l\">{}</td><td class=\"l\">{}</td><td>{:.6}</td></tr>",
-                escape(&c.channel),
-                escape(&c.feature),
-                c.value
-            );
-        }
-        html.push_str("</table>");
-    }
+    coefficient_tables(html, &data.coefficients);
     if !data.protocol.is_empty() {
         html.push_str("<h2>Validation protocol</h2><table>");
         for (k, v) in &data.protocol {

@@ -8,15 +8,18 @@
 //!   leave-one-run-out, per held-out run (runs made worse than uncompensated are marked);
 //! - the error over the working volume before and after compensation ([`VolumeMap`]): slices
 //!   of the 3-D grid as heat maps, one figure per error direction, one colour scale per direction;
-//! - measured, predicted and residual error over time, one figure per channel, with the held-out
-//!   part shaded;
+//! - drift plots in the manner of ISO 230-3, one per error direction: measured, predicted and
+//!   residual error over clock time (or hours when the run has no clock), the held-out part
+//!   shaded, and where several runs are laid end to end a labelled line at each run's start;
 //! - a histogram of the residuals of the held-out part;
 //! - temperatures over time: one figure up to six channels, small multiples beyond, so 16–24
 //!   channels stay readable;
 //! - a correlation heat map of temperatures and measured errors;
-//! - the coefficients and the validation protocol as tables.
+//! - the coefficients with their units, one table per input they belong to, and the validation
+//!   protocol.
 //!
-//! Legends sit beside the plot, never over the data.
+//! Legends sit beside the plot, never over the data. A print stylesheet lays the page out on A4
+//! with no figure cut by a page break, so the report prints to PDF from the browser.
 //!
 //! ```
 //! use truepos_report::*;
@@ -30,7 +33,15 @@
 //!     test_from: Some(60),
 //!     channels: vec![Channel { name: "Z".into(), unit: "µm".into(), measured, predicted }],
 //!     temperatures: vec![("spindle".into(), temp)],
-//!     coefficients: vec![Coefficient { channel: "Z".into(), feature: "spindle − ambient".into(), value: 2.9 }],
+//!     coefficients: vec![Coefficient {
+//!         channel: "Z".into(),
+//!         input: "spindle".into(),
+//!         feature: "rise since the start".into(),
+//!         meaning: String::new(),
+//!         value: 2.9,
+//!         unit: "µm/K".into(),
+//!         readable: None,
+//!     }],
 //!     protocol: vec![("split".into(), "chronological, first 60 % train".into())],
 //!     ..Default::default()
 //! };
@@ -43,6 +54,8 @@
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
+mod clock;
+mod coefficients;
 mod correlation;
 mod histogram;
 mod html;
@@ -72,10 +85,21 @@ pub struct Channel {
 pub struct Coefficient {
     /// The channel it predicts.
     pub channel: String,
-    /// The feature it multiplies.
+    /// The input it belongs to (a sensor, a temperature difference, the spindle speed; empty
+    /// for a constant): the report shows one table per input.
+    pub input: String,
+    /// What it multiplies, in words ("rise, lagged τ = 1 h") or symbols ("dT_bed · ratio(X)").
     pub feature: String,
-    /// Its value.
+    /// What the symbols of `feature` stand for ("dT_bed = bed_top − bed_bottom"), shown once
+    /// under the input's heading; empty when the words say it all.
+    pub meaning: String,
+    /// Its value as the model file stores it.
     pub value: f64,
+    /// The unit of `value` (µm/K, µm/(K/s), µm per 1/min, µm).
+    pub unit: String,
+    /// The same value in a unit a person reads more easily, if that differs (µm/(K/h) for a
+    /// rate the model keeps in K/s, µm per 1000 rpm for a speed it keeps in 1/min).
+    pub readable: Option<(f64, String)>,
 }
 
 /// Everything a report shows.
@@ -85,6 +109,12 @@ pub struct ReportData {
     pub title: String,
     /// Time of each sample in s.
     pub time_s: Vec<f64>,
+    /// The clock time at `time_s = 0`, in s since 1970-01-01T00:00:00 UTC, when the run's time
+    /// is a clock (date-times in its time column): the drift plots then read clock time.
+    pub clock_start_s: Option<f64>,
+    /// Where each run starts when several are shown end to end: the index of its first sample
+    /// and its name. The drift plots mark each with a labelled vertical line.
+    pub run_starts: Vec<(usize, String)>,
     /// Index of the first held-out sample (the model never saw it and later ones), if any.
     pub test_from: Option<usize>,
     /// Error channels.
