@@ -12,7 +12,8 @@ use crate::shape::ShapeArgs;
 /// Arguments of `truepos eval`.
 #[derive(clap::Args)]
 pub struct Args {
-    /// Machine description (TOML).
+    /// Machine description (TOML). The defaults of --machine, --model and --run are the
+    /// example VMC's, found from any directory.
     #[arg(long, default_value = "examples/vmc3/machine.toml")]
     machine: PathBuf,
     /// Model file: a position-dependent thermal model or a reference-sensor regression (TOML, or
@@ -46,7 +47,10 @@ struct AxisSummary {
     max_abs_um: f64,
 }
 
-pub fn run(args: Args) -> Result<(), CliError> {
+pub fn run(mut args: Args) -> Result<(), CliError> {
+    for p in [&mut args.machine, &mut args.model, &mut args.run] {
+        *p = crate::examples::find(std::mem::take(p));
+    }
     if args.out.as_os_str() != "-" {
         crate::write::check(
             &args.out,
