@@ -290,8 +290,8 @@ fn a_fitted_dynamic_model_runs_in_the_service() {
     );
     let html = std::fs::read_to_string(dir.join("report/report.html")).unwrap();
     assert!(
-        html.contains("lp900(spindle_front)"),
-        "the dynamic coefficients are listed"
+        html.contains("spindle_front (temperature)") && html.contains("rise, lagged τ = 15 min"),
+        "the dynamic coefficients are listed, grouped by input, in words"
     );
 }
 
