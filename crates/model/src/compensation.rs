@@ -1,7 +1,7 @@
-//! A compensation model the control runs, whatever its form: seed A/C's [`Model`], evaluated
-//! afresh every cycle, or a fitted [`DynamicModel`] bound to the machine, whose filters advance
-//! every cycle. Every user — the runtime's model set, `truepos eval` and `truepos report`, the
-//! LinuxCNC check — steps it through [`CompensationModel::step`], so that input gathering, time
+//! A compensation model the control runs, whatever its form: a position-dependent [`Model`],
+//! evaluated afresh every cycle, or a fitted [`DynamicModel`] bound to the machine, whose filters
+//! advance every cycle. Every user — the runtime's model set, `truepos eval` and `truepos report`,
+//! the LinuxCNC check — steps it through [`CompensationModel::step`], so that input gathering, time
 //! stepping and the mapping of outputs to axes exist once.
 //!
 //! Nothing here allocates after construction: a dynamic model gathers its inputs into a buffer

@@ -115,8 +115,9 @@ impl core::error::Error for EvalError {}
 ///
 /// Sign convention (used throughout truepos): **error = actual − nominal** position of the tool
 /// relative to the workpiece; the model predicts the error, and the **compensation added to the
-/// set-point is −error**. Seed A's ΔA_n, "the value superimposed on the set-point", is therefore
-/// `compensation_um`, and a model file's coefficients describe the error.
+/// set-point is −error**. The compensation value ΔA_n "superimposed on the set-point"
+/// (docs/glossary.md) is therefore `compensation_um`, and a model file's coefficients describe the
+/// error.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Correction {
     axes: usize,

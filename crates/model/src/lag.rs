@@ -1,14 +1,13 @@
 //! Lagged temperature channels: the structure lags its sensors.
 //!
-//! A sensor on the surface of a casting answers to a heat source within minutes; the casting's
-//! mean temperature, which sets its growth and bending, follows over an hour or more. A
-//! temperature channel with a [`Lag`] is not read from hardware: the control computes it every
-//! cycle as the first-order lag of another sensor, τ·dy/dt = x − y, discretised exactly for an
-//! input held over the step (zero-order hold): y_k = y_{k−1} + a·(x_k − y_{k−1}),
-//! a = 1 − exp(−Δt/τ). Every model term — seed A's position-dependent summands as much as the
-//! prior art's ΔT·K — can then read a lagged channel through an ordinary temperature difference,
-//! so dynamics and position dependence live in one model form that [`crate::Model::evaluate`]
-//! evaluates unchanged.
+//! A sensor on the surface of a casting answers to a heat source within minutes; the casting's mean
+//! temperature, which sets its growth and bending, follows over an hour or more. A temperature
+//! channel with a [`Lag`] is not read from hardware: the control computes it every cycle as the
+//! first-order lag of another sensor, τ·dy/dt = x − y, discretised exactly for an input held over
+//! the step (zero-order hold): y_k = y_{k−1} + a·(x_k − y_{k−1}), a = 1 − exp(−Δt/τ). Every model
+//! term — the position-dependent summands as much as the prior art's ΔT·K — can then read a lagged
+//! channel through an ordinary temperature difference, so dynamics and position dependence live in
+//! one model form that [`crate::Model::evaluate`] evaluates unchanged.
 //!
 //! [`LagFilters`] holds the filter states (allocated once, when built from the machine) and
 //! fills the lagged channels of a cycle's temperature slice in place.

@@ -13,10 +13,10 @@
 //! **error = actual − nominal**; a model predicts the error of each axis in µm, and the
 //! **compensation added to the set-point is −error** ([`Correction::compensation_um`]).
 //!
-//! ## Example: seed A, example 1
+//! ## Example: a slide that bends (the glossary's worked example)
 //! A slide (axis X, 500 mm) heated underneath bends; the error across it, along Y, is
 //! ΔT·[K_21 + K_22·r_X]. With K_21 = 2 µm/K, K_22 = 4 µm/K and ΔT = 5 K the error is 10 µm at
-//! r = 0 and 30 µm at r = 1 (the seed's 10 µm → 30 µm).
+//! r = 0 and 30 µm at r = 1.
 //!
 //! ```
 //! use truepos_model::*;

@@ -21,15 +21,15 @@ pub enum AxisKind {
     Rotary,
 }
 
-/// How an axis' slide is carried, which selects the natural position factor of seed A.
+/// How an axis' slide is carried, which selects the natural position factor g of the
+/// position-dependent model.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Carriage {
     /// The slide is held at one end and reaches out (a ram, a column slide): the error grows from
     /// one end, so the ratio r = position / length describes it.
     Cantilever,
     /// The slide moves on a bed supported along its length: the bed bends and the error is
-    /// smallest in the middle, so the bed factor KFA = (position − L/2) / (L/2) describes it
-    /// (seed A, embodiment 6).
+    /// smallest in the middle, so the bed factor KFA = (position − L/2) / (L/2) describes it.
     Bed,
 }
 
@@ -67,7 +67,7 @@ impl Axis {
     }
 
     /// The dimensionless position r = (position − travel_min) / length, 0 at the lower end of
-    /// travel and 1 at the upper end (seed A: r_j = position(A_j) / length(A_j)).
+    /// travel and 1 at the upper end (docs/glossary.md: r).
     pub fn ratio(&self, position: f64) -> f64 {
         (position - self.travel_min) / self.length()
     }

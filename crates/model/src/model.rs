@@ -1,16 +1,16 @@
-//! Thermal compensation models: the general position-dependent form of seed A and the linear
-//! regression form of seed C, as parts that superimpose.
+//! Thermal compensation models: the general position-dependent form and the linear regression
+//! against a reference sensor, as parts that superimpose.
 //!
-//! Seed A, embodiment 5 (with embodiment 6's bed factor):
+//! The all-axes form (with the bed-factor family's multiplier):
 //!
 //! ```text
 //! ΔA_n = Σ_m ΔT_m · [K_nm0 + Σ_j K_nmj · g_j] · (KFA_b if the summand is bed-multiplied)
 //! ```
 //!
 //! where g_j is r_j, r_j² or KFA_j of axis j. Each [`Summand`] is one `ΔT_m · […]` of one target
-//! axis n. Every example and embodiment of seed A, the position-independent prior art
-//! (ΔA_n = Σ ΔT·K) and seed C's regression (Y = Σ k_i·(t_i − t_r) + c) are this form with some
-//! coefficients left out.
+//! axis n. Every family of the position-dependent model, the position-independent prior art
+//! (ΔA_n = Σ ΔT·K) and the reference-sensor regression (Y = Σ k_i·(t_i − t_r) + c) are this form
+//! with some coefficients left out (docs/glossary.md names each).
 
 use alloc::string::String;
 use alloc::vec::Vec;
@@ -26,11 +26,11 @@ pub const MAX_MODEL_DIFFERENCES: usize = 64;
 /// The position factor g_j of an axis.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum PositionFactor {
-    /// r = (position − travel_min) / length, 0 … 1 (seed A, eqs. 9–10).
+    /// r = (position − travel_min) / length, 0 … 1 (docs/glossary.md: r).
     Ratio,
-    /// r², for a bend that follows an arc rather than a line (seed A, eqs. 11–12).
+    /// r², for a bend that follows an arc rather than a line.
     RatioSquared,
-    /// KFA = (position − L/2) / (L/2) = 2r − 1, −1 … 1, for a slide on a bed (seed A, eq. 41).
+    /// KFA = (position − L/2) / (L/2) = 2r − 1, −1 … 1, for a slide on a bed.
     BedFactor,
 }
 
@@ -77,16 +77,17 @@ pub struct Summand {
     pub k0_um_per_k: f64,
     /// The K_nmj · g_j.
     pub position_terms: Vec<PositionTerm>,
-    /// Embodiment 6: multiply the whole summand by the bed factor KFA of this axis.
+    /// The bed-factor family: multiply the whole summand by the bed factor KFA of this axis.
     pub bed_multiplier: Option<usize>,
 }
 
 /// Which form a part was written in; kept so that a model file reads back as written.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum PartForm {
-    /// Seed A's position-dependent form.
+    /// The position-dependent form.
     PositionDependent,
-    /// Seed C's linear regression on temperature differences with a constant.
+    /// The linear regression on temperature differences against a reference sensor, with a
+    /// constant.
     Regression,
 }
 
@@ -102,7 +103,7 @@ pub struct Part {
     pub form: PartForm,
     /// Its summands.
     pub summands: Vec<Summand>,
-    /// Constant error per axis in µm (seed C's "+ constant"), as (axis, value).
+    /// Constant error per axis in µm (the regression's "+ c"), as (axis, value).
     pub constants_um: Vec<(usize, f64)>,
 }
 

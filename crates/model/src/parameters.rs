@@ -2,8 +2,8 @@
 //! error_n = Σ_p θ_p · φ_p(n, cycle): the link between a model's structure and least squares.
 //!
 //! Fitting a structure (which summands, which position terms) to measured errors, and
-//! re-estimating the parameters of an existing model on line (seed C, section 4: "only its
-//! parameters are re-estimated"), both work on these regressors.
+//! re-estimating the parameters of an existing model on line (probing re-identification: "only
+//! its parameters are re-estimated"), both work on these regressors.
 //!
 //! Parameter order: part by part; within a part, summand by summand (K_nm0, then each K_nmj in
 //! order), then the part's constants. Disabled parts count too: their parameters exist.

@@ -1,5 +1,5 @@
 //! On-line re-identification of a model's parameters: recursive least squares with a forgetting
-//! factor (seed C, section 4; the re-learning of seed D's prior art, JP 2018-111145).
+//! factor: probing re-identification (docs/glossary.md: re-identification).
 //!
 //! Each probe measurement of an axis' error y, with the model's regressors φ at that instant,
 //! updates θ:
@@ -88,8 +88,8 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
 }
 
 /// Exponentially weighted RMS of recent prediction errors of the running and the candidate
-/// parameters, and the rule to switch (seed D prior art: re-learn when the difference between
-/// estimated and measured values is not below a threshold).
+/// parameters, and the rule to switch (re-learn when the difference between estimated and measured
+/// values is not below a threshold).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SwitchRule {
     /// Weight of the newest squared error, 0 … 1 (0.1 ≈ the last 10 measurements).

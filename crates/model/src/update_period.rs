@@ -1,5 +1,5 @@
-//! The timing argument of seed A: how wrong a position-dependent term is when it is updated every
-//! T ms instead of every control cycle.
+//! The timing argument: how wrong a position-dependent term is when it is updated every T ms
+//! instead of every control cycle.
 //!
 //! Between two updates an axis at feed v travels Δs = v·T, so the ratio r = position / length is
 //! stale by at most Δr = v·T / L. The worst-case error of a term, relative to the term's full
@@ -9,7 +9,7 @@
 //! - ratio squared r² (span 1, steepest at r = 1): 1 − (1 − Δr)² = 2Δr − Δr²;
 //! - bed factor KFA = 2r − 1 (span 2, slope 2): 2Δr / 2 = Δr.
 //!
-//! Seed A's case: 100 m/min, 4 ms, 500 mm → Δs = 6.67 mm, Δr = 1.3 %.
+//! The glossary's case: 100 m/min, 4 ms, 500 mm → Δs = 6.67 mm, Δr = 1.3 %.
 
 use crate::model::PositionFactor;
 

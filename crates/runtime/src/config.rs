@@ -7,7 +7,7 @@
 use truepos_model::Machine;
 
 /// Default safety envelope: largest offset magnitude in µm. Thermal errors of machining
-/// centres reach tens of µm (seed A: −100 … 150 µm on 500 mm at the extreme); 100 µm lets a
+/// centres reach tens of µm (−100 … 150 µm on 500 mm at the extreme); 100 µm lets a
 /// sound model work and stops a wild one.
 pub const DEFAULT_MAX_OFFSET_UM: f64 = 100.0;
 /// Default safety envelope: largest offset rate in µm/s. Thermal drift is µm per minute; the
@@ -30,7 +30,7 @@ pub const DEFAULT_NOISE_K: f64 = 3.0;
 pub const DEFAULT_RECOVER_AFTER_S: f64 = 2.0;
 
 /// One axis as the service drives it: its safety envelope and its slot in the control's paths
-/// (model selection by axis combination, seed D).
+/// (model selection by axis combination).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct AxisConfig {
     /// Largest offset magnitude in µm.
@@ -44,7 +44,7 @@ pub struct AxisConfig {
 }
 
 impl AxisConfig {
-    /// Seed D's axis code b = 100·path + axis number.
+    /// The axis code b = 100·path + axis number of the axis-combination index.
     pub fn code(&self) -> u32 {
         100 * self.path + self.number
     }

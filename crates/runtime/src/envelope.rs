@@ -1,13 +1,12 @@
 //! The last stage before the control: bumpless blending and the safety envelope.
 //!
-//! Switching models, enabling or disabling compensation, or falling back to holding must never
-//! make the output jump (seed D's prior art, JP 2017-170532: blend via the difference of the
-//! two values). Each axis has exactly one blend: when the origin of its offset changes, the blend
-//! restarts from the output last sent and moves linearly to the new target over the blend time,
-//! `from + (target − from)·w` with `w` rising from 0 to 1. A new change restarts it from wherever
-//! the output then is; blends are never stacked, so the output always lies between the value it
-//! left and the value it is going to. Then the envelope clamps the rate (µm/s against the last
-//! sent value) and the magnitude (µm).
+//! Switching models, enabling or disabling compensation, or falling back to holding must never make
+//! the output jump (blend via the difference of the two values; docs/glossary.md: blend). Each axis
+//! has exactly one blend: when the origin of its offset changes, the blend restarts from the output
+//! last sent and moves linearly to the new target over the blend time, `from + (target − from)·w`
+//! with `w` rising from 0 to 1. A new change restarts it from wherever the output then is; blends
+//! are never stacked, so the output always lies between the value it left and the value it is going
+//! to. Then the envelope clamps the rate (µm/s against the last sent value) and the magnitude (µm).
 
 use truepos_model::MAX_AXES;
 

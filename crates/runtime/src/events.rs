@@ -29,7 +29,7 @@ pub enum EventKind {
     },
     /// The axis positions are usable again.
     PositionRecovered,
-    /// A path now uses this model (seed D selection, or after a fault cleared).
+    /// A path now uses this model (selected by axis combination, or after a fault cleared).
     ModelSelected {
         /// Path, 1-based.
         path: u32,
@@ -45,7 +45,7 @@ pub enum EventKind {
         /// Model used instead.
         to: usize,
     },
-    /// No model of the set matches the path's axis combination (seed D: notify the user).
+    /// No model of the set matches the path's axis combination: the user is notified.
     NoModel {
         /// Path, 1-based.
         path: u32,
@@ -58,7 +58,7 @@ pub enum EventKind {
         /// Path, 1-based.
         path: u32,
     },
-    /// The control switched axes between paths (seed D, Figs. 10–11): models are selected anew.
+    /// The control switched axes between paths (axis switching): models are selected anew.
     AxisSwitch,
     /// Compensation was switched on (true) or off (false).
     Enabled(bool),

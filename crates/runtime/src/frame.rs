@@ -25,7 +25,7 @@ pub struct Frame {
     /// Service time of each operating value's last update.
     pub operating_stamp_s: Vec<f64>,
     /// The control's axis configuration: for each path (1-based index − 1), the machine axis
-    /// indices it drives in order (seed D: path 1 = X1, Z1). Sources that know it (a control)
+    /// indices it drives in order (e.g. path 1 = X1, Z1). Sources that know it (a control)
     /// overwrite it; it stays as configured otherwise.
     pub paths: Vec<Vec<usize>>,
     /// A probe event seen by a source this cycle (the HAL component on a rising edge of its

@@ -1,11 +1,11 @@
-//! Model sets (seed D, DE 10 2019 215 634 B4): every model carries an axis-combination index
+//! Model sets, models per axis combination: every model carries an axis-combination index
 //! B = (b1, b2, b3), b_i = 100·path + axis number; the service builds the target index D of each
 //! path from the control's axis configuration and sets the matching model for that path.
 
 use truepos_model::envelope::{Beyond, TrainingEnvelope};
 use truepos_model::{CompensationModel, CycleInput, DynamicError, EvalError, MAX_AXES};
 
-/// Slots of an axis-combination index (seed D uses three).
+/// Slots of an axis-combination index (three, as in docs/glossary.md).
 pub const INDEX_SLOTS: usize = 3;
 
 /// What the runtime keeps of a model that keeps state (a fitted dynamic model): its filters
@@ -243,7 +243,7 @@ impl ModelSet {
 
     /// Builds the target index of every path from the control's axis configuration (machine
     /// axis indices per path) and the axes' codes, and compares it with every model's index
-    /// (seed D, Fig. 7). Returns whether anything changed. Allocates nothing.
+    /// (docs/glossary.md: model set). Returns whether anything changed. Allocates nothing.
     pub fn select(&mut self, paths: &[Vec<usize>], codes: &[u32]) -> bool {
         let mut changed = false;
         for p in 0..self.targets.len() {
@@ -302,9 +302,9 @@ mod tests {
         Model::new("m", &m, vec![]).unwrap()
     }
 
-    /// Seed D's example: path 1 = X1, Z1 → [101, 102, 0]; path 2 = X2, Z2 → [201, 202, 0].
-    /// After X1 and X2 are switched: path 1 → [201, 102, 0] (model 3), path 2 → [101, 202, 0]
-    /// (model 4).
+    /// The glossary's axis-switching example: path 1 = X1, Z1 → [101, 102, 0]; path 2 = X2, Z2 →
+    /// [201, 202, 0]. After X1 and X2 are switched: path 1 → [201, 102, 0] (model 3), path 2 →
+    /// [101, 202, 0] (model 4).
     #[test]
     fn seed_d_example_with_axis_switching() {
         let entry = |name: &str, index| ModelEntry {

@@ -1,5 +1,5 @@
-//! Probe measurements as an input of the service (seed C, section 4: the working model's
-//! parameters are re-estimated from probe measurements taken during operation).
+//! Probe measurements as an input of the service (probing re-identification: the working
+//! model's parameters are re-estimated from probe measurements taken during operation).
 //!
 //! A source that sees a probe event (the HAL component on a rising edge of
 //! `truepos.probe.trigger`) puts a [`ProbeInput`] in the frame: where the probe touched and the

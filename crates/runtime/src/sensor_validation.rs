@@ -1,6 +1,6 @@
-//! Validation of every input before it may reach a model (seed C: verify the sensed values and
-//! their valid range before compensating): NaN/∞, range, rate of change, stuck value, missing
-//! updates. The verdict per channel is kept, and transitions raise events.
+//! Validation of every input before it may reach a model (verify the sensed values and their valid
+//! range before compensating): NaN/∞, range, rate of change, stuck value, missing updates. The
+//! verdict per channel is kept, and transitions raise events.
 
 use truepos_model::{LagSource, Machine};
 

@@ -369,12 +369,12 @@ impl Service {
         }
     }
 
-    /// Replaces model `i` of the set by a reloaded one, between cycles, without a restart: an
-    /// axis whose output comes from model `i` restarts its one blend from the output last sent,
-    /// exactly as on a change of origin, so the new model blends in through the envelope. The
-    /// new model must serve the same axis combination (seed D index) and give as many axes;
-    /// otherwise nothing changes and the error says why. Returns the model replaced, for the
-    /// caller to drop off the cycle.
+    /// Replaces model `i` of the set by a reloaded one, between cycles, without a restart: an axis
+    /// whose output comes from model `i` restarts its one blend from the output last sent, exactly
+    /// as on a change of origin, so the new model blends in through the envelope. The new model
+    /// must serve the same axis combination (axis-combination index) and give as many axes;
+    /// otherwise nothing changes and the error says why. Returns the model replaced, for the caller
+    /// to drop off the cycle.
     pub fn replace_model(&mut self, i: usize, entry: ModelEntry) -> Result<ModelEntry, String> {
         let Some(old) = self.set.entries().get(i) else {
             return Err(format!(
