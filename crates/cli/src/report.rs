@@ -15,6 +15,7 @@ use crate::shape::ShapeArgs;
 use truepos_report::{channel_metrics, write_report, Channel, ReportData};
 
 pub(crate) mod coefficients;
+mod runs;
 
 /// Arguments of `truepos report`.
 #[derive(clap::Args)]
@@ -39,6 +40,11 @@ pub struct Args {
     /// name. Default: the only run.
     #[arg(long)]
     select_run: Option<String>,
+    /// Report every run of the file, one after the other on the time axis — on the clock when
+    /// every run has one, else end to end — with each run's start marked in the drift plots;
+    /// a fitted dynamic model starts afresh at each run, as on the machine after a restart.
+    #[arg(long, conflicts_with_all = ["select_run", "test_from_s"])]
+    all_runs: bool,
     /// Which column holds the measured error of which axis, as AXIS=COLUMN (error = actual −
     /// nominal; converted to µm by the unit in the name, none = µm; an empty cell is a row
     /// without a measurement, left out of the figures), e.g. `X=dx_um,Y=dy_um,Z=dz_um`.
@@ -105,9 +111,10 @@ struct Measured {
     clock_start_s: Option<f64>,
 }
 
-/// The run to report, and its measured-error columns by name (in µm, NaN where a row has no
-/// measurement), read by io's one run reader with the file's shape.
-fn read_measured(args: &Args, names: &[String]) -> Result<Measured, CliError> {
+/// The runs to report (`--select-run`'s, the only one, or with `--all-runs` every one), and
+/// their measured-error columns by name (in µm, NaN where a row has no measurement), read by
+/// io's one run reader with the file's shape.
+fn read_measured(args: &Args, names: &[String]) -> Result<Vec<Measured>, CliError> {
     let tables = truepos_io::run::read_shaped(&args.run, None, &args.shape.shape())?;
     let listed = || {
         tables
@@ -116,15 +123,15 @@ fn read_measured(args: &Args, names: &[String]) -> Result<Measured, CliError> {
             .collect::<Vec<_>>()
             .join(", ")
     };
-    let table = match &args.select_run {
-        Some(name) => tables.iter().find(|t| t.name() == *name).ok_or_else(|| {
+    let selected: Vec<&truepos_io::run::Table> = match &args.select_run {
+        Some(name) => vec![tables.iter().find(|t| t.name() == *name).ok_or_else(|| {
             CliError::refused(format!(
                 "--select-run `{name}`: no such run in {}; the runs are: {}",
                 args.run.display(),
                 listed()
             ))
-        })?,
-        None if tables.len() == 1 => &tables[0],
+        })?],
+        None if tables.len() == 1 || args.all_runs => tables.iter().collect(),
         None => {
             return Err(CliError::refused(format!(
                 "{} holds {} runs; choose one with --select-run: {}",
@@ -134,25 +141,56 @@ fn read_measured(args: &Args, names: &[String]) -> Result<Measured, CliError> {
             )))
         }
     };
-    let columns = names
-        .iter()
-        .map(|n| {
-            let c = table.table.column(n).ok_or_else(|| {
-                CliError::refused(format!(
-                    "{}:{}:1: `{n}`: missing column; the header has: {}",
-                    args.run.display(),
-                    table.table.header_line,
-                    table.columns.join(", ")
-                ))
-            })?;
-            Ok(table.measured(c)?)
+    selected
+        .into_iter()
+        .map(|table| {
+            let columns = names
+                .iter()
+                .map(|n| {
+                    let c = table.table.column(n).ok_or_else(|| {
+                        CliError::refused(format!(
+                            "{}:{}:1: `{n}`: missing column; the header has: {}",
+                            args.run.display(),
+                            table.table.header_line,
+                            table.columns.join(", ")
+                        ))
+                    })?;
+                    Ok(table.measured(c)?)
+                })
+                .collect::<Result<_, CliError>>()?;
+            Ok(Measured {
+                name: table.name(),
+                columns,
+                clock_start_s: clock_start(args, table),
+            })
         })
-        .collect::<Result<_, CliError>>()?;
-    Ok(Measured {
-        name: table.name(),
-        columns,
-        clock_start_s: clock_start(args, table),
-    })
+        .collect()
+}
+
+/// The model's prediction of each `--measured` axis at every row of every run, in order (a
+/// row whose cycle fails validation has none), and how many rows failed. The model starts
+/// afresh at each run.
+fn predict(
+    model: &mut Evaluator,
+    runs: &[&truepos_io::cycles::Cycles],
+    pairs: &[(usize, String)],
+    machine: &truepos_model::Machine,
+) -> (Vec<Vec<f64>>, usize) {
+    let mut predicted = vec![Vec::new(); pairs.len()];
+    let mut failed = 0usize;
+    for (r, run) in runs.iter().enumerate() {
+        if r > 0 {
+            model.restart();
+        }
+        for i in 0..run.time_s.len() {
+            let e = model.error_um(run, i, machine);
+            for (k, &(a, _)) in pairs.iter().enumerate() {
+                predicted[k].push(e.as_ref().map_or(f64::NAN, |e| e[a]));
+            }
+            failed += usize::from(e.is_err());
+        }
+    }
+    (predicted, failed)
 }
 
 /// The volume map of a position-dependent model over the run's states.
@@ -262,7 +300,7 @@ fn conclusions(channels: &[Channel], range: std::ops::Range<usize>) -> Vec<(Stri
 pub fn run(args: Args) -> Result<(), CliError> {
     let machine = machine_file::load(&args.machine)?.machine;
     let mut model = Evaluator::load(&args.model, &machine)?;
-    let runs = model.load_runs(&args.run, &machine, &args.shape, args.time.as_deref())?;
+    let mut runs = model.load_runs(&args.run, &machine, &args.shape, args.time.as_deref())?;
     let mut pairs = Vec::new();
     for spec in &args.measured {
         let (axis, column) = spec.split_once('=').ok_or_else(|| {
@@ -277,35 +315,28 @@ pub fn run(args: Args) -> Result<(), CliError> {
         pairs.push((a, column.to_string()));
     }
     let columns: Vec<String> = pairs.iter().map(|p| p.1.clone()).collect();
-    let Measured {
-        name: run_name,
-        columns: mut measured,
-        clock_start_s,
-    } = read_measured(&args, &columns)?;
     let relative = !args.absolute && model.model().as_dynamic().is_some();
-    if relative {
-        for m in &mut measured {
-            relative_to_first(m);
+    let mut measured = vec![Vec::new(); pairs.len()];
+    let mut selected = Vec::new();
+    for mut m in read_measured(&args, &columns)? {
+        let k = runs
+            .iter()
+            .position(|(name, _)| *name == m.name)
+            .ok_or_else(|| CliError::refused(format!("run `{}`: not found", m.name)))?;
+        for (all, mut column) in measured.iter_mut().zip(std::mem::take(&mut m.columns)) {
+            // Each run from its own first measurement: the reference point the fit took.
+            if relative {
+                relative_to_first(&mut column);
+            }
+            all.extend(column);
         }
+        selected.push((m.name, m.clock_start_s, runs.swap_remove(k).1));
     }
-    let run = runs
-        .into_iter()
-        .find(|(name, _)| *name == run_name)
-        .map(|(_, cycles)| cycles)
-        .ok_or_else(|| CliError::refused(format!("run `{run_name}`: not found")))?;
-
-    let mut predicted = vec![Vec::with_capacity(run.time_s.len()); pairs.len()];
-    let mut failed = 0usize;
-    for i in 0..run.time_s.len() {
-        let r = model.error_um(&run, i, &machine);
-        for (k, &(a, _)) in pairs.iter().enumerate() {
-            predicted[k].push(match &r {
-                Ok(e) => e[a],
-                Err(_) => f64::NAN,
-            });
-        }
-        failed += usize::from(r.is_err());
-    }
+    let run_names: Vec<String> = selected.iter().map(|r| r.0.clone()).collect();
+    let cycles: Vec<_> = selected.iter().map(|r| &r.2).collect();
+    let (predicted, failed) = predict(&mut model, &cycles, &pairs, &machine);
+    let combined = runs::combine(selected);
+    let run = combined.cycles;
     let channels: Vec<Channel> = pairs
         .iter()
         .zip(measured)
@@ -335,6 +366,10 @@ pub fn run(args: Args) -> Result<(), CliError> {
             )
         })
         .collect();
+    let run_name = match run_names.as_slice() {
+        [one] => one.clone(),
+        all => format!("{} runs ({})", all.len(), all.join(", ")),
+    };
     let protocol = protocol(
         &args,
         &machine.name,
@@ -349,8 +384,8 @@ pub fn run(args: Args) -> Result<(), CliError> {
     let data = ReportData {
         title: format!("truepos report: model `{}` on {}", model.name(), run_name),
         time_s: run.time_s.clone(),
-        clock_start_s,
-        run_starts: Vec::new(),
+        clock_start_s: combined.clock_start_s,
+        run_starts: combined.starts,
         test_from,
         channels,
         temperatures,

@@ -247,3 +247,79 @@ fn drift_plots_read_the_runs_clock() {
     assert!(html.contains("Z (z_meas_um): drift over clock time — measured, predicted, residual"));
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// `--all-runs`: two days of one file, timed by the clock, reported together. The drift plots
+/// read the clock across both days (the night between them is a gap), each day's start is a
+/// labelled line, and the pooled figures are the two days' own: for a static model the pooled
+/// mean square is the days' mean squares weighted by their rows.
+#[test]
+fn all_runs_share_the_clock_and_their_starts_are_marked() {
+    let dir = std::env::temp_dir().join(format!("truepos-report-days-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let original = std::fs::read_to_string(repo("examples/vmc3/run.csv")).unwrap();
+    let mut lines = original.lines();
+    let header = lines.next().unwrap().replacen("time_s", "day,time", 1);
+    let rows: Vec<&str> = lines.collect();
+    let mut text = format!("{header},z_meas_um\n");
+    for (day, date, wobble) in [
+        ("monday", "2024-03-04", 1.0),
+        ("tuesday", "2024-03-05", 3.0),
+    ] {
+        for (i, l) in rows.iter().enumerate() {
+            let (t, rest) = l.split_once(',').unwrap();
+            let s = 6.0 * 3600.0 + t.parse::<f64>().unwrap();
+            let (h, m, sec) = ((s / 3600.0) as u32, (s % 3600.0 / 60.0) as u32, s % 60.0);
+            let z = 20.0 + wobble * ((i % 7) as f64 - 3.0);
+            text.push_str(&format!("{day},{date}T{h:02}:{m:02}:{sec:02},{rest},{z}\n"));
+        }
+    }
+    let run = dir.join("days.csv");
+    std::fs::write(&run, text).unwrap();
+    let report = |extra: &[&str], out: &str| -> serde_json::Value {
+        let out = Command::new(env!("CARGO_BIN_EXE_truepos"))
+            .current_dir(repo(""))
+            .args(["report", "--machine", "examples/vmc3/machine.toml"])
+            .args([
+                "--model",
+                "examples/vmc3/model.toml",
+                "--measured",
+                "Z=z_meas_um",
+            ])
+            .args(["--run-column", "day", "--time", "time", "--json", "--run"])
+            .arg(&run)
+            .args(extra)
+            .arg("--out")
+            .arg(dir.join(out))
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        serde_json::from_slice(&out.stdout).unwrap()
+    };
+    let rmse = |v: &serde_json::Value| v["channels"][0]["metrics"]["rmse_um"].as_f64().unwrap();
+    let both = rmse(&report(&["--all-runs"], "both"));
+    let (mon, tue) = (
+        rmse(&report(&["--select-run", "monday"], "mon")),
+        rmse(&report(&["--select-run", "tuesday"], "tue")),
+    );
+    // Both days have the same number of rows.
+    let pooled = ((mon * mon + tue * tue) / 2.0).sqrt();
+    assert!((both - pooled).abs() < 1e-9, "{both} vs {pooled}");
+    let svg = std::fs::read_to_string(dir.join("both/Z__z_meas_um__over_time.svg")).unwrap();
+    assert!(
+        svg.contains("clock time, UTC (from 2024-03-04 06:00)"),
+        "axis title"
+    );
+    for label in ["\nmonday\n", "\ntuesday\n", "start of a run"] {
+        assert!(svg.contains(label), "{label}");
+    }
+    // More than a day on the axis: the ticks carry the day of the month.
+    assert!(svg.contains("\n05. "), "day in the ticks");
+    let html = std::fs::read_to_string(dir.join("both/report.html")).unwrap();
+    assert!(html.contains("2 runs (monday, tuesday)"), "protocol");
+    std::fs::remove_dir_all(&dir).ok();
+}
