@@ -9,10 +9,10 @@ use std::time::{Duration, Instant};
 
 use crate::envelope_check;
 use crate::error::CliError;
-use crate::run_live::{HttpArgs, Live};
 use truepos_io::compensation::load_set;
 use truepos_io::limits::{check_in, finite_in};
 use truepos_io::{cycles, machine_file};
+use truepos_live::host::{HttpArgs, Live};
 use truepos_runtime::admission;
 use truepos_runtime::host::{ModelLoader, ReloadSetup};
 use truepos_runtime::log;
@@ -218,7 +218,8 @@ impl Timing {
 }
 
 pub fn run(args: RunArgs) -> Result<(), CliError> {
-    let http = HttpArgs::check(args.http.as_deref(), args.http_token_file.as_deref())?;
+    let http = HttpArgs::check(args.http.as_deref(), args.http_token_file.as_deref())
+        .map_err(CliError::refused)?;
     let machine = machine_file::load(&args.machine)?;
     let entries = load_set(&args.models, &machine)?;
     let period_s = args.period_ms / 1000.0;
@@ -275,7 +276,9 @@ pub fn run(args: RunArgs) -> Result<(), CliError> {
         .log(args.log.clone())
         .start()?;
     let mut live = match http {
-        Some(h) => Some(Live::start(h, &host, source_names, args.log.as_ref())?),
+        Some(h) => Some(
+            Live::start(h, &host, source_names, args.log.as_ref()).map_err(CliError::refused)?,
+        ),
         None => None,
     };
     let stop = Arc::new(AtomicBool::new(false));

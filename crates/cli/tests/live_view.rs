@@ -71,11 +71,18 @@ impl Running {
         };
         // A server bound to every address is reached through loopback.
         let addr = SocketAddr::from(([127, 0, 0, 1], addr.port()));
-        Self {
+        let run = Self {
             child,
             addr,
             stderr: rx,
+        };
+        // The address is said before the first cycle; /api/state answers 503 until then.
+        let bearer = format!("Authorization: Bearer {TOKEN}");
+        while get(addr, "/api/state", &[&bearer]).status == 503 {
+            assert!(Instant::now() < deadline, "no cycle published within 60 s");
+            std::thread::sleep(Duration::from_millis(20));
         }
+        run
     }
 
     /// SIGTERM and wait (at most 20 s) for a clean exit; its success and stderr.
@@ -549,7 +556,12 @@ fn a_real_browser_draws_the_traces_and_cannot_miss_a_fault() {
         None,
     );
     let deadline = Instant::now() + Duration::from_secs(20);
-    while json(&get(run.addr, "/api/state", &[]))["state"] == "active" {
+    // 503 until the first cycle is published, then active until the fault.
+    loop {
+        let r = get(run.addr, "/api/state", &[]);
+        if r.status == 200 && json(&r)["state"] != "active" {
+            break;
+        }
         assert!(Instant::now() < deadline, "the fault never took effect");
         std::thread::sleep(Duration::from_millis(100));
     }

@@ -16,6 +16,7 @@ use truepos_hal::source::Edge;
 use truepos_hal::{pins, Error, HalSink, HalSource};
 use truepos_io::compensation::load_set;
 use truepos_io::limits::{finite_in, int_in};
+use truepos_live::host::{HttpArgs, Live};
 use truepos_runtime::admission;
 use truepos_runtime::host::ReloadSetup;
 use truepos_runtime::{MachineConfig, PathState, Running, Service, ServiceConfig, ServiceHost};
@@ -72,6 +73,14 @@ struct RunArgs {
     /// thread unless that is bound elsewhere).
     #[arg(long, value_parser = int_in(0usize, 1023))]
     cpu: Option<usize>,
+    /// Serve the live view (page, JSON, Server-Sent Events, Prometheus `/metrics`) on ADDR:
+    /// `127.0.0.1:8080`, or a port alone for loopback. An address beyond loopback needs a token
+    /// (TRUEPOS_HTTP_TOKEN or --http-token-file); docs/live_view.md.
+    #[arg(long, value_name = "ADDR")]
+    http: Option<String>,
+    /// The live view's token: the first line of FILE (at least 16 characters).
+    #[arg(long, value_name = "FILE")]
+    http_token_file: Option<PathBuf>,
 }
 
 /// Histogram bucket edges of the cycle-to-cycle interval, ms.
@@ -127,6 +136,9 @@ struct LoopStats {
 }
 
 fn run(args: RunArgs) -> Result<(), Error> {
+    // Before HAL is touched: a live view beyond loopback without a token is refused here.
+    let http = HttpArgs::check(args.http.as_deref(), args.http_token_file.as_deref())
+        .map_err(Error::Refused)?;
     let machine = truepos_io::machine_file::load(&args.machine)?;
     // Before HAL is touched: a channel id that is no pin name is the machine file's mistake.
     pins::check_names(&machine.machine)?;
@@ -172,6 +184,7 @@ fn run(args: RunArgs) -> Result<(), Error> {
         }),
         watch: false,
     };
+    let source_names = vec![truepos_runtime::Source::name(&source).to_string()];
     let mut host = ServiceHost::new(machine, entries)
         .reload(Some(reload))
         .source(Box::new(source))
@@ -188,6 +201,13 @@ fn run(args: RunArgs) -> Result<(), Error> {
         host.model_names(),
         args.period_ms
     );
+    // The live view's threads, like the logger's, start before the cycle thread's priority.
+    let mut live = match http {
+        Some(h) => {
+            Some(Live::start(h, &host, source_names, args.log.as_ref()).map_err(Error::Refused)?)
+        }
+        None => None,
+    };
     // After the logger has started, so that its thread inherits neither priority nor CPU.
     let setup = realtime_setup(args.rt_priority, args.cpu);
     if let Some(p) = setup.fifo_priority {
@@ -198,7 +218,10 @@ fn run(args: RunArgs) -> Result<(), Error> {
     }
 
     let period_ns = (args.period_ms * 1e6).round() as u64;
-    let s = cycle_loop(&mut host, &loop_pins, period_ns, &stop);
+    let s = cycle_loop(&mut host, live.as_mut(), &loop_pins, period_ns, &stop);
+    if let Some(l) = live {
+        l.stop(&host, s.skipped);
+    }
     // Bumpless stop: blend the offsets to zero before leaving HAL.
     ramp_to_zero(&mut host.service, s.start, period_ns, args.blend_s);
     let stopped = host.stop();
@@ -233,7 +256,13 @@ fn run(args: RunArgs) -> Result<(), Error> {
 
 /// Compensates every period until `stop`: reads the control pins, runs the cycle, writes the
 /// loop's own output pins.
-fn cycle_loop(host: &mut Running, pins: &LoopPins, period_ns: u64, stop: &AtomicBool) -> LoopStats {
+fn cycle_loop(
+    host: &mut Running,
+    mut live: Option<&mut Live>,
+    pins: &LoopPins,
+    period_ns: u64,
+    stop: &AtomicBool,
+) -> LoopStats {
     let model_count = host.model_names().len();
     let mut reload_edge = Edge::default();
     let mut reloads: i32 = 0;
@@ -298,6 +327,10 @@ fn cycle_loop(host: &mut Running, pins: &LoopPins, period_ns: u64, stop: &Atomic
         s.max_work_us = s.max_work_us.max(work_us);
         pins.cycle_us.set(work_us);
         pins.cycles.set(s.cycles as u32 as i32);
+        if let Some(l) = live.as_deref_mut() {
+            // Between cycles: at most every 50 ms a copy into atomics, no allocation.
+            l.publish(host, s.skipped, work_us);
+        }
 
         pacer.advance();
         if after > pacer.deadline_ns() {

@@ -35,3 +35,22 @@ fn non_finite_and_out_of_range_options_are_refused_by_name() {
         assert!(err.contains(name) && err.contains(range), "{args:?}: {err}");
     }
 }
+
+/// The live view beyond loopback without a token is refused before the machine file is read
+/// or HAL is touched (docs/live_view.md).
+#[test]
+fn a_live_view_beyond_loopback_without_a_token_is_refused_first() {
+    std::env::remove_var("TRUEPOS_HTTP_TOKEN");
+    let (code, err) = bounded(&[
+        "run",
+        "--machine",
+        "no-such-machine.toml",
+        "--model",
+        "k",
+        "--http",
+        "0.0.0.0:8080",
+    ]);
+    assert_ne!(code, 0, "{err}");
+    assert!(err.contains("TRUEPOS_HTTP_TOKEN"), "{err}");
+    assert!(!err.contains("no-such-machine"), "checked first: {err}");
+}

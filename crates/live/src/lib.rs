@@ -29,6 +29,7 @@
 
 pub mod access;
 pub mod api;
+pub mod host;
 pub mod info;
 pub mod stream;
 
