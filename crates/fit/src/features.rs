@@ -235,7 +235,8 @@ pub enum Family {
     /// constant, at a small fixed ridge on per-column scales. Defined by its structure; always
     /// fitted when the selection has more than one family to choose from.
     Baseline,
-    /// Temperature rises only: the static regression of seed C and the prior art of seed A.
+    /// Temperature rises only: the static reference-sensor regression and the
+    /// position-independent prior art.
     Static,
     /// Temperature rises and filtered operating state (spindle speed, its square).
     Operating,
@@ -306,8 +307,8 @@ impl Family {
         }
     }
 
-    /// The family of a [`Family::name`] (or of `seed-c`, the earlier name of `reference`, which
-    /// older files and scripts carry); [`Family::from_str`] for what a person types.
+    /// The family of a [`Family::name`] (or of the earlier name of `reference`, which older files
+    /// and scripts carry); [`Family::from_str`] for what a person types.
     pub fn parse(s: &str) -> Option<Self> {
         if s == "seed-c" {
             return Some(Self::Reference);

@@ -25,12 +25,12 @@
 //! - [`export`]: the fit as a dynamic model file (`format = "truepos-dynamic-model"`, JSON),
 //!   whose reading and writing live in `truepos_io::dynamic_model_file`, so that the runtime
 //!   reads it without the solvers.
-//! - [`position_model`]: the position-dependent thermal model's families (seed A, and seed C's
-//!   reference-sensor form) fitted from observations, the ridge chosen by blocked or rolling
-//!   cross-validation; [`machine_fit`]: every family of a machine — dynamic and seed A/C —
-//!   chosen by the same inner CV and validated by the same outer protocol (what `truepos fit
-//!   --machine` and `truepos demo` run); [`reidentify`]: a model's parameters re-estimated on
-//!   line from probe measurements (seed C).
+//! - [`position_model`]: the position-dependent thermal model's families (down to the prior art,
+//!   and the reference-sensor regression) fitted from observations, the ridge chosen by blocked or
+//!   rolling cross-validation; [`machine_fit`]: every family of a machine — dynamic and
+//!   position-dependent — chosen by the same inner CV and validated by the same outer protocol
+//!   (what `truepos fit --machine` and `truepos demo` run); [`reidentify`]: a model's parameters
+//!   re-estimated on line from probe measurements.
 //!
 //! ## Example
 //! A structure whose growth lags the spindle speed by a first-order lag of 1800 s: the

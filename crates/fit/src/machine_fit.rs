@@ -1,14 +1,14 @@
 //! Every model family of a machine in one selection: the dynamic families over the dataset's
-//! columns ([`crate::train`]) and, next to them, seed A's position-dependent families and seed
-//! C's reference-sensor form ([`crate::position_model`]) over the machine's temperature
+//! columns ([`crate::train`]) and, next to them, the position-dependent families and the
+//! reference-sensor regression ([`crate::position_model`]) over the machine's temperature
 //! channels, differences, lags and axis positions — each scored by the same inner
 //! cross-validation inside the training rows (the same contiguous blocks, blocked or rolling,
 //! the same ridge candidates and rule), and validated by the same outer protocol
 //! ([`crate::validate::Split`]). The chosen model is of one form: a fitted dynamic model, or a
-//! seed A/C [`Model`] for the model file `truepos_io::model_file` writes.
+//! position-dependent [`Model`] for the model file `truepos_io::model_file` writes.
 //!
-//! Within seed A/C's form each target axis gets its own family, input set and ridge (an axis'
-//! summands never touch another axis' coefficients, so the choices are independent and one
+//! Within the position-dependent form each target axis gets its own family, input set and ridge (an
+//! axis' summands never touch another axis' coefficients, so the choices are independent and one
 //! [`Model`] holds them all). The form is chosen by the pooled inner-CV RMSE over the targets.
 
 use truepos_io::run::Table;
@@ -51,12 +51,13 @@ pub struct MachineData {
     pub runs: Vec<MachineRun>,
     /// Per dataset target, the machine axis whose error it is.
     pub target_axes: Vec<usize>,
-    /// Seed C's reference sensor ([`crate::position_model::reference_sensor`] or a given one).
+    /// The reference sensor of the reference-sensor regression
+    /// ([`crate::position_model::reference_sensor`] or a given one).
     pub reference: Option<usize>,
     /// The machine's differences every run holds the channels of.
     pub differences: Vec<usize>,
-    /// Per machine difference, the axis whose part it measures, if known (seed A's
-    /// embodiments 1 and 4 need it; without any, those families are no candidates).
+    /// Per machine difference, the axis whose part it measures, if known (the own-axis
+    /// and serial families need it; without any, those families are no candidates).
     pub owners: Vec<Option<usize>>,
 }
 
@@ -209,8 +210,8 @@ impl MachineData {
 pub struct TargetScore {
     /// The target.
     pub target: String,
-    /// Inner-CV RMSE, µm (of the ridge chosen for a seed A/C candidate; the lowest over the
-    /// ridges for a dynamic family).
+    /// Inner-CV RMSE, µm (of the ridge chosen for a position-dependent candidate; the lowest over
+    /// the ridges for a dynamic family).
     pub cv_rmse_um: f64,
     /// That ridge.
     pub ridge: f64,
@@ -219,7 +220,7 @@ pub struct TargetScore {
 /// One candidate of the selection and its inner-CV figures.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct CandidateFigures {
-    /// `dynamic` or `seed A/C`.
+    /// `dynamic` or `position-dependent`.
     pub form: &'static str,
     /// The family's name on the command line.
     pub family: String,
@@ -229,7 +230,7 @@ pub struct CandidateFigures {
     pub targets: Vec<TargetScore>,
 }
 
-/// A seed A/C model and what was chosen for each target.
+/// A position-dependent model and what was chosen for each target.
 #[derive(Debug, Clone)]
 pub struct StaticModel {
     /// The model, every target axis' summands in it.
@@ -275,8 +276,8 @@ fn pooled(scores: &[f64]) -> f64 {
     (scores.iter().map(|s| s * s).sum::<f64>() / scores.len().max(1) as f64).sqrt()
 }
 
-/// Seed A/C's candidates on `rows`: every family on every input set, per target; the best per
-/// target, assembled into one model. `None` when no candidate can be fitted.
+/// The position-dependent candidates on `rows`: every family on every input set, per target; the
+/// best per target, assembled into one model. `None` when no candidate can be fitted.
 fn static_selection(
     ds: &Dataset,
     data: &MachineData,
@@ -311,8 +312,8 @@ fn static_selection(
         let mut seen: Vec<Vec<usize>> = Vec::new();
         for set in &sets {
             let diffs = family_differences(machine, family, &set.differences, data.reference);
-            // Seed C's form reads only sensor-minus-reference differences: two input sets
-            // can leave it the same, and an empty one is no candidate.
+            // The reference-sensor regression reads only sensor-minus-reference differences: two
+            // input sets can leave it the same, and an empty one is no candidate.
             if diffs.is_empty() || seen.contains(&diffs) {
                 continue;
             }
@@ -380,7 +381,7 @@ fn static_selection(
 
 /// Chooses among every family on the training `rows` by inner CV and fits the choice on them:
 /// the dynamic `settings.families` (none when empty or without `cand`, their candidate
-/// features) and the seed A/C `families`.
+/// features) and the position-dependent `families`.
 pub fn select(
     ds: &Dataset,
     data: &MachineData,
@@ -431,7 +432,7 @@ pub fn select(
         &mut candidates,
     )?;
     let dynamic_score = dynamic.as_ref().map(|t| {
-        // Seed A/C's scores come from the same blocked folds: compare like with like.
+        // The position-dependent scores come from the same blocked folds: compare like with like.
         pooled(
             &t.choices
                 .iter()
@@ -488,8 +489,8 @@ pub fn select(
     })
 }
 
-/// The predictions of a chosen model over every row of every run: a dynamic model stepped
-/// through each run, a seed A/C model evaluated at each row (NaN where it refuses an input).
+/// The predictions of a chosen model over every row of every run: a dynamic model stepped through
+/// each run, a position-dependent model evaluated at each row (NaN where it refuses an input).
 pub fn predict_chosen(
     ds: &Dataset,
     data: &MachineData,

@@ -1,4 +1,4 @@
-//! Fitting seed A's position-dependent form — and its special cases, down to the
+//! Fitting the position-dependent thermal model — and its special cases, down to the
 //! position-independent prior art — to measured tool-tip errors.
 //!
 //! A [`Family`] fixes which coefficients exist ([`structure`] builds the model with all of them
@@ -22,27 +22,27 @@ use crate::settings::{InnerCv, Rule};
 /// Which coefficients a position-dependent model has.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Family {
-    /// Prior art (seed A eqs. 1–2): ΔA_n = Σ_m ΔT_m·K_nm, no position.
+    /// The position-independent prior art: ΔA_n = Σ_m ΔT_m·K_nm, no position.
     PositionIndependent,
-    /// Seed A embodiment 5: ΔA_n = Σ_m ΔT_m·[K_nm0 + Σ_j K_nmj·g_j] over every axis j, with g_j
+    /// All axes: ΔA_n = Σ_m ΔT_m·[K_nm0 + Σ_j K_nmj·g_j] over every axis j, with g_j
     /// the axis' natural factor (r for a cantilevered slide, KFA for a slide on a bed).
     AllAxes,
-    /// As [`Family::AllAxes`] with r_j² terms as well (seed A example 2: the arc is not linear).
+    /// As [`Family::AllAxes`] with r_j² terms as well (the arc is not linear).
     AllAxesSquared,
-    /// Seed A embodiment 6: [`Family::AllAxes`] plus, for every axis carried on a bed, each
+    /// The bed factor: [`Family::AllAxes`] plus, for every axis carried on a bed, each
     /// difference's summand ΔT_m·[K_nm0' + K_nmb'·KFA_b]·KFA_b — the bed bends, the error is
-    /// smallest in its middle and grows towards both ends (eq. 41).
+    /// smallest in its middle and grows towards both ends.
     BedFactor,
-    /// Seed A embodiment 1: the summand of a difference that belongs to axis m carries that
+    /// Own axis: the summand of a difference that belongs to axis m carries that
     /// axis' position only, ΔT_m·[K_nm0 + K_nmm·g_m]; a difference of no axis stays prior art.
     /// Needs the owners ([`structure_owned`]).
     OwnAxis,
-    /// Seed A embodiment 4, N serial axes: the summand of axis m's difference carries the
+    /// Serial, N axes resting on each other: the summand of axis m's difference carries the
     /// positions of m and of every axis resting on it (`carried_by`, transitively),
     /// ΔT_m·[K_nm0 + Σ_{j on m} K_nmj·g_j]. Needs the owners ([`structure_owned`]).
     Serial,
-    /// Seed C's regression Y_n = Σ_i k_ni·(t_i − t_r) + c_n: no position, only the machine's
-    /// differences of a sensor against the reference sensor t_r ([`reference_sensor`]).
+    /// The reference-sensor regression Y_n = Σ_i k_ni·(t_i − t_r) + c_n: no position, only the
+    /// machine's differences of a sensor against the reference sensor t_r ([`reference_sensor`]).
     ReferenceSensor,
 }
 
@@ -105,9 +105,9 @@ impl std::str::FromStr for Family {
     }
 }
 
-/// The reference sensor of seed C's form on a machine: the sensor most of the machine's
-/// differences are taken against (ambient, or a reference spot on the machine), the first of
-/// equals; `None` when no difference is taken against a sensor.
+/// The reference sensor of the reference-sensor regression on a machine: the sensor most of the
+/// machine's differences are taken against (ambient, or a reference spot on the machine), the first
+/// of equals; `None` when no difference is taken against a sensor.
 pub fn reference_sensor(machine: &Machine) -> Option<usize> {
     let mut count = vec![0usize; machine.temperatures.len()];
     for d in &machine.differences {
@@ -119,8 +119,8 @@ pub fn reference_sensor(machine: &Machine) -> Option<usize> {
     count.iter().position(|&c| c == best)
 }
 
-/// The differences of `differences` a family reads: seed C's form only those taken against the
-/// `reference` sensor, every other family all of them.
+/// The differences of `differences` a family reads: the reference-sensor regression only those
+/// taken against the `reference` sensor, every other family all of them.
 pub fn family_differences(
     machine: &Machine,
     family: Family,
@@ -140,9 +140,9 @@ pub fn family_differences(
 }
 
 /// The model of a family with every coefficient zero: for each target axis n and each listed
-/// difference m one summand, plus a constant per target axis when `constant` is set. Seed C's
-/// form is one regression part per target axis (as its model files state it); seed A's one
-/// position-dependent part.
+/// difference m one summand, plus a constant per target axis when `constant` is set. The
+/// reference-sensor regression is one regression part per target axis (as its model files state
+/// it); every other family one position-dependent part.
 pub fn structure(
     name: &str,
     machine: &Machine,
@@ -602,14 +602,14 @@ mod tests {
             };
             assert_eq!(m.parameter_count(), per * d.len() + 1, "{f}");
         }
-        // dT_y_saddle (difference 1) belongs to Y, on which X rests: embodiment 1 carries r_Y,
-        // embodiment 4 r_Y and r_X (KFA: both ride on beds).
+        // dT_y_saddle (difference 1) belongs to Y, on which X rests: own-axis carries r_Y,
+        // serial r_Y and r_X (KFA: both ride on beds).
         let owners = [None, Some(1)];
         for (f, n) in [(Family::OwnAxis, 2), (Family::Serial, 3)] {
             let m = structure_owned("m", &machine, f, &[0, 1], &[2], false, &owners).unwrap();
             assert_eq!(m.parameter_count(), 1 + n, "{f}");
         }
-        // Seed C's form reads only the differences against the reference sensor.
+        // The reference-sensor regression reads only the differences against the reference sensor.
         let c = family_differences(&machine, Family::ReferenceSensor, &diffs, reference);
         assert_eq!(c.len(), 18);
         assert!("warm"

@@ -20,8 +20,9 @@ use crate::least_squares::{Accumulator, SolveOptions, Triangle};
 use crate::settings::{Selection, Settings};
 use crate::transfer::TransferTaus;
 
-/// The regressors of one candidate: feature columns, each minus an optional reference column
-/// (seed C: t_i − t_r is rise_i − rise_r, the rises being taken from the same first sample).
+/// The regressors of one candidate: feature columns, each minus an optional reference column (the
+/// reference-sensor regression: t_i − t_r is rise_i − rise_r, the rises being taken from the same
+/// first sample).
 #[derive(Debug, Clone)]
 pub(crate) struct Design {
     pub cols: Vec<usize>,
@@ -292,8 +293,8 @@ impl<'a> Problem<'a> {
         self.all.gram(i, j)
     }
 
-    /// The design of a family on a sensor set; `None` when the family cannot be built (seed C
-    /// without a reference, or with nothing left to regress on).
+    /// The design of a family on a sensor set; `None` when the family cannot be built (the
+    /// reference-sensor regression without a reference, or with nothing left to regress on).
     pub fn design(
         &self,
         family: Family,

@@ -1,12 +1,12 @@
-//! On-line re-identification of an existing model (seed C, section 4; the re-learning of seed
-//! D's prior art): probe measurements logged during operation re-estimate the model's
+//! On-line re-identification of an existing model (probing re-identification, see
+//! docs/glossary.md): probe measurements logged during operation re-estimate the model's
 //! parameters by recursive least squares with forgetting, and the re-estimated parameters
 //! replace the running ones only when the running model's recent error exceeds a threshold and
 //! the candidate is clearly better ([`truepos_model::SwitchRule`]).
 //!
 //! Only the parameters change: the structure (which summands, which position terms) is the
-//! model's own, as seed C prescribes ("a working compensation model already exists; only its
-//! parameters are re-estimated").
+//! model's own ("a working compensation model already exists; only its parameters are
+//! re-estimated").
 
 use truepos_model::{CycleInput, Machine, Model, Rls, SwitchRule};
 
@@ -199,7 +199,7 @@ pub struct Outcome {
     pub window: WindowFigures,
 }
 
-/// Re-identifies `model` over `events` in order (seed C, section 4): recursive least squares
+/// Re-identifies `model` over `events` in order: recursive least squares
 /// with forgetting on the model's own structure, the switch rule along the way, and at the end
 /// the check that the re-estimated parameters are better than the old ones on the most recent
 /// `settings.window` measurements. Only a model that passes both is returned; its parameters

@@ -41,14 +41,14 @@ pub struct Settings {
     /// Run with at most this many temperature sensors (chosen by correlation ranking and greedy
     /// forward selection); `None` = all.
     pub max_sensors: Option<usize>,
-    /// Seed C's reference sensor (dataset input index): with it, [`Family::Reference`] is a
-    /// candidate and the reference is always among the sensors.
+    /// The reference sensor of the reference-sensor regression (dataset input index): with it,
+    /// [`Family::Reference`] is a candidate and the reference is always among the sensors.
     #[serde(default)]
     pub reference: Option<usize>,
-    /// Targets as measured (error = actual − nominal, what a machine's seed A/C model predicts
-    /// at a position) rather than relative to each run's first sample (what a model started
-    /// with the run predicts). `truepos fit --machine FILE` sets it: a position-dependent error
-    /// at the first sample is part of what the model must learn, not an offset to remove.
+    /// Targets as measured (error = actual − nominal, what a machine's position-dependent model
+    /// predicts at a position) rather than relative to each run's first sample (what a model
+    /// started with the run predicts). `truepos fit --machine FILE` sets it: a position-dependent
+    /// error at the first sample is part of what the model must learn, not an offset to remove.
     #[serde(default)]
     pub absolute_targets: bool,
 }

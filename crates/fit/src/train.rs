@@ -42,7 +42,7 @@ pub struct Choice {
     #[serde(default)]
     pub uncompensated_cv_rmse_um: f64,
     /// The blocked inner-validation RMSE the choice was made by (µm): what other forms fitted on
-    /// the same blocked folds (seed A/C's in `machine_fit`) are compared with.
+    /// the same blocked folds (the position-dependent ones in `machine_fit`) are compared with.
     #[serde(default)]
     pub selection_cv_rmse_um: f64,
     /// Why nothing is compensated, if so.
@@ -713,10 +713,10 @@ mod tests {
         assert!(rms < 0.5, "{rms} {:?}", trained.choices);
     }
 
-    /// Seed C: Y = Σ k_i·(t_i − t_r) + c. Data made exactly so, with k = (2, 0.5) against a
-    /// drifting reference t3 and c = 1 µm (relative targets remove c, the model's intercept
-    /// puts the start value back): the fit recovers k, and the reference's rise carries
-    /// −(2 + 0.5) = −2.5.
+    /// The reference-sensor regression Y = Σ k_i·(t_i − t_r) + c. Data made exactly so, with
+    /// k = (2, 0.5) against a drifting reference t3 and c = 1 µm (relative targets remove c, the
+    /// model's intercept puts the start value back): the fit recovers k, and the reference's rise
+    /// carries −(2 + 0.5) = −2.5.
     #[test]
     fn seed_c_regresses_against_the_reference_sensor() {
         let n = 600;
@@ -766,7 +766,7 @@ mod tests {
         assert!((coef("rise(t1_c)") - 2.0).abs() < 1e-9);
         assert!((coef("rise(t2_c)") - 0.5).abs() < 1e-9);
         assert!((coef("rise(t3_c)") + 2.5).abs() < 1e-9);
-        // Nothing but rises: seed C's form has no dynamics.
+        // Nothing but rises: the reference-sensor regression has no dynamics.
         for (name, c) in names.iter().zip(m.coefficients()) {
             assert!(name.starts_with("rise(") || *c == 0.0, "{name}: {c}");
         }

@@ -460,7 +460,7 @@ pub(crate) fn per_run(
         folds.dedup();
         let targets = (0..dataset.target_names.len())
             .map(|k| {
-                // A seed A/C model refuses an input it cannot read (NaN there; the pooled
+                // A position-dependent model refuses an input it cannot read (NaN there; the pooled
                 // figures say how many); a dynamic model's predictions are always finite.
                 let (m, p): (Vec<f64>, Vec<f64>) = rows
                     .iter()

@@ -1,8 +1,8 @@
 //! The one loader of a compensation model file, whatever its form: reads the file once,
 //! recognises a fitted dynamic model (JSON with `"format": "truepos-dynamic-model"`,
-//! [`crate::dynamic_model_file`]) or a model of seed A/C's form (TOML, or JSON by extension,
+//! [`crate::dynamic_model_file`]) or a position-dependent model (TOML, or JSON by extension,
 //! [`crate::model_file`]), and returns it bound to the machine as the core's
-//! [`CompensationModel`], with the axis-combination index (seed D) the file gives. Every user —
+//! [`CompensationModel`], with the axis-combination index the file gives. Every user —
 //! `truepos run`, `eval`, `report`, the LinuxCNC component and its check — loads models here.
 
 use std::path::{Path, PathBuf};
@@ -20,7 +20,7 @@ use crate::model_file;
 pub struct Loaded {
     /// The model.
     pub model: CompensationModel,
-    /// Seed D's axis-combination index from the file, if it has one.
+    /// The axis-combination index from the file, if it has one.
     pub axis_index: Option<Vec<u32>>,
 }
 
@@ -31,7 +31,7 @@ pub fn load(path: &Path, machine: &Machine) -> Result<Loaded, InputError> {
 }
 
 /// Loads the model files of a set for the service, in order of preference, bound to the
-/// machine. A model whose file carries no axis-combination index serves path 1's axes (seed D's
+/// machine. A model whose file carries no axis-combination index serves path 1's axes (the
 /// index of the axes whose `path` is 1, by their codes).
 pub fn load_set(paths: &[PathBuf], machine: &MachineConfig) -> Result<Vec<ModelEntry>, InputError> {
     let default_index = index_of(
@@ -58,7 +58,7 @@ pub fn load_set(paths: &[PathBuf], machine: &MachineConfig) -> Result<Vec<ModelE
 }
 
 /// [`load`] on a file's text; `path` names it in errors and, by its extension, tells JSON from
-/// TOML for a model of seed A/C's form.
+/// TOML for a position-dependent model.
 pub fn parse(path: &Path, text: &str, machine: &Machine) -> Result<Loaded, InputError> {
     if is_dynamic(path, text) {
         let (bound, axis_index) = dynamic_model_file::parse_entry(path, text, machine)?;

@@ -12,7 +12,7 @@
 //! ```
 //! Outputs are errors (actual − nominal) in µm; the compensation is their negative. For the
 //! runtime each output names the machine axis it compensates (`"axis": "Z"`; by default an
-//! output called `Z`, `Z_um` or `dz_um` serves axis Z), and the file may carry seed D's
+//! output called `Z`, `Z_um` or `dz_um` serves axis Z), and the file may carry the
 //! axis-combination index (`"axis_index": [101, 102, 103]`).
 //!
 //! `truepos fit` writes this file; every user (`truepos run`, `eval`, `report`, the LinuxCNC
@@ -100,7 +100,7 @@ pub struct DynamicModelFile {
     pub features: Vec<String>,
     /// Outputs.
     pub outputs: Vec<OutputEntry>,
-    /// Seed D's axis-combination index of the axes it serves; `None` = path 1's axes.
+    /// The axis-combination index of the axes it serves; `None` = path 1's axes.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub axis_index: Option<Vec<u32>>,
     /// Where it came from (runs, split, choices).
@@ -419,7 +419,7 @@ pub fn parse(path: &Path, text: &str, machine: &Machine) -> Result<BoundDynamicM
     parse_entry(path, text, machine).map(|(bound, _)| bound)
 }
 
-/// [`parse`], with seed D's axis-combination index the file carries, if any.
+/// [`parse`], with the axis-combination index the file carries, if any.
 pub fn parse_entry(
     path: &Path,
     text: &str,

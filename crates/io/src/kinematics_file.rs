@@ -1,8 +1,8 @@
-//! The kinematics table file (`*.ktab`): seed B's Fig. 2c as text, plus the axes and the
+//! The kinematics table file (`*.ktab`): the kinematics table as text, plus the axes and the
 //! compensation tables it references.
 //!
 //! ```text
-//! # seed B's head: A swivels in a fork on C; the head rides on Z, Y, X
+//! # a 5-axis head: A swivels in a fork on C; the head rides on Z, Y, X
 //! name = head-ac
 //! tool_length = 100                      # mm, used when no tool length is given
 //! axis X linear -1000 1000               # set-point order; travel in mm / degrees

@@ -70,9 +70,10 @@ struct RawAxis {
     max_offset_um: Option<Spanned<f64>>,
     /// Safety envelope: largest rate of change of the offset in µm/s.
     max_rate_um_per_s: Option<Spanned<f64>>,
-    /// Seed D: the control path (channel) the axis belongs to at power-on, 1-based.
+    /// For model selection by axis combination: the control path (channel) the axis belongs to at
+    /// power-on, 1-based.
     path: Option<Spanned<u32>>,
-    /// Seed D: the axis number within that path, 1-based.
+    /// For model selection by axis combination: the axis number within that path, 1-based.
     number: Option<Spanned<u32>>,
 }
 
@@ -345,7 +346,7 @@ fn positive(
     }
 }
 
-/// An optional seed D path or axis number, 1 to 99; absent, the default.
+/// An optional path or axis number (of the axis-combination index), 1 to 99; absent, the default.
 fn path_or_number(
     src: Source,
     v: &Option<Spanned<u32>>,
@@ -363,7 +364,7 @@ fn path_or_number(
     }
 }
 
-/// The runtime settings of each axis: its safety envelope and its seed D path and number.
+/// The runtime settings of each axis: its safety envelope and its path and number.
 fn axis_configs(src: Source, raw: &RawFile) -> Result<Vec<AxisConfig>, InputError> {
     let mut configs = Vec::new();
     for (i, a) in raw.axis.iter().enumerate() {
@@ -389,7 +390,8 @@ fn axis_configs(src: Source, raw: &RawFile) -> Result<Vec<AxisConfig>, InputErro
     Ok(configs)
 }
 
-/// Seed D identifies an axis by its code (path and number), so no two axes may share one.
+/// The axis-combination index identifies an axis by its code (path and number), so no two axes may
+/// share one.
 fn check_axis_codes(
     src: Source,
     raw: &RawFile,

@@ -67,7 +67,7 @@ pub struct ModelFile {
     /// Free text.
     #[serde(default, skip_serializing_if = "String::is_empty")]
     pub description: String,
-    /// Seed D's axis-combination index (b_i = 100·path + axis number) this model serves.
+    /// The axis-combination index (b_i = 100·path + axis number) this model serves.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub axis_index: Option<Vec<u32>>,
     /// The inputs it was made for.
@@ -155,9 +155,9 @@ pub fn lag_text(machine: &Machine, channel: usize) -> Option<String> {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum FormEntry {
-    /// Seed A's general form.
+    /// The general position-dependent form.
     PositionDependent,
-    /// Seed C's regression.
+    /// The regression against a reference sensor.
     Regression,
 }
 
@@ -207,7 +207,7 @@ pub struct TermEntry {
     /// The K_nmj·g_j.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub position: Vec<PositionEntry>,
-    /// Embodiment 6: multiply the summand by KFA of this axis.
+    /// The bed-factor family: multiply the summand by KFA of this axis.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub bed_multiplier: Option<Spanned<String>>,
 }
@@ -252,7 +252,7 @@ pub struct ConstantEntry {
 #[derive(Debug, Clone, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct RegressionTermEntry {
-    /// ΔT_i (for seed C: sensor i minus the reference sensor).
+    /// ΔT_i (sensor i minus the reference sensor).
     pub difference: Spanned<String>,
     /// k_i in µm/K.
     pub k_um_per_k: f64,
@@ -267,7 +267,7 @@ fn spanned<T>(value: T) -> Spanned<T> {
 pub struct LoadedModel {
     /// The model.
     pub model: Model,
-    /// Seed D's axis-combination index from the file, if it has one.
+    /// The axis-combination index from the file, if it has one.
     pub axis_index: Option<Vec<u32>>,
 }
 
@@ -585,8 +585,8 @@ impl ModelFile {
         Ok((summands, constants_um))
     }
 
-    /// One `[[part.term]]`: seed A's summand with its position terms; a position term without a
-    /// factor takes the one its axis's carriage implies.
+    /// One `[[part.term]]`: a position-dependent summand with its position terms; a position term
+    /// without a factor takes the one its axis's carriage implies.
     fn position_dependent_term(
         &self,
         machine: &Machine,
