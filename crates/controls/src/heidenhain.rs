@@ -74,11 +74,11 @@ impl Tempcomp {
 /// The model at any thermal state and position: error per axis, µm.
 pub type ModelAt<'a> = dyn Fn(&[f64], &[f64]) -> Result<Vec<f64>, String> + 'a;
 
-/// Derives each axis' `TEMPCOMP` formula from the model: the model is linear in the
-/// temperatures (seed A/C), so one evaluation per sensor, each 1 K warmer, gives its
-/// coefficients exactly; `corners` are positions where the position dependence is measured.
-/// A sensor the formula needs without a PLC word, or a lagged channel (a PLC word holds a
-/// sensor, not truepos's lag), is refused by name.
+/// Derives each axis' `TEMPCOMP` formula from the model: the model is linear in the temperatures
+/// (position-dependent or regression), so one evaluation per sensor, each 1 K warmer, gives its
+/// coefficients exactly; `corners` are positions where the position dependence is measured. A
+/// sensor the formula needs without a PLC word, or a lagged channel (a PLC word holds a sensor, not
+/// truepos's lag), is refused by name.
 pub fn tempcomp(
     machine: &Machine,
     f: &ModelAt<'_>,

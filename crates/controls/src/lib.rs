@@ -1,9 +1,9 @@
 //! # truepos-controls — a truepos model in the form each control accepts
 //!
-//! The big controls identify no thermal model; they accept values someone else computes. This
-//! crate projects a model — any function giving the error of every axis at given positions, so
-//! seed A/C models and fitted dynamic models alike — onto a control's per-axis form, states
-//! the projection error, and writes the file that sets the values:
+//! The big controls identify no thermal model; they accept values someone else computes. This crate
+//! projects a model — any function giving the error of every axis at given positions, so
+//! position-dependent models and fitted dynamic models alike — onto a control's per-axis form,
+//! states the projection error, and writes the file that sets the values:
 //!
 //! - [`projection`]: K0/tanβ/P0 per axis (Siemens SD43900/43910/43920, Beckhoff/ISG's linear
 //!   temperature compensation) or a constant per axis, fitted along each axis' travel with the

@@ -1,4 +1,4 @@
-//! The kinematics table of seed B on the example machines: forward transform (nominal and
+//! The kinematics table with error tables on the example machines: forward transform (nominal and
 //! through the error tables) and the compensated inverse transform, per point.
 //!
 //! Run: `cargo bench -p truepos-kinematics --bench kinematics`. Targets: forward ≥ 5 million points

@@ -1,4 +1,4 @@
-//! # truepos-kinematics — the kinematics table of seed B
+//! # truepos-kinematics — the kinematics table with error tables
 //!
 //! A machine's geometry as a chain of fixed transformations and
 //! machine axes read from the tool centre point (TCP) towards the workpiece, with **error
@@ -21,7 +21,7 @@
 //! machine axis that moves the workpiece instead of the tool (a table axis) appears with the
 //! opposite sign (`MachAxis -X`): moving the table by +q moves the tool by −q relative to it.
 //!
-//! Seed B's head (rows 0–6, Fig. 2c) reads: `Trans Z -L` · `Trans X F_A_X(A)` ·
+//! The example 5-axis head (rows 0–6; docs/glossary.md) reads: `Trans Z -L` · `Trans X F_A_X(A)` ·
 //! `Trans B F_A_B(A)` · `MachAxis A` · `Trans X L'` · `Trans Y L''` · `MachAxis C`, followed
 //! here by the linear axes that carry the head.
 //!
@@ -100,7 +100,7 @@ pub use truepos_model::{AxisKind, Correction, MAX_AXES};
 
 const DEG: f64 = PI / 180.0;
 
-/// Superimposes the per-axis compensation of a thermal model (seed A's "other parts": a
+/// Superimposes the per-axis compensation of a thermal model (one of the "further parts": a
 /// [`Correction`] in machine axis order) on set-points from the kinematics: for each chain axis
 /// j, `machine_axis[j]` names its machine axis; linear axes get compensation µm / 1000 mm,
 /// rotary axes read the model's value as µrad and get it in degrees.

@@ -1,5 +1,5 @@
 //! Compensation tables: an error value as a function of one axis position, given at support
-//! points and interpolated in between (seed B, Figs. 2a/2b: `F_A_X(0)`, `F_A_X(10)` …
+//! points and interpolated in between (`F_A_X(0)`, `F_A_X(10)` …
 //! `F_A_X(350)`, "values between support points are interpolated").
 //!
 //! * Support points need not be equidistant; positions must be strictly increasing.
@@ -639,7 +639,7 @@ mod tests {
 
     #[test]
     fn rotary_joint_is_seamless() {
-        // Seed B, Fig. 2a: support points every 10° from 0 to 350; the joint 350 → 360 joins
+        // Support points every 10° from 0 to 350; the joint 350 → 360 joins
         // F(350) = 2 to F(0) = 0: at 355° the value is 1, and 355° ≡ −5°.
         let p: Vec<f64> = (0..36).map(|i| 10.0 * i as f64).collect();
         let mut v = vec![0.0; 36];

@@ -89,10 +89,10 @@ const STATE_CODES: [CompensationState; 4] = [
 ];
 
 impl OpcUaSink {
-    /// Starts the writing thread for a checked mapping. `model`: the static (seed A/C) model
-    /// whose line is projected — the service's only model, so that "active" means this model;
-    /// without one (a fitted dynamic model, a set of several models) each axis gets the
-    /// service's output as a constant.
+    /// Starts the writing thread for a checked mapping. `model`: the static (position-dependent)
+    /// model whose line is projected — the service's only model, so that "active" means this model;
+    /// without one (a fitted dynamic model, a set of several models) each axis gets the service's
+    /// output as a constant.
     pub fn start(
         config: &SinkConfig,
         identity: Identity,

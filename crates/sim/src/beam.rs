@@ -1,4 +1,4 @@
-//! Structural parts as thermo-elastic beams (seed A, eqs. 3–8).
+//! Structural parts as thermo-elastic beams (docs/glossary.md: bending radius).
 //!
 //! A part (bed, column, slide, spindle head) is a beam of length `L` along `e_len` with a
 //! rectangular section: height `H` along `e_h` (top/bottom, or front/rear for an upright part)
@@ -10,7 +10,7 @@
 //! - It grows along its length by `ℓ·α·(T̄ − T_ref)` (uniform heating, `ΔL = α·L·ΔT`) and
 //!   across its section by `α·(T̄ − T_ref)` per mm (`ΔH = α·H·ΔT`).
 //! - Its two faces have lengths `L_± = ℓ·(1 + α·(T_± − T_ref))`. The slice bends to the radius
-//!   of seed A, `R = H·L_long / (L_long − L_short)` (the longer, hotter face is outside; seed A
+//!   `R = H·L_long / (L_long − L_short)` (the longer, hotter face is outside; the glossary
 //!   writes it for a hotter bottom: `R = H·L_bottom / (L_bottom − L_top)`), so its curvature is
 //!   `1/R`, and the beam bends away from the hotter face: `w'' = −(L₊ − L₋)/(H·L_long)`.
 //!
@@ -227,17 +227,18 @@ impl Beam {
     }
 }
 
-/// Curvature (1/mm) of a slice of length `l` and depth `d` whose `+` face is `dt_plus` and `−`
-/// face `dt_minus` above the zero-strain temperature: `(L₊ − L₋)/(d·L_long)` = 1/R of seed A,
-/// signed positive when the `+` face is longer.
+/// Curvature (1/mm) of a slice of length `l` and depth `d` whose `+` face is `dt_plus` and `−` face
+/// `dt_minus` above the zero-strain temperature: `(L₊ − L₋)/(d·L_long)` = 1/R of the bending
+/// radius, signed positive when the `+` face is longer.
 pub fn curvature(l_mm: f64, depth_mm: f64, alpha: f64, dt_plus: f64, dt_minus: f64) -> f64 {
     let lp = l_mm * (1.0 + alpha * dt_plus);
     let lm = l_mm * (1.0 + alpha * dt_minus);
     (lp - lm) / (depth_mm * lp.max(lm))
 }
 
-/// Seed A's radius `R = H·L_bottom/(L_bottom − L_top)` (eq. 8) of a part of length `L` and
-/// height `H` heated by `dt_bottom` below and `dt_top` above (mm; infinite without gradient).
+/// The bending radius `R = H·L_bottom/(L_bottom − L_top)` (docs/glossary.md) of a part of length
+/// `L` and height `H` heated by `dt_bottom` below and `dt_top` above (mm; infinite without
+/// gradient).
 pub fn seed_radius_mm(l_mm: f64, h_mm: f64, alpha: f64, dt_bottom: f64, dt_top: f64) -> f64 {
     let lb = l_mm + alpha * l_mm * dt_bottom;
     let lt = l_mm + alpha * l_mm * dt_top;
@@ -468,7 +469,7 @@ mod tests {
         assert!((top.translation_mm[2] - 0.0046).abs() < 1e-15);
     }
 
-    /// Seed A, eqs. 3–8, for a 500 mm steel slide, H = 100 mm, bottom 3 K and top 1 K above the
+    /// The bending radius for a 500 mm steel slide, H = 100 mm, bottom 3 K and top 1 K above the
     /// reference: L_bottom = 500·(1 + 3α) = 500.01725 mm, L_top = 500.00575 mm,
     /// R = 100·500.01725/0.0115 = 4 347 976.09 mm. The slide clamped at one end lies on the arc
     /// of that radius: its sag at s is R − √(R² − s²) = 28.7490 µm at s = 500 mm and 7.1873 µm at

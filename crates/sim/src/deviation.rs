@@ -14,7 +14,7 @@
 //! `δ + ε × (P − O)`. Chaining two such transforms and dropping second-order terms (products of
 //! µm-sized deviations, ≈ 10⁻⁹ relative) adds the translations (the second carried along the
 //! first's rotation) and the rotation vectors: [`Deviation::then`]. This is how a bent slide
-//! tilts every axis resting on it (seed A, embodiment 2).
+//! tilts every axis resting on it (docs/glossary.md: tilt).
 
 /// A 3-vector in world coordinates (x, y, z).
 pub type Vec3 = [f64; 3];

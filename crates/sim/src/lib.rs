@@ -10,8 +10,8 @@
 //!   its thermal nodes, sensor spots, and its serial kinematic chain.
 //! - [`params`]: the physical parameters and the twin description file that overrides them.
 //! - [`network`]: the lumped thermal network and its exact exponential integrator.
-//! - [`beam`]: thermo-elastic deformation of a part: growth `α·L·ΔT` and the bending radius of
-//!   seed A (`R = H·L_bottom/(L_bottom − L_top)`).
+//! - [`beam`]: thermo-elastic deformation of a part: growth `α·L·ΔT` and the bending radius
+//!   `R = H·L_bottom/(L_bottom − L_top)` (docs/glossary.md: bending radius).
 //! - [`deviation`]: small-angle homogeneous transforms chained through the axes.
 //! - [`sensor`]: first-order lag, noise, quantisation, faults.
 //! - [`simulation`]: the time loop, the in-memory run, its CSV and summary.

@@ -1,8 +1,8 @@
 //! Temperature sensors: first-order lag, noise, quantisation and injectable faults.
 //!
 //! A sensor in a bore follows the metal with a first-order lag, `τ·dy/dt = T − y`, integrated
-//! exactly over a step with the temperature held: `y ← y + (1 − e^{−h/τ})·(T − y)`. Seed C notes
-//! that this lag spoils the first minutes of a warm-up: the heat sources act at once, the sensor
+//! exactly over a step with the temperature held: `y ← y + (1 − e^{−h/τ})·(T − y)`. This lag
+//! spoils the first minutes of a warm-up: the heat sources act at once, the sensor
 //! spots warm later. A reading adds Gaussian noise (σ) and is rounded to the converter's
 //! resolution; faults then replace or distort it.
 

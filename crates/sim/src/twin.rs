@@ -831,7 +831,7 @@ mod tests {
         }
     }
 
-    /// Seed A, embodiment 2: a bent slide S1 tilts the axis that rests on it, so moving that axis
+    /// Tilt: a bent slide S1 tilts the axis that rests on it, so moving that axis
     /// shifts the tool along S1's axis. S1: 500 mm along x, clamped at x = 0, 100 mm high across
     /// y, its +y face 2 K warmer: curvature c = 2α/(100·(1 + 2α)) = 2.29995e-7 /mm (α =
     /// 11.5e-6); its tip turns by −c·500 about z. Axis 2 (along +y) rests on the tip; moving it by

@@ -177,8 +177,8 @@ pub struct Phase {
     pub motion: Vec<Motion>,
 }
 
-/// Periodic measurement of the tool-tip error, as a touch probe would (seed C, on-line
-/// procedure), or by non-contact sensors at the current position (ISO 230-3).
+/// Periodic measurement of the tool-tip error, as a touch probe would (probing
+/// re-identification), or by non-contact sensors at the current position (ISO 230-3).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Probing {
     /// Period, s.
