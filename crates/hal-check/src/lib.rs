@@ -7,7 +7,7 @@
 //! status codes, pacing and offset resolution from `truepos-hal` itself, so the judge and the
 //! component cannot disagree about them.
 //!
-//! - [`check`]: what LinuxCNC applied against the models seed D's rule selects and the
+//! - [`check`]: what LinuxCNC applied against the models selected by axis combination and the
 //!   output invariant, from the samplers' recording.
 //! - [`Error`]: what stops either before a verdict or a figure.
 //! - [`timing`]: the service on the component's pacing, replaying a run, with the host's steal

@@ -104,7 +104,7 @@ struct TimingArgs {
 
 fn run_check(args: CheckArgs) -> Result<bool, Error> {
     let machine = truepos_io::machine_file::load(&args.machine)?;
-    // With their axis-combination indices: the check applies seed D's rule itself.
+    // With their axis-combination indices: the check selects by axis combination itself.
     let models = load_set(&args.models, &machine)?;
     let samples = load_samples(&args.motion, &args.temperatures, &machine.machine)?;
     let config = CheckConfig {

@@ -142,7 +142,7 @@ fn run(args: RunArgs) -> Result<(), Error> {
     let machine = truepos_io::machine_file::load(&args.machine)?;
     // Before HAL is touched: a channel id that is no pin name is the machine file's mistake.
     pins::check_names(&machine.machine)?;
-    // Seed D: a model without an index in its file serves path 1's axes.
+    // A model without an axis-combination index in its file serves path 1's axes.
     let entries = load_set(&args.models, &machine)?;
     let period_s = args.period_ms / 1000.0;
     for e in &entries {

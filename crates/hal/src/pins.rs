@@ -22,7 +22,7 @@
 //! | `truepos.extrapolating` | bit | out | a model's input is beyond its training envelope (clamped, the output capped) |
 //! | `truepos.cycle-us` | float | out | duration of the last cycle's work, µs |
 //! | `truepos.cycles` | s32 | out | cycles run (wraps) |
-//! | `truepos.probe.trigger` | bit | in | a rising edge is one probe event (seed C's probe measurement) |
+//! | `truepos.probe.trigger` | bit | in | a rising edge is one probe event (a probe measurement) |
 //! | `truepos.probe.pos-N` | float | in | probed position of machine axis N (0-based, machine order), mm |
 //! | `truepos.probe.dev-N` | float | in | measured error of axis N at that position, µm (actual − nominal) |
 //! | `truepos.probe.measured-N` | bit | in | axis N was measured by this event (`setp` for the probe's directions) |
@@ -100,7 +100,8 @@ pub fn path_model_pin(path: usize) -> String {
 pub struct InputPins {
     /// `truepos.axis.<a>.pos`, machine axis order.
     pub positions: Vec<FloatPin>,
-    /// `truepos.axis.<a>.path`, machine axis order: the control's axis configuration (seed D).
+    /// `truepos.axis.<a>.path`, machine axis order: the control's axis configuration (which axes
+    /// each path drives).
     pub paths: Vec<S32Pin>,
     /// `truepos.temp.<id>` with its machine temperature channel, for the measured channels
     /// only: a lagged channel is computed by the service, never read from a pin.

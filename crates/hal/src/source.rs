@@ -12,7 +12,8 @@ use crate::pins::InputPins;
 pub struct HalSource {
     pins: InputPins,
     name: String,
-    /// Machine axis indices by axis number: the order of a path's axes (seed D's index).
+    /// Machine axis indices by axis number: the order of a path's axes (its axis-combination
+    /// index).
     by_number: Vec<usize>,
     probe_edge: Edge,
 }

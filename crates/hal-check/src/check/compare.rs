@@ -1,6 +1,6 @@
-//! The walk over the recorded cycles that compares every settled, active one with the model:
-//! the lag of the position-dependent terms (seed A's figure of merit), the update gaps that
-//! say when the component and the servo thread were not in step, the offset rate over a
+//! The walk over the recorded cycles that compares every settled, active one with the model: the
+//! lag of the position-dependent terms (the timing argument's figure of merit), the update gaps
+//! that say when the component and the servo thread were not in step, the offset rate over a
 //! window, and how LinuxCNC's joints followed the commands.
 
 use truepos_model::{Machine, Model};
@@ -162,8 +162,8 @@ impl Walk {
         moving
     }
 
-    /// Compares a settled, active cycle, the `k`th recorded, with the model seed D's rule
-    /// selects, as replayed on the recorded cycles.
+    /// Compares a settled, active cycle, the `k`th recorded, with the model the
+    /// axis-combination rule selects, as replayed on the recorded cycles.
     fn compare(
         &mut self,
         judge: &Judge,

@@ -1,19 +1,19 @@
 //! The verdict of the end-to-end test: did LinuxCNC apply the model's offsets?
 //!
 //! The judge reads what LinuxCNC's samplers recorded every servo cycle ([`record`]). For every
-//! cycle it works out which model seed D's rule selects for path 1 from the recorded axis
-//! configuration and `model-select` (the models whose axis-combination index equals that of
+//! cycle it works out which model the axis-combination rule selects for path 1 from the recorded
+//! axis configuration and `model-select` (the models whose axis-combination index equals that of
 //! the axes in path 1, the selected one if it is among them, else the first), requires the
-//! component to have used that one, evaluates it on the temperatures and nominal positions of
-//! that very cycle ([`targets`]) and compares the compensation (−error) with the offset
-//! LinuxCNC applied; an axis in no path must carry no offset ([`compare`]). The difference is
-//! the lag of the position-dependent terms (the axis moved between the component's read and
-//! the application) plus quantisation; seed A's figure of merit divides it by the span of the
-//! position-dependent terms over the travel (1.3 % at 4 ms and 100 m/min on 500 mm). Cycles
-//! within `settle_s` of a start, a fault, a recovery or a model switch — where the envelope
-//! ramps on purpose — are left out of that comparison and checked against the envelope's rate
-//! instead. Every cycle, settled or not, is held to the output invariant ([`invariant`]).
-//! [`report`] holds the figures, [`events`] the events the component's log must hold.
+//! component to have used that one, evaluates it on the temperatures and nominal positions of that
+//! very cycle ([`targets`]) and compares the compensation (−error) with the offset LinuxCNC
+//! applied; an axis in no path must carry no offset ([`compare`]). The difference is the lag of the
+//! position-dependent terms (the axis moved between the component's read and the application) plus
+//! quantisation; the figure of merit of the timing argument divides it by the span of the
+//! position-dependent terms over the travel (1.3 % at 4 ms and 100 m/min on 500 mm). Cycles within
+//! `settle_s` of a start, a fault, a recovery or a model switch — where the envelope ramps on
+//! purpose — are left out of that comparison and checked against the envelope's rate instead. Every
+//! cycle, settled or not, is held to the output invariant ([`invariant`]). [`report`] holds the
+//! figures, [`events`] the events the component's log must hold.
 
 pub mod compare;
 pub mod events;
@@ -104,7 +104,7 @@ impl Default for CheckConfig {
     }
 }
 
-/// Compares what LinuxCNC applied with the models seed D's rule selects (see
+/// Compares what LinuxCNC applied with the models the axis-combination rule selects (see
 /// [`expected_model`]) and the envelope.
 pub fn check(
     machine: &Machine,
@@ -183,8 +183,8 @@ fn judge(machine: &Machine, limits: &[AxisConfig], config: &CheckConfig, report:
     }
     if report.wrong_model_cycles > 0 {
         report.failures.push(format!(
-            "in {} settled cycles the component used another model than seed D's rule selects \
-             for the axis configuration",
+            "in {} settled cycles the component used another model than the axis-combination \
+             rule selects for the axis configuration",
             report.wrong_model_cycles
         ));
     }

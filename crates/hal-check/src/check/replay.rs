@@ -1,9 +1,10 @@
 //! What every model of the set gave on every recorded cycle, as the component computes it: each
 //! model stepped through the recorded cycles in order, through the one door the component uses
-//! ([`CompensationModel::step_guarded`]: a model with a training envelope has its inputs clamped
-//! to it and its output capped, as on the machine). For seed A/C's form that is an evaluation of the cycle's
-//! temperatures and nominal positions; a fitted dynamic model's filters advance by the real
-//! length of each servo cycle, so its output carries the history the component's carries.
+//! ([`CompensationModel::step_guarded`]: a model with a training envelope has its inputs clamped to
+//! it and its output capped, as on the machine). For a position-dependent model that is an
+//! evaluation of the cycle's temperatures and nominal positions; a fitted dynamic model's filters
+//! advance by the real length of each servo cycle, so its output carries the history the
+//! component's carries.
 //!
 //! The component steps its dynamic models every one of its own cycles from its first good one;
 //! the replay starts them at the first recorded cycle. The two agree when the model's inputs held

@@ -47,8 +47,8 @@ pub struct CheckReport {
     pub model_switches: usize,
     /// Changes of the axis configuration (`truepos.axis.L.path`).
     pub axis_switches: usize,
-    /// Settled, active cycles in which the component used another model than seed D's rule
-    /// selects.
+    /// Settled, active cycles in which the component used another model than the
+    /// axis-combination rule selects.
     pub wrong_model_cycles: usize,
     /// Settled, active cycles compared with a fitted dynamic model (stepped through the
     /// recorded cycles), among `compared`.
@@ -137,7 +137,7 @@ impl CheckReport {
             self.rate_limit_um_per_s
         );
         out += &format!(
-            "{} cycles holding after a sensor fault, {} model switch(es), {} axis switch(es) ({} settled cycles on another model than seed D selects, {:.3} µm largest offset on an axis in no path); update gaps: {:.3} % of moving cycles, longest {} servo cycles; {} moving cycles in step\n",
+            "{} cycles holding after a sensor fault, {} model switch(es), {} axis switch(es) ({} settled cycles on another model than the axis-combination rule selects, {:.3} µm largest offset on an axis in no path); update gaps: {:.3} % of moving cycles, longest {} servo cycles; {} moving cycles in step\n",
             self.holding_samples,
             self.model_switches,
             self.axis_switches,

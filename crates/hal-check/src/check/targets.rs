@@ -1,5 +1,5 @@
-//! What the component should have sent in a cycle: the model seed D's rule selects for the
-//! recorded axis configuration, its compensation, and the size of its position-dependent terms.
+//! What the component should have sent in a cycle: the model the axis-combination rule selects for
+//! the recorded axis configuration, its compensation, and the size of its position-dependent terms.
 
 use truepos_model::{CycleInput, Machine, Model};
 use truepos_runtime::model_set::{index_of, ModelEntry};
@@ -42,8 +42,8 @@ pub fn position_span_um(
     span
 }
 
-/// The model seed D's rule selects for path 1: the models whose axis-combination index equals
-/// the index of the axes in path 1 (by axis number), `select` if it is one of them, else the
+/// The model the axis-combination rule selects for path 1: the models whose axis-combination index
+/// equals the index of the axes in path 1 (by axis number), `select` if it is one of them, else the
 /// first; `None` if none matches.
 pub fn expected_model(
     models: &[ModelEntry],

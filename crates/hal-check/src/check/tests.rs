@@ -6,7 +6,7 @@ use truepos_model::{
     TemperatureChannel, TemperatureDifference,
 };
 
-/// Seed A, example 1: X and Y over 0…500 mm; the Y error is ΔT·(2 + 4·r_X) µm with
+/// The glossary's worked example: X and Y over 0…500 mm; the Y error is ΔT·(2 + 4·r_X) µm with
 /// ΔT = x_bottom − x_top.
 fn example() -> (Machine, Model) {
     let axis = |name: &str| Axis {
