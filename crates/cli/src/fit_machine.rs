@@ -1,4 +1,4 @@
-//! `truepos fit --machine MACHINE.toml`: every family — the dynamic ones and seed A/C's
+//! `truepos fit --machine MACHINE.toml`: every family — the dynamic ones and the
 //! position-dependent and reference-sensor forms — chosen by the same inner CV, validated by the
 //! same outer protocol, and the chosen model written in its own form (`truepos_fit::machine_fit`).
 
@@ -16,7 +16,8 @@ use truepos_io::dynamic_model_file::axis_named_like;
 use truepos_io::model_file::ModelFile;
 use truepos_model::Machine;
 
-/// `--family` split into the dynamic families and seed A/C's; without it, all of both.
+/// `--family` split into the dynamic families and the position-dependent ones; without it, all of
+/// both.
 fn families(args: &Args) -> Result<(Option<String>, Vec<Family>), CliError> {
     let Some(list) = &args.family else {
         return Ok((None, Family::ALL.to_vec()));

@@ -1,4 +1,4 @@
-//! `truepos kin`: the kinematics table of seed B from the command line.
+//! `truepos kin`: the kinematics table with error tables from the command line.
 //!
 //! * `kin fwd`: axis positions (CSV with one column per axis, named as in the kinematics file)
 //!   → TCP `X,Y,Z` (mm) and tool direction `I,J,K` in workpiece coordinates.

@@ -1,4 +1,4 @@
-//! `truepos reidentify`: seed C's re-identification of an existing model from probe
+//! `truepos reidentify`: probing re-identification of an existing model from probe
 //! measurements — the service's log (`--log`, its `probes` table) or a run CSV with probe
 //! columns (`--run`) — and, when the switch rule says so, a new model file whose provenance
 //! names its parent and the data window.

@@ -1,5 +1,5 @@
 //! `truepos update-period`: how stale a position-dependent term gets between updates while its
-//! axis moves (seed A's timing argument, `truepos_model::update_period`).
+//! axis moves (the timing argument, `truepos_model::update_period`).
 
 use crate::error::CliError;
 use truepos_io::limits::finite_in;

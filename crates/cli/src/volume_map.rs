@@ -166,8 +166,8 @@ pub fn of_model(
     Some(map)
 }
 
-/// Whether any term of the model varies with an axis position (seed A's position terms or a
-/// bed factor); the prior art's position-independent form has nothing to map.
+/// Whether any term of the model varies with an axis position (its position terms or a bed
+/// factor); the prior art's position-independent form has nothing to map.
 fn depends_on_position(model: &Model) -> bool {
     model
         .parts()
