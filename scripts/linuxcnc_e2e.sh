@@ -2,7 +2,8 @@
 # End-to-end test of truepos on a real LinuxCNC 2.9 (simulated machine, no hardware):
 # runs tests/linuxcnc/vmc3.ini headless, whose display is tests/linuxcnc/e2e.py, with the truepos
 # HAL component compensating through external offsets; then `truepos-hal-check check` compares what
-# LinuxCNC applied with the model and the envelope. Exits non-zero on any failure; never skips.
+# LinuxCNC applied with the model and the envelope; then loads the worked HAL file for real
+# sensors (scripts/linuxcnc_sensors_hal.sh). Exits non-zero on any failure; never skips.
 # Usage: bash scripts/linuxcnc_e2e.sh [output dir]   (default: target/linuxcnc-e2e)
 set -euo pipefail
 REPO="$(cd "$(dirname "$0")/.." && pwd)"
@@ -39,6 +40,9 @@ CHECK=(--machine examples/vmc3/machine.toml --model examples/vmc3/model.toml
        --expect-event "model-selected:path 1:model_d" --expect-event "extrapolating:path 1")
 truepos-hal-check check "${CHECK[@]}" || fail=1
 truepos-hal-check check --json "${CHECK[@]}" > "$OUT/check.json" || true
+
+echo "== the worked HAL file for real sensors of docs/linuxcnc.md, loaded by halcmd"
+bash scripts/linuxcnc_sensors_hal.sh "$OUT/sensors" || fail=1
 
 echo "== component timing"
 cat "$OUT/stats.json" || { echo "FAIL: truepos-hal wrote no stats (did it get SIGTERM?)"; fail=1; }
