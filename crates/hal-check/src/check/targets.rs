@@ -63,10 +63,10 @@ pub fn expected_model(
         .or_else(|| (0..models.len()).find(matches))
 }
 
-/// Each axis' target in cycle `s`, the `k`th recorded (µm): the compensation of the model seed
-/// D's rule selects, as replayed on the recorded cycles (at the cycle's temperatures and nominal
-/// positions, a dynamic model with its history), for an active axis in path 1; zero for an axis
-/// in no path and for a component disabled or without a model (and for a hold, whose ramp
+/// Each axis' target in cycle `s`, the `k`th recorded (µm): the compensation of the model the
+/// axis-combination rule selects, as replayed on the recorded cycles (at the cycle's temperatures
+/// and nominal positions, a dynamic model with its history), for an active axis in path 1; zero for
+/// an axis in no path and for a component disabled or without a model (and for a hold, whose ramp
 /// [`super::output_invariant`] works out). `None` where the model gave nothing.
 pub fn targets_um(
     machine: &Machine,
