@@ -586,3 +586,62 @@ fn a_real_browser_draws_the_traces_and_cannot_miss_a_fault() {
     assert!(ok, "{stderr}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A model file changed under `--reload-on-change` shows as the next generation in the state and
+/// the metrics, and its reload as an event.
+#[test]
+fn a_reloaded_model_shows_its_new_generation() {
+    let dir = scratch("live-reload");
+    let model = dir.join("model.toml");
+    let text = std::fs::read_to_string(support::repo("examples/vmc3/model.toml")).unwrap();
+    std::fs::write(&model, &text).unwrap();
+    let models = model.display().to_string();
+    let run = Running::start(
+        &[
+            "--models",
+            &models,
+            "--reload-on-change",
+            "--http",
+            "127.0.0.1:0",
+        ],
+        &dir.join("log.sqlite"),
+        None,
+    );
+    let a = run.addr;
+    assert_eq!(
+        json(&get(a, "/api/state", &[]))["paths"][0]["generation"],
+        1
+    );
+    std::fs::write(&model, format!("{text}\n# re-identified\n")).unwrap();
+    let deadline = Instant::now() + Duration::from_secs(20);
+    while json(&get(a, "/api/state", &[]))["paths"][0]["generation"] != 2 {
+        assert!(Instant::now() < deadline, "generation 2 never shown");
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    let m = get(a, "/metrics", &[]).body;
+    assert!(
+        m.contains("truepos_model_generation{model=\"vmc3-example\"} 2"),
+        "{m}"
+    );
+    let deadline = Instant::now() + Duration::from_secs(10);
+    loop {
+        let events = json(&get(a, "/api/events", &[]));
+        let kinds: Vec<&str> = events["events"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter_map(|e| e["kind"].as_str())
+            .collect();
+        if kinds.contains(&"model-reloaded") {
+            break;
+        }
+        assert!(
+            Instant::now() < deadline,
+            "no model-reloaded event: {kinds:?}"
+        );
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    let (ok, stderr) = run.stop();
+    assert!(ok, "{stderr}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
