@@ -51,15 +51,13 @@ pub fn run(mut args: Args) -> Result<(), CliError> {
     for p in [&mut args.machine, &mut args.model, &mut args.run] {
         *p = crate::examples::find(std::mem::take(p));
     }
+    let inputs: [(&str, &std::path::Path); 3] = [
+        ("--machine", &args.machine),
+        ("--model", &args.model),
+        ("--run", &args.run),
+    ];
     if args.out.as_os_str() != "-" {
-        crate::write::check(
-            &args.out,
-            &[
-                ("--machine", &args.machine),
-                ("--model", &args.model),
-                ("--run", &args.run),
-            ],
-        )?;
+        crate::write::check(&args.out, &inputs)?;
     }
     let machine = machine_file::load(&args.machine)?.machine;
     let mut model = Evaluator::load(&args.model, &machine)?;
@@ -72,14 +70,7 @@ pub fn run(mut args: Args) -> Result<(), CliError> {
     let mut pending = if to_stdout {
         None
     } else {
-        Some(crate::write::create(
-            &args.out,
-            &[
-                ("--machine", &args.machine),
-                ("--model", &args.model),
-                ("--run", &args.run),
-            ],
-        )?)
+        Some(crate::write::create(&args.out, &inputs)?)
     };
     let mut writer: Option<csv::Writer<Box<dyn Write + '_>>> = if to_stdout && args.json {
         None

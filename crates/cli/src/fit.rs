@@ -1,4 +1,10 @@
-//! `truepos fit`: learn a dynamic compensation model from recorded runs and validate it honestly.
+//! `truepos fit`: learn a compensation model from recorded runs and validate it honestly. This
+//! module reads the options and the runs and fits the filtered (dynamic) families; with a
+//! machine file, [`machine`] fits the position-dependent families too; [`report`] writes the
+//! validation as a report. Both use this module's readers; nothing here is defined twice.
+
+mod machine;
+mod report;
 
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
@@ -262,7 +268,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
         crate::write::check(out, &input_files(&args))?;
     }
     if args.machine.ends_with(".toml") {
-        return crate::fit_machine::run(args);
+        return machine::run(args);
     }
     let inputs = args.inputs.clone().ok_or_else(|| {
         CliError::refused("--inputs is required without a machine file (--machine MACHINE.toml)")
@@ -333,7 +339,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
         crate::write::write_whole(path, predictions_csv(&ds, &outcome), &input_files(&args))?;
     }
     if let Some(dir) = &args.report {
-        crate::fit_report::write(dir, &ds, &outcome, &warnings)?;
+        report::write(dir, &ds, &outcome, &warnings)?;
     }
     for w in &warnings {
         eprintln!("warning: {w}");

@@ -17,8 +17,6 @@ mod evaluator;
 mod examples;
 mod export;
 mod fit;
-mod fit_machine;
-mod fit_report;
 mod kin;
 mod reidentify;
 mod report;

@@ -5,8 +5,8 @@
 use std::path::Path;
 use std::time::Instant;
 
+use super::{load, print_per_run, settings, tables, Args, Progress};
 use crate::error::CliError;
-use crate::fit::{load, print_per_run, settings, tables, Args, Progress};
 use truepos_fit::dataset::{Dataset, Patterns};
 use truepos_fit::export::{dynamic_model_file, plausible_predictions, predictions_csv_of};
 use truepos_fit::features::candidates;
@@ -103,7 +103,7 @@ fn owners(args: &Args, machine: &Machine) -> Result<Vec<Option<usize>>, CliError
 /// Runs `truepos fit --machine MACHINE.toml`.
 pub fn run(mut args: Args) -> Result<(), CliError> {
     if let Some(out) = &args.model {
-        crate::fit::model_name(out, &["toml", "json"], "a model of the machine")?;
+        super::model_name(out, &["toml", "json"], "a model of the machine")?;
     }
     let path = Path::new(&args.machine).to_path_buf();
     let config = truepos_io::machine_file::load(&path)?;
@@ -176,7 +176,7 @@ pub fn run(mut args: Args) -> Result<(), CliError> {
     )
     .map_err(CliError::Refused)?;
     let mut warnings = outcome.validation.warnings.clone();
-    warnings.extend(crate::fit::beyond_training(
+    warnings.extend(super::beyond_training(
         outcome.validation.held_out_rows_beyond_training,
     ));
     if let Err(bad) = plausible_predictions(&ds, &outcome.fitted, &outcome.training_rows, true) {
@@ -205,11 +205,11 @@ pub fn run(mut args: Args) -> Result<(), CliError> {
     if let Some(out) = &args.model {
         let text = model_text(out, &ds, &settings, &machine, &outcome, &data)?;
         warnings.extend(refused_at_load(out, &text, &config));
-        crate::write::write_whole(out, text, &crate::fit::input_files(&args))?;
+        crate::write::write_whole(out, text, &super::input_files(&args))?;
     }
     if let Some(p) = &args.predictions {
         let csv = predictions_csv_of(&ds, &outcome.predictions, &outcome.held_out, true);
-        crate::write::write_whole(p, csv, &crate::fit::input_files(&args))?;
+        crate::write::write_whole(p, csv, &super::input_files(&args))?;
     }
     for w in &warnings {
         eprintln!("warning: {w}");
@@ -347,7 +347,7 @@ fn model_text(
     let created_by = format!("truepos fit {}", env!("CARGO_PKG_VERSION"));
     let text = match &outcome.selection.chosen {
         Chosen::Filtered(trained) => {
-            crate::fit::model_name(
+            super::model_name(
                 out,
                 &["json"],
                 "the fit chose a fitted dynamic model (filtered temperatures)",
@@ -418,7 +418,7 @@ fn model_text(
                 file.provenance
                     .insert(format!("{t}_inner_cv_rmse_um"), fitted.score_um.into());
             }
-            if crate::fit::model_name(out, &["json"], "").is_ok() {
+            if super::model_name(out, &["json"], "").is_ok() {
                 serde_json::to_string_pretty(&file)? + "\n"
             } else {
                 file.to_toml()
