@@ -1,4 +1,4 @@
-(seed B head: a few 5-axis moves in nominal axis positions)
+(5-axis head: a few 5-axis moves in nominal axis positions)
 N10 G90 G21 G17
 N20 G0 X0 Y0 Z100 A0 C0 ; start above the part, tool vertical
 N30 G1 X50 Y20 Z50 A30 C45 F1000
