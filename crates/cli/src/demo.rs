@@ -9,11 +9,11 @@ use std::path::{Path, PathBuf};
 
 use crate::error::CliError;
 use truepos_fit::dataset::{Dataset, Run};
-use truepos_fit::machine_fit::{select, Chosen, MachineData, MachineRun, StaticModel};
+use truepos_fit::machine_fit::{select, Chosen, MachineData, StaticModel};
 use truepos_fit::position_model::{reference_sensor, Family};
 use truepos_fit::settings::Settings;
 use truepos_io::{machine_file, model_file::ModelFile};
-use truepos_model::{CycleInput, Machine, Model};
+use truepos_model::{CycleInput, Machine, Model, RecordedRun};
 use truepos_report::{write_report, Channel, ReportData, VolumeMap};
 use truepos_sim::{Scenario, SimRun, Twin};
 
@@ -54,12 +54,10 @@ fn scenario(name: &str) -> Result<Scenario, CliError> {
     }
 }
 
-/// A twin run as rows of machine-ordered inputs.
+/// A twin run, and the same day as the control saw it (machine-ordered inputs).
 struct Day {
     run: SimRun,
-    temps: Vec<Vec<f64>>,
-    positions: Vec<Vec<f64>>,
-    operating: Vec<Vec<f64>>,
+    seen: RecordedRun,
 }
 
 fn day(twin: &Twin, machine: &Machine, name: &str, seed: u64) -> Result<Day, CliError> {
@@ -85,28 +83,25 @@ fn day(twin: &Twin, machine: &Machine, name: &str, seed: u64) -> Result<Day, Cli
                 .collect()
         })
         .collect();
-    let time: Vec<f64> = run.rows.iter().map(|r| r.time_s).collect();
-    let temps = truepos_io::cycles::machine_temperatures(
+    let time_s: Vec<f64> = run.rows.iter().map(|r| r.time_s).collect();
+    let temperatures_c = truepos_io::cycles::machine_temperatures(
         machine,
         &run.sensor_ids,
-        &time,
+        &time_s,
         run.rows.iter().map(|r| r.temperatures_c.as_slice()),
         &operating,
     );
-    Ok(Day {
-        run,
-        temps,
+    let seen = RecordedRun {
+        time_s,
+        temperatures_c,
         positions,
         operating,
-    })
+    };
+    Ok(Day { run, seen })
 }
 
-fn input<'a>(d: &'a Day, i: usize) -> CycleInput<'a> {
-    CycleInput {
-        temperatures_c: &d.temps[i],
-        positions: &d.positions[i],
-        operating: &d.operating[i],
-    }
+fn input(d: &Day, i: usize) -> CycleInput<'_> {
+    d.seen.row(i)
 }
 
 /// Figures of one model on the test day.
@@ -142,9 +137,9 @@ fn volume_max(twin: &Twin, d: &Day, model: Option<&Model>, grid: usize, stride: 
                     let pred = match model {
                         Some(m) => {
                             let c = m.evaluate(&CycleInput {
-                                temperatures_c: &d.temps[i],
+                                temperatures_c: &d.seen.temperatures_c[i],
                                 positions: &pos,
-                                operating: &d.operating[i],
+                                operating: &d.seen.operating[i],
                             });
                             match c {
                                 Ok(c) => [c.error_um()[0], c.error_um()[1], c.error_um()[2]],
@@ -202,11 +197,7 @@ fn training_data(machine: &Machine, train: &Day) -> (Dataset, MachineData) {
     };
     let data = MachineData {
         machine: machine.clone(),
-        runs: vec![MachineRun {
-            temperatures_c: train.temps.clone(),
-            positions: train.positions.clone(),
-            operating: train.operating.clone(),
-        }],
+        runs: vec![train.seen.clone()],
         target_axes: vec![0, 1, 2],
         reference: reference_sensor(machine),
         differences: (0..machine.differences.len()).collect(),
@@ -404,14 +395,7 @@ fn envelope_warnings(
     let model = truepos_model::CompensationModel::from(model.clone());
     let mut out = Vec::new();
     for (d, which) in days.iter().zip(["training day", "test day"]) {
-        let time_s: Vec<f64> = d.run.rows.iter().map(|r| r.time_s).collect();
-        let rows = crate::envelope_check::Rows {
-            time_s: &time_s,
-            temperatures_c: &d.temps,
-            positions: &d.positions,
-            operating: &d.operating,
-        };
-        let beyond = crate::envelope_check::beyond(config, &model, &rows);
+        let beyond = crate::envelope_check::beyond(config, &model, &d.seen);
         out.extend(crate::envelope_check::warnings(
             config,
             Path::new("examples/twin/machine.toml"),
@@ -529,7 +513,7 @@ fn report(
             .temperatures
             .iter()
             .enumerate()
-            .map(|(i, t)| (t.id.clone(), test.temps.iter().map(|r| r[i]).collect()))
+            .map(|(i, t)| (t.id.clone(), test.seen.temperatures_c.iter().map(|r| r[i]).collect()))
             .collect(),
         coefficients: crate::report::coefficients::of_model(&posdep.model, machine)
             .into_iter()

@@ -6,20 +6,8 @@
 
 use std::path::Path;
 
-use truepos_model::{CompensationModel, CycleInput, MAX_AXES};
+use truepos_model::{CompensationModel, RecordedRun, MAX_AXES};
 use truepos_runtime::MachineConfig;
-
-/// Rows of recorded inputs in the machine's channel order, lagged channels computed.
-pub struct Rows<'a> {
-    /// Time of each row in s.
-    pub time_s: &'a [f64],
-    /// Temperatures per row.
-    pub temperatures_c: &'a [Vec<f64>],
-    /// Axis positions per row.
-    pub positions: &'a [Vec<f64>],
-    /// Operating state per row.
-    pub operating: &'a [Vec<f64>],
-}
 
 /// One axis whose predicted error goes beyond its envelope.
 #[derive(Debug, Clone, PartialEq)]
@@ -35,19 +23,18 @@ pub struct Beyond {
 /// The axes on which `model`, stepped through `rows` in order as the service steps it, predicts
 /// an error larger than the axis' `max_offset_um`. Rows the model cannot evaluate (a sensor out
 /// of range, no positions) are skipped: the service would not compensate from them either.
-pub fn beyond(machine: &MachineConfig, model: &CompensationModel, rows: &Rows<'_>) -> Vec<Beyond> {
+pub fn beyond(
+    machine: &MachineConfig,
+    model: &CompensationModel,
+    rows: &RecordedRun,
+) -> Vec<Beyond> {
     let mut model = model.clone();
     model.reset();
     let mut largest = [(0.0_f64, 0.0_f64); MAX_AXES];
     let mut last_s: Option<f64> = None;
     for (i, &t) in rows.time_s.iter().enumerate() {
-        let input = CycleInput {
-            temperatures_c: &rows.temperatures_c[i],
-            positions: &rows.positions[i],
-            operating: &rows.operating[i],
-        };
         let dt = last_s.map_or(0.0, |l| t - l);
-        let Ok(error_um) = model.step(dt, &input) else {
+        let Ok(error_um) = model.step(dt, &rows.row(i)) else {
             continue;
         };
         last_s = Some(t);

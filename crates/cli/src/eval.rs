@@ -127,7 +127,7 @@ pub fn run(mut args: Args) -> Result<(), CliError> {
         p.commit()?;
     }
 
-    let rows: usize = runs.iter().map(|(_, c)| c.time_s.len()).sum();
+    let rows: usize = runs.iter().map(|(_, c)| c.run.time_s.len()).sum();
     if args.json {
         let axes: Vec<serde_json::Value> = summary
             .iter()
@@ -215,12 +215,12 @@ fn evaluate(
     for (name, cycles) in runs {
         model.restart();
         let failed_before = failed;
-        for i in 0..cycles.time_s.len() {
+        for i in 0..cycles.run.time_s.len() {
             let mut record = Vec::with_capacity(2 + 2 * n_axes);
             if named {
                 record.push(name.clone());
             }
-            record.push(format!("{}", cycles.time_s[i]));
+            record.push(format!("{}", cycles.run.time_s[i]));
             match model.error_um(cycles, i, machine) {
                 Ok(errors) => {
                     for (a, s) in summary.iter_mut().enumerate() {
@@ -260,7 +260,7 @@ fn evaluate(
         }
         per_run.push(serde_json::json!({
             "name": name,
-            "cycles": cycles.time_s.len(),
+            "cycles": cycles.run.time_s.len(),
             "failed_cycles": failed - failed_before,
         }));
     }

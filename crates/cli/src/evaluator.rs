@@ -103,11 +103,11 @@ impl Evaluator {
         machine: &Machine,
     ) -> Result<[f64; MAX_AXES], CliError> {
         let input = CycleInput {
-            temperatures_c: &cycles.temperatures_c[i],
-            positions: &cycles.positions[i],
-            operating: &cycles.operating[i],
+            temperatures_c: &cycles.run.temperatures_c[i],
+            positions: &cycles.run.positions[i],
+            operating: &cycles.run.operating[i],
         };
-        let t = cycles.time_s[i];
+        let t = cycles.run.time_s[i];
         let dt = self.last_s.map_or(0.0, |l| t - l);
         let (t_scratch, o_scratch) = &mut self.scratch;
         let (error_um, beyond) = self

@@ -172,12 +172,12 @@ fn moment(
     machine: &Machine,
     at_s: Option<f64>,
 ) -> Result<(usize, Vec<f64>), CliError> {
-    let n = run.time_s.len();
+    let n = run.run.time_s.len();
     let k = match at_s {
-        Some(t) => run.time_s.iter().position(|&x| x >= t).ok_or_else(|| {
+        Some(t) => run.run.time_s.iter().position(|&x| x >= t).ok_or_else(|| {
             CliError::refused(format!(
                 "--at-s {t}: the run ends at {} s",
-                run.time_s.last().copied().unwrap_or(0.0)
+                run.run.time_s.last().copied().unwrap_or(0.0)
             ))
         })?,
         None => n
@@ -198,7 +198,7 @@ fn positions_now(machine: &Machine, run: &Cycles, k: usize) -> Vec<f64> {
         .iter()
         .enumerate()
         .map(|(a, x)| {
-            let p = run.positions[k].get(a).copied().unwrap_or(f64::NAN);
+            let p = run.run.positions[k].get(a).copied().unwrap_or(f64::NAN);
             if p.is_finite() {
                 p
             } else {
@@ -247,7 +247,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
         ),
         format!(
             "at t = {} s of {} (row {}); {}",
-            cycles.time_s[k],
+            cycles.run.time_s[k],
             args.run.display(),
             k + 1,
             match args.to {
@@ -259,9 +259,9 @@ pub fn run(args: Args) -> Result<(), CliError> {
     ];
     let static_model = model.model().as_static().cloned();
     let row = |i: usize| CycleInput {
-        temperatures_c: &cycles.temperatures_c[i],
-        positions: &cycles.positions[i],
-        operating: &cycles.operating[i],
+        temperatures_c: &cycles.run.temperatures_c[i],
+        positions: &cycles.run.positions[i],
+        operating: &cycles.run.operating[i],
     };
     let at_positions = |p: &[f64]| -> Result<Vec<f64>, String> {
         match &static_model {
@@ -311,7 +311,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
     };
     crate::write::write_whole(&args.out, &text, &inputs(&args))?;
     if args.json {
-        let v = serde_json::json!({"to": format!("{:?}", args.to), "at_s": cycles.time_s[k], "axes": axes_json, "out": args.out.display().to_string()});
+        let v = serde_json::json!({"to": format!("{:?}", args.to), "at_s": cycles.run.time_s[k], "axes": axes_json, "out": args.out.display().to_string()});
         println!("{v}");
     } else {
         print!("{}", summary(&axes_json, args.to));

@@ -182,7 +182,7 @@ fn predict(
         if r > 0 {
             model.restart();
         }
-        for i in 0..run.time_s.len() {
+        for i in 0..run.run.time_s.len() {
             let e = model.error_um(run, i, machine);
             for (k, &(a, _)) in pairs.iter().enumerate() {
                 predicted[k].push(e.as_ref().map_or(f64::NAN, |e| e[a]));
@@ -199,14 +199,14 @@ fn volume(
     model: &CompensationModel,
     run: &truepos_io::cycles::Cycles,
 ) -> Option<truepos_report::VolumeMap> {
-    let rows: Vec<truepos_model::CycleInput<'_>> = (0..run.time_s.len())
+    let rows: Vec<truepos_model::CycleInput<'_>> = (0..run.run.time_s.len())
         .map(|i| truepos_model::CycleInput {
-            temperatures_c: &run.temperatures_c[i],
-            positions: &run.positions[i],
-            operating: &run.operating[i],
+            temperatures_c: &run.run.temperatures_c[i],
+            positions: &run.run.positions[i],
+            operating: &run.run.operating[i],
         })
         .collect();
-    crate::volume_map::of_model(machine, model.as_static()?, &rows, &run.time_s)
+    crate::volume_map::of_model(machine, model.as_static()?, &rows, &run.run.time_s)
 }
 
 /// What the report describes and how, first what a shop files with it: the machine, the model
@@ -349,20 +349,21 @@ pub fn run(args: Args) -> Result<(), CliError> {
         })
         .collect();
     let test_from = args.test_from_s.map(|t| {
-        run.time_s
+        run.run
+            .time_s
             .iter()
             .position(|&x| x >= t)
-            .unwrap_or(run.time_s.len())
+            .unwrap_or(run.run.time_s.len())
     });
     let temperatures = machine
         .temperatures
         .iter()
         .enumerate()
-        .filter(|(i, _)| run.temperatures_c.iter().any(|row| row[*i].is_finite()))
+        .filter(|(i, _)| run.run.temperatures_c.iter().any(|row| row[*i].is_finite()))
         .map(|(i, t)| {
             (
                 t.id.clone(),
-                run.temperatures_c.iter().map(|r| r[i]).collect(),
+                run.run.temperatures_c.iter().map(|r| r[i]).collect(),
             )
         })
         .collect();
@@ -377,13 +378,13 @@ pub fn run(args: Args) -> Result<(), CliError> {
         &run_name,
         relative,
         failed,
-        run.time_s.len(),
+        run.run.time_s.len(),
     );
-    let range = test_from.unwrap_or(0)..run.time_s.len();
+    let range = test_from.unwrap_or(0)..run.run.time_s.len();
     let headline = conclusions(&channels, range.clone());
     let data = ReportData {
         title: format!("truepos report: model `{}` on {}", model.name(), run_name),
-        time_s: run.time_s.clone(),
+        time_s: run.run.time_s.clone(),
         clock_start_s: combined.clock_start_s,
         run_starts: combined.starts,
         test_from,

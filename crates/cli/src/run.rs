@@ -13,11 +13,12 @@ use truepos_io::compensation::load_set;
 use truepos_io::limits::{check_in, finite_in};
 use truepos_io::{cycles, machine_file};
 use truepos_live::host::{HttpArgs, Live};
+use truepos_model::RecordedRun;
 use truepos_runtime::admission;
 use truepos_runtime::host::{ModelLoader, ReloadSetup};
 use truepos_runtime::log;
 use truepos_runtime::probe::ProbeReplay;
-use truepos_runtime::replay::{state_name, CsvSink, Recording, ReplaySource};
+use truepos_runtime::replay::{state_name, CsvSink, ReplaySource};
 use truepos_runtime::sources::modbus::{ModbusConfig, ModbusSource};
 use truepos_runtime::sources::shdr::{ShdrConfig, ShdrSource};
 use truepos_runtime::{PathState, Running, Service, ServiceConfig, ServiceHost, Sink, Source};
@@ -164,7 +165,7 @@ fn twin_source(
             run.sensor_ids.join(", ")
         )));
     }
-    let run = Recording {
+    let run = RecordedRun {
         temperatures_c: (0..rows)
             .map(|i| temps.iter().map(|c| c[i]).collect())
             .collect(),
@@ -231,15 +232,9 @@ pub fn run(args: RunArgs) -> Result<(), CliError> {
     let epoch = Instant::now();
     // Said before the first cycle: a model that runs into the envelope on the data it is about
     // to replay would be held at the limit, safe but not what its figures promise.
-    let check = |what: &str, run: &Recording| {
-        let rows = envelope_check::Rows {
-            time_s: &run.time_s,
-            temperatures_c: &run.temperatures_c,
-            positions: &run.positions,
-            operating: &run.operating,
-        };
+    let check = |what: &str, run: &RecordedRun| {
         for e in &entries {
-            let beyond = envelope_check::beyond(&machine, &e.model, &rows);
+            let beyond = envelope_check::beyond(&machine, &e.model, run);
             for w in envelope_check::warnings(&machine, &args.machine, &e.name, what, &beyond) {
                 eprintln!("{w}");
             }
@@ -333,7 +328,7 @@ type Sources = Vec<Box<dyn Source>>;
 
 /// Says when a model's predictions on a recorded source's data (named by the text) go beyond
 /// the envelope.
-type EnvelopeCheck<'a> = &'a dyn Fn(&str, &Recording);
+type EnvelopeCheck<'a> = &'a dyn Fn(&str, &RecordedRun);
 
 /// How the service's clock runs against real time.
 #[derive(Clone, Copy)]
@@ -412,7 +407,7 @@ fn open_sources(
         let (kind, what, _) = split_source(spec)?;
         let source: Box<dyn Source> = match kind {
             "replay" => {
-                let run = Recording::from(cycles::load(std::path::Path::new(what), m, &[])?);
+                let run = cycles::load(std::path::Path::new(what), m, &[])?.run;
                 check(&format!("replay {what}"), &run);
                 let replay = ReplaySource::new(format!("replay {what}"), run);
                 replay_end_s = Some(replay.duration_s());

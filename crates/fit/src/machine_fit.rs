@@ -14,7 +14,7 @@
 use truepos_io::run::Table;
 use truepos_io::units::{find_channel, Role};
 use truepos_io::InputError;
-use truepos_model::{CycleInput, LagSource, Machine, Model, Part, Reference};
+use truepos_model::{CycleInput, LagSource, Machine, Model, Part, RecordedRun, Reference};
 
 use crate::dataset::Dataset;
 use crate::features::Candidates;
@@ -29,18 +29,6 @@ use crate::validate::{
     per_run, predict, worse_than_uncompensated, Metrics, Predictions, Split, Validation,
 };
 
-/// What the control knew at every row of one run, in the machine's channel order.
-#[derive(Debug, Clone, PartialEq)]
-pub struct MachineRun {
-    /// Temperatures, one per machine channel, lagged channels computed (NaN where the run has
-    /// no column).
-    pub temperatures_c: Vec<Vec<f64>>,
-    /// The axis positions at which the targets were measured.
-    pub positions: Vec<Vec<f64>>,
-    /// Operating state (NaN where the run has no column).
-    pub operating: Vec<Vec<f64>>,
-}
-
 /// The runs of a [`Dataset`] as the machine sees them, and which axis each target is the error
 /// of.
 #[derive(Debug, Clone)]
@@ -48,7 +36,7 @@ pub struct MachineData {
     /// The machine.
     pub machine: Machine,
     /// One per run of the dataset, row for row.
-    pub runs: Vec<MachineRun>,
+    pub runs: Vec<RecordedRun>,
     /// Per dataset target, the machine axis whose error it is.
     pub target_axes: Vec<usize>,
     /// The reference sensor of the reference-sensor regression
@@ -160,7 +148,8 @@ impl MachineData {
                 temp_rows.iter().map(Vec::as_slice),
                 &operating,
             );
-            runs.push(MachineRun {
+            runs.push(RecordedRun {
+                time_s: run.time_s.clone(),
                 temperatures_c,
                 positions: by_row(&pos_cols),
                 operating,

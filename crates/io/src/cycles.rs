@@ -3,8 +3,7 @@
 
 use std::path::Path;
 
-use truepos_model::{LagFilters, LagSource, Machine};
-use truepos_runtime::replay::Recording;
+use truepos_model::{LagFilters, LagSource, Machine, RecordedRun};
 
 use crate::error::InputError;
 use crate::run::{Shape, Time};
@@ -12,32 +11,16 @@ use crate::table::{Number, Table, Value};
 use crate::timestamp;
 use crate::units::{self, Role, Unit};
 
-/// The cycles of a run, in the machine's channel order.
+/// The cycles of a run, in the machine's channel order: the recorded run and, for messages
+/// about the file, the line of each row.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Cycles {
-    /// `time_s` of each row, or the row number when the run has no time column.
-    pub time_s: Vec<f64>,
-    /// Line in the file of each row (for messages).
+    /// The rows: `time_s` is the row number when the run has no time column; temperatures and
+    /// operating state are NaN where the run has no column for a channel the caller did not
+    /// require.
+    pub run: RecordedRun,
+    /// Line in the file of each row.
     pub line: Vec<u64>,
-    /// Temperatures of each row, one per machine temperature channel (NaN where the run has no
-    /// column for a channel the caller did not require).
-    pub temperatures_c: Vec<Vec<f64>>,
-    /// Axis positions of each row.
-    pub positions: Vec<Vec<f64>>,
-    /// Operating state of each row (NaN where the run has no column).
-    pub operating: Vec<Vec<f64>>,
-}
-
-/// A run as the runtime's replay plays it; the line numbers only serve messages about the file.
-impl From<Cycles> for Recording {
-    fn from(run: Cycles) -> Self {
-        Recording {
-            time_s: run.time_s,
-            temperatures_c: run.temperatures_c,
-            positions: run.positions,
-            operating: run.operating,
-        }
-    }
 }
 
 /// Computes the lagged channels of every row from their sources, stepping the real-time
@@ -329,11 +312,8 @@ pub fn from_table(
         operating: operating_cols,
     } = sources(table, machine, required_sensors, options)?;
     let mut out = Cycles {
-        time_s: Vec::new(),
+        run: RecordedRun::default(),
         line: Vec::new(),
-        temperatures_c: Vec::new(),
-        positions: Vec::new(),
-        operating: Vec::new(),
     };
     let first_iso = time_col.and_then(|c| {
         let first = table.rows().next()?.cell(c)?;
@@ -370,7 +350,7 @@ pub fn from_table(
                 };
                 // Every row's time, the first and the last included: a NaN or infinite time
                 // would end up in outputs, stall a replay or change the lag filters' steps.
-                check_time(t, out.time_s.last().copied())
+                check_time(t, out.run.time_s.last().copied())
                     .map_err(|e| InputError::at(path, line as usize, c + 1, header[c].clone(), e))?
             }
             (None, Some(Time::Period(p))) => row_index as f64 * p,
@@ -390,20 +370,21 @@ pub fn from_table(
             .iter()
             .map(|c| c.map_or(Ok(f64::NAN), cell))
             .collect::<Result<_, _>>()?;
-        out.time_s.push(time);
+        out.run.time_s.push(time);
         out.line.push(line);
-        out.positions.push(positions);
-        out.temperatures_c.push(temperatures);
-        out.operating.push(operating);
+        out.run.positions.push(positions);
+        out.run.temperatures_c.push(temperatures);
+        out.run.operating.push(operating);
     }
-    if out.time_s.is_empty() {
+    if out.run.is_empty() {
         return Err(InputError::file(path, "no data rows after the header"));
     }
+    let run = &mut out.run;
     fill_lags(
         machine,
-        &out.time_s,
-        &mut out.temperatures_c,
-        &out.operating,
+        &run.time_s,
+        &mut run.temperatures_c,
+        &run.operating,
     );
     Ok(out)
 }

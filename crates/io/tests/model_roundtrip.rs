@@ -133,13 +133,13 @@ fn shipped_examples_load() {
             model.used_sensors(),
         )
         .unwrap();
-        assert!(run.time_s.len() > 2, "{dir}");
-        for i in 0..run.time_s.len() {
+        assert!(run.run.time_s.len() > 2, "{dir}");
+        for i in 0..run.run.time_s.len() {
             model
                 .evaluate(&CycleInput {
-                    temperatures_c: &run.temperatures_c[i],
-                    positions: &run.positions[i],
-                    operating: &run.operating[i],
+                    temperatures_c: &run.run.temperatures_c[i],
+                    positions: &run.run.positions[i],
+                    operating: &run.run.operating[i],
                 })
                 .unwrap_or_else(|e| panic!("{dir} row {i}: {e}"));
         }
@@ -195,9 +195,9 @@ fn positions_may_be_absent_only_when_the_model_reads_none() {
         )
     };
     let run = read(cycles::Positions::Optional).unwrap();
-    assert_eq!(run.time_s, [0.0, 15.0]);
-    assert_eq!(run.temperatures_c[1][0], 20.5);
-    assert!(run.positions.iter().flatten().all(|p| p.is_nan()));
+    assert_eq!(run.run.time_s, [0.0, 15.0]);
+    assert_eq!(run.run.temperatures_c[1][0], 20.5);
+    assert!(run.run.positions.iter().flatten().all(|p| p.is_nan()));
     assert_eq!(
         read(cycles::Positions::Required).unwrap_err().to_string(),
         "spindle.csv:1:1: `X_mm`: missing column `X_mm` (axis position); the header has: time_s, x_slide_top"

@@ -88,7 +88,7 @@ proptest! {
         });
         let refs: Vec<&str> = times.iter().map(String::as_str).collect();
         match (load(&refs), bad) {
-            (Ok(run), None) => prop_assert_eq!(run.time_s, values),
+            (Ok(run), None) => prop_assert_eq!(run.run.time_s, values),
             (Err(e), Some(i)) => {
                 let place = format!("run.csv:{}:1: `time_s`: expected", i + 2);
                 prop_assert!(e.starts_with(&place), "{} (bad row {})", e, i);

@@ -70,6 +70,7 @@ pub mod lag;
 pub mod machine;
 pub mod model;
 pub mod parameters;
+pub mod recorded;
 pub mod rls;
 pub mod update_period;
 
@@ -86,6 +87,7 @@ pub use machine::{
 pub use model::{
     Model, ModelError, Part, PartForm, PositionFactor, PositionTerm, Summand, MAX_MODEL_DIFFERENCES,
 };
+pub use recorded::RecordedRun;
 pub use rls::{Rls, SwitchRule};
 pub use update_period::{travel_per_update_mm, update_error_fraction};
 

@@ -11,7 +11,7 @@
 //!
 //! ```
 //! use std::path::Path;
-//! use truepos_runtime::replay::{CsvSink, Recording, ReplaySource};
+//! use truepos_runtime::replay::{CsvSink, ReplaySource};
 //! use truepos_runtime::ServiceHost;
 //!
 //! let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/vmc3");
@@ -22,7 +22,7 @@
 //! let axes: Vec<String> = machine.machine.axes.iter().map(|a| a.name.clone()).collect();
 //! let sink = CsvSink::create(&out, &axes, 1.0, &[])?;
 //! let mut running = ServiceHost::new(machine, models)
-//!     .source(Box::new(ReplaySource::new("replay", Recording::from(run))))
+//!     .source(Box::new(ReplaySource::new("replay", run.run)))
 //!     .sink(Box::new(sink))
 //!     .start()?;
 //! for k in 0..2_000 {

@@ -5,21 +5,7 @@ use std::path::{Path, PathBuf};
 use crate::frame::Frame;
 use crate::io_traits::{LinkError, Sink, Source};
 use crate::output::{CompensationState, Output};
-
-/// A recorded run as a replay plays it: one row per sample, each row's channels in the
-/// machine's order; a value the run does not hold is NaN. `truepos-io` reads run files into
-/// its cycles, whose columns these are.
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct Recording {
-    /// Time of each row in s, increasing.
-    pub time_s: Vec<f64>,
-    /// Temperatures of each row in °C, one per machine temperature channel.
-    pub temperatures_c: Vec<Vec<f64>>,
-    /// Axis positions of each row (mm or degrees), one per machine axis.
-    pub positions: Vec<Vec<f64>>,
-    /// Operating state of each row, one per machine operating channel.
-    pub operating: Vec<Vec<f64>>,
-}
+use truepos_model::RecordedRun;
 
 /// Replays a recorded run: at service time t it delivers the last row whose run time, relative
 /// to the first row, is ≤ t. Temperatures, positions and operating state that the run holds are
@@ -31,7 +17,7 @@ pub struct Recording {
 /// faster (`truepos run`'s `@SPEED`), never the replay against the service.
 pub struct ReplaySource {
     name: String,
-    run: Recording,
+    run: RecordedRun,
     start_s: f64,
     next: usize,
     positions: bool,
@@ -39,7 +25,7 @@ pub struct ReplaySource {
 
 impl ReplaySource {
     /// A replay of `run` on the service's clock (its first row at service time 0).
-    pub fn new(name: impl Into<String>, run: Recording) -> Self {
+    pub fn new(name: impl Into<String>, run: RecordedRun) -> Self {
         let start_s = run.time_s.first().copied().unwrap_or(0.0);
         Self {
             name: name.into(),

@@ -620,30 +620,37 @@ fn an_intermittent_nan_does_not_run_the_output_away() {
     let machine = vmc();
     let run = cycles::load(&repo("examples/vmc3/run.csv"), &machine.machine, &[]).unwrap();
     let mut c = Campaign::new(ServiceConfig::default());
-    let start = run.time_s.iter().position(|&t| t >= 3.0 * 3600.0).unwrap();
+    let start = run
+        .run
+        .time_s
+        .iter()
+        .position(|&t| t >= 3.0 * 3600.0)
+        .unwrap();
     let (mut lo, mut hi) = ([0.0f64; 3], [0.0f64; 3]);
     let mut t = 0.0;
     let mut i = 0usize;
     // Ten minutes at 10 Hz, each recorded row (60 s apart) held until the next.
     while t < 600.0 {
-        let row = (start + (t / 60.0) as usize).min(run.time_s.len() - 1);
-        let mut temps: Vec<Option<f64>> =
-            run.temperatures_c[row].iter().map(|&v| Some(v)).collect();
+        let row = (start + (t / 60.0) as usize).min(run.run.time_s.len() - 1);
+        let mut temps: Vec<Option<f64>> = run.run.temperatures_c[row]
+            .iter()
+            .map(|&v| Some(v))
+            .collect();
         if i % 3 == 2 {
             temps[0] = Some(f64::NAN);
         }
         let d = Delivery {
             temperatures: temps,
-            positions: run.positions[row].iter().map(|&p| Some(p)).collect(),
+            positions: run.run.positions[row].iter().map(|&p| Some(p)).collect(),
             path: vec![0, 1, 2],
             lost: false,
         };
         let model = reference_compensation(
             &c.reference[0],
             &CycleInput {
-                temperatures_c: &run.temperatures_c[row],
-                positions: &run.positions[row],
-                operating: &run.operating[row],
+                temperatures_c: &run.run.temperatures_c[row],
+                positions: &run.run.positions[row],
+                operating: &run.run.operating[row],
             },
         )
         .unwrap();

@@ -2,7 +2,7 @@
 
 use std::path::Path;
 
-use truepos_runtime::replay::{Recording, ReplaySource};
+use truepos_runtime::replay::ReplaySource;
 use truepos_runtime::{log, ServiceHost};
 
 mod support;
@@ -16,7 +16,7 @@ fn a_hosted_service_logs_under_its_own_names_and_stops_cleanly() {
     let machine = truepos_io::machine_file::load(&root.join("machine.toml")).unwrap();
     let entries = truepos_io::compensation::load_set(&[root.join("model.toml")], &machine).unwrap();
     let run = truepos_io::cycles::load(&root.join("run.csv"), &machine.machine, &[]).unwrap();
-    let run = Recording::from(run);
+    let run = run.run;
     let dir = scratch("host");
     let db = dir.join("log.sqlite");
     let mut running = ServiceHost::new(machine, entries)

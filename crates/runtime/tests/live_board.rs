@@ -9,7 +9,7 @@ use truepos_io::{cycles, model_file};
 use truepos_runtime::live::{Board, HostFigures, Layout, LogFigures, PathView};
 use truepos_runtime::log;
 use truepos_runtime::model_set::ModelEntry;
-use truepos_runtime::replay::{Recording, ReplaySource};
+use truepos_runtime::replay::ReplaySource;
 use truepos_runtime::*;
 
 mod support;
@@ -29,7 +29,7 @@ fn vmc_model(name: &str) -> ModelEntry {
 fn replayed_service() -> Service {
     let machine = vmc();
     let run = cycles::load(&repo("examples/vmc3/run.csv"), &machine.machine, &[]).unwrap();
-    let source = ReplaySource::new("replay", Recording::from(run));
+    let source = ReplaySource::new("replay", run.run);
     Service::new(
         machine,
         vec![vmc_model("vmc3")],
@@ -123,7 +123,7 @@ fn history_keeps_each_buckets_extremes_and_only_this_runs_rows() {
         let machine = vmc();
         let run = cycles::load(&repo("examples/vmc3/run.csv"), &machine.machine, &[]).unwrap();
         let mut host = ServiceHost::new(machine, vec![vmc_model("vmc3")])
-            .source(Box::new(ReplaySource::new("replay", Recording::from(run))))
+            .source(Box::new(ReplaySource::new("replay", run.run)))
             .config(ServiceConfig {
                 log_every_s: 0.0,
                 ..ServiceConfig::default()

@@ -9,7 +9,7 @@ use truepos_model::CycleInput;
 use truepos_runtime::events::EventKind;
 use truepos_runtime::log::{self, LogSetup, Logger};
 use truepos_runtime::model_set::ModelEntry;
-use truepos_runtime::replay::{Recording, ReplaySource};
+use truepos_runtime::replay::ReplaySource;
 use truepos_runtime::*;
 
 mod support;
@@ -71,7 +71,7 @@ fn replay_gives_the_model_output() {
     let machine = vmc();
     let run = cycles::load(&repo("examples/vmc3/run.csv"), &machine.machine, &[]).unwrap();
     let reference = model_file::load(&repo("examples/vmc3/model.toml"), &machine.machine).unwrap();
-    let source = ReplaySource::new("replay", Recording::from(run.clone()));
+    let source = ReplaySource::new("replay", run.run.clone());
     let mut service = Service::new(
         machine,
         vec![vmc_model("vmc3")],
@@ -80,16 +80,16 @@ fn replay_gives_the_model_output() {
         ServiceConfig::default(),
     );
     let mut checked = 0;
-    for (i, &t) in run.time_s.iter().enumerate() {
+    for (i, &t) in run.run.time_s.iter().enumerate() {
         let out = *service.cycle(t);
         if t < 10.0 {
             continue;
         }
         let c = reference
             .evaluate(&CycleInput {
-                temperatures_c: &run.temperatures_c[i],
-                positions: &run.positions[i],
-                operating: &run.operating[i],
+                temperatures_c: &run.run.temperatures_c[i],
+                positions: &run.run.positions[i],
+                operating: &run.run.operating[i],
             })
             .unwrap();
         assert_eq!(out.state, CompensationState::Active);
@@ -528,7 +528,7 @@ fn enable_and_disable_are_bumpless() {
 fn a_cycle_allocates_nothing() {
     let machine = vmc();
     let run = cycles::load(&repo("examples/vmc3/run.csv"), &machine.machine, &[]).unwrap();
-    let source = ReplaySource::new("replay", Recording::from(run.clone()));
+    let source = ReplaySource::new("replay", run.run.clone());
     // A second model that carries a training envelope narrower than the run: the guard (inputs
     // clamped into the set's scratch, the output capped) runs every cycle and allocates nothing.
     let mut guarded = vmc_model("vmc3-guarded");

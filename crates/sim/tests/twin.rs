@@ -296,9 +296,10 @@ fn a_twin_run_reads_as_cycles_of_the_example_machine() {
     let cycles =
         truepos_io::cycles::read(Path::new("twin.csv"), buf.as_slice(), &file.machine, &all)
             .unwrap();
-    assert_eq!(cycles.positions.len(), run.rows.len());
-    assert_eq!(cycles.positions[5], run.rows[5].position_mm.to_vec());
+    assert_eq!(cycles.run.positions.len(), run.rows.len());
+    assert_eq!(cycles.run.positions[5], run.rows[5].position_mm.to_vec());
     assert!(cycles
+        .run
         .operating
         .iter()
         .all(|o| o.iter().all(|v| v.is_finite())));

@@ -68,12 +68,12 @@ pub fn parse(
         )
         .into());
     }
-    if table.len() != cyc.time_s.len() {
+    if table.len() != cyc.run.time_s.len() {
         return Err(CliError::refused(format!(
             "{}: {} data rows read as a table but {} as cycles",
             path.display(),
             table.len(),
-            cyc.time_s.len()
+            cyc.run.time_s.len()
         )));
     }
     let mut events = Vec::new();
@@ -94,14 +94,14 @@ pub fn parse(
                 i,
                 a,
                 *pos,
-                cyc.positions[i][a],
+                cyc.run.positions[i][a],
             )?);
         }
         events.push(ProbeEvent {
-            time_s: cyc.time_s[i],
+            time_s: cyc.run.time_s[i],
             place: format!("{}:{}", path.display(), row.line()),
-            temperatures_c: cyc.temperatures_c[i].clone(),
-            operating: cyc.operating[i].clone(),
+            temperatures_c: cyc.run.temperatures_c[i].clone(),
+            operating: cyc.run.operating[i].clone(),
             position_mm: position,
             measured_um: measured,
         });
@@ -117,6 +117,7 @@ pub fn read_inputs(
 ) -> Result<(Vec<(f64, truepos_runtime::probe::ProbeInput)>, f64), CliError> {
     let bytes = crate::write::read(path, truepos_files::RUN)?;
     let start = cycles::read_with(path, &bytes[..], machine, &[], Positions::Optional)?
+        .run
         .time_s
         .first()
         .copied()

@@ -4,6 +4,7 @@
 //! each starts, for the drift plots' run boundaries.
 
 use truepos_io::cycles::Cycles;
+use truepos_model::RecordedRun;
 
 /// The runs on one time axis.
 pub(super) struct Combined {
@@ -26,8 +27,8 @@ fn median_step(time_s: &[f64]) -> f64 {
 /// has a clock and each starts after the one before ends, else end to end, each run one median
 /// step after the one before (as `truepos fit --report` lays them).
 fn offsets(runs: &[(String, Option<f64>, Cycles)]) -> (Vec<f64>, Option<f64>) {
-    let first = |c: &Cycles| c.time_s.first().copied().unwrap_or(0.0);
-    let last = |c: &Cycles| c.time_s.last().copied().unwrap_or(0.0);
+    let first = |c: &Cycles| c.run.time_s.first().copied().unwrap_or(0.0);
+    let last = |c: &Cycles| c.run.time_s.last().copied().unwrap_or(0.0);
     let clocks: Option<Vec<f64>> = runs.iter().map(|r| r.1).collect();
     if let Some(clocks) = clocks {
         let zero = clocks[0];
@@ -45,7 +46,7 @@ fn offsets(runs: &[(String, Option<f64>, Cycles)]) -> (Vec<f64>, Option<f64>) {
     for (_, _, c) in runs {
         let offset = end.map_or(0.0, |e| e - first(c));
         out.push(offset);
-        end = Some(offset + last(c) + median_step(&c.time_s));
+        end = Some(offset + last(c) + median_step(&c.run.time_s));
     }
     (out, None)
 }
@@ -54,20 +55,16 @@ fn offsets(runs: &[(String, Option<f64>, Cycles)]) -> (Vec<f64>, Option<f64>) {
 pub(super) fn combine(runs: Vec<(String, Option<f64>, Cycles)>) -> Combined {
     let (shift, clock_start_s) = offsets(&runs);
     let mut cycles = Cycles {
-        time_s: Vec::new(),
+        run: RecordedRun::default(),
         line: Vec::new(),
-        temperatures_c: Vec::new(),
-        positions: Vec::new(),
-        operating: Vec::new(),
     };
     let mut starts = Vec::new();
     for ((name, _, c), s) in runs.into_iter().zip(shift) {
-        starts.push((cycles.time_s.len(), name));
-        cycles.time_s.extend(c.time_s.iter().map(|t| t + s));
+        starts.push((cycles.run.time_s.len(), name));
+        let mut run = c.run;
+        run.time_s.iter_mut().for_each(|t| *t += s);
+        cycles.run.extend(run);
         cycles.line.extend(c.line);
-        cycles.temperatures_c.extend(c.temperatures_c);
-        cycles.positions.extend(c.positions);
-        cycles.operating.extend(c.operating);
     }
     Combined {
         cycles,
@@ -82,11 +79,13 @@ mod tests {
 
     fn cycles(time_s: &[f64]) -> Cycles {
         Cycles {
-            time_s: time_s.to_vec(),
+            run: RecordedRun {
+                time_s: time_s.to_vec(),
+                temperatures_c: vec![Vec::new(); time_s.len()],
+                positions: vec![Vec::new(); time_s.len()],
+                operating: vec![Vec::new(); time_s.len()],
+            },
             line: vec![0; time_s.len()],
-            temperatures_c: vec![Vec::new(); time_s.len()],
-            positions: vec![Vec::new(); time_s.len()],
-            operating: vec![Vec::new(); time_s.len()],
         }
     }
 
@@ -104,16 +103,16 @@ mod tests {
         };
         let c = combine(two(Some(monday), Some(monday + 86_400.0)));
         assert_eq!(c.clock_start_s, Some(monday));
-        assert_eq!(c.cycles.time_s[3], 86_400.0);
+        assert_eq!(c.cycles.run.time_s[3], 86_400.0);
         assert_eq!(c.starts, [(0, "mon".to_string()), (3, "tue".to_string())]);
         let c = combine(two(Some(monday), None));
         assert_eq!(c.clock_start_s, None);
-        assert_eq!(c.cycles.time_s, [0.0, 60.0, 120.0, 180.0, 240.0, 300.0]);
+        assert_eq!(c.cycles.run.time_s, [0.0, 60.0, 120.0, 180.0, 240.0, 300.0]);
         let c = combine(two(Some(monday), Some(monday + 60.0)));
         assert_eq!(
             c.clock_start_s, None,
             "overlapping runs are not on one clock"
         );
-        assert_eq!(c.cycles.time_s[3], 180.0);
+        assert_eq!(c.cycles.run.time_s[3], 180.0);
     }
 }

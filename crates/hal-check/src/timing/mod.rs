@@ -16,7 +16,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use serde_json::{json, Value};
 use truepos_io::compensation::load_set;
-use truepos_runtime::replay::{Recording, ReplaySource};
+use truepos_runtime::replay::ReplaySource;
 use truepos_runtime::ServiceHost;
 
 use episodes::{Episode, Episodes};
@@ -86,7 +86,7 @@ pub fn run(config: &TimingConfig, stop: &AtomicBool) -> Result<Value, Error> {
     let m = &machine.machine;
     let entries = load_set(&config.models, &machine)?;
     let cycles = truepos_io::cycles::load(&config.run, m, &[])?;
-    let run = Recording::from(cycles);
+    let run = cycles.run;
     let replay = ReplaySource::new(format!("replay {}", config.run.display()), run);
     if replay.duration_s() < config.duration_s {
         eprintln!(
