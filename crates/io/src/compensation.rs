@@ -7,9 +7,9 @@
 
 use std::path::{Path, PathBuf};
 
+use truepos_model::config::MachineConfig;
+use truepos_model::config::{index_of, ModelEntry};
 use truepos_model::{CompensationModel, Machine};
-use truepos_runtime::config::MachineConfig;
-use truepos_runtime::model_set::{index_of, ModelEntry};
 
 use crate::dynamic_model_file;
 use crate::error::{read_text, InputError};

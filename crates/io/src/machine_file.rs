@@ -9,14 +9,14 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 use toml::Spanned;
-use truepos_model::{
-    Axis, AxisKind, Carriage, Machine, OperatingChannel, OperatingKind, Reference,
-    TemperatureChannel, TemperatureDifference, MAX_AXES,
-};
-use truepos_runtime::config::{
+use truepos_model::config::{
     AxisConfig, MachineConfig, SensorChecks, DEFAULT_MAX_AGE_S, DEFAULT_MAX_OFFSET_UM,
     DEFAULT_MAX_RATE_K_PER_MIN, DEFAULT_MAX_RATE_UM_PER_S, DEFAULT_NOISE_K,
     DEFAULT_RECOVER_AFTER_S, DEFAULT_STUCK_AFTER_S,
+};
+use truepos_model::{
+    Axis, AxisKind, Carriage, Machine, OperatingChannel, OperatingKind, Reference,
+    TemperatureChannel, TemperatureDifference, MAX_AXES,
 };
 
 use crate::error::{parse_toml, read_text, InputError};

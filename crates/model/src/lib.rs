@@ -63,6 +63,7 @@ extern crate alloc;
 extern crate std;
 
 pub mod compensation;
+pub mod config;
 pub mod dynamic;
 pub mod envelope;
 pub mod evaluate;

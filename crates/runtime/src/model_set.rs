@@ -3,10 +3,9 @@
 //! path from the control's axis configuration and sets the matching model for that path.
 
 use truepos_model::envelope::{Beyond, TrainingEnvelope};
-use truepos_model::{CompensationModel, CycleInput, DynamicError, EvalError, MAX_AXES};
+use truepos_model::{CycleInput, DynamicError, EvalError, MAX_AXES};
 
-/// Slots of an axis-combination index (three, as in docs/glossary.md).
-pub const INDEX_SLOTS: usize = 3;
+pub use truepos_model::config::{index_of, ModelEntry, INDEX_SLOTS};
 
 /// What the runtime keeps of a model that keeps state (a fitted dynamic model): its filters
 /// advance every cycle, whether or not it is the one in effect, so that a switch to it finds
@@ -30,27 +29,6 @@ impl Stepped {
         last_s: f64::NAN,
         beyond: None,
     };
-}
-
-/// A model with the axis combination it serves.
-#[derive(Debug, Clone)]
-pub struct ModelEntry {
-    /// Name for events and status.
-    pub name: String,
-    /// The model.
-    pub model: CompensationModel,
-    /// Its index B, 0 in unused slots.
-    pub index: [u32; INDEX_SLOTS],
-}
-
-/// Builds an index from axis codes (100·path + number), 0 in unused slots; codes beyond the
-/// slots are ignored (a path with more axes than slots matches on its first three).
-pub fn index_of(codes: impl IntoIterator<Item = u32>) -> [u32; INDEX_SLOTS] {
-    let mut index = [0; INDEX_SLOTS];
-    for (slot, code) in index.iter_mut().zip(codes) {
-        *slot = code;
-    }
-    index
 }
 
 /// The models and, per path, which of them match its current axis combination.
