@@ -2,7 +2,7 @@
 //!
 //! The format is documented in `docs/formats.md`. Loading checks every rule of
 //! [`truepos_model::Machine::check`] and reports each broken one at the line, column and key
-//! where it is written. The result is the runtime's [`MachineConfig`]: the machine with each
+//! where it is written. The result is the core's [`MachineConfig`]: the machine with each
 //! axis' envelope and path slot and each sensor's checks.
 
 use std::path::Path;
