@@ -300,6 +300,23 @@ fn the_live_view_serves_the_page_state_history_stream_and_metrics() {
         let (lo, hi) = (b["min"][z].as_f64().unwrap(), b["max"][z].as_f64().unwrap());
         assert!(lo <= hi, "{b}");
     }
+    let zipped = get(
+        a,
+        "/api/history?window_s=100000&buckets=10",
+        &["Accept-Encoding: gzip, deflate"],
+    );
+    assert_eq!(zipped.status, 200);
+    assert!(
+        zipped.head.contains("content-encoding: gzip"),
+        "{}",
+        zipped.head
+    );
+    let page_zipped = get(a, "/", &["Accept-Encoding: gzip"]);
+    assert!(
+        page_zipped.head.contains("content-encoding: gzip"),
+        "{}",
+        page_zipped.head
+    );
     let events = json(&get(a, "/api/events", &[]));
     assert!(
         events["events"]

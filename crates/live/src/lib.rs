@@ -6,7 +6,8 @@
 //! logged events (`/api/events`), one Server-Sent Events stream (`/events`, a `state`
 //! message every [`stream::TICK`] and an `event` message per logged event, numbered so that
 //! `Last-Event-ID` resumes) and the service's health in the Prometheus text format
-//! (`/metrics`). docs/live_view.md documents every endpoint.
+//! (`/metrics`); answers over 1 kB gzipped for clients that take it. docs/live_view.md documents
+//! every endpoint.
 //!
 //! It reads only what the service publishes: the host's loop writes the latest state into a
 //! [`truepos_runtime::live::Board`] between cycles (a sequence lock over atomics: the cycle
@@ -213,10 +214,38 @@ fn request_header<'a>(rq: &'a Request, name: &'static str) -> Option<&'a str> {
         .map(|h| h.value.as_str())
 }
 
+/// Smallest body worth compressing.
+const GZIP_FROM: usize = 1024;
+
+/// Whether the client takes gzip (`Accept-Encoding: gzip`, without `q=0`).
+fn takes_gzip(rq: &Request) -> bool {
+    request_header(rq, "Accept-Encoding").is_some_and(|v| {
+        v.split(',').any(|e| {
+            let mut parts = e.split(';').map(str::trim);
+            parts.next() == Some("gzip") && !parts.any(|p| p.replace(' ', "") == "q=0")
+        })
+    })
+}
+
+fn gzip(body: &[u8]) -> Option<Vec<u8>> {
+    use std::io::Write;
+    let mut e = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
+    e.write_all(body).ok()?;
+    e.finish().ok()
+}
+
 fn respond(rq: Request, status: u16, content_type: &str, body: String) {
-    let r = Response::from_string(body)
+    let zipped = (body.len() >= GZIP_FROM && takes_gzip(&rq))
+        .then(|| gzip(body.as_bytes()))
+        .flatten();
+    let r = match zipped {
+        Some(z) => Response::from_data(z).with_header(header("Content-Encoding", "gzip")),
+        None => Response::from_data(body.into_bytes()),
+    };
+    let r = r
         .with_status_code(status)
         .with_header(header("Content-Type", content_type))
+        .with_header(header("Vary", "Accept-Encoding"))
         .with_header(header("Cache-Control", "no-store"))
         .with_header(header("X-Content-Type-Options", "nosniff"));
     let _ = rq.respond(r);
