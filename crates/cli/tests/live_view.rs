@@ -372,6 +372,7 @@ fn the_live_view_serves_the_page_state_history_stream_and_metrics() {
         "truepos_model_generation{model=\"vmc3-example\"} 1",
         "truepos_source_up{source=\"replay examples/vmc3/run.csv\"} 1",
         "truepos_compensation_active 1",
+        "truepos_sensor_age_seconds{sensor=\"x_slide_top\"} ",
     ] {
         assert!(m.body.contains(name), "no `{name}` in\n{}", m.body);
     }

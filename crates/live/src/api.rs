@@ -56,6 +56,7 @@ pub fn state_json(s: &Snapshot, info: &Info, wall_unix_s: f64) -> Value {
                 "value": num(t.value_c),
                 "validation": fault_name(t.fault),
                 "figure": num(t.figure),
+                "age_s": num(t.age_s),
             })
         })
         .collect();
@@ -351,6 +352,13 @@ fn sensor_families(o: &mut String, s: &Snapshot, info: &Info) {
         "gauge",
         "1 while a temperature channel passes validation.",
         &temps(&|i| flag(t(i).fault == 0)),
+    );
+    family(
+        o,
+        "truepos_sensor_age_seconds",
+        "gauge",
+        "Time since a temperature channel's last update (+Inf: never updated).",
+        &temps(&|i| t(i).age_s),
     );
 }
 

@@ -10,6 +10,7 @@
 
 use std::sync::atomic::{fence, AtomicU64, Ordering};
 
+use crate::frame::NEVER;
 use crate::output::CompensationState;
 use crate::sensor_validation::Fault;
 use crate::service::{PathState, Service};
@@ -22,8 +23,8 @@ pub const PUBLISH_EVERY: std::time::Duration = std::time::Duration::from_millis(
 const HEADER: usize = 15;
 /// Cells per axis: offset, target, position, clamping, clamps, blending.
 const PER_AXIS: usize = 6;
-/// Cells per temperature channel: value, fault code, fault figure.
-const PER_TEMPERATURE: usize = 3;
+/// Cells per temperature channel: value, fault code, fault figure, age.
+const PER_TEMPERATURE: usize = 4;
 /// Cells per path: state code, extrapolating.
 const PER_PATH: usize = 2;
 /// Cells per sink: failing, failed writes.
@@ -139,6 +140,8 @@ pub struct TemperatureView {
     pub fault: u8,
     /// The fault's figure (°C, K/s, s), NaN without one.
     pub figure: f64,
+    /// Time since its last update in s (infinite: never updated).
+    pub age_s: f64,
 }
 
 /// The state last published, decoded on the reader's thread.
@@ -340,12 +343,14 @@ impl Board {
             c.put(flag(env.blend_origin(a).is_some()));
         }
         let health = service.validator().health();
-        let temps = &service.frame().temperatures_c;
+        let frame = service.frame();
         for t in 0..l.temperatures {
             let (code, figure) = health.get(t).map_or((1, f64::NAN), fault_code);
-            c.put(temps.get(t).copied().unwrap_or(f64::NAN));
+            c.put(frame.temperatures_c.get(t).copied().unwrap_or(f64::NAN));
             c.put(f64::from(code));
             c.put(figure);
+            let stamp = frame.temperature_stamp_s.get(t).copied().unwrap_or(NEVER);
+            c.put(out.time_s - stamp);
         }
         let ops = &service.frame().operating;
         for o in 0..l.operating {
@@ -432,6 +437,7 @@ impl Board {
                 value_c: next(),
                 fault: count(next()).min(255) as u8,
                 figure: next(),
+                age_s: next(),
             })
             .collect();
         let operating = (0..l.operating).map(|_| next()).collect();

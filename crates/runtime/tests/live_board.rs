@@ -109,6 +109,14 @@ fn cycles_and_publications_allocate_nothing_while_a_reader_reads() {
         "{:?}",
         s.temperatures
     );
+    // The replay's rows are a minute apart: every reading is under a minute old.
+    assert!(
+        s.temperatures
+            .iter()
+            .all(|t| (0.0..=60.0).contains(&t.age_s)),
+        "{:?}",
+        s.temperatures
+    );
     assert_eq!(s.sources_ok, vec![true]);
 }
 
