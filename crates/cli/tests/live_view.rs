@@ -663,3 +663,59 @@ fn a_reloaded_model_shows_its_new_generation() {
     assert!(ok, "{stderr}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// An axis held at its envelope (the example machine with Z's `max_offset_um` at 15 µm, below
+/// the model's 28 µm) raises the banner although the state is `active`, and counts the clamp.
+#[test]
+fn a_clamped_axis_raises_the_banner_in_the_browser() {
+    let dir = scratch("live-clamp");
+    let text = std::fs::read_to_string(support::repo("examples/vmc3/machine.toml")).unwrap();
+    let z = "name = \"Z\"\nkind = \"linear\"\ntravel = [0.0, 500.0]\ncarriage = \"cantilever\"\n";
+    assert!(text.contains(z), "the example machine's Z changed");
+    let machine = dir.join("machine.toml");
+    std::fs::write(
+        &machine,
+        text.replace(z, &format!("{z}max_offset_um = 15.0\n")),
+    )
+    .unwrap();
+    let machine = machine.display().to_string();
+    let run = Running::start(
+        &["--machine", &machine, "--http", "127.0.0.1:0"],
+        &dir.join("log.sqlite"),
+        None,
+    );
+    let a = run.addr;
+    let deadline = Instant::now() + Duration::from_secs(30);
+    let state = loop {
+        let v = json(&get(a, "/api/state", &[]));
+        if v["clamped"] == true {
+            break v;
+        }
+        assert!(Instant::now() < deadline, "Z never clamped: {v}");
+        std::thread::sleep(Duration::from_millis(100));
+    };
+    assert_eq!(state["state"], "active", "{state}");
+    assert_eq!(state["axes"][2]["offset"], -15.0, "{state}");
+    let m = get(a, "/metrics", &[]).body;
+    assert!(m.contains("truepos_axis_clamps_total{axis=\"Z\"} 1"), "{m}");
+    assert!(m.contains("truepos_clamped 1"), "{m}");
+    promtool_check(&m);
+    let profile = dir.join("chromium-profile");
+    let v = selftest(a, 3, &profile);
+    assert_eq!(v["errors"], serde_json::json!([]), "console errors: {v}");
+    let banner = v["banner"].as_str().unwrap();
+    assert!(
+        banner.contains("OUTPUT CLAMPED by the safety envelope on Z"),
+        "{v}"
+    );
+    let shots = Path::new(env!("CARGO_TARGET_TMPDIR")).parent().unwrap();
+    chromium(
+        &format!("http://{a}/?selftest=3"),
+        "1280,1100",
+        Some(&shots.join("live_view_clamp.png")),
+        &profile,
+    );
+    let (ok, stderr) = run.stop();
+    assert!(ok, "{stderr}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
