@@ -90,14 +90,12 @@ fn figures(data: &ReportData) -> Result<Vec<Figure>, ReportError> {
 }
 
 /// Writes `report.html` (self-contained) and the figures as SVG files into `dir`; returns the
-/// path of the HTML file. Each file is written to a temporary name and renamed, so a failed
-/// report never leaves a half-written file behind.
+/// path of the HTML file. The files are written together: every output is checked and written
+/// to a temporary name before the first is renamed, so a refused or failed report leaves
+/// neither a half-written file nor a folder of figures without their page.
 pub fn write_report(dir: &Path, data: &ReportData) -> Result<PathBuf, ReportError> {
     std::fs::create_dir_all(dir).map_err(io_error(dir))?;
     let figures = figures(data)?;
-    for f in &figures {
-        write_whole(&dir.join(&f.file), &f.svg)?;
-    }
     let mut html = String::new();
     let _ = write!(
         html,
@@ -122,7 +120,14 @@ pub fn write_report(dir: &Path, data: &ReportData) -> Result<PathBuf, ReportErro
     key_value_tables(&mut html, data);
     html.push_str("</body></html>\n");
     let path = dir.join("report.html");
-    write_whole(&path, &html)?;
+    let paths: Vec<PathBuf> = figures.iter().map(|f| dir.join(&f.file)).collect();
+    let mut files: Vec<(&Path, &[u8])> = paths
+        .iter()
+        .zip(&figures)
+        .map(|(p, f)| (p.as_path(), f.svg.as_bytes()))
+        .collect();
+    files.push((&path, html.as_bytes()));
+    truepos_files::write::write_all_whole(&files, &[]).map_err(|e| ReportError(e.to_string()))?;
     Ok(path)
 }
 
@@ -149,15 +154,6 @@ tr.worse td{-webkit-print-color-adjust:exact;print-color-adjust:exact}}";
 fn io_error(p: &Path) -> impl Fn(std::io::Error) -> ReportError {
     let p = p.to_path_buf();
     move |e| ReportError(format!("{}: {e}", p.display()))
-}
-
-/// Writes `text` to `path` through the one door for outputs ([`truepos_files::write`]): an
-/// exclusive temporary file in the same folder, synced before the rename, so after a crash
-/// the report is the old one or the whole new one; a link, device or FIFO in its place is
-/// refused.
-fn write_whole(path: &Path, text: &str) -> Result<(), ReportError> {
-    truepos_files::write::write_whole(path, text.as_bytes(), &[])
-        .map_err(|e| ReportError(e.to_string()))
 }
 
 /// The headline figures as cards.
@@ -349,23 +345,31 @@ mod tests {
         );
     }
 
+    /// A report whose page is refused (a link planted in its place) writes no figure either:
+    /// the folder holds the page with its figures or nothing of this report.
     #[test]
-    fn a_failed_write_leaves_no_partial_file() {
+    fn a_refused_page_leaves_no_figure_behind() {
         let d = std::env::temp_dir().join(format!("truepos-report-write-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
         std::fs::create_dir_all(&d).unwrap();
-        let ok = d.join("a.svg");
-        write_whole(&ok, "<svg/>").unwrap();
-        assert_eq!(std::fs::read_to_string(&ok).unwrap(), "<svg/>");
-        // The target is a folder that holds a file: refused, and nothing is left.
-        let folder = d.join("b.svg");
-        std::fs::create_dir_all(folder.join("x")).unwrap();
-        let e = write_whole(&folder, "<svg/>").unwrap_err();
-        assert!(e.0.contains("b.svg"), "{}", e.0);
-        let partial = std::fs::read_dir(&d)
+        let victim = d.join("victim.txt");
+        std::fs::write(&victim, "precious").unwrap();
+        std::os::unix::fs::symlink(&victim, d.join("report.html")).unwrap();
+        let data = ReportData {
+            time_s: (0..20).map(f64::from).collect(),
+            temperatures: vec![("t1".into(), (0..20).map(f64::from).collect())],
+            ..Default::default()
+        };
+        let e = write_report(&d, &data).unwrap_err();
+        assert!(e.0.contains("report.html"), "{}", e.0);
+        assert_eq!(std::fs::read_to_string(&victim).unwrap(), "precious");
+        let left: Vec<String> = std::fs::read_dir(&d)
             .unwrap()
-            .filter_map(|e| e.ok())
-            .any(|e| e.file_name().to_string_lossy().ends_with(".tmp"));
-        assert!(!partial);
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        let mut left = left;
+        left.sort();
+        assert_eq!(left, ["report.html", "victim.txt"]);
         let _ = std::fs::remove_dir_all(&d);
     }
 }
