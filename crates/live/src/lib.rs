@@ -54,6 +54,9 @@ pub const PAGE: &str = include_str!("page.html");
 
 /// Threads answering requests (a stream has a thread of its own besides).
 const WORKERS: usize = 4;
+/// Stack of each of the server's own threads: small, since the LinuxCNC component locks its
+/// memory (`mlockall` with `MCL_FUTURE`), every thread's stack included.
+const STACK_BYTES: usize = 512 * 1024;
 /// Buckets of a history unless asked otherwise, and the most asked.
 const BUCKETS: usize = 1500;
 const MAX_BUCKETS: usize = 20_000;
@@ -130,6 +133,7 @@ impl LiveServer {
         let spawn = |name: String, f: Box<dyn FnOnce() + Send>| {
             std::thread::Builder::new()
                 .name(name)
+                .stack_size(STACK_BYTES)
                 .spawn(f)
                 .map_err(|e| format!("cannot start the live view's thread: {e}"))
         };
@@ -383,6 +387,7 @@ fn open_stream(rq: Request, url: &str, s: &Arc<Shared>) {
     let s = Arc::clone(s);
     let spawned = std::thread::Builder::new()
         .name("truepos-live-stream".into())
+        .stack_size(STACK_BYTES)
         .spawn(move || {
             let w = rq.into_writer();
             stream::serve(&s.hub, w, last);
