@@ -77,19 +77,7 @@ impl fmt::Display for InputError {
 
 impl std::error::Error for InputError {}
 
-/// 1-based line and column (in characters) of a byte offset.
-pub fn line_column(text: &str, offset: usize) -> (usize, usize) {
-    let offset = offset.min(text.len());
-    let mut start = offset;
-    while !text.is_char_boundary(start) {
-        start -= 1;
-    }
-    let before = &text[..start];
-    let line = before.matches('\n').count() + 1;
-    let line_start = before.rfind('\n').map_or(0, |i| i + 1);
-    let column = before[line_start..].chars().count() + 1;
-    (line, column)
-}
+pub use truepos_files::line_column;
 
 /// Reads a whole text file of one kind through the one door ([`truepos_files::read`]: a
 /// regular file only, within the kind's size limit, opened without blocking), naming it in the

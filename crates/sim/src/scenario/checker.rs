@@ -7,7 +7,9 @@ use super::ScenarioError;
 
 /// A TOML syntax or type error as a [`ScenarioError`].
 pub(crate) fn toml_error(src: &str, file: &str, e: &toml::de::Error) -> ScenarioError {
-    let (line, column) = e.span().map_or((0, 0), |s| line_col(src, s.start));
+    let (line, column) = e
+        .span()
+        .map_or((0, 0), |s| truepos_files::line_column(src, s.start));
     ScenarioError {
         file: file.into(),
         line,
@@ -15,14 +17,6 @@ pub(crate) fn toml_error(src: &str, file: &str, e: &toml::de::Error) -> Scenario
         key: e.span().map(|s| key_at(src, s)).unwrap_or_default(),
         expected: e.message().trim().to_string(),
     }
-}
-
-/// 1-based line and column of a byte offset.
-fn line_col(src: &str, offset: usize) -> (usize, usize) {
-    let before = &src[..offset.min(src.len())];
-    let line = before.matches('\n').count() + 1;
-    let column = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
-    (line, column)
 }
 
 /// The key written on the line of a span (`key = …`), or the table header.
@@ -108,7 +102,7 @@ impl<'a> Checker<'a> {
     pub(crate) fn err(&self, path: &[Seg], expected: impl Into<String>) -> ScenarioError {
         let (line, column) = self
             .span(path)
-            .map_or((0, 0), |s| line_col(self.src, s.start));
+            .map_or((0, 0), |s| truepos_files::line_column(self.src, s.start));
         let mut key = String::new();
         for seg in path {
             match seg {
