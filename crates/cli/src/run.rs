@@ -41,7 +41,8 @@ fn run_inputs(args: &RunArgs) -> Vec<(&'static str, &Path)> {
 /// Arguments of `truepos run`.
 #[derive(clap::Args)]
 pub struct RunArgs {
-    /// Machine description (TOML).
+    /// Machine description (TOML). The defaults of --machine, --models and --source are the
+    /// example VMC's, found from any directory.
     #[arg(long, default_value = "examples/vmc3/machine.toml")]
     machine: PathBuf,
     /// Model files of the model set, in order of preference (repeat, or separate with commas).
@@ -218,7 +219,9 @@ impl Timing {
     }
 }
 
-pub fn run(args: RunArgs) -> Result<(), CliError> {
+pub fn run(mut args: RunArgs) -> Result<(), CliError> {
+    args.machine = crate::examples::find(std::mem::take(&mut args.machine));
+    args.models = args.models.drain(..).map(crate::examples::find).collect();
     let http = HttpArgs::check(args.http.as_deref(), args.http_token_file.as_deref())
         .map_err(CliError::refused)?;
     let machine = machine_file::load(&args.machine)?;
@@ -407,7 +410,8 @@ fn open_sources(
         let (kind, what, _) = split_source(spec)?;
         let source: Box<dyn Source> = match kind {
             "replay" => {
-                let run = cycles::load(std::path::Path::new(what), m, &[])?.run;
+                let file = crate::examples::find(what.into());
+                let run = cycles::load(&file, m, &[])?.run;
                 check(&format!("replay {what}"), &run);
                 let replay = ReplaySource::new(format!("replay {what}"), run);
                 replay_end_s = Some(replay.duration_s());
