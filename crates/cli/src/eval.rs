@@ -39,6 +39,24 @@ pub struct Args {
     json: bool,
 }
 
+/// Says first, as `run` does, where the model predicts beyond an axis' envelope: on the machine
+/// the envelope would hold the axis at its limit, so the figures promise more than it would get.
+fn warn_beyond_envelope(
+    config: &truepos_runtime::MachineConfig,
+    machine_file: &std::path::Path,
+    model: &Evaluator,
+    runs: &[(String, truepos_io::cycles::Cycles)],
+) {
+    for (name, cycles) in runs {
+        let beyond = crate::envelope_check::beyond(config, model.model(), &cycles.run);
+        let what = format!("run {name}");
+        for w in crate::envelope_check::warnings(config, machine_file, model.name(), &what, &beyond)
+        {
+            eprintln!("{w}");
+        }
+    }
+}
+
 /// Per-axis figures over the run.
 struct AxisSummary {
     name: String,
@@ -59,9 +77,11 @@ pub fn run(mut args: Args) -> Result<(), CliError> {
     if args.out.as_os_str() != "-" {
         crate::write::check(&args.out, &inputs)?;
     }
-    let machine = machine_file::load(&args.machine)?.machine;
+    let config = machine_file::load(&args.machine)?;
+    let machine = config.machine.clone();
     let mut model = Evaluator::load(&args.model, &machine)?;
     let runs = model.load_runs(&args.run, &machine, &args.shape, args.time.as_deref())?;
+    warn_beyond_envelope(&config, &args.machine, &model, &runs);
     // Rows say their run when the file holds several or a run column named one.
     let named = runs.len() > 1 || runs[0].0 != args.run.display().to_string();
 

@@ -255,3 +255,23 @@ fn an_implausible_model_is_refused_at_start_and_at_hot_reload() {
         "{events:?}"
     );
 }
+
+/// `eval` says, as `run` does, when the model predicts beyond an axis' envelope on the run, and
+/// names the key to change (issue 28: fit, demo, eval and run tell it at start).
+#[test]
+fn eval_says_when_the_model_predicts_beyond_the_envelope() {
+    let dir = scratch("red-team-eval-envelope");
+    let strong = vmc3_model_with_k0(&dir, "60.0");
+    let out = command()
+        .args(["eval", "--json", "--model"])
+        .arg(&strong)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(
+        err.contains("beyond the axis' safety envelope of 100 µm")
+            && err.contains("raise `max_offset_um` in axis Z's `[[axis]]` table"),
+        "{err}"
+    );
+}
