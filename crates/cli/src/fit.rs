@@ -301,17 +301,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
     let mut warnings = validation.warnings.clone();
     warnings.extend(late_first_measurements(&ds));
     if let Err(bad) = plausible(&ds, &outcome) {
-        let what: Vec<String> = bad.iter().map(ToString::to_string).collect();
-        if !args.force {
-            let out = args.model.as_ref().map_or("the model".into(), |p| {
-                format!("refusing to write {}", p.display())
-            });
-            return Err(CliError::refused(format!(
-                "{out}: {}; check the targets, or --force to write it anyway",
-                what.join("; ")
-            )));
-        }
-        warnings.extend(what.into_iter().map(|w| format!("--force: {w}")));
+        warnings.extend(forced(&args, &bad)?);
     }
     warnings.extend(beyond_training(validation.held_out_rows_beyond_training));
     let report = serde_json::json!({
@@ -528,6 +518,22 @@ fn unmapped(ds: &Dataset, axes: &[TargetAxis]) -> Result<(), CliError> {
 }
 
 /// The warning for held-out rows with an input beyond their fold's training range, if any.
+/// A model whose predictions on its own training data are implausible is refused, naming each
+/// figure, unless the person typed `--force`; then the figures become warnings.
+fn forced(args: &Args, bad: &[impl ToString]) -> Result<Vec<String>, CliError> {
+    let what: Vec<String> = bad.iter().map(ToString::to_string).collect();
+    if !args.force {
+        let out = args.model.as_ref().map_or("the model".into(), |p| {
+            format!("refusing to write {}", p.display())
+        });
+        return Err(CliError::refused(format!(
+            "{out}: {}; check the targets, or --force to write it anyway",
+            what.join("; ")
+        )));
+    }
+    Ok(what.into_iter().map(|w| format!("--force: {w}")).collect())
+}
+
 pub(crate) fn beyond_training(rows: usize) -> Option<String> {
     (rows > 0).then(|| {
         format!(

@@ -180,17 +180,7 @@ pub fn run(mut args: Args) -> Result<(), CliError> {
         outcome.validation.held_out_rows_beyond_training,
     ));
     if let Err(bad) = plausible_predictions(&ds, &outcome.fitted, &outcome.training_rows, true) {
-        let what: Vec<String> = bad.iter().map(ToString::to_string).collect();
-        if !args.force {
-            let out = args.model.as_ref().map_or("the model".into(), |p| {
-                format!("refusing to write {}", p.display())
-            });
-            return Err(CliError::refused(format!(
-                "{out}: {}; check the targets, or --force to write it anyway",
-                what.join("; ")
-            )));
-        }
-        warnings.extend(what.into_iter().map(|w| format!("--force: {w}")));
+        warnings.extend(super::forced(&args, &bad)?);
     }
     let beyond = beyond_envelope(&ds, &outcome, &data.target_axes, &config);
     let name = args
