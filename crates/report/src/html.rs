@@ -94,6 +94,12 @@ fn figures(data: &ReportData) -> Result<Vec<Figure>, ReportError> {
 /// to a temporary name before the first is renamed, so a refused or failed report leaves
 /// neither a half-written file nor a folder of figures without their page.
 pub fn write_report(dir: &Path, data: &ReportData) -> Result<PathBuf, ReportError> {
+    if std::fs::metadata(dir).is_ok_and(|m| !m.is_dir()) {
+        return Err(ReportError(format!(
+            "{}: is not a folder: a report is a folder of files (give a new name or a folder)",
+            dir.display()
+        )));
+    }
     std::fs::create_dir_all(dir).map_err(io_error(dir))?;
     let figures = figures(data)?;
     let mut html = String::new();
@@ -370,6 +376,9 @@ mod tests {
         let mut left = left;
         left.sort();
         assert_eq!(left, ["report.html", "victim.txt"]);
+        // A report folder that is a file, a device or a link to one is refused by name.
+        let e = write_report(&victim, &data).unwrap_err();
+        assert!(e.0.ends_with("victim.txt: is not a folder: a report is a folder of files (give a new name or a folder)"), "{}", e.0);
         let _ = std::fs::remove_dir_all(&d);
     }
 }
