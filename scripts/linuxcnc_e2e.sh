@@ -20,8 +20,11 @@ export PATH="$BIN:/usr/bin:/bin:/usr/sbin:/sbin:$PATH"
 
 rm -rf "$OUT" && mkdir -p "$OUT"
 chmod 0777 "$OUT"
+# HTTP=ADDR: the component also serves its live view on ADDR during the run (docs/live_view.md).
+http_sed="s|^||"
+[ -n "${HTTP:-}" ] && http_sed="s|--stats \(.*\)stats.json|--stats \1stats.json --http $HTTP|"
 for f in vmc3.ini vmc3.hal; do
-    sed -e "s|@REPO@|$REPO|g" -e "s|@OUT@|$OUT|g" "tests/linuxcnc/$f.in" > "$OUT/$f"
+    sed -e "s|@REPO@|$REPO|g" -e "s|@OUT@|$OUT|g" -e "$http_sed" "tests/linuxcnc/$f.in" > "$OUT/$f"
 done
 cp tests/linuxcnc/tool.tbl "$OUT/"
 : > "$OUT/sim.var"
