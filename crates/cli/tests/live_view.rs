@@ -593,6 +593,14 @@ fn a_real_browser_draws_the_traces_and_cannot_miss_a_fault() {
         v["events"].as_u64().unwrap() >= 2,
         "sensor-fault listed: {v}"
     );
+    // A page opened later (a reload) starts from the log's history of the run, from its start.
+    assert!(v["history_buckets"].as_u64().unwrap() >= 10, "{v}");
+    let again = selftest(run.addr, 2, &profile);
+    assert!(
+        again["history_buckets"].as_u64() >= v["history_buckets"].as_u64()
+            && again["history_from"] == 0.0,
+        "{again}"
+    );
     let png = shots.join("live_view_fault.png");
     chromium(
         &format!("http://{}/?selftest=3", run.addr),
