@@ -108,11 +108,15 @@ impl Live {
         self.next = now + PUBLISH_EVERY;
         if now >= self.next_log {
             self.next_log = now + LOG_HEALTH_EVERY;
-            self.log = host.log_health().map(|h| LogFigures {
-                failing: h.failing.is_some(),
-                pending: h.pending as u64,
-                dropped: h.records_dropped + h.events_dropped + h.probes_dropped,
-            });
+            // Atomics, not `log_health`: the LinuxCNC component calls this on its real-time
+            // thread, which must not take the logger's lock nor allocate.
+            self.log = host
+                .log_figures()
+                .map(|(failing, pending, dropped)| LogFigures {
+                    failing,
+                    pending,
+                    dropped,
+                });
         }
         self.board.publish(
             &host.service,

@@ -239,6 +239,12 @@ impl Running {
         self.logger.as_ref().map(Logger::health)
     }
 
+    /// The log's figures without a lock or an allocation ([`Logger::figures`]): whether it
+    /// fails, records pending, records dropped; `None` without a log.
+    pub fn log_figures(&self) -> Option<(bool, u64, u64)> {
+        self.logger.as_ref().map(Logger::figures)
+    }
+
     /// Stops the service: the logger writes what is still queued and stops. Returns the service
     /// (for its figures) and how the log did.
     pub fn stop(self) -> Stopped {

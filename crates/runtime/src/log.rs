@@ -145,6 +145,10 @@ pub struct LogHealth {
 #[derive(Debug, Default)]
 struct Shared {
     health: Mutex<LogHealth>,
+    /// The figures of `health` a real-time thread may read: no lock, no allocation.
+    failing: AtomicBool,
+    pending: AtomicU64,
+    dropped: AtomicU64,
     /// Events from outside the cycle (a model reload), with their full text.
     notes: Mutex<Vec<Note>>,
     /// Page limit to apply (0: none asked).
@@ -275,6 +279,18 @@ impl Logger {
             Ok(h) => h.clone(),
             Err(p) => p.into_inner().clone(),
         }
+    }
+
+    /// Whether writing fails now, what waits in the buffer and what was dropped (records, events
+    /// and probe events): [`Self::health`]'s figures without its lock or its texts, so that a
+    /// real-time thread may read them between cycles.
+    pub fn figures(&self) -> (bool, u64, u64) {
+        let s = &self.shared;
+        (
+            s.failing.load(Ordering::Relaxed),
+            s.pending.load(Ordering::Relaxed),
+            s.dropped.load(Ordering::Relaxed),
+        )
     }
 
     /// Logs an event that does not come from the cycle (a model reload, from the host's loop
@@ -681,6 +697,10 @@ impl Writer {
         h.failing = self.failure.as_ref().map(|f| f.reason.clone());
         h.failing_since_s = self.failure.as_ref().map(|f| f.since_s);
         h.pending = self.records.len() + self.events.len() + self.probes.len();
+        shared.failing.store(h.failing.is_some(), Ordering::Relaxed);
+        shared.pending.store(h.pending as u64, Ordering::Relaxed);
+        let dropped = h.records_dropped + h.events_dropped + h.probes_dropped;
+        shared.dropped.store(dropped, Ordering::Relaxed);
         let mut out = match shared.health.lock() {
             Ok(g) => g,
             Err(p) => p.into_inner(),

@@ -132,12 +132,16 @@ fn a_full_disk_shows_within_a_second_and_the_log_resumes_without_losing_the_queu
     cycle_until(&mut s, &mut t, Duration::from_millis(800), || false);
     assert!(logger.health().failing.is_some());
     assert!(logger.health().pending > 0);
+    // The lock-free figures a real-time thread reads say the same.
+    let (failing, pending, _) = logger.figures();
+    assert!(failing && pending > 0, "{:?}", logger.figures());
     logger.set_page_limit(1 << 30);
     cycle_until(&mut s, &mut t, Duration::from_secs(5), || {
         logger.health().failing.is_none()
     })
     .expect("the log resumes once there is room (backoff at most 2 s)");
     let h = logger.health();
+    assert!(!logger.figures().0);
     assert_eq!(h.resumed, 1);
     assert_eq!((h.records_dropped, h.events_dropped), (0, 0));
     logger.stop().expect("a resumed log ends well");
