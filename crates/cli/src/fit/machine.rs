@@ -308,23 +308,28 @@ fn print_screen(ds: &Dataset, outcome: &MachineOutcome) {
     }
 }
 
-/// The chosen model in its own form: a position-dependent or reference-sensor model as the
-/// model file `eval`, `run` and the LinuxCNC component read (TOML, or JSON when `out` ends in
-/// `.json`); a dynamic model as the dynamic model file (JSON, so `out` must end in `.json`).
 /// What `truepos run` and the LinuxCNC component will say of the model written: one they would
-/// refuse as implausible for the machine ([`truepos_runtime::admission`]) is still written — the
-/// user may mean to change the envelope — with a warning that names why.
+/// refuse as implausible for the machine ([`truepos_runtime::admission`]), or could not load at
+/// all, is still written — the user may mean to change the envelope — with a warning that
+/// names why.
 fn refused_at_load(
     out: &Path,
     text: &str,
     config: &truepos_runtime::MachineConfig,
 ) -> Option<String> {
-    let loaded = truepos_io::compensation::parse(out, text, &config.machine).ok()?;
-    truepos_runtime::admission::plausible(&loaded.model, config)
-        .err()
-        .map(|why| format!("`truepos run` and truepos-hal will refuse this model: {why}"))
+    let refuse =
+        |why: String| format!("`truepos run` and truepos-hal will refuse this model: {why}");
+    match truepos_io::compensation::parse(out, text, &config.machine) {
+        Err(e) => Some(refuse(e.to_string())),
+        Ok(loaded) => truepos_runtime::admission::plausible(&loaded.model, config)
+            .err()
+            .map(refuse),
+    }
 }
 
+/// The chosen model in its own form: a position-dependent or reference-sensor model as the
+/// model file `eval`, `run` and the LinuxCNC component read (TOML, or JSON when `out` ends in
+/// `.json`); a dynamic model as the dynamic model file (JSON, so `out` must end in `.json`).
 fn model_text(
     out: &Path,
     ds: &Dataset,
