@@ -289,7 +289,9 @@ pub fn write_whole(path: &Path, bytes: &[u8], inputs: Inputs<'_>) -> Result<(), 
 /// Writes several files that belong together (a HEIDENHAIN `.COM` table and the `.CMA` that
 /// selects it): every output is checked and every file written and synced to its temporary
 /// file before the first rename; if a rename fails, the files this call already renamed are
-/// removed again, so a reader finds all of them or none of this call's.
+/// removed again, so a reader finds all of them or none of this call's (the older files those
+/// had already replaced are not brought back; every byte is written and synced before the
+/// first rename, so a full disk refuses the call before anything is replaced).
 pub fn write_all_whole(files: &[(&Path, &[u8])], inputs: Inputs<'_>) -> Result<(), FileError> {
     let mut pending = Vec::with_capacity(files.len());
     for (path, bytes) in files {

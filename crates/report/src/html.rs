@@ -94,14 +94,16 @@ fn figures(data: &ReportData) -> Result<Vec<Figure>, ReportError> {
 /// to a temporary name before the first is renamed, so a refused or failed report leaves
 /// neither a half-written file nor a folder of figures without their page.
 pub fn write_report(dir: &Path, data: &ReportData) -> Result<PathBuf, ReportError> {
-    if std::fs::metadata(dir).is_ok_and(|m| !m.is_dir()) {
+    let figures = figures(data)?;
+    // A link to a folder is a folder; a link to nothing, a file or a device is not.
+    let exists = std::fs::symlink_metadata(dir).is_ok();
+    if exists && !std::fs::metadata(dir).is_ok_and(|m| m.is_dir()) {
         return Err(ReportError(format!(
             "{}: is not a folder: a report is a folder of files (give a new name or a folder)",
             dir.display()
         )));
     }
     std::fs::create_dir_all(dir).map_err(io_error(dir))?;
-    let figures = figures(data)?;
     let mut html = String::new();
     let _ = write!(
         html,
