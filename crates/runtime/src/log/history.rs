@@ -113,7 +113,7 @@ pub fn read_history(
         .map(|c| format!("min({0}), max({0})", quote(c)))
         .collect();
     let sql = format!(
-        "SELECT CAST((time_s - ?2) / ?3 AS INTEGER) AS b, min(time_s), max(time_s), count(*), \
+        "SELECT min(CAST((time_s - ?2) / ?3 AS INTEGER), ?4) AS b, min(time_s), max(time_s), count(*), \
          sum(state IS NOT 'active'){} FROM cycles WHERE rowid > ?1 AND time_s >= ?2 \
          GROUP BY b ORDER BY b",
         aggregates
@@ -124,22 +124,26 @@ pub fn read_history(
     let mut st = conn.prepare(&sql).map_err(err(path))?;
     let width = columns.len();
     let rows = st
-        .query_map(rusqlite::params![after, start_s, bucket_s], |r| {
-            let value = |i: usize| r.get::<_, Option<f64>>(i);
-            let mut min = Vec::with_capacity(width);
-            let mut max = Vec::with_capacity(width);
-            for c in 0..width {
-                min.push(value(5 + 2 * c)?);
-                max.push(value(6 + 2 * c)?);
-            }
-            Ok(Bucket {
-                t: [value(1)?.unwrap_or(f64::NAN), value(2)?.unwrap_or(f64::NAN)],
-                rows: r.get::<_, i64>(3)?.max(0) as u64,
-                inactive: r.get::<_, Option<i64>>(4)?.unwrap_or(0).max(0) as u64,
-                min,
-                max,
-            })
-        })
+        // The last row (at the window's end) belongs to the last bucket, not a bucket of its own.
+        .query_map(
+            rusqlite::params![after, start_s, bucket_s, n as i64 - 1],
+            |r| {
+                let value = |i: usize| r.get::<_, Option<f64>>(i);
+                let mut min = Vec::with_capacity(width);
+                let mut max = Vec::with_capacity(width);
+                for c in 0..width {
+                    min.push(value(5 + 2 * c)?);
+                    max.push(value(6 + 2 * c)?);
+                }
+                Ok(Bucket {
+                    t: [value(1)?.unwrap_or(f64::NAN), value(2)?.unwrap_or(f64::NAN)],
+                    rows: r.get::<_, i64>(3)?.max(0) as u64,
+                    inactive: r.get::<_, Option<i64>>(4)?.unwrap_or(0).max(0) as u64,
+                    min,
+                    max,
+                })
+            },
+        )
         .map_err(err(path))?;
     let buckets = rows.collect::<Result<Vec<_>, _>>().map_err(err(path))?;
     Ok(History {
