@@ -1,6 +1,6 @@
 //! `truepos demo`: the main job on the built-in defaults. The thermal twin runs a training day
 //! and a different test day on the reference machine; truepos fits the prior-art
-//! (position-independent) and the position-dependent model of seed A on the training day only,
+//! (position-independent) and the position-dependent model on the training day only,
 //! evaluates both on the test day — at the tool's path and over the whole working volume — prints
 //! a before/after table, and writes the model file and the report.
 
@@ -209,7 +209,7 @@ fn training_data(machine: &Machine, train: &Day) -> (Dataset, MachineData) {
 /// The prior art and the position-dependent model, each chosen on the training day only by
 /// `truepos fit --machine`'s selection (`truepos_fit::machine_fit::select`: per axis, family,
 /// input set and ridge by blocked inner CV over the day): the prior art among the input sets,
-/// the position-dependent model among seed A's position-dependent families too.
+/// the position-dependent model among the position-dependent families too.
 fn fit_both(
     machine: &Machine,
     train: &Day,

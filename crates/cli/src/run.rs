@@ -452,7 +452,7 @@ fn open_sources(
     Ok((sources, replay_end_s))
 }
 
-/// The sinks of `--sink`. An OPC UA sink projects the model when the set is one seed A/C
+/// The sinks of `--sink`. An OPC UA sink projects the model when the set is one position-dependent
 /// model (then an active service runs exactly it); a fitted dynamic model's form, and that of a
 /// set of several models (which one runs is the service's choice, cycle by cycle), is the
 /// service's output as a constant.

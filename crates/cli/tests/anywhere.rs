@@ -1,5 +1,5 @@
 //! The commands that default to the example machine work from any directory, not only from a
-//! checkout's root (issue 28: `truepos eval` without arguments failed outside the repository,
+//! checkout's root (`truepos eval` without arguments once failed outside the repository,
 //! which is where an installed `truepos` runs).
 
 mod support;

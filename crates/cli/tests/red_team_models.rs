@@ -1,4 +1,4 @@
-//! The red-team cases of issue 32 about models nobody can vouch for: probe deviations and
+//! The red-team cases about models nobody can vouch for: probe deviations and
 //! exported values that no thermal compensation of the machine could carry. Each failed on the
 //! landed code (a re-identified model predicting a millimetre at a cold machine; an export of
 //! −488 mm with exit 0); the file cases are `red_team.rs`.
@@ -257,7 +257,7 @@ fn an_implausible_model_is_refused_at_start_and_at_hot_reload() {
 }
 
 /// `eval` says, as `run` does, when the model predicts beyond an axis' envelope on the run, and
-/// names the key to change (issue 28: fit, demo, eval and run tell it at start).
+/// names the key to change (fit, demo, eval and run all tell it at start).
 #[test]
 fn eval_says_when_the_model_predicts_beyond_the_envelope() {
     let dir = scratch("red-team-eval-envelope");

@@ -1,4 +1,4 @@
-//! The red-team suite's proptest over output paths (issue 32): every command that writes a
+//! The red-team suite's proptest over output paths: every command that writes a
 //! file is given, as its output, a symbolic link to a victim, a dangling link, a FIFO, a
 //! device, one of its own inputs, a file in a missing directory or a directory. Each must be
 //! refused, naming the output, within a deadline, and leave the victim, the input and the path

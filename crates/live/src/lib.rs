@@ -54,8 +54,10 @@ pub const PAGE: &str = include_str!("page.html");
 
 /// Threads answering requests (a stream has a thread of its own besides).
 const WORKERS: usize = 4;
-/// Stack of each of the server's own threads: small, since the LinuxCNC component locks its
-/// memory (`mlockall` with `MCL_FUTURE`), every thread's stack included.
+/// Stack of each of the server's own threads (workers, streams, sampler): small, since the
+/// LinuxCNC component locks its memory (`mlockall` with `MCL_FUTURE`), every thread's stack
+/// included. tiny_http's own accept and connection threads keep the default stack; that they
+/// are not bounded is said in docs/live_view.md ("Not yet").
 const STACK_BYTES: usize = 512 * 1024;
 /// Buckets of a history unless asked otherwise, and the most asked.
 const BUCKETS: usize = 1500;

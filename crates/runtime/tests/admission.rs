@@ -1,5 +1,5 @@
 //! A model implausible for its machine is refused at every load, naming the model, the axis,
-//! the figure and the limit (red team, issue 32 item 6: coefficients of 10⁶ and 10³⁰⁰ µm/K
+//! the figure and the limit (red team: coefficients of 10⁶ and 10³⁰⁰ µm/K
 //! pinned every axis at the envelope while the state said `active`; −1.7·10³⁰⁸ held without
 //! saying the correction overflows). Every model the repository ships passes.
 
