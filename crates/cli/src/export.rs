@@ -76,6 +76,11 @@ pub struct Args {
     /// default 0.1).
     #[arg(long = "plc-word", value_delimiter = ',')]
     plc_words: Vec<String>,
+    /// Siemens: the control's name of a machine axis where it differs, AXIS=NAME (`X=X1`,
+    /// `Z=AX3`; repeat or separate with commas), as `kin table --siemens-axis` names it. Default:
+    /// the machine file's axis names.
+    #[arg(long = "siemens-axis", value_delimiter = ',')]
+    siemens_axes: Vec<String>,
     /// An axis' nominal transformation length for TEMPCOMP, AXIS=mm; default 0.
     #[arg(long, value_delimiter = ',')]
     nominal: Vec<String>,
@@ -116,6 +121,39 @@ fn per_axis(machine: &Machine, specs: &[String], flag: &str) -> Result<Vec<f64>,
             })?;
     }
     Ok(out)
+}
+
+/// The projections with each axis named as the SINUMERIK knows it (`--siemens-axis X=X1`): a
+/// letter or underscore, then letters, digits or underscores, as the control's identifiers.
+fn siemens_names(
+    machine: &Machine,
+    specs: &[String],
+    mut proj: Vec<AxisProjection>,
+) -> Result<Vec<AxisProjection>, CliError> {
+    for s in specs {
+        let bad = |why: String| CliError::refused(format!("--siemens-axis `{s}`: {why}"));
+        let (axis, name) = s
+            .split_once('=')
+            .ok_or_else(|| bad("expected AXIS=NAME, e.g. X=X1".into()))?;
+        let a = machine
+            .axis_index(axis.trim())
+            .ok_or_else(|| bad(format!("machine `{}` has no axis `{axis}`", machine.name)))?;
+        let name = name.trim();
+        let identifier = name
+            .chars()
+            .next()
+            .is_some_and(|c| c.is_ascii_alphabetic() || c == '_')
+            && name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_');
+        if !identifier {
+            return Err(bad(format!(
+                "`{name}` is no SINUMERIK axis name (a letter, then letters, digits or `_`)"
+            )));
+        }
+        for p in proj.iter_mut().filter(|p| p.axis == a) {
+            p.name = name.to_string();
+        }
+    }
+    Ok(proj)
 }
 
 fn plc_words(machine: &Machine, specs: &[String]) -> Result<Vec<PlcWord>, CliError> {
@@ -293,7 +331,10 @@ pub fn run(args: Args) -> Result<(), CliError> {
             } else {
                 check_error(&args, &proj, &vec![0.0; proj.len()])?;
                 let text = if args.to == To::Siemens {
-                    write_program(&proj, &header)
+                    write_program(
+                        &siemens_names(&machine, &args.siemens_axes, proj.clone())?,
+                        &header,
+                    )
                 } else {
                     module_9231_csv(&proj)?
                 };

@@ -465,3 +465,41 @@ fn the_fanuc_macro_variables_apply_the_model_within_the_stated_error() {
     assert!(!dir.join("bad.nc").exists());
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// The SINUMERIK program names an axis as the control knows it (`--siemens-axis`, as `kin
+/// table` names it), with the same values as under the machine file's name; a name the control
+/// could not take is refused.
+#[test]
+fn the_siemens_program_names_the_axes_as_the_control_knows_them() {
+    let dir = scratch("export-siemens-names");
+    let (plain, named) = (dir.join("plain.mpf"), dir.join("named.mpf"));
+    export_json("siemens", &plain, &[]);
+    export_json("siemens", &named, &["--siemens-axis", "X=X1,Z=AX3"]);
+    let read = |p: &Path| read_program("p.mpf", &std::fs::read_to_string(p).unwrap()).unwrap();
+    let (plain, named) = (read(&plain), read(&named));
+    let names: Vec<&str> = named.iter().map(|a| a.axis.as_str()).collect();
+    assert_eq!(names, ["X1", "Y", "AX3"]);
+    for (p, n) in plain.iter().zip(&named) {
+        assert_eq!(p.form, n.form);
+    }
+    let (ok, _, err) = run(&[
+        "export",
+        "--to",
+        "siemens",
+        "--machine",
+        M,
+        "--model",
+        "examples/vmc3/model.toml",
+        "--run",
+        "examples/vmc3/run.csv",
+        "--out",
+        dir.join("bad.mpf").to_str().unwrap(),
+        "--siemens-axis",
+        "X=1X",
+    ]);
+    assert!(
+        !ok && err.contains("`1X` is no SINUMERIK axis name"),
+        "{err}"
+    );
+    assert!(!dir.join("bad.mpf").exists());
+}
