@@ -140,3 +140,30 @@ fn status_does_not_call_sensors_good_that_never_delivered() {
     assert_eq!(v["bad_sensors"].as_array().unwrap().len(), 16, "{v}");
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// A source configuration's mistake names the file as well as the key, as every other input
+/// names its file.
+#[test]
+fn a_source_configurations_mistake_names_its_file_and_key() {
+    let dir = scratch("source-config-file");
+    let cfg = dir.join("modules.toml");
+    std::fs::write(
+        &cfg,
+        "address = \"127.0.0.1:5020\"\npoll_ms = 0\n\n[[channel]]\ntemperature = \"ambient\"\nregister = 1\nencoding = \"int16-x0.1\"\n",
+    )
+    .unwrap();
+    let out = truepos()
+        .args(["run", "--duration-s", "1", "--source"])
+        .arg(format!("modbus:{}", cfg.display()))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(
+        err.contains(&format!(
+            "{}: modbus.poll_ms: expected a time of at least 1 ms",
+            cfg.display()
+        )),
+        "{err}"
+    );
+}
