@@ -1,0 +1,579 @@
+//! The publisher thread: forwards the log to a broker as Sparkplug B, store-and-forward.
+//!
+//! Per connection: CONNECT with the NDEATH (next `bdSeq`) as will, NBIRTH (`seq` 0), then one
+//! NDATA per unit of the log after the cursor (`seq` 1, 2, … mod 256), at most [`WINDOW`]
+//! unacknowledged. The cursor advances over the acknowledged prefix only; on any error the
+//! connection is dropped, unacknowledged messages are forgotten and read again from the log
+//! after the reconnect, with everything the log held at the reconnect marked historical and
+//! sent at most `replay_per_s` messages a second. The cycle never waits on any of this: the
+//! thread's only link to the service is the log file.
+
+use std::collections::VecDeque;
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+
+use crate::cursor::{self, Cursor};
+use crate::mqtt::{BrokerUrl, Connection, Incoming, Will};
+use crate::sparkplug::{self, MessageType, Metric, Payload, Value, DOUBLE, STRING};
+use crate::store::{LogReader, Rows, Unit};
+
+/// Messages in flight (sent, not yet acknowledged) at most.
+pub const WINDOW: usize = 32;
+/// Longest wait between two connection attempts.
+pub const MAX_BACKOFF: Duration = Duration::from_secs(5);
+
+/// How to forward a log.
+#[derive(Debug, Clone)]
+pub struct Config {
+    /// The broker.
+    pub broker: BrokerUrl,
+    /// The service's log.
+    pub log: PathBuf,
+    /// Sparkplug group id.
+    pub group: String,
+    /// Sparkplug edge node id (`None`: the machine's name from the log).
+    pub node: Option<String>,
+    /// Where forwarding starts when this broker has no cursor yet (the rows of earlier runs
+    /// the operator did not ask to send; zeros: the whole log).
+    pub start_after: Rows,
+    /// Historical messages per second at most, after a reconnect.
+    pub replay_per_s: f64,
+    /// MQTT keep-alive, s.
+    pub keep_alive_s: u16,
+}
+
+impl Config {
+    /// Defaults: group `truepos`, the machine's name, the whole log, 100 messages/s, 10 s.
+    pub fn new(broker: BrokerUrl, log: PathBuf) -> Self {
+        Config {
+            broker,
+            log,
+            group: "truepos".into(),
+            node: None,
+            start_after: Rows::default(),
+            replay_per_s: 100.0,
+            keep_alive_s: 10,
+        }
+    }
+}
+
+/// Counters the thread keeps, readable from any thread.
+#[derive(Debug, Default)]
+struct Shared {
+    connected: AtomicBool,
+    connects: AtomicU64,
+    published: AtomicU64,
+    acknowledged: AtomicU64,
+    historical: AtomicU64,
+    bytes: AtomicU64,
+    last_error: Mutex<Option<String>>,
+}
+
+/// What the publisher did, for a summary line.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Summary {
+    /// Connected now.
+    pub connected: bool,
+    /// Connections made.
+    pub connects: u64,
+    /// NDATA messages sent (a message sent again after a reconnect counts again).
+    pub published: u64,
+    /// NDATA messages the broker acknowledged.
+    pub acknowledged: u64,
+    /// Of those sent, marked historical.
+    pub historical: u64,
+    /// Payload bytes of the NDATA messages sent.
+    pub bytes: u64,
+    /// The last connection error, if any.
+    pub last_error: Option<String>,
+    /// Everything the log holds was acknowledged when the thread ended.
+    pub caught_up: bool,
+    /// The cursor when the thread ended.
+    pub cursor: Rows,
+}
+
+/// The running publisher.
+pub struct Publisher {
+    shared: Arc<Shared>,
+    finish: Arc<Mutex<Option<Instant>>>,
+    thread: Option<JoinHandle<(bool, Rows)>>,
+}
+
+impl Publisher {
+    /// Opens the log (which must exist: the service creates it before its first cycle) and its
+    /// cursor, then starts the thread. Errors are sentences naming the file or the broker.
+    pub fn start(config: Config) -> Result<Self, String> {
+        let reader = LogReader::open(&config.log)?;
+        let meta = reader.meta()?;
+        let cursor_path = cursor::path_for(&config.log, &config.broker);
+        let cursor = match cursor::load(&cursor_path)? {
+            Some(c) => c,
+            None => Cursor {
+                broker: config.broker.to_string(),
+                rows: config.start_after,
+                run_start_unix_s: meta.started_unix_s,
+                bd_seq: 255,
+            },
+        };
+        let node = sparkplug::sanitize_id(config.node.as_deref().unwrap_or(&meta.machine));
+        let group = sparkplug::sanitize_id(&config.group);
+        let shared = Arc::new(Shared::default());
+        let finish = Arc::new(Mutex::new(None));
+        let state = State {
+            reader,
+            models: meta.models.join(", "),
+            machine: meta.machine,
+            topic_data: sparkplug::topic(&group, MessageType::NData, &node),
+            topic_birth: sparkplug::topic(&group, MessageType::NBirth, &node),
+            topic_death: sparkplug::topic(&group, MessageType::NDeath, &node),
+            client_id: format!("truepos-{group}-{node}"),
+            cursor_path,
+            cursor,
+            config,
+            shared: Arc::clone(&shared),
+            finish: Arc::clone(&finish),
+        };
+        let thread = std::thread::Builder::new()
+            .name("truepos-mqtt".into())
+            .spawn(move || state.run())
+            .map_err(|e| format!("cannot start the MQTT thread: {e}"))?;
+        Ok(Publisher {
+            shared,
+            finish,
+            thread: Some(thread),
+        })
+    }
+
+    /// The counters now.
+    pub fn summary(&self) -> Summary {
+        let s = &self.shared;
+        Summary {
+            connected: s.connected.load(Ordering::Relaxed),
+            connects: s.connects.load(Ordering::Relaxed),
+            published: s.published.load(Ordering::Relaxed),
+            acknowledged: s.acknowledged.load(Ordering::Relaxed),
+            historical: s.historical.load(Ordering::Relaxed),
+            bytes: s.bytes.load(Ordering::Relaxed),
+            last_error: s.last_error.lock().map(|e| e.clone()).unwrap_or(None),
+            caught_up: false,
+            cursor: Rows::default(),
+        }
+    }
+
+    /// Says the log is final (the service stopped), lets the thread forward what is left for at
+    /// most `drain`, then sends NDEATH, disconnects and saves the cursor. What is not
+    /// acknowledged by then stays in the log for the next start.
+    pub fn stop(mut self, drain: Duration) -> Summary {
+        if let Ok(mut f) = self.finish.lock() {
+            *f = Some(Instant::now() + drain);
+        }
+        let (caught_up, cursor) = self
+            .thread
+            .take()
+            .and_then(|t| t.join().ok())
+            .unwrap_or_default();
+        Summary {
+            caught_up,
+            cursor,
+            ..self.summary()
+        }
+    }
+}
+
+impl Drop for Publisher {
+    fn drop(&mut self) {
+        if let Some(t) = self.thread.take() {
+            if let Ok(mut f) = self.finish.lock() {
+                *f = Some(Instant::now());
+            }
+            let _ = t.join();
+        }
+    }
+}
+
+fn now_ms() -> u64 {
+    SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map_or(0, |d| d.as_millis() as u64)
+}
+
+/// One message sent and not yet acknowledged.
+struct InFlight {
+    packet_id: u16,
+    acked: bool,
+    /// The cursor once it and everything before is acknowledged (`None`: NBIRTH).
+    after: Option<Rows>,
+}
+
+/// One connection's state.
+struct Session {
+    conn: Connection,
+    seq: u64,
+    next_id: u16,
+    in_flight: VecDeque<InFlight>,
+    /// Rows read and sent: the next read starts here.
+    sent: Rows,
+    /// Rows the log held at connect: units up to them are historical.
+    historical_upto: Rows,
+    next_historical: Instant,
+    last_send: Instant,
+    ping_since: Option<Instant>,
+    /// The last read found nothing new.
+    idle: bool,
+}
+
+struct State {
+    reader: LogReader,
+    machine: String,
+    models: String,
+    topic_data: String,
+    topic_birth: String,
+    topic_death: String,
+    client_id: String,
+    cursor_path: PathBuf,
+    cursor: Cursor,
+    config: Config,
+    shared: Arc<Shared>,
+    finish: Arc<Mutex<Option<Instant>>>,
+}
+
+impl State {
+    fn error(&self, e: String) {
+        if let Ok(mut l) = self.shared.last_error.lock() {
+            *l = Some(e);
+        }
+    }
+
+    fn finish_at(&self) -> Option<Instant> {
+        self.finish
+            .lock()
+            .map(|f| *f)
+            .unwrap_or(Some(Instant::now()))
+    }
+
+    /// The thread: (re)connect with backoff, forward, and at the end say goodbye.
+    fn run(mut self) -> (bool, Rows) {
+        let mut backoff = Duration::from_millis(250);
+        let mut next_try = Instant::now();
+        let mut session: Option<Session> = None;
+        let mut saved = self.cursor.clone();
+        let mut last_save = Instant::now();
+        let mut caught_up = false;
+        loop {
+            let finish = self.finish_at();
+            let finished = finish.is_some();
+            if let Some(s) = &session {
+                caught_up = finished && s.idle && s.in_flight.is_empty();
+            }
+            if finish.is_some_and(|f| caught_up || Instant::now() >= f) {
+                break;
+            }
+            if session.is_none() {
+                if Instant::now() < next_try {
+                    std::thread::sleep(Duration::from_millis(50));
+                    continue;
+                }
+                match self.connect() {
+                    Ok(s) => {
+                        backoff = Duration::from_millis(250);
+                        session = Some(s);
+                    }
+                    Err(e) => {
+                        self.error(e);
+                        next_try = Instant::now() + backoff;
+                        backoff = (backoff * 2).min(MAX_BACKOFF);
+                        continue;
+                    }
+                }
+            }
+            let s = session.as_mut().expect("connected above");
+            if let Err(e) = self.step(s, finished) {
+                self.error(e);
+                self.shared.connected.store(false, Ordering::Relaxed);
+                session = None;
+                next_try = Instant::now() + backoff;
+                continue;
+            }
+            if self.cursor != saved && last_save.elapsed() >= Duration::from_secs(1) {
+                self.save(&mut saved);
+                last_save = Instant::now();
+            }
+        }
+        if let Some(s) = session {
+            self.goodbye(s);
+        }
+        self.save(&mut saved);
+        (caught_up, self.cursor.rows)
+    }
+
+    fn save(&self, saved: &mut Cursor) {
+        if *saved == self.cursor {
+            return;
+        }
+        match cursor::save(&self.cursor_path, &self.cursor) {
+            Ok(()) => *saved = self.cursor.clone(),
+            Err(e) => self.error(format!("cursor not saved: {e}")),
+        }
+    }
+
+    fn death_payload(&self) -> Vec<u8> {
+        Payload {
+            timestamp_ms: now_ms(),
+            seq: None,
+            metrics: vec![Metric::new(
+                "bdSeq",
+                Value::UInt64(u64::from(self.cursor.bd_seq)),
+            )],
+        }
+        .encode()
+    }
+
+    fn connect(&mut self) -> Result<Session, String> {
+        // Each connection takes the next bdSeq, kept in the cursor file across restarts, so a
+        // host application can tell this NBIRTH's NDEATH from an older one.
+        self.cursor.bd_seq = self.cursor.bd_seq.wrapping_add(1);
+        let will = self.death_payload();
+        let mut conn = Connection::connect(
+            &self.config.broker,
+            &self.client_id,
+            self.config.keep_alive_s,
+            Will {
+                topic: &self.topic_death,
+                payload: &will,
+            },
+            Duration::from_secs(5),
+        )?;
+        let birth = self.birth().encode();
+        conn.publish(&self.topic_birth, 1, &birth)?;
+        self.shared.connects.fetch_add(1, Ordering::Relaxed);
+        self.shared.connected.store(true, Ordering::Relaxed);
+        let mut in_flight = VecDeque::with_capacity(WINDOW + 1);
+        in_flight.push_back(InFlight {
+            packet_id: 1,
+            acked: false,
+            after: None,
+        });
+        Ok(Session {
+            conn,
+            seq: 0,
+            next_id: 2,
+            in_flight,
+            sent: self.cursor.rows,
+            historical_upto: self.reader.last_rows()?,
+            next_historical: Instant::now(),
+            last_send: Instant::now(),
+            ping_since: None,
+            idle: false,
+        })
+    }
+
+    /// NBIRTH: every metric NDATA will carry, with its type (values null until the first data).
+    fn birth(&self) -> Payload {
+        let mut metrics = vec![
+            Metric::new("bdSeq", Value::UInt64(u64::from(self.cursor.bd_seq))),
+            Metric::new("Node Control/Rebirth", Value::Boolean(false)),
+            Metric::new("Properties/Machine", Value::String(self.machine.clone())),
+            Metric::new("Properties/Models", Value::String(self.models.clone())),
+            Metric::new("Cycles", Value::Null(7)),
+            Metric::new("Active cycles", Value::Null(7)),
+        ];
+        for c in self.reader.columns() {
+            for s in ["min", "mean", "max"] {
+                metrics.push(Metric::new(metric_name(c, s), Value::Null(DOUBLE)));
+            }
+        }
+        for f in ["Kind", "Subject", "Detail"] {
+            metrics.push(Metric::new(format!("Event/{f}"), Value::Null(STRING)));
+        }
+        Payload {
+            timestamp_ms: now_ms(),
+            seq: Some(0),
+            metrics,
+        }
+    }
+
+    /// One turn: send what the window allows, read acknowledgements, keep the link alive.
+    fn step(&mut self, s: &mut Session, finished: bool) -> Result<(), String> {
+        let room = WINDOW.saturating_sub(s.in_flight.len());
+        if room > 0 {
+            let units = self.reader.units(s.sent, room, finished)?;
+            s.idle = units.is_empty();
+            for u in units {
+                let historical = match &u {
+                    Unit::Second(x) => x.last_row <= s.historical_upto.cycles,
+                    Unit::Event(e) => e.row <= s.historical_upto.events,
+                };
+                if historical {
+                    if Instant::now() < s.next_historical {
+                        s.idle = false;
+                        break;
+                    }
+                    s.next_historical +=
+                        Duration::from_secs_f64(1.0 / self.config.replay_per_s.max(0.1));
+                    s.next_historical = s
+                        .next_historical
+                        .max(Instant::now() - Duration::from_secs(1));
+                }
+                self.send(s, &u, historical)?;
+            }
+        }
+        let mut incoming = Vec::new();
+        s.conn.poll(
+            Duration::from_millis(if s.idle { 100 } else { 5 }),
+            &mut incoming,
+        )?;
+        for p in incoming {
+            match p {
+                Incoming::PubAck(id) => {
+                    if let Some(m) = s.in_flight.iter_mut().find(|m| m.packet_id == id) {
+                        m.acked = true;
+                    }
+                }
+                Incoming::PingResp => s.ping_since = None,
+            }
+        }
+        while s.in_flight.front().is_some_and(|m| m.acked) {
+            let m = s.in_flight.pop_front().expect("checked");
+            if let Some(rows) = m.after {
+                self.cursor.rows = rows;
+                self.shared.acknowledged.fetch_add(1, Ordering::Relaxed);
+            }
+        }
+        let keep_alive = Duration::from_secs(u64::from(self.config.keep_alive_s.max(1)));
+        if let Some(since) = s.ping_since {
+            if since.elapsed() > keep_alive {
+                return Err(format!(
+                    "{}: no answer to PINGREQ within {keep_alive:?}",
+                    self.config.broker
+                ));
+            }
+        } else if s.last_send.elapsed() >= keep_alive / 2 {
+            s.conn.ping()?;
+            s.ping_since = Some(Instant::now());
+            s.last_send = Instant::now();
+        }
+        Ok(())
+    }
+
+    fn send(&mut self, s: &mut Session, u: &Unit, historical: bool) -> Result<(), String> {
+        s.seq = (s.seq + 1) % 256;
+        let payload = self.data(u, s.seq, historical).encode();
+        let id = s.next_id;
+        s.next_id = s.next_id.checked_add(1).unwrap_or(1);
+        s.conn.publish(&self.topic_data, id, &payload)?;
+        s.last_send = Instant::now();
+        s.sent = u.after(s.sent);
+        s.in_flight.push_back(InFlight {
+            packet_id: id,
+            acked: false,
+            after: Some(s.sent),
+        });
+        self.shared.published.fetch_add(1, Ordering::Relaxed);
+        self.shared
+            .bytes
+            .fetch_add(payload.len() as u64, Ordering::Relaxed);
+        if historical {
+            self.shared.historical.fetch_add(1, Ordering::Relaxed);
+        }
+        Ok(())
+    }
+
+    /// The clock time in ms of service time `t`: the run's start plus `t`.
+    fn stamp(&self, t: f64) -> u64 {
+        let ms = (self.cursor.run_start_unix_s + t) * 1000.0;
+        if ms.is_finite() && ms >= 0.0 {
+            ms.round() as u64
+        } else {
+            now_ms()
+        }
+    }
+
+    fn data(&mut self, u: &Unit, seq: u64, historical: bool) -> Payload {
+        let mut metrics = Vec::new();
+        match u {
+            Unit::Second(x) => {
+                if x.new_run {
+                    // The service time restarted: a later run appended to the log. The latest
+                    // run's start is what the log's meta holds now.
+                    if let Ok(m) = self.reader.meta() {
+                        self.cursor.run_start_unix_s = m.started_unix_s;
+                    }
+                }
+                let ts = Some(self.stamp(x.second));
+                let mut push = |name: String, value: Value| {
+                    metrics.push(Metric {
+                        name,
+                        timestamp_ms: ts,
+                        value,
+                        historical,
+                    })
+                };
+                push("Cycles".into(), Value::UInt32(x.cycles));
+                push("Active cycles".into(), Value::UInt32(x.active));
+                for (c, st) in self.reader.columns().iter().zip(&x.stats) {
+                    let v = |f: fn(&(f64, f64, f64)) -> f64| {
+                        st.as_ref()
+                            .map_or(Value::Null(DOUBLE), |t| Value::Double(f(t)))
+                    };
+                    push(metric_name(c, "min"), v(|t| t.0));
+                    push(metric_name(c, "mean"), v(|t| t.1));
+                    push(metric_name(c, "max"), v(|t| t.2));
+                }
+            }
+            Unit::Event(e) => {
+                let ts = Some(self.stamp(e.time_s));
+                for (f, v) in [
+                    ("Kind", &e.kind),
+                    ("Subject", &e.subject),
+                    ("Detail", &e.detail),
+                ] {
+                    metrics.push(Metric {
+                        name: format!("Event/{f}"),
+                        timestamp_ms: ts,
+                        value: Value::String(v.clone()),
+                        historical,
+                    });
+                }
+            }
+        }
+        Payload {
+            timestamp_ms: now_ms(),
+            seq: Some(seq),
+            metrics,
+        }
+    }
+
+    /// A clean end: NDEATH published by us (Sparkplug: the will is not sent on DISCONNECT),
+    /// its acknowledgement awaited briefly, then DISCONNECT.
+    fn goodbye(&mut self, mut s: Session) {
+        let death = self.death_payload();
+        let id = s.next_id;
+        if s.conn.publish(&self.topic_death, id, &death).is_ok() {
+            let deadline = Instant::now() + Duration::from_secs(2);
+            let mut incoming = Vec::new();
+            while Instant::now() < deadline && !incoming.contains(&Incoming::PubAck(id)) {
+                if s.conn
+                    .poll(Duration::from_millis(50), &mut incoming)
+                    .is_err()
+                {
+                    break;
+                }
+            }
+        }
+        s.conn.disconnect();
+        self.shared.connected.store(false, Ordering::Relaxed);
+    }
+}
+
+/// The metric name of a `cycles` column's statistic: offsets under `Offsets/`, every other
+/// column (temperatures, operating state, positions) under `Inputs/`.
+pub fn metric_name(column: &str, stat: &str) -> String {
+    if column.ends_with("_offset_um") {
+        format!("Offsets/{column}/{stat}")
+    } else {
+        format!("Inputs/{column}/{stat}")
+    }
+}

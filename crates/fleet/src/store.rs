@@ -1,0 +1,366 @@
+//! The service's SQLite log as the store the publisher forwards from: a read-only connection
+//! to the log's own tables (`meta`, `cycles`, `events`), read after a cursor of row ids and
+//! grouped into the units that become messages — one second's aggregates, or one event.
+
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use rusqlite::types::ValueRef;
+use rusqlite::{Connection, OpenFlags};
+
+/// Where forwarding stands: the last row of each table that is covered.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+pub struct Rows {
+    /// Last covered rowid of `cycles` (0: none).
+    pub cycles: i64,
+    /// Last covered rowid of `events` (0: none).
+    pub events: i64,
+}
+
+/// What the service wrote about itself in the log's `meta` table.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Meta {
+    /// The machine's name.
+    pub machine: String,
+    /// Clock time of the service's time 0 (latest run), s since the Unix epoch.
+    pub started_unix_s: f64,
+    /// The model set's names, in order.
+    pub models: Vec<String>,
+}
+
+/// One aggregated column: min, mean and max over a second's cycles (`None`: no value in it).
+pub type Stat = Option<(f64, f64, f64)>;
+
+/// One second of cycles.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Second {
+    /// Service time of the second's start, s (a whole number).
+    pub second: f64,
+    /// Its last row.
+    pub last_row: i64,
+    /// Cycles logged in it.
+    pub cycles: u32,
+    /// Of those, cycles whose state was `active` (compensation applied).
+    pub active: u32,
+    /// Per aggregated column ([`LogReader::columns`]), min/mean/max.
+    pub stats: Vec<Stat>,
+    /// The service's time went back before it: a new run appended to the log.
+    pub new_run: bool,
+}
+
+/// One logged event.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Event {
+    /// Its rowid.
+    pub row: i64,
+    /// Service time, s.
+    pub time_s: f64,
+    /// Kind, subject and detail, as the log has them.
+    pub kind: String,
+    /// What it concerns.
+    pub subject: String,
+    /// Details.
+    pub detail: String,
+}
+
+/// A unit of forwarding: what one NDATA message carries.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Unit {
+    /// A second's aggregates.
+    Second(Second),
+    /// An event.
+    Event(Event),
+}
+
+impl Unit {
+    /// The cursor once this unit is acknowledged, from the one before.
+    pub fn after(&self, before: Rows) -> Rows {
+        match self {
+            Unit::Second(s) => Rows {
+                cycles: s.last_row,
+                ..before
+            },
+            Unit::Event(e) => Rows {
+                events: e.row,
+                ..before
+            },
+        }
+    }
+}
+
+/// Rows read from `cycles` at once: at the default 10 records/s, 2000 s of data.
+const CYCLE_BATCH: i64 = 20_000;
+
+/// The log, opened read-only.
+pub struct LogReader {
+    conn: Connection,
+    path: PathBuf,
+    /// The aggregated columns of `cycles`: every numeric column but `time_s` and the paths'
+    /// model numbers, in table order.
+    columns: Vec<String>,
+    /// Their indices in `SELECT rowid, *`.
+    indices: Vec<usize>,
+    state_index: Option<usize>,
+}
+
+fn err(path: &Path) -> impl Fn(rusqlite::Error) -> String + '_ {
+    move |e| format!("{}: {e}", path.display())
+}
+
+fn real(v: ValueRef<'_>) -> Option<f64> {
+    // The logger writes REAL or NULL; anything else (a hand-edited log) counts as no value.
+    match v {
+        ValueRef::Real(x) if x.is_finite() => Some(x),
+        ValueRef::Integer(i) => Some(i as f64),
+        _ => None,
+    }
+}
+
+fn text(v: ValueRef<'_>) -> String {
+    match v {
+        ValueRef::Text(t) => String::from_utf8_lossy(t).into_owned(),
+        ValueRef::Integer(i) => i.to_string(),
+        ValueRef::Real(x) => x.to_string(),
+        _ => String::new(),
+    }
+}
+
+/// The last rows of a log now; zeros when it does not exist yet or cannot be read.
+pub fn last_rows(path: &Path) -> Rows {
+    LogReader::open(path)
+        .ok()
+        .and_then(|r| r.last_rows().ok())
+        .unwrap_or_default()
+}
+
+impl LogReader {
+    /// Opens a log the service has created.
+    pub fn open(path: &Path) -> Result<Self, String> {
+        if !path.is_file() {
+            return Err(format!("{}: no such log", path.display()));
+        }
+        // Read-only: the logger thread is the log's one writer.
+        let conn = Connection::open_with_flags(
+            path,
+            OpenFlags::SQLITE_OPEN_READ_ONLY | OpenFlags::SQLITE_OPEN_NO_MUTEX,
+        )
+        .map_err(err(path))?;
+        conn.busy_timeout(Duration::from_secs(2))
+            .map_err(err(path))?;
+        let names: Vec<String> = conn
+            .prepare("SELECT name FROM pragma_table_info('cycles')")
+            .and_then(|mut s| {
+                s.query_map([], |r| r.get::<_, String>(0))?
+                    .collect::<Result<Vec<_>, _>>()
+            })
+            .map_err(err(path))?;
+        if names.is_empty() {
+            return Err(format!(
+                "{}: not a truepos log (no cycles table)",
+                path.display()
+            ));
+        }
+        let mut columns = Vec::new();
+        let mut indices = Vec::new();
+        let mut state_index = None;
+        for (i, n) in names.iter().enumerate() {
+            // `rowid` comes first in the query, so a column's index is one more than its position.
+            match n.as_str() {
+                "time_s" => {}
+                "state" => state_index = Some(i + 1),
+                _ if n.starts_with("model_path") => {}
+                _ => {
+                    columns.push(n.clone());
+                    indices.push(i + 1);
+                }
+            }
+        }
+        if names.first().map(String::as_str) != Some("time_s") {
+            return Err(format!(
+                "{}: not a truepos log (cycles without time_s first)",
+                path.display()
+            ));
+        }
+        Ok(LogReader {
+            conn,
+            path: path.to_path_buf(),
+            columns,
+            indices,
+            state_index,
+        })
+    }
+
+    /// The aggregated columns of `cycles`, in table order.
+    pub fn columns(&self) -> &[String] {
+        &self.columns
+    }
+
+    /// The service's `meta` row.
+    pub fn meta(&self) -> Result<Meta, String> {
+        let json: String = self
+            .conn
+            .query_row("SELECT value FROM meta WHERE key = 'service'", [], |r| {
+                r.get(0)
+            })
+            .map_err(err(&self.path))?;
+        let v: serde_json::Value = serde_json::from_str(&json)
+            .map_err(|e| format!("{}: meta: {e}", self.path.display()))?;
+        Ok(Meta {
+            machine: v["machine"].as_str().unwrap_or("").to_string(),
+            started_unix_s: v["started_unix_s"].as_f64().unwrap_or(f64::NAN),
+            models: v["models"]
+                .as_array()
+                .map(|a| {
+                    a.iter()
+                        .filter_map(|m| m.as_str().map(String::from))
+                        .collect()
+                })
+                .unwrap_or_default(),
+        })
+    }
+
+    /// The last rows of each table now.
+    pub fn last_rows(&self) -> Result<Rows, String> {
+        let last = |t: &str| {
+            self.conn
+                .query_row(
+                    &format!("SELECT coalesce(max(rowid), 0) FROM {t}"),
+                    [],
+                    |r| r.get::<_, i64>(0),
+                )
+                .map_err(err(&self.path))
+        };
+        Ok(Rows {
+            cycles: last("cycles")?,
+            events: last("events")?,
+        })
+    }
+
+    /// The complete seconds of cycles after `after` (a second is complete once a later row
+    /// exists; with `finished`, the log will not grow and the last second counts too).
+    pub fn seconds(&self, after: i64, finished: bool) -> Result<Vec<Second>, String> {
+        let mut stmt = self
+            .conn
+            .prepare_cached("SELECT rowid, * FROM cycles WHERE rowid > ?1 ORDER BY rowid LIMIT ?2")
+            .map_err(err(&self.path))?;
+        let mut rows = stmt
+            .query(rusqlite::params![after, CYCLE_BATCH])
+            .map_err(err(&self.path))?;
+        let mut out: Vec<Second> = Vec::new();
+        let mut open: Option<(Second, Vec<Acc>)> = None;
+        let mut previous_t = f64::NEG_INFINITY;
+        let mut n = 0i64;
+        let width = self.columns.len();
+        while let Some(r) = rows.next().map_err(err(&self.path))? {
+            n += 1;
+            let row: i64 = r.get(0).map_err(err(&self.path))?;
+            let Some(t) = real(r.get_ref(1).map_err(err(&self.path))?) else {
+                continue; // a row without a time cannot be placed in a second
+            };
+            let second = t.floor();
+            let starts = match &open {
+                Some((s, _)) => s.second != second,
+                None => true,
+            };
+            if starts {
+                if let Some(done) = open.take() {
+                    out.push(close(done));
+                }
+                let s = Second {
+                    second,
+                    last_row: row,
+                    cycles: 0,
+                    active: 0,
+                    stats: Vec::new(),
+                    new_run: t < previous_t,
+                };
+                open = Some((s, vec![(f64::INFINITY, 0.0, f64::NEG_INFINITY, 0); width]));
+            }
+            previous_t = t;
+            let (s, acc) = open.as_mut().expect("opened above");
+            s.last_row = row;
+            s.cycles += 1;
+            if let Some(i) = self.state_index {
+                if matches!(r.get_ref(i), Ok(ValueRef::Text(b"active"))) {
+                    s.active += 1;
+                }
+            }
+            for (a, &i) in acc.iter_mut().zip(&self.indices) {
+                if let Some(v) = real(r.get_ref(i).map_err(err(&self.path))?) {
+                    a.0 = a.0.min(v);
+                    a.1 += v;
+                    a.2 = a.2.max(v);
+                    a.3 += 1;
+                }
+            }
+        }
+        // The last second may still be growing, unless the log is final and was read whole.
+        if let Some(done) = open {
+            if finished && n < CYCLE_BATCH {
+                out.push(close(done));
+            }
+        }
+        Ok(out)
+    }
+
+    /// Up to `limit` events after row `after`, in order.
+    pub fn events(&self, after: i64, limit: usize) -> Result<Vec<Event>, String> {
+        let mut stmt = self
+            .conn
+            .prepare_cached(
+                "SELECT rowid, time_s, kind, subject, detail FROM events WHERE rowid > ?1 \
+                 ORDER BY rowid LIMIT ?2",
+            )
+            .map_err(err(&self.path))?;
+        let rows = stmt
+            .query_map(rusqlite::params![after, limit as i64], |r| {
+                Ok(Event {
+                    row: r.get(0)?,
+                    time_s: real(r.get_ref(1)?).unwrap_or(f64::NAN),
+                    kind: text(r.get_ref(2)?),
+                    subject: text(r.get_ref(3)?),
+                    detail: text(r.get_ref(4)?),
+                })
+            })
+            .map_err(err(&self.path))?;
+        rows.collect::<Result<Vec<_>, _>>().map_err(err(&self.path))
+    }
+
+    /// Up to `limit` units after `cursor`, seconds and events merged in time order (an event
+    /// goes before the first second that ends after it).
+    pub fn units(&self, cursor: Rows, limit: usize, finished: bool) -> Result<Vec<Unit>, String> {
+        let seconds = self.seconds(cursor.cycles, finished)?;
+        let events = self.events(cursor.events, limit)?;
+        let mut out = Vec::with_capacity(limit.min(seconds.len() + events.len()));
+        let (mut s, mut e) = (
+            seconds.into_iter().peekable(),
+            events.into_iter().peekable(),
+        );
+        while out.len() < limit {
+            let take_event = match (s.peek(), e.peek()) {
+                // An event without a time (NaN) goes first rather than never.
+                (Some(sec), Some(ev)) => ev.time_s < sec.second + 1.0 || ev.time_s.is_nan(),
+                (None, Some(_)) => true,
+                (Some(_), None) => false,
+                (None, None) => break,
+            };
+            if take_event {
+                out.extend(e.next().map(Unit::Event));
+            } else {
+                out.extend(s.next().map(Unit::Second));
+            }
+        }
+        Ok(out)
+    }
+}
+
+/// A column's running least value, sum, largest value and count within a second.
+type Acc = (f64, f64, f64, u32);
+
+fn close((mut s, acc): (Second, Vec<Acc>)) -> Second {
+    s.stats = acc
+        .into_iter()
+        .map(|(lo, sum, hi, n)| (n > 0).then(|| (lo, sum / f64::from(n), hi)))
+        .collect();
+    s
+}
