@@ -101,3 +101,12 @@ impl CliError {
         }
     }
 }
+
+impl From<truepos_runtime::StartError> for CliError {
+    fn from(e: truepos_runtime::StartError) -> Self {
+        match e {
+            truepos_runtime::StartError::Refused(why) => Self::Refused(why),
+            truepos_runtime::StartError::Log(e) => Self::Log(e),
+        }
+    }
+}

@@ -9,12 +9,11 @@ use std::time::{Duration, Instant};
 
 use crate::envelope_check;
 use crate::error::CliError;
-use truepos_io::compensation::load_set;
+use truepos_io::compensation::{load_entry, load_set};
 use truepos_io::limits::{check_in, finite_in};
 use truepos_io::{cycles, machine_file};
 use truepos_live::host::{HttpArgs, Live};
 use truepos_model::RecordedRun;
-use truepos_runtime::admission;
 use truepos_runtime::host::{ModelLoader, ReloadSetup};
 use truepos_runtime::log;
 use truepos_runtime::probe::ProbeReplay;
@@ -228,9 +227,6 @@ pub fn run(mut args: RunArgs) -> Result<(), CliError> {
     let machine = machine_file::load(&args.machine)?;
     let entries = load_set(&args.models, &machine)?;
     let period_s = args.period_ms / 1000.0;
-    for e in &entries {
-        admission::admit(e, &machine, period_s).map_err(CliError::refused)?;
-    }
     let clock = run_clock(&args)?;
     // The service clock's zero, shared with network sources that stamp values themselves.
     let epoch = Instant::now();
@@ -258,16 +254,13 @@ pub fn run(mut args: RunArgs) -> Result<(), CliError> {
         ReloadSetup {
             files: args.models.clone(),
             loader: Box::new(move |path: &std::path::Path| {
-                let entry = load_set(&[path.to_path_buf()], &loader_machine)
-                    .map(|mut entries| entries.remove(0))
-                    .map_err(|e| e.to_string())?;
-                admission::admit(&entry, &loader_machine, period_s)?;
-                Ok(entry)
+                load_entry(path, &loader_machine).map_err(|e| e.to_string())
             }) as ModelLoader,
             watch: true,
         }
     });
     let mut host = ServiceHost::new(machine, entries)
+        .period_s(period_s)
         .reload(reload)
         .sources(sources)
         .sinks(sinks)

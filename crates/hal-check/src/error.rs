@@ -18,6 +18,9 @@ pub enum Error {
     /// The component's log could not be read, or the benchmark's log failed.
     #[error(transparent)]
     Log(#[from] LogError),
+    /// The benchmark's service did not start (a model refused, or its log).
+    #[error(transparent)]
+    Start(#[from] truepos_runtime::StartError),
     /// `--expect-event` names events of a log that was not given.
     #[error("--expect-event needs --log")]
     ExpectEventWithoutLog,

@@ -72,3 +72,12 @@ mod tests {
         assert_eq!(Error::Signal(io()).to_string(), "denied");
     }
 }
+
+impl From<truepos_runtime::StartError> for Error {
+    fn from(e: truepos_runtime::StartError) -> Self {
+        match e {
+            truepos_runtime::StartError::Refused(why) => Self::Refused(why),
+            truepos_runtime::StartError::Log(e) => Self::Log(e),
+        }
+    }
+}

@@ -14,7 +14,7 @@ use truepos_hal::ffi::{self, Component, HalError};
 use truepos_hal::pacer::{keep_off_cpu, realtime_setup, Pacer};
 use truepos_hal::source::Edge;
 use truepos_hal::{pins, Error, HalSink, HalSource};
-use truepos_io::compensation::load_set;
+use truepos_io::compensation::{load_entry, load_set};
 use truepos_io::limits::{finite_in, int_in};
 use truepos_live::host::{HttpArgs, Live};
 use truepos_runtime::admission;
@@ -145,9 +145,9 @@ fn run(args: RunArgs) -> Result<(), Error> {
     // A model without an axis-combination index in its file serves path 1's axes.
     let entries = load_set(&args.models, &machine)?;
     let period_s = args.period_ms / 1000.0;
-    for e in &entries {
-        admission::admit(e, &machine, period_s).map_err(Error::Refused)?;
-    }
+    // Before HAL is touched, so that `loadusr -W` sees the refusal and no pins appear; the host
+    // admits again at start and at every reload.
+    admission::admit_set(&entries, &machine, period_s).map_err(Error::Refused)?;
 
     let stop = Arc::new(AtomicBool::new(false));
     signal_hook::flag::register(signal_hook::consts::SIGTERM, Arc::clone(&stop))
@@ -176,16 +176,13 @@ fn run(args: RunArgs) -> Result<(), Error> {
     let reload = ReloadSetup {
         files: args.models.clone(),
         loader: Box::new(move |path| {
-            let entry = load_set(&[path.to_path_buf()], &loader_machine)
-                .map(|mut entries| entries.remove(0))
-                .map_err(|e| e.to_string())?;
-            admission::admit(&entry, &loader_machine, period_s)?;
-            Ok(entry)
+            load_entry(path, &loader_machine).map_err(|e| e.to_string())
         }),
         watch: false,
     };
     let source_names = vec![truepos_runtime::Source::name(&source).to_string()];
     let mut host = ServiceHost::new(machine, entries)
+        .period_s(period_s)
         .reload(Some(reload))
         .source(Box::new(source))
         .sink(Box::new(sink))

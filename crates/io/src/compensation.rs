@@ -57,6 +57,12 @@ pub fn load_set(paths: &[PathBuf], machine: &MachineConfig) -> Result<Vec<ModelE
         .collect()
 }
 
+/// One model file as an entry of the set ([`load_set`] of one file): what a hot reload reads.
+pub fn load_entry(path: &Path, machine: &MachineConfig) -> Result<ModelEntry, InputError> {
+    let mut entries = load_set(&[path.to_path_buf()], machine)?;
+    Ok(entries.remove(0))
+}
+
 /// [`load`] on a file's text; `path` names it in errors and, by its extension, tells JSON from
 /// TOML for a position-dependent model.
 pub fn parse(path: &Path, text: &str, machine: &Machine) -> Result<Loaded, InputError> {

@@ -53,6 +53,18 @@ pub fn admit(
     cycle_budget::check(entry, &config.machine, period_s)
 }
 
+/// [`admit`] for every model of a set; the first refusal.
+pub fn admit_set(
+    entries: &[ModelEntry],
+    config: &MachineConfig,
+    period_s: f64,
+) -> Result<(), String> {
+    for entry in entries {
+        admit(entry, config, period_s)?;
+    }
+    Ok(())
+}
+
 /// The two bounds of the module's doc, at the middle and the corners of the travel.
 pub fn plausible(model: &CompensationModel, config: &MachineConfig) -> Result<(), String> {
     let name = model.name();

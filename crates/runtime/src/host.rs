@@ -8,6 +8,10 @@
 //! logger writes what is still queued and stops, and its health over the run comes back with
 //! the service.
 //!
+//! Every model passes [`admission`](crate::admission) here, at start and at every hot reload,
+//! so no host can forget it: a model implausible for the machine, or too slow for the cycle
+//! period ([`ServiceHost::period_s`]), never reaches the service.
+//!
 //! Starting creates only the logger's thread, so a caller that pins CPUs or raises priorities
 //! does so after [`ServiceHost::start`] (the thread inherits neither) or keeps it off the
 //! cycle's CPU before.
@@ -19,10 +23,15 @@ use std::path::PathBuf;
 use reload::Reloader;
 pub use reload::{ModelLoader, ReloadSetup, POLL as RELOAD_POLL};
 
+use crate::admission;
 use crate::config::MachineConfig;
 use crate::log::{self, LogError, LogHealth, LogSetup, Logger};
 use crate::model_set::ModelEntry;
 use crate::{Service, ServiceConfig, Sink, Source};
+
+/// The cycle period assumed unless [`ServiceHost::period_s`] says otherwise: LinuxCNC's servo
+/// thread, the shortest period the project runs at.
+pub const DEFAULT_PERIOD_S: f64 = 0.001;
 
 /// What the service is started with; [`ServiceHost::start`] starts it.
 pub struct ServiceHost {
@@ -33,6 +42,34 @@ pub struct ServiceHost {
     config: ServiceConfig,
     log: Option<PathBuf>,
     reload: Option<ReloadSetup>,
+    period_s: f64,
+}
+
+/// Why a service did not start; nothing has run then.
+#[derive(Debug)]
+pub enum StartError {
+    /// A model of the set is refused by [`admission`]: the words name the model, the axis, the
+    /// figure and the limit.
+    Refused(String),
+    /// The log cannot be opened or is refused, or the reload thread cannot start.
+    Log(LogError),
+}
+
+impl std::fmt::Display for StartError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Refused(why) => f.write_str(why),
+            Self::Log(e) => e.fmt(f),
+        }
+    }
+}
+
+impl std::error::Error for StartError {}
+
+impl From<LogError> for StartError {
+    fn from(e: LogError) -> Self {
+        Self::Log(e)
+    }
 }
 
 impl ServiceHost {
@@ -47,7 +84,15 @@ impl ServiceHost {
             config: ServiceConfig::default(),
             log: None,
             reload: None,
+            period_s: DEFAULT_PERIOD_S,
         }
+    }
+
+    /// The period at which the caller runs cycles, s (default [`DEFAULT_PERIOD_S`]): every
+    /// model's evaluation must fit it ([`admission::admit`]).
+    pub fn period_s(mut self, period_s: f64) -> Self {
+        self.period_s = period_s;
+        self
     }
 
     /// Hot reload of the model files (default: none): see [`Running::request_reload`] and
@@ -93,10 +138,16 @@ impl ServiceHost {
         self
     }
 
-    /// Builds the service and starts its logger (and the reload thread, if asked). Fails only
-    /// if the log cannot be opened or is refused ([`Logger::start`]), or the reload thread
-    /// cannot start; nothing has run then.
-    pub fn start(self) -> Result<Running, LogError> {
+    /// Admits every model, builds the service and starts its logger (and the reload thread, if
+    /// asked; each reloaded model is admitted on that thread before the service sees it). Fails
+    /// if a model is refused, the log cannot be opened or is refused ([`Logger::start`]), or
+    /// the reload thread cannot start; nothing has run then.
+    pub fn start(self) -> Result<Running, StartError> {
+        admission::admit_set(&self.models, &self.machine, self.period_s)
+            .map_err(StartError::Refused)?;
+        let reload = self
+            .reload
+            .map(|setup| admitted(setup, self.machine.clone(), self.period_s));
         let models: Vec<String> = self.models.iter().map(|e| e.name.clone()).collect();
         let sources: Vec<String> = self.sources.iter().map(|s| s.name().to_string()).collect();
         let sinks: Vec<String> = self.sinks.iter().map(|s| s.name().to_string()).collect();
@@ -124,7 +175,7 @@ impl ServiceHost {
             )?),
             None => None,
         };
-        let reloader = match self.reload {
+        let reloader = match reload {
             Some(setup) => Some(Reloader::start(setup).map_err(|e| LogError {
                 file: PathBuf::from("(model reload)"),
                 message: format!("cannot start the reload thread: {e}"),
@@ -138,6 +189,19 @@ impl ServiceHost {
             models,
             reloader,
         })
+    }
+}
+
+/// The reload setup with every loaded model admitted before it leaves the reload thread.
+fn admitted(setup: ReloadSetup, machine: MachineConfig, period_s: f64) -> ReloadSetup {
+    let load = setup.loader;
+    ReloadSetup {
+        loader: Box::new(move |path| {
+            let entry = load(path)?;
+            admission::admit(&entry, &machine, period_s)?;
+            Ok(entry)
+        }),
+        ..setup
     }
 }
 

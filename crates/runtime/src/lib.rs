@@ -58,7 +58,7 @@ pub mod sources;
 
 pub use config::{AxisConfig, MachineConfig, SensorChecks};
 pub use frame::{Frame, NEVER};
-pub use host::{Running, ServiceHost, Stopped};
+pub use host::{Running, ServiceHost, StartError, Stopped, DEFAULT_PERIOD_S};
 pub use io_traits::{LinkError, SharedChannels, Sink, Source};
 pub use output::{CompensationState, Output};
 pub use service::{PathState, Service, ServiceConfig};

@@ -137,3 +137,44 @@ fn mul(v: &mut serde_json::Value, n: &mut usize) {
         _ => {}
     }
 }
+
+/// The host admits every model itself, whatever its caller forgot: at start, and every model
+/// its reload loader returns (here a loader that checks nothing).
+#[test]
+fn the_host_refuses_an_implausible_model_at_start_and_at_reload() {
+    use truepos_runtime::host::ReloadSetup;
+    use truepos_runtime::{ServiceHost, StartError};
+
+    let absurd = vmc3_with("k0_um_per_k = 2.0", "k0_um_per_k = 1e6");
+    let refused = ServiceHost::new(vmc(), vec![absurd.clone()]).start();
+    match refused {
+        Err(StartError::Refused(why)) => assert!(why.contains("one kelvin"), "{why}"),
+        Err(e) => panic!("refused for another reason: {e}"),
+        Ok(_) => panic!("an implausible model started"),
+    }
+
+    let sound = load_set(&[repo("examples/vmc3/model.toml")], &vmc())
+        .unwrap()
+        .remove(0);
+    let setup = ReloadSetup {
+        files: vec![repo("examples/vmc3/model.toml")],
+        loader: Box::new(move |_| Ok(absurd.clone())),
+        watch: false,
+    };
+    let mut running = ServiceHost::new(vmc(), vec![sound])
+        .reload(Some(setup))
+        .start()
+        .unwrap();
+    running.request_reload();
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(20);
+    let report = loop {
+        if let Some(r) = running.poll_reload() {
+            break r;
+        }
+        assert!(std::time::Instant::now() < deadline, "no reload answer");
+        std::thread::sleep(std::time::Duration::from_millis(10));
+    };
+    assert!(report.reloaded.is_empty(), "{report:?}");
+    assert!(report.failed[0].1.contains("one kelvin"), "{report:?}");
+    assert_eq!(running.model_generations(), &[1]);
+}

@@ -104,6 +104,7 @@ pub fn run(config: &TimingConfig, stop: &AtomicBool) -> Result<Value, Error> {
         }
     }
     let mut service_host = ServiceHost::new(machine, entries)
+        .period_s(config.period_ms / 1000.0)
         .source(Box::new(replay))
         .log(config.log.clone())
         .start()?;
