@@ -269,7 +269,8 @@ pub fn run(mut args: RunArgs) -> Result<(), CliError> {
         .start()?;
     let mut live = match http {
         Some(h) => Some(
-            Live::start(h, &host, source_names, args.log.as_ref()).map_err(CliError::refused)?,
+            Live::start(h, &host, source_names, args.log.as_ref(), &args.models)
+                .map_err(CliError::refused)?,
         ),
         None => None,
     };

@@ -283,6 +283,16 @@ fn the_live_view_serves_the_page_state_history_stream_and_metrics() {
     assert_eq!(second["paths"][0]["model"], "vmc3-example");
     assert_eq!(second["paths"][0]["generation"], 1);
     assert_eq!(second["temperatures"][0]["validation"], "ok");
+    assert_eq!(second["sources"][0]["age_s"], 0.0, "delivering: {second}");
+    // The cycle's work over the last minute, from every cycle since the server started.
+    let work = &second["cycle_work"];
+    assert!(work["cycles"].as_u64().unwrap() >= 5, "{second}");
+    let (p50, p99, max) = (
+        work["p50_us"].as_f64().unwrap(),
+        work["p99_us"].as_f64().unwrap(),
+        work["max_us"].as_f64().unwrap(),
+    );
+    assert!(0.0 < p50 && p50 <= p99 && p99 <= max * 1.1, "{work}");
 
     // The log commits every 250 ms: a second of history is there.
     std::thread::sleep(Duration::from_millis(700));
@@ -373,6 +383,10 @@ fn the_live_view_serves_the_page_state_history_stream_and_metrics() {
         "truepos_source_up{source=\"replay examples/vmc3/run.csv\"} 1",
         "truepos_compensation_active 1",
         "truepos_sensor_age_seconds{sensor=\"x_slide_top\"} ",
+        "truepos_source_age_seconds{source=\"replay examples/vmc3/run.csv\"} 0",
+        "# TYPE truepos_cycle_work_window_seconds summary",
+        "truepos_cycle_work_window_seconds{quantile=\"0.99\"} ",
+        "truepos_cycle_work_window_seconds_count ",
     ] {
         assert!(m.body.contains(name), "no `{name}` in\n{}", m.body);
     }
@@ -589,6 +603,12 @@ fn a_real_browser_draws_the_traces_and_cannot_miss_a_fault() {
     assert_eq!(v["errors"], serde_json::json!([]), "console errors: {v}");
     let banner = v["banner"].as_str().unwrap();
     assert!(banner.contains("COMPENSATION NOT ACTIVE: holding"), "{v}");
+    // The 900 °C reading is outside x_slide_top's valid range: marked, not scaled to.
+    let top = v["temps_scale"][1].as_f64().unwrap();
+    assert!(
+        top < 100.0,
+        "the temperature plot scaled to a faulty reading: {v}"
+    );
     assert!(
         v["events"].as_u64().unwrap() >= 2,
         "sensor-fault listed: {v}"
@@ -721,6 +741,127 @@ fn a_clamped_axis_raises_the_banner_in_the_browser() {
         &format!("http://{a}/?selftest=3"),
         "1280,1100",
         Some(&shots.join("live_view_clamp.png")),
+        &profile,
+    );
+    let (ok, stderr) = run.stop();
+    assert!(ok, "{stderr}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// The example model with validation figures in its file (a `[validation]` table and a fit's
+/// inner cross-validation error in `[provenance]`), and the example run with four probe events on Z.
+fn model_and_probes(dir: &Path) -> (std::path::PathBuf, std::path::PathBuf) {
+    let text = std::fs::read_to_string(support::repo("examples/vmc3/model.toml")).unwrap();
+    let at = "[provenance]\n";
+    assert!(text.contains(at), "the example model has no [provenance]");
+    let model = dir.join("validated.toml");
+    std::fs::write(
+        &model,
+        text.replace(at, &format!("{at}Z_inner_cv_rmse_um = 1.75\n"))
+            + "\n[validation]\nwindow_measurements = 30\nwindow_old_rmse_um = 4.25\nwindow_new_rmse_um = 1.5\n",
+    )
+    .unwrap();
+    let run = std::fs::read_to_string(support::repo("examples/vmc3/run.csv")).unwrap();
+    let mut lines = run.lines();
+    let mut out = vec![format!("{},probe_z_mm,probe_dz_um", lines.next().unwrap())];
+    for line in lines {
+        let t: f64 = line.split(',').next().unwrap().parse().unwrap();
+        let probe = match t as i64 {
+            60 => "250,2.5",
+            120 => "250,4.5",
+            180 => "250,7.5",
+            240 => "250,9.0",
+            _ => ",",
+        };
+        out.push(format!("{line},{probe}"));
+    }
+    let probes = dir.join("probes.csv");
+    std::fs::write(&probes, out.join("\n") + "\n").unwrap();
+    (model, probes)
+}
+
+/// The model-quality panel: the validation figures the model file carries and the residuals of
+/// the run's probe events (measured − predicted, from the log), in `/api/quality` and on the
+/// page, with the probe events listed among the events.
+#[test]
+fn the_model_quality_shows_the_files_validation_and_the_probe_residuals() {
+    let dir = scratch("live-quality");
+    let (model, probes) = model_and_probes(&dir);
+    let models = model.display().to_string();
+    let source = format!("probes:{}@100", probes.display());
+    let run = Running::start(
+        &[
+            "--models",
+            &models,
+            "--source",
+            &source,
+            "--http",
+            "127.0.0.1:0",
+        ],
+        &dir.join("log.sqlite"),
+        None,
+    );
+    let a = run.addr;
+    let deadline = Instant::now() + Duration::from_secs(30);
+    let q = loop {
+        let q = json(&get(a, "/api/quality", &[]));
+        if q["probes"]["count"].as_u64() >= Some(4) {
+            break q;
+        }
+        assert!(
+            Instant::now() < deadline,
+            "four probe events never logged: {q}"
+        );
+        std::thread::sleep(Duration::from_millis(200));
+    };
+    let m = &q["models"][0];
+    assert_eq!(m["name"], "vmc3-example", "{q}");
+    assert_eq!(m["generation"], 1, "{q}");
+    let figure = |key: &str| {
+        m["figures"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|f| f["key"] == key)
+            .unwrap_or_else(|| panic!("no {key}: {q}"))["value"]
+            .as_f64()
+            .unwrap()
+    };
+    assert_eq!(figure("window_new_rmse_um"), 1.5);
+    assert_eq!(figure("window_measurements"), 30.0);
+    assert_eq!(figure("Z_inner_cv_rmse_um"), 1.75);
+    let events = q["probes"]["events"].as_array().unwrap();
+    assert_eq!(events.len(), 4, "{q}");
+    let mut sum = 0.0;
+    for (e, measured) in events.iter().zip([2.5, 4.5, 7.5, 9.0]) {
+        assert_eq!(e["accepted"], true, "{e}");
+        let z = &e["axes"][0];
+        assert_eq!(z["axis"], "Z", "{e}");
+        assert_eq!(z["measured_um"], measured, "{e}");
+        let (p, r) = (
+            z["predicted_um"].as_f64().unwrap(),
+            z["residual_um"].as_f64().unwrap(),
+        );
+        assert!(
+            (r - (measured - p)).abs() < 1e-9,
+            "residual = measured − predicted: {e}"
+        );
+        sum += r * r;
+    }
+    let rms = q["probes"]["residual_rms"]["Z"]["rms_um"].as_f64().unwrap();
+    assert!((rms - (sum / 4.0).sqrt()).abs() < 1e-9, "{q}");
+
+    let profile = dir.join("chromium-profile");
+    let v = selftest(a, 3, &profile);
+    assert_eq!(v["errors"], serde_json::json!([]), "console errors: {v}");
+    assert_eq!(v["quality_models"], 1, "{v}");
+    assert!(v["quality_figures"].as_u64() >= Some(3), "{v}");
+    assert_eq!(v["probes"], 4, "{v}");
+    let shots = Path::new(env!("CARGO_TARGET_TMPDIR")).parent().unwrap();
+    chromium(
+        &format!("http://{a}/?selftest=3"),
+        "1280,1400",
+        Some(&shots.join("live_view_quality.png")),
         &profile,
     );
     let (ok, stderr) = run.stop();

@@ -200,9 +200,10 @@ fn run(args: RunArgs) -> Result<(), Error> {
     );
     // The live view's threads, like the logger's, start before the cycle thread's priority.
     let mut live = match http {
-        Some(h) => {
-            Some(Live::start(h, &host, source_names, args.log.as_ref()).map_err(Error::Refused)?)
-        }
+        Some(h) => Some(
+            Live::start(h, &host, source_names, args.log.as_ref(), &args.models)
+                .map_err(Error::Refused)?,
+        ),
         None => None,
     };
     // After the logger has started, so that its thread inherits neither priority nor CPU.

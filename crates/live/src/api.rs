@@ -9,6 +9,7 @@ use truepos_runtime::live::{fault_name, PathView, Snapshot, FAULT_CODES};
 use truepos_runtime::replay::state_name;
 
 use crate::info::Info;
+use crate::work::WorkFigures;
 
 /// A number for JSON: `null` when it is not finite.
 fn num(v: f64) -> Value {
@@ -28,8 +29,19 @@ fn path_state(p: PathView) -> &'static str {
     }
 }
 
-/// The state as JSON; `wall_unix_s` is when it was read.
-pub fn state_json(s: &Snapshot, info: &Info, wall_unix_s: f64) -> Value {
+/// Service time since a source last delivered (0 while it delivers; infinite: not since start).
+fn source_age_s(s: &Snapshot, i: usize) -> f64 {
+    let last = s.sources_last_ok_s.get(i).copied().unwrap_or(f64::NAN);
+    if last.is_nan() {
+        f64::INFINITY
+    } else {
+        (s.time_s - last).max(0.0)
+    }
+}
+
+/// The state as JSON; `work`: the cycle's work over the last minute; `wall_unix_s`: when it
+/// was read.
+pub fn state_json(s: &Snapshot, info: &Info, work: &WorkFigures, wall_unix_s: f64) -> Value {
     let axes: Vec<Value> = s
         .axes
         .iter()
@@ -92,7 +104,7 @@ pub fn state_json(s: &Snapshot, info: &Info, wall_unix_s: f64) -> Value {
         .sources_ok
         .iter()
         .enumerate()
-        .map(|(i, ok)| json!({"name": info.sources.get(i), "ok": ok}))
+        .map(|(i, ok)| json!({"name": info.sources.get(i), "ok": ok, "age_s": num(source_age_s(s, i))}))
         .collect();
     let sinks: Vec<Value> = s
         .sinks
@@ -112,6 +124,10 @@ pub fn state_json(s: &Snapshot, info: &Info, wall_unix_s: f64) -> Value {
         "cycles": s.cycles,
         "late_cycles": s.late_cycles,
         "cycle_work_us": num(s.cycle_work_us),
+        "cycle_work": {
+            "window_s": work.window_s, "cycles": work.cycles, "p50_us": num(work.p50_us),
+            "p99_us": num(work.p99_us), "max_us": num(work.max_us),
+        },
         "axes": axes,
         "temperatures": temperatures,
         "operating": operating,
@@ -171,9 +187,10 @@ fn flag(b: bool) -> f64 {
 
 /// The Prometheus text exposition (format 0.0.4) of the service's health: base units (metres,
 /// radians, seconds, degrees Celsius), counters ending in `_total`.
-pub fn metrics(s: &Snapshot, info: &Info) -> String {
+pub fn metrics(s: &Snapshot, info: &Info, work: &WorkFigures) -> String {
     let mut o = String::with_capacity(8192);
     service_families(&mut o, s);
+    work_family(&mut o, work);
     axis_families(&mut o, s, info);
     sensor_families(&mut o, s, info);
     link_families(&mut o, s, info);
@@ -250,6 +267,21 @@ fn service_families(o: &mut String, s: &Snapshot) {
         "1 while a model runs beyond its training envelope.",
         &one(flag(s.extrapolating)),
     );
+}
+
+/// The cycle's work as a summary: quantiles over the last minute, sum and count since start.
+fn work_family(o: &mut String, w: &WorkFigures) {
+    let name = "truepos_cycle_work_window_seconds";
+    let _ = writeln!(
+        o,
+        "# HELP {name} Work of the cycles: quantiles over the last minute (0.5, 0.99 within 9 %; 1: the largest), sum and count since start."
+    );
+    let _ = writeln!(o, "# TYPE {name} summary");
+    for (q, v) in [("0.5", w.p50_us), ("0.99", w.p99_us), ("1", w.max_us)] {
+        let _ = writeln!(o, "{name}{{quantile=\"{q}\"}} {}", value(v * 1e-6));
+    }
+    let _ = writeln!(o, "{name}_sum {}", value(w.total_us * 1e-6));
+    let _ = writeln!(o, "{name}_count {}", w.total_cycles);
 }
 
 fn axis_families(o: &mut String, s: &Snapshot, info: &Info) {
@@ -380,6 +412,19 @@ fn link_families(o: &mut String, s: &Snapshot, info: &Info) {
         "gauge",
         "1 while a source delivers.",
         &sources,
+    );
+    let ages: Vec<(String, f64)> = info
+        .sources
+        .iter()
+        .enumerate()
+        .map(|(i, n)| (format!("source=\"{}\"", label(n)), source_age_s(s, i)))
+        .collect();
+    family(
+        o,
+        "truepos_source_age_seconds",
+        "gauge",
+        "Service time since a source last delivered (0 while it delivers, +Inf: not since start).",
+        &ages,
     );
     let sinks = |f: &dyn Fn(usize) -> f64| -> Vec<(String, f64)> {
         info.sinks

@@ -71,14 +71,22 @@ pub struct Live {
 impl Live {
     /// Starts the server for a started service (before its first cycle). Says where it listens
     /// on stderr (`live view on http://ADDR/`), which a test reads.
+    /// `model_files`: the files of the set's models in its order (their validation figures are
+    /// read from them).
     pub fn start(
         args: HttpArgs,
         host: &Running,
         sources: Vec<String>,
         log_file: Option<&PathBuf>,
+        model_files: &[PathBuf],
     ) -> Result<Self, String> {
         let board = Arc::new(Board::new(Layout::of(&host.service)));
         let log = log_file.map(|f| (f.clone(), log::last_rows(f)));
+        // Probe events of the runs before this one are not this run's quality.
+        let probes_after = log_file
+            .and_then(|f| log::read_probes(f).ok())
+            .and_then(|t| t.rows.last().map(|r| r.row))
+            .unwrap_or(0);
         let info = Info::of(host, sources, log.is_some());
         let server = LiveServer::start(LiveSetup {
             addr: args.addr,
@@ -86,6 +94,8 @@ impl Live {
             board: Arc::clone(&board),
             info,
             log,
+            probes_after,
+            model_files: model_files.iter().cloned().map(Some).collect(),
         })?;
         eprintln!("live view on http://{}/", server.addr());
         let now = Instant::now();
@@ -99,9 +109,12 @@ impl Live {
     }
 
     /// Publishes the service's state after a cycle, at most every [`PUBLISH_EVERY`] of real
-    /// time; between those, one clock read. Call between cycles, never inside one.
+    /// time; between those, one clock read and the cycle's work recorded (a few atomics). Call
+    /// between cycles, never inside one.
     pub fn publish(&mut self, host: &Running, late_cycles: u64, cycle_work_us: f64) {
         let now = Instant::now();
+        // Every cycle's work, for the percentiles the server makes on its own thread.
+        self.board.record_work(cycle_work_us, now);
         if now < self.next {
             return;
         }

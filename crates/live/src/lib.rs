@@ -32,7 +32,9 @@ pub mod access;
 pub mod api;
 pub mod host;
 pub mod info;
+pub mod quality;
 pub mod stream;
+pub mod work;
 
 use std::net::SocketAddr;
 use std::path::PathBuf;
@@ -75,6 +77,10 @@ pub struct LiveSetup {
     pub info: Info,
     /// The service's log, if it writes one, and its last rows before this run.
     pub log: Option<(PathBuf, Rows)>,
+    /// The last row of the log's `probes` table before this run.
+    pub probes_after: i64,
+    /// Per model of the set, in its order, the file it was read from (`None`: built in).
+    pub model_files: Vec<Option<PathBuf>>,
 }
 
 /// The running server; stopped by [`LiveServer::stop`] or when dropped.
@@ -91,6 +97,8 @@ struct Shared {
     board: Arc<Board>,
     info: Info,
     log: Option<(PathBuf, Rows)>,
+    probes_after: i64,
+    model_files: Vec<Option<PathBuf>>,
     hub: Arc<Hub>,
 }
 
@@ -129,6 +137,8 @@ impl LiveServer {
             board: setup.board,
             info: setup.info,
             log: setup.log,
+            probes_after: setup.probes_after,
+            model_files: setup.model_files,
             hub: Arc::clone(&hub),
         });
         let mut threads = Vec::new();
@@ -292,7 +302,11 @@ fn handle(rq: Request, s: &Arc<Shared>) {
         "/" | "/index.html" => respond(rq, 200, "text/html; charset=utf-8", PAGE.to_string()),
         "/api/info" => respond_json(rq, 200, &json!(s.info)),
         "/api/state" => match s.board.read() {
-            Some(snap) => respond_json(rq, 200, &api::state_json(&snap, &s.info, wall_unix_s())),
+            Some(snap) => respond_json(
+                rq,
+                200,
+                &api::state_json(&snap, &s.info, &s.hub.work(), wall_unix_s()),
+            ),
             None => respond_json(
                 rq,
                 503,
@@ -301,12 +315,13 @@ fn handle(rq: Request, s: &Arc<Shared>) {
         },
         "/api/history" => history(rq, &url, s),
         "/api/events" => events(rq, &url, s),
+        "/api/quality" => quality(rq, s),
         "/metrics" => match s.board.read() {
             Some(snap) => respond(
                 rq,
                 200,
                 "text/plain; version=0.0.4; charset=utf-8",
-                api::metrics(&snap, &s.info),
+                api::metrics(&snap, &s.info, &s.hub.work()),
             ),
             None => respond(
                 rq,
@@ -346,6 +361,24 @@ fn history(rq: Request, url: &str, s: &Shared) {
         Ok(h) => respond_json(rq, 200, &json!(h)),
         Err(e) => respond_json(rq, 500, &json!({"error": e.to_string()})),
     }
+}
+
+fn quality(rq: Request, s: &Shared) {
+    let models: Vec<(String, Option<PathBuf>)> = s
+        .info
+        .models
+        .iter()
+        .enumerate()
+        .map(|(i, n)| (n.clone(), s.model_files.get(i).cloned().flatten()))
+        .collect();
+    let generations = s.board.read().map(|b| b.generations).unwrap_or_default();
+    let axes: Vec<String> = s.info.axes.iter().map(|a| a.name.clone()).collect();
+    let probes = s.log.as_ref().map(|(f, _)| (f.as_path(), s.probes_after));
+    respond_json(
+        rq,
+        200,
+        &quality::quality_json(&models, &generations, probes, &axes),
+    );
 }
 
 fn events(rq: Request, url: &str, s: &Shared) {

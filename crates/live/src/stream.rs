@@ -15,6 +15,7 @@ use truepos_runtime::log;
 
 use crate::api;
 use crate::info::Info;
+use crate::work::{WorkFigures, WorkWindow};
 
 /// How often the sampler reads the board: the stream's rate, at most 250 ms.
 pub const TICK: Duration = Duration::from_millis(200);
@@ -47,6 +48,8 @@ pub struct Hub {
     pub streams: AtomicUsize,
     /// Set when the server stops.
     pub stop: AtomicBool,
+    /// The cycle's work over the last minute, as the sampler made it last.
+    pub work: Mutex<WorkFigures>,
 }
 
 impl Hub {
@@ -60,6 +63,7 @@ impl Hub {
             grew: Condvar::new(),
             streams: AtomicUsize::new(0),
             stop: AtomicBool::new(false),
+            work: Mutex::new(WorkFigures::default()),
         })
     }
 
@@ -110,22 +114,30 @@ impl Hub {
         pick(&r)
     }
 
+    /// The cycle's work figures the sampler made last.
+    pub fn work(&self) -> WorkFigures {
+        *self.work.lock().unwrap_or_else(|p| p.into_inner())
+    }
+
     /// The latest message id (0: none yet).
     fn last_id(&self) -> u64 {
         self.lock().next_id - 1
     }
 }
 
-/// Runs the sampler until the hub stops: the board's state when it changed, and the log's new
-/// events (after row `after`), each a message.
+/// Runs the sampler until the hub stops: the cycle's work over the last minute, the board's
+/// state when it changed, and the log's new events (after row `after`), each a message.
 pub fn sample(hub: &Hub, board: &Board, info: &Info, log_file: Option<PathBuf>, mut after: i64) {
     let mut last_seq = 0;
+    let mut window = WorkWindow::new(Instant::now(), truepos_runtime::live::WORK_BUCKETS);
     while !hub.stop.load(Ordering::Relaxed) {
         let started = Instant::now();
+        let work = window.update(board.work(), started);
+        *hub.work.lock().unwrap_or_else(|p| p.into_inner()) = work;
         if let Some(s) = board.read() {
             if s.seq != last_seq {
                 last_seq = s.seq;
-                let v = api::state_json(&s, info, crate::wall_unix_s());
+                let v = api::state_json(&s, info, &work, crate::wall_unix_s());
                 hub.push("state", &v.to_string());
             }
         }

@@ -9,6 +9,10 @@
 //! ([`Board::read`]) allocate on their own thread only.
 
 use std::sync::atomic::{fence, AtomicU64, Ordering};
+use std::time::Instant;
+
+mod work;
+pub use work::{bucket_edge_us, quantile_us, WorkStats, MAX_SLOTS, PER_DOUBLING, WORK_BUCKETS};
 
 use crate::frame::NEVER;
 use crate::output::CompensationState;
@@ -27,6 +31,8 @@ const PER_AXIS: usize = 6;
 const PER_TEMPERATURE: usize = 4;
 /// Cells per path: state code, extrapolating.
 const PER_PATH: usize = 2;
+/// Cells per source: delivers, service time it last delivered at.
+const PER_SOURCE: usize = 2;
 /// Cells per sink: failing, failed writes.
 const PER_SINK: usize = 2;
 
@@ -70,7 +76,7 @@ impl Layout {
             + PER_TEMPERATURE * self.temperatures
             + self.operating
             + PER_PATH * self.paths
-            + self.sources
+            + PER_SOURCE * self.sources
             + PER_SINK * self.sinks
             + self.models
     }
@@ -181,6 +187,9 @@ pub struct Snapshot {
     pub paths: Vec<(PathView, bool)>,
     /// Per source, whether it delivers.
     pub sources_ok: Vec<bool>,
+    /// Per source, the service time of the latest publication at which it delivered (NaN: none
+    /// since start).
+    pub sources_last_ok_s: Vec<f64>,
     /// Per sink: whether it fails now, and its failed writes.
     pub sinks: Vec<(bool, u64)>,
     /// Per model, its generation.
@@ -266,6 +275,7 @@ pub struct Board {
     layout: Layout,
     seq: AtomicU64,
     cells: Vec<AtomicU64>,
+    work: WorkStats,
 }
 
 /// Writes cells in order during a publication.
@@ -281,6 +291,13 @@ impl Cursor<'_> {
         }
         self.at += 1;
     }
+
+    /// What the next cell holds from the publication before (the one writer reads its own).
+    fn previous(&self) -> f64 {
+        self.cells
+            .get(self.at)
+            .map_or(f64::NAN, |c| f64::from_bits(c.load(Ordering::Relaxed)))
+    }
 }
 
 impl Board {
@@ -292,7 +309,19 @@ impl Board {
             cells: (0..layout.cells())
                 .map(|_| AtomicU64::new(f64::NAN.to_bits()))
                 .collect(),
+            work: WorkStats::new(),
         }
+    }
+
+    /// Records the work of a cycle (µs) the host's loop finished at `at`, every cycle (one
+    /// writer: the host's loop). Allocates nothing, takes no lock, never waits.
+    pub fn record_work(&self, work_us: f64, at: Instant) {
+        self.work.record(work_us, at);
+    }
+
+    /// The cycles' work times recorded so far, for readers.
+    pub fn work(&self) -> &WorkStats {
+        &self.work
     }
 
     /// The layout it was made for.
@@ -362,7 +391,10 @@ impl Board {
             c.put(flag(service.path_extrapolating(p)));
         }
         for i in 0..l.sources {
-            c.put(flag(service.source_reason(i).is_none()));
+            let ok = service.source_reason(i).is_none();
+            c.put(flag(ok));
+            let last_ok = if ok { out.time_s } else { c.previous() };
+            c.put(last_ok);
         }
         let sinks = service.sink_health();
         for i in 0..l.sinks {
@@ -444,7 +476,8 @@ impl Board {
         let paths = (0..l.paths)
             .map(|_| (path_of(next()), next() == 1.0))
             .collect();
-        let sources_ok = (0..l.sources).map(|_| next() == 1.0).collect();
+        let (sources_ok, sources_last_ok_s) =
+            (0..l.sources).map(|_| (next() == 1.0, next())).unzip();
         let sinks = (0..l.sinks)
             .map(|_| (next() == 1.0, count(next())))
             .collect();
@@ -467,6 +500,7 @@ impl Board {
             operating,
             paths,
             sources_ok,
+            sources_last_ok_s,
             sinks,
             generations,
         }

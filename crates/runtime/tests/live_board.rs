@@ -82,6 +82,7 @@ fn cycles_and_publications_allocate_nothing_while_a_reader_reads() {
                 generations: &generations,
             };
             board.publish(&service, &figures);
+            board.record_work(1.5, std::time::Instant::now());
         }
     });
     stop.store(true, Ordering::Relaxed);
@@ -118,6 +119,8 @@ fn cycles_and_publications_allocate_nothing_while_a_reader_reads() {
         s.temperatures
     );
     assert_eq!(s.sources_ok, vec![true]);
+    assert_eq!(s.sources_last_ok_s, vec![s.time_s], "delivering now");
+    assert_eq!(board.work().total(), (20_000, 30_000.0));
 }
 
 /// The history the live view reads from the log: min/max per bucket over the rows of this run
