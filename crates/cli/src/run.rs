@@ -20,7 +20,6 @@ use truepos_runtime::probe::ProbeReplay;
 use truepos_runtime::replay::{state_name, CsvSink, ReplaySource};
 use truepos_runtime::sources::modbus::{ModbusConfig, ModbusSource};
 use truepos_runtime::sources::shdr::{ShdrConfig, ShdrSource};
-use truepos_runtime::sources::ConfigError;
 use truepos_runtime::{PathState, Running, Service, ServiceConfig, ServiceHost, Sink, Source};
 
 /// The files `truepos run` reads (machine, models, replayed runs and configurations, the
@@ -328,18 +327,6 @@ type Sources = Vec<Box<dyn Source>>;
 /// the envelope.
 type EnvelopeCheck<'a> = &'a dyn Fn(&str, &RecordedRun);
 
-/// A source configuration's mistake named with its file, as every other input names its file
-/// (a mistake the TOML reader found names it already).
-fn in_file(file: &str) -> impl Fn(ConfigError) -> ConfigError + '_ {
-    move |e| {
-        if e.key.starts_with(file) {
-            e
-        } else {
-            ConfigError::new(format!("{file}: {}", e.key), e.message)
-        }
-    }
-}
-
 /// How the service's clock runs against real time.
 #[derive(Clone, Copy)]
 struct Clock {
@@ -434,12 +421,14 @@ fn open_sources(
                 Box::new(ProbeReplay::new(format!("probes {what}"), events, start))
             }
             "modbus" => {
-                let cfg = ModbusConfig::load(std::path::Path::new(what)).map_err(in_file(what))?;
-                Box::new(ModbusSource::start(&cfg, m, epoch).map_err(in_file(what))?)
+                let path = std::path::Path::new(what);
+                let cfg = ModbusConfig::load(path)?;
+                Box::new(ModbusSource::start(&cfg, m, epoch).map_err(|e| e.in_file(path, "modbus"))?)
             }
             "shdr" => {
-                let cfg = ShdrConfig::load(std::path::Path::new(what)).map_err(in_file(what))?;
-                Box::new(ShdrSource::start(&cfg, m, epoch).map_err(in_file(what))?)
+                let path = std::path::Path::new(what);
+                let cfg = ShdrConfig::load(path)?;
+                Box::new(ShdrSource::start(&cfg, m, epoch).map_err(|e| e.in_file(path, "shdr"))?)
             }
             "opcua" => {
                 let (cfg, identity, targets) =

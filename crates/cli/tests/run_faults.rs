@@ -141,10 +141,10 @@ fn status_does_not_call_sensors_good_that_never_delivered() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
-/// A source configuration's mistake names the file as well as the key, as every other input
-/// names its file.
+/// A source configuration's mistake names the file, line, column and key, as every other input
+/// names its mistakes — also one found after parsing (a time of 0, a channel the machine lacks).
 #[test]
-fn a_source_configurations_mistake_names_its_file_and_key() {
+fn a_source_configurations_mistake_names_its_file_line_column_and_key() {
     let dir = scratch("source-config-file");
     let cfg = dir.join("modules.toml");
     std::fs::write(
@@ -161,7 +161,26 @@ fn a_source_configurations_mistake_names_its_file_and_key() {
     assert!(!out.status.success());
     assert!(
         err.contains(&format!(
-            "{}: modbus.poll_ms: expected a time of at least 1 ms",
+            "{}:2:1: modbus.poll_ms: expected a time of at least 1 ms",
+            cfg.display()
+        )),
+        "{err}"
+    );
+    std::fs::write(
+        &cfg,
+        "address = \"127.0.0.1:5020\"\n\n[[channel]]\ntemperature = \"ambient\"\nregister = 1\nencoding = \"int16-x0.1\"\n\n[[channel]]\nregister = 2\nencoding = \"int16-x0.1\"\ntemperature = \"no_such_sensor\"\n",
+    )
+    .unwrap();
+    let out = truepos()
+        .args(["run", "--duration-s", "1", "--source"])
+        .arg(format!("modbus:{}", cfg.display()))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(
+        err.contains(&format!(
+            "{}:11:1: modbus.channel[2].temperature:",
             cfg.display()
         )),
         "{err}"

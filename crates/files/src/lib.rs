@@ -34,6 +34,7 @@
 #![warn(missing_docs)]
 
 pub mod read;
+pub mod toml_place;
 pub mod write;
 
 use std::fmt;

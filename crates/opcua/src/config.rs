@@ -6,7 +6,9 @@ use std::path::{Path, PathBuf};
 
 use serde::Deserialize;
 use truepos_model::{AxisKind, Machine};
-use truepos_runtime::sources::{check_unique_targets, BackoffConfig, ConfigError, Target};
+use truepos_runtime::sources::{
+    check_unique_targets, load_toml_file, BackoffConfig, ConfigError, Target,
+};
 
 /// OPC UA security policies the client offers.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
@@ -259,19 +261,6 @@ fn default_sample_ms() -> u64 {
     100
 }
 
-/// Reads and parses a TOML file; a TOML mistake names the file, line and column.
-fn load<T: serde::de::DeserializeOwned>(path: &Path, what: &str) -> Result<T, ConfigError> {
-    let file = path.display().to_string();
-    let text = truepos_files::read::read_text(path, truepos_files::CONFIG)
-        .map_err(|e| ConfigError::new(&file, format!("cannot read the {what}: {}", e.message)))?;
-    toml::from_str(&text)
-        .map_err(|e| ConfigError::new(&file, e.to_string().trim_end().replace('\n', " ")))
-}
-
-fn in_file(path: &Path, e: ConfigError) -> ConfigError {
-    ConfigError::new(format!("{}: {}", path.display(), e.key), e.message)
-}
-
 fn dir_of(path: &Path) -> &Path {
     path.parent()
         .filter(|d| !d.as_os_str().is_empty())
@@ -307,10 +296,10 @@ impl SinkConfig {
         path: &Path,
         machine: &Machine,
     ) -> Result<(Self, Identity, ResolvedAxes), ConfigError> {
-        let mut c: Self = load(path, "OPC UA sink mapping")?;
+        let mut c: Self = load_toml_file(path, "OPC UA sink mapping")?;
         let (identity, axes) = c
             .check(dir_of(path), machine)
-            .map_err(|e| in_file(path, e))?;
+            .map_err(|e| e.in_file(path, "opcua"))?;
         Ok((c, identity, axes))
     }
 
@@ -410,10 +399,10 @@ impl SourceConfig {
         path: &Path,
         machine: &Machine,
     ) -> Result<(Self, Identity, Vec<Target>), ConfigError> {
-        let mut c: Self = load(path, "OPC UA source configuration")?;
+        let mut c: Self = load_toml_file(path, "OPC UA source configuration")?;
         let (identity, targets) = c
             .check(dir_of(path), machine)
-            .map_err(|e| in_file(path, e))?;
+            .map_err(|e| e.in_file(path, "opcua"))?;
         Ok((c, identity, targets))
     }
 

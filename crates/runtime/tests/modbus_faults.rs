@@ -266,7 +266,7 @@ fn configuration_errors_name_the_key_and_the_expectation() {
     c.poll_ms = 0;
     assert_eq!(c.resolve(&m).unwrap_err().key, "modbus.poll_ms");
     let e = ModbusConfig::load(Path::new("/nonexistent/modbus.toml")).unwrap_err();
-    assert_eq!(e.key, "/nonexistent/modbus.toml");
+    assert_eq!(e.file, "/nonexistent/modbus.toml");
     assert!(
         e.message
             .starts_with("cannot read the Modbus source configuration"),

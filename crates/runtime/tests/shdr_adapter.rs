@@ -471,7 +471,7 @@ fn configuration_errors_name_the_key_and_the_expectation() {
     assert_eq!(c.backoff.max_ms, 1000);
     assert_eq!(c.resolve(&m).unwrap().len(), 1);
     let e = ShdrConfig::load(Path::new("/nonexistent/shdr.toml")).unwrap_err();
-    assert_eq!(e.key, "/nonexistent/shdr.toml");
+    assert_eq!(e.file, "/nonexistent/shdr.toml");
     assert!(
         e.message
             .starts_with("cannot read the SHDR source configuration"),

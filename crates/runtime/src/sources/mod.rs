@@ -20,7 +20,7 @@ pub mod modbus;
 pub mod shdr;
 
 pub use backoff::{Backoff, BackoffConfig};
-pub use config::{check_source_config, resolve_address, ConfigError};
+pub use config::{check_source_config, load_toml_file, resolve_address, ConfigError};
 pub use link::{
     LinkEvent, LinkEventKind, LinkSnapshot, LinkStatus, OutageReporter, MAX_EVENT_MESSAGE_BYTES,
     MAX_PENDING_EVENTS,
