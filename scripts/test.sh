@@ -6,8 +6,8 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 
 echo "== what the tests need"
-bash scripts/install_system_deps.sh   # SQLite headers (Debian)
-bash scripts/setup_python.sh          # .venv with pymodbus and asyncua, for the Modbus and OPC UA tests
+bash scripts/install_system_deps.sh   # SQLite headers, the Mosquitto MQTT broker (Debian)
+bash scripts/setup_python.sh          # .venv with pymodbus, asyncua and pysparkplug, for the Modbus, OPC UA and MQTT tests
 bash scripts/install_linuxcnc.sh      # LinuxCNC 2.9 (Debian), for the HAL component
 bash scripts/install_chromium.sh      # Chromium (Debian), to render the HTML reports in a real browser
 bash scripts/install_prometheus.sh    # promtool (Debian `prometheus`), to check the live view's /metrics

@@ -17,6 +17,7 @@ mod evaluator;
 mod examples;
 mod export;
 mod fit;
+mod fleet;
 mod kin;
 mod reidentify;
 mod report;
@@ -50,6 +51,8 @@ enum Command {
     /// Learn a dynamic compensation model (filtered temperatures and spindle speed, or the
     /// reference-sensor regression) from recorded runs (CSV/XLSX) and validate it honestly.
     Fit(Box<fit::Args>),
+    /// Telemetry to a fleet: forward a service's log to an MQTT broker as Sparkplug B.
+    Fleet(fleet::Args),
     /// Kinematics table with error tables: forward/inverse transforms, G-code rewrite.
     Kin(kin::Args),
     /// How often position-dependent terms must be updated: their worst-case error when the axis
@@ -93,6 +96,7 @@ fn main() -> ExitCode {
         Command::Eval(args) => eval::run(args),
         Command::Export(args) => export::run(args),
         Command::Fit(args) => fit::run(*args),
+        Command::Fleet(args) => fleet::run(args),
         Command::Kin(args) => kin::run(args),
         Command::UpdatePeriod(args) => update_period::run(args),
         Command::Reidentify(args) => match reidentify::run(args) {

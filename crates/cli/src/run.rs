@@ -109,6 +109,13 @@ pub struct RunArgs {
     /// The live view's token: the first line of FILE (at least 16 characters).
     #[arg(long, value_name = "FILE")]
     http_token_file: Option<PathBuf>,
+    /// Forward the log to an MQTT broker as Sparkplug B, `mqtt://HOST[:PORT]`: 1 s aggregates
+    /// and events at QoS 1, store-and-forward across outages (needs --log; docs/fleet.md).
+    #[arg(long, value_name = "URL")]
+    mqtt: Option<String>,
+    /// Sparkplug group id of --mqtt.
+    #[arg(long, default_value = "truepos")]
+    mqtt_group: String,
 }
 
 /// Longest run in s, a year: bounds `--duration-s` and a replay's length at its speed, so that a
@@ -223,6 +230,8 @@ pub fn run(mut args: RunArgs) -> Result<(), CliError> {
     args.models = args.models.drain(..).map(crate::examples::find).collect();
     let http = HttpArgs::check(args.http.as_deref(), args.http_token_file.as_deref())
         .map_err(CliError::refused)?;
+    let mqtt =
+        crate::fleet::MqttArgs::check(args.mqtt.as_deref(), &args.mqtt_group, args.log.as_deref())?;
     let machine = machine_file::load(&args.machine)?;
     let entries = load_set(&args.models, &machine)?;
     let period_s = args.period_ms / 1000.0;
@@ -273,6 +282,8 @@ pub fn run(mut args: RunArgs) -> Result<(), CliError> {
         ),
         None => None,
     };
+    // Beside the service, on a thread of its own that reads the log: the cycle never waits on it.
+    let publisher = mqtt.map(crate::fleet::MqttArgs::start).transpose()?;
     let stop = Arc::new(AtomicBool::new(false));
     for signal in [signal_hook::consts::SIGTERM, signal_hook::consts::SIGINT] {
         signal_hook::flag::register(signal, Arc::clone(&stop))
@@ -304,6 +315,9 @@ pub fn run(mut args: RunArgs) -> Result<(), CliError> {
         _ => None,
     };
     let stopped = host.stop();
+    if let Some(p) = publisher {
+        crate::fleet::finish(p);
+    }
     let failures = run_failures(&stopped.service, stopped.log);
     summarize(
         &args,

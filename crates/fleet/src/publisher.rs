@@ -223,6 +223,8 @@ struct Session {
     ping_since: Option<Instant>,
     /// The last read found nothing new.
     idle: bool,
+    /// The last read was of the final log (the service stopped) and found nothing new.
+    drained: bool,
 }
 
 struct State {
@@ -266,7 +268,7 @@ impl State {
             let finish = self.finish_at();
             let finished = finish.is_some();
             if let Some(s) = &session {
-                caught_up = finished && s.idle && s.in_flight.is_empty();
+                caught_up = s.drained && s.in_flight.is_empty();
             }
             if finish.is_some_and(|f| caught_up || Instant::now() >= f) {
                 break;
@@ -367,6 +369,7 @@ impl State {
             last_send: Instant::now(),
             ping_since: None,
             idle: false,
+            drained: false,
         })
     }
 
@@ -401,6 +404,7 @@ impl State {
         if room > 0 {
             let units = self.reader.units(s.sent, room, finished)?;
             s.idle = units.is_empty();
+            s.drained = finished && s.idle;
             for u in units {
                 let historical = match &u {
                     Unit::Second(x) => x.last_row <= s.historical_upto.cycles,
@@ -409,6 +413,7 @@ impl State {
                 if historical {
                     if Instant::now() < s.next_historical {
                         s.idle = false;
+                        s.drained = false;
                         break;
                     }
                     s.next_historical +=
