@@ -15,13 +15,13 @@
 //! the SQLite log this server reads. Nothing here runs on the cycle's thread, and no request
 //! changes the service (read-only).
 //!
-//! **Why tiny_http.** A small, synchronous HTTP/1.1 server (MIT/Apache-2.0, four small
-//! dependencies, no TLS compiled in) on plain threads: the service and the LinuxCNC component
-//! stay free of an async runtime, a stream is a thread writing to its socket, and the build
-//! stays small on two cores. axum on tokio (already linked by the OPC UA client) was the
-//! other candidate: its routing, extractors and SSE helpers are not needed for seven GET
-//! endpoints, and it would pull hyper, tower and an executor into the component that runs
-//! beside LinuxCNC's real-time threads.
+//! **Why its own HTTP.** A synchronous HTTP/1.1 server on plain threads ([`http`]): the service
+//! and the LinuxCNC component stay free of an async runtime, a stream is a thread writing to its
+//! socket, and the threads a client can make it hold are bounded ([`http::MAX_CONNECTIONS`],
+//! each with a small stack). tiny_http, used first, gives every connection a thread with the
+//! default 2 MiB stack and no bound (the LinuxCNC component locks every stack it has); axum on
+//! tokio would bring hyper, tower and an executor beside LinuxCNC's real-time threads, for
+//! GETs of eight paths and a stream.
 //!
 //! **Access.** Loopback by default; any other bind address needs a token, checked on every
 //! request ([`access`]).
@@ -31,6 +31,7 @@
 pub mod access;
 pub mod api;
 pub mod host;
+pub mod http;
 pub mod info;
 pub mod quality;
 pub mod stream;
@@ -43,8 +44,8 @@ use std::sync::Arc;
 use std::thread::JoinHandle;
 use std::time::Duration;
 
+use http::{Request, Server};
 use serde_json::{json, Value};
-use tiny_http::{Header, Request, Response, Server};
 use truepos_runtime::live::Board;
 use truepos_runtime::log::{self, LoggedEvent, Rows};
 
@@ -54,12 +55,9 @@ use stream::Hub;
 /// The page, embedded in the binary (HTML, CSS and JavaScript written here; nothing fetched).
 pub const PAGE: &str = include_str!("page.html");
 
-/// Threads answering requests (a stream has a thread of its own besides).
-const WORKERS: usize = 4;
-/// Stack of each of the server's own threads (workers, streams, sampler): small, since the
-/// LinuxCNC component locks its memory (`mlockall` with `MCL_FUTURE`), every thread's stack
-/// included. tiny_http's own accept and connection threads keep the default stack; that they
-/// are not bounded is said in docs/live_view.md ("Not yet").
+/// Stack of each of the server's threads (accepting, one per connection, sampler): small, since
+/// the LinuxCNC component locks its memory (`mlockall` with `MCL_FUTURE`), every thread's stack
+/// included; with at most [`http::MAX_CONNECTIONS`] connections, 13 MiB at most in all.
 const STACK_BYTES: usize = 512 * 1024;
 /// Buckets of a history unless asked otherwise, and the most asked.
 const BUCKETS: usize = 1500;
@@ -85,8 +83,7 @@ pub struct LiveSetup {
 
 /// The running server; stopped by [`LiveServer::stop`] or when dropped.
 pub struct LiveServer {
-    addr: SocketAddr,
-    server: Arc<Server>,
+    server: Server,
     hub: Arc<Hub>,
     threads: Vec<JoinHandle<()>>,
 }
@@ -124,13 +121,6 @@ impl LiveServer {
     /// non-loopback address has no token or the address cannot be bound.
     pub fn start(setup: LiveSetup) -> Result<Self, String> {
         access::check_bind(setup.addr, setup.token.as_deref())?;
-        let server = Server::http(setup.addr)
-            .map_err(|e| format!("--http {}: cannot listen: {e}", setup.addr))?;
-        let addr = server
-            .server_addr()
-            .to_ip()
-            .ok_or_else(|| format!("--http {}: not an IP address", setup.addr))?;
-        let server = Arc::new(server);
         let hub = Hub::new();
         let shared = Arc::new(Shared {
             token: setup.token,
@@ -162,15 +152,19 @@ impl LiveServer {
                 }),
             )?);
         }
-        for i in 0..WORKERS {
-            let (s, srv) = (Arc::clone(&shared), Arc::clone(&server));
-            threads.push(spawn(
-                format!("truepos-live-{i}"),
-                Box::new(move || worker(&srv, &s)),
-            )?);
-        }
+        let s = Arc::clone(&shared);
+        let server = Server::start(setup.addr, STACK_BYTES, Arc::new(move |rq| handle(rq, &s)));
+        let server = match server {
+            Ok(srv) => srv,
+            Err(e) => {
+                hub.stop.store(true, Ordering::Relaxed);
+                for t in threads {
+                    let _ = t.join();
+                }
+                return Err(format!("--http {}: cannot listen: {e}", setup.addr));
+            }
+        };
         Ok(Self {
-            addr,
             server,
             hub,
             threads,
@@ -179,7 +173,12 @@ impl LiveServer {
 
     /// The address it listens on.
     pub fn addr(&self) -> SocketAddr {
-        self.addr
+        self.server.addr()
+    }
+
+    /// Connections open now (streams included).
+    pub fn connections(&self) -> usize {
+        self.server.connections()
     }
 
     /// Streams open now.
@@ -194,9 +193,7 @@ impl LiveServer {
 
     fn shutdown(&mut self) {
         self.hub.stop.store(true, Ordering::Relaxed);
-        for _ in 0..WORKERS {
-            self.server.unblock();
-        }
+        self.server.stop(Duration::from_secs(2));
         for t in self.threads.drain(..) {
             let _ = t.join();
         }
@@ -209,33 +206,12 @@ impl Drop for LiveServer {
     }
 }
 
-fn worker(server: &Server, s: &Arc<Shared>) {
-    while !s.hub.stop.load(Ordering::Relaxed) {
-        match server.recv_timeout(Duration::from_millis(250)) {
-            Ok(Some(rq)) => handle(rq, s),
-            Ok(None) => {}
-            Err(_) => std::thread::sleep(Duration::from_millis(50)),
-        }
-    }
-}
-
-fn header(name: &str, value: &str) -> Header {
-    Header::from_bytes(name.as_bytes(), value.as_bytes()).expect("a valid header")
-}
-
-fn request_header<'a>(rq: &'a Request, name: &'static str) -> Option<&'a str> {
-    rq.headers()
-        .iter()
-        .find(|h| h.field.equiv(name))
-        .map(|h| h.value.as_str())
-}
-
 /// Smallest body worth compressing.
 const GZIP_FROM: usize = 1024;
 
 /// Whether the client takes gzip (`Accept-Encoding: gzip`, without `q=0`).
 fn takes_gzip(rq: &Request) -> bool {
-    request_header(rq, "Accept-Encoding").is_some_and(|v| {
+    rq.header("Accept-Encoding").is_some_and(|v| {
         v.split(',').any(|e| {
             let mut parts = e.split(';').map(str::trim);
             parts.next() == Some("gzip") && !parts.any(|p| p.replace(' ', "") == "q=0")
@@ -254,42 +230,45 @@ fn respond(rq: Request, status: u16, content_type: &str, body: String) {
     let zipped = (body.len() >= GZIP_FROM && takes_gzip(&rq))
         .then(|| gzip(body.as_bytes()))
         .flatten();
-    let r = match zipped {
-        Some(z) => Response::from_data(z).with_header(header("Content-Encoding", "gzip")),
-        None => Response::from_data(body.into_bytes()),
-    };
-    let r = r
-        .with_status_code(status)
-        .with_header(header("Content-Type", content_type))
-        .with_header(header("Vary", "Accept-Encoding"))
-        .with_header(header("Cache-Control", "no-store"))
-        .with_header(header("X-Content-Type-Options", "nosniff"));
-    let _ = rq.respond(r);
+    let mut headers = vec![
+        ("Content-Type", content_type),
+        ("Vary", "Accept-Encoding"),
+        ("Cache-Control", "no-store"),
+        ("X-Content-Type-Options", "nosniff"),
+    ];
+    match zipped {
+        Some(z) => {
+            headers.push(("Content-Encoding", "gzip"));
+            rq.respond(status, &headers, &z);
+        }
+        None => rq.respond(status, &headers, body.as_bytes()),
+    }
 }
 
 fn respond_json(rq: Request, status: u16, v: &Value) {
     respond(rq, status, "application/json; charset=utf-8", v.to_string());
 }
 
-fn handle(rq: Request, s: &Arc<Shared>) {
+fn handle(rq: Request, s: &Shared) {
     let url = rq.url().to_string();
     let path = url.split('?').next().unwrap_or("");
     let query_token = access::query_param(&url, "token");
     if !access::allowed(
         s.token.as_deref(),
-        request_header(&rq, "Authorization"),
+        rq.header("Authorization"),
         query_token.as_deref(),
     ) {
-        let r = Response::from_string(
-            "a token is required: header `Authorization: Bearer TOKEN` or `?token=TOKEN`\n",
-        )
-        .with_status_code(401)
-        .with_header(header("WWW-Authenticate", "Bearer realm=\"truepos\""))
-        .with_header(header("Content-Type", "text/plain; charset=utf-8"));
-        let _ = rq.respond(r);
+        rq.respond(
+            401,
+            &[
+                ("WWW-Authenticate", "Bearer realm=\"truepos\""),
+                ("Content-Type", "text/plain; charset=utf-8"),
+            ],
+            b"a token is required: header `Authorization: Bearer TOKEN` or `?token=TOKEN`\n",
+        );
         return;
     }
-    if *rq.method() != tiny_http::Method::Get && *rq.method() != tiny_http::Method::Head {
+    if rq.method() != "GET" && rq.method() != "HEAD" {
         respond(
             rq,
             405,
@@ -403,8 +382,10 @@ fn events(rq: Request, url: &str, s: &Shared) {
     }
 }
 
-fn open_stream(rq: Request, url: &str, s: &Arc<Shared>) {
-    let last = request_header(&rq, "Last-Event-ID")
+/// Serves a stream on this connection's thread until the page goes away or the server stops.
+fn open_stream(rq: Request, url: &str, s: &Shared) {
+    let last = rq
+        .header("Last-Event-ID")
         .map(str::to_string)
         .or_else(|| access::query_param(url, "last_event_id"))
         .and_then(|v| v.trim().parse::<u64>().ok());
@@ -419,16 +400,6 @@ fn open_stream(rq: Request, url: &str, s: &Arc<Shared>) {
         );
         return;
     }
-    let s = Arc::clone(s);
-    let spawned = std::thread::Builder::new()
-        .name("truepos-live-stream".into())
-        .stack_size(STACK_BYTES)
-        .spawn(move || {
-            let w = rq.into_writer();
-            stream::serve(&s.hub, w, last);
-            s.hub.streams.fetch_sub(1, Ordering::AcqRel);
-        });
-    if spawned.is_err() {
-        hub.streams.fetch_sub(1, Ordering::AcqRel);
-    }
+    stream::serve(hub, Box::new(rq.into_stream()), last);
+    hub.streams.fetch_sub(1, Ordering::AcqRel);
 }

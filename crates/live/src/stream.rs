@@ -22,7 +22,7 @@ pub const TICK: Duration = Duration::from_millis(200);
 /// Messages kept for pages that reconnect (at [`TICK`], over three minutes of state).
 pub const RING: usize = 1024;
 /// Most streams open at once; more are answered 503.
-pub const MAX_STREAMS: usize = 32;
+pub const MAX_STREAMS: usize = 16;
 /// A comment line this often keeps idle proxies from closing a stream.
 const KEEP_ALIVE: Duration = Duration::from_secs(15);
 
