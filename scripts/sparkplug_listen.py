@@ -16,6 +16,8 @@ from pysparkplug import NBirth, NData, NDeath
 port, out_path, client_id = int(sys.argv[1]), sys.argv[2], sys.argv[3]
 out = open(out_path, "a", encoding="utf-8")
 KINDS = {"NBIRTH": NBirth, "NDATA": NData, "NDEATH": NDeath}
+# The last NBIRTH of each node: NDATA names its metrics by the aliases the birth declared.
+births = {}
 
 
 def on_connect(client, userdata, flags, rc):
@@ -31,7 +33,15 @@ def on_message(client, userdata, msg):
     rec = {"topic": msg.topic, "size": len(msg.payload), "dup": bool(msg.dup)}
     try:
         kind = parts[2]
-        payload = KINDS[kind].decode(msg.payload)
+        node = "/".join(parts[:2] + parts[3:])
+        if kind == "NDATA":
+            if node not in births:
+                raise ValueError("NDATA before any NBIRTH of its node")
+            payload = NData.decode(msg.payload, birth=births[node])
+        else:
+            payload = KINDS[kind].decode(msg.payload)
+        if kind == "NBIRTH":
+            births[node] = payload
         rec["type"] = kind
         if kind == "NDEATH":
             rec["bdSeq"] = payload.bd_seq_metric.value

@@ -373,7 +373,8 @@ impl State {
         })
     }
 
-    /// NBIRTH: every metric NDATA will carry, with its type (values null until the first data).
+    /// NBIRTH: every metric NDATA will carry, with its type and alias (values null until the
+    /// first data). The alias of a metric is its index here; NDATA follows [`data_alias`].
     fn birth(&self) -> Payload {
         let mut metrics = vec![
             Metric::new("bdSeq", Value::UInt64(u64::from(self.cursor.bd_seq))),
@@ -384,12 +385,15 @@ impl State {
             Metric::new("Active cycles", Value::Null(7)),
         ];
         for c in self.reader.columns() {
-            for s in ["min", "mean", "max"] {
+            for s in STATS {
                 metrics.push(Metric::new(metric_name(c, s), Value::Null(DOUBLE)));
             }
         }
-        for f in ["Kind", "Subject", "Detail"] {
+        for f in EVENT_FIELDS {
             metrics.push(Metric::new(format!("Event/{f}"), Value::Null(STRING)));
+        }
+        for (i, m) in metrics.iter_mut().enumerate() {
+            m.alias = Some(i as u64);
         }
         Payload {
             timestamp_ms: now_ms(),
@@ -498,6 +502,15 @@ impl State {
 
     fn data(&mut self, u: &Unit, seq: u64, historical: bool) -> Payload {
         let mut metrics = Vec::new();
+        let columns = self.reader.columns().len();
+        let mut push = |slot: DataSlot, ts: u64, value: Value| {
+            metrics.push(Metric {
+                alias: Some(data_alias(slot, columns)),
+                timestamp_ms: Some(ts),
+                historical,
+                ..Metric::new("", value)
+            })
+        };
         match u {
             Unit::Second(x) => {
                 if x.new_run {
@@ -507,40 +520,21 @@ impl State {
                         self.cursor.run_start_unix_s = m.started_unix_s;
                     }
                 }
-                let ts = Some(self.stamp(x.second));
-                let mut push = |name: String, value: Value| {
-                    metrics.push(Metric {
-                        name,
-                        timestamp_ms: ts,
-                        value,
-                        historical,
-                    })
-                };
-                push("Cycles".into(), Value::UInt32(x.cycles));
-                push("Active cycles".into(), Value::UInt32(x.active));
-                for (c, st) in self.reader.columns().iter().zip(&x.stats) {
-                    let v = |f: fn(&(f64, f64, f64)) -> f64| {
-                        st.as_ref()
-                            .map_or(Value::Null(DOUBLE), |t| Value::Double(f(t)))
-                    };
-                    push(metric_name(c, "min"), v(|t| t.0));
-                    push(metric_name(c, "mean"), v(|t| t.1));
-                    push(metric_name(c, "max"), v(|t| t.2));
+                let ts = self.stamp(x.second);
+                push(DataSlot::Cycles, ts, Value::UInt32(x.cycles));
+                push(DataSlot::Active, ts, Value::UInt32(x.active));
+                for (c, st) in x.stats.iter().enumerate() {
+                    let parts = st.map_or([None; 3], |t| [Some(t.0), Some(t.1), Some(t.2)]);
+                    for (k, v) in parts.into_iter().enumerate() {
+                        let value = v.map_or(Value::Null(DOUBLE), Value::Double);
+                        push(DataSlot::Stat(c, k), ts, value);
+                    }
                 }
             }
             Unit::Event(e) => {
-                let ts = Some(self.stamp(e.time_s));
-                for (f, v) in [
-                    ("Kind", &e.kind),
-                    ("Subject", &e.subject),
-                    ("Detail", &e.detail),
-                ] {
-                    metrics.push(Metric {
-                        name: format!("Event/{f}"),
-                        timestamp_ms: ts,
-                        value: Value::String(v.clone()),
-                        historical,
-                    });
+                let ts = self.stamp(e.time_s);
+                for (k, v) in [&e.kind, &e.subject, &e.detail].into_iter().enumerate() {
+                    push(DataSlot::Event(k), ts, Value::String(v.clone()));
                 }
             }
         }
@@ -571,6 +565,34 @@ impl State {
         s.conn.disconnect();
         self.shared.connected.store(false, Ordering::Relaxed);
     }
+}
+
+/// The statistics of a column, in the order of their metrics.
+const STATS: [&str; 3] = ["min", "mean", "max"];
+/// The fields of an event, in the order of their metrics.
+const EVENT_FIELDS: [&str; 3] = ["Kind", "Subject", "Detail"];
+
+/// A metric NDATA carries.
+#[derive(Clone, Copy)]
+enum DataSlot {
+    Cycles,
+    Active,
+    /// Column, statistic ([`STATS`]).
+    Stat(usize, usize),
+    /// Field ([`EVENT_FIELDS`]).
+    Event(usize),
+}
+
+/// The alias NBIRTH gave a metric: its index in the birth (bdSeq, Rebirth, Machine, Models,
+/// then Cycles at 4, Active cycles, the columns' statistics, the event's fields).
+fn data_alias(slot: DataSlot, columns: usize) -> u64 {
+    let i = match slot {
+        DataSlot::Cycles => 4,
+        DataSlot::Active => 5,
+        DataSlot::Stat(c, k) => 6 + 3 * c + k,
+        DataSlot::Event(k) => 6 + 3 * columns + k,
+    };
+    i as u64
 }
 
 /// The metric name of a `cycles` column's statistic: offsets under `Offsets/`, every other

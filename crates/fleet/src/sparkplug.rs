@@ -83,8 +83,10 @@ impl Value {
 /// One metric.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Metric {
-    /// Its name (this slice sends names, no aliases: docs/fleet.md says what that costs).
+    /// Its name; empty in NDATA, where the alias alone names it.
     pub name: String,
+    /// Its alias: declared beside the name in NBIRTH, alone in NDATA (a third of the bytes).
+    pub alias: Option<u64>,
     /// When the value was true, ms since the Unix epoch.
     pub timestamp_ms: Option<u64>,
     /// The value.
@@ -98,6 +100,7 @@ impl Metric {
     pub fn new(name: impl Into<String>, value: Value) -> Self {
         Metric {
             name: name.into(),
+            alias: None,
             timestamp_ms: None,
             value,
             historical: false,
@@ -146,12 +149,20 @@ fn varint_field(out: &mut Vec<u8>, field: u32, v: u64) {
 
 impl Metric {
     fn encode(&self, out: &mut Vec<u8>) {
-        // Field numbers of `Payload.Metric` in sparkplug_b.proto.
-        bytes_field(out, 1, self.name.as_bytes());
+        // Field numbers of `Payload.Metric` in sparkplug_b.proto. A metric sent by its alias
+        // alone carries neither name nor datatype: the NBIRTH declared both.
+        if !self.name.is_empty() {
+            bytes_field(out, 1, self.name.as_bytes());
+        }
+        if let Some(a) = self.alias {
+            varint_field(out, 2, a);
+        }
         if let Some(t) = self.timestamp_ms {
             varint_field(out, 3, t);
         }
-        varint_field(out, 4, u64::from(self.value.datatype()));
+        if !self.name.is_empty() {
+            varint_field(out, 4, u64::from(self.value.datatype()));
+        }
         if self.historical {
             varint_field(out, 5, 1);
         }
@@ -207,6 +218,19 @@ mod tests {
         want.extend_from_slice(&1.0f64.to_le_bytes());
         want.extend_from_slice(&[0x18, 0x00]);
         assert_eq!(p.encode(), want);
+    }
+
+    #[test]
+    fn a_metric_by_alias_carries_no_name_and_no_datatype() {
+        let m = Metric {
+            alias: Some(300),
+            timestamp_ms: Some(1),
+            ..Metric::new("", Value::UInt32(5))
+        };
+        let mut out = Vec::new();
+        m.encode(&mut out);
+        // alias 300 = 10 ac 02, timestamp 1 = 18 01, int_value 5 = 50 05.
+        assert_eq!(out, [0x10, 0xac, 0x02, 0x18, 0x01, 0x50, 0x05]);
     }
 
     #[test]
