@@ -9,8 +9,9 @@ use std::path::{Path, PathBuf};
 
 use crate::error::CliError;
 use truepos_fit::dataset::{Dataset, Run};
+use truepos_fit::family::PositionFamily;
 use truepos_fit::machine_fit::{select, Chosen, MachineData, StaticModel};
-use truepos_fit::position_model::{reference_sensor, Family};
+use truepos_fit::position_model::reference_sensor;
 use truepos_fit::settings::Settings;
 use truepos_io::{machine_file, model_file::ModelFile};
 use truepos_model::{CycleInput, Machine, Model, RecordedRun};
@@ -222,7 +223,7 @@ fn fit_both(
         absolute_targets: true,
         ..Settings::default()
     };
-    let fit = |families: &[Family]| -> Result<Selected, CliError> {
+    let fit = |families: &[PositionFamily]| -> Result<Selected, CliError> {
         let sel =
             select(&ds, &data, None, &rows, &settings, families).map_err(CliError::Refused)?;
         for c in &sel.candidates {
@@ -246,8 +247,12 @@ fn fit_both(
             Chosen::Filtered(_) => Err(CliError::refused("internal: a dynamic model was chosen")),
         }
     };
-    let prior = fit(&[Family::PositionIndependent])?;
-    let posdep = fit(&[Family::AllAxes, Family::AllAxesSquared, Family::BedFactor])?;
+    let prior = fit(&[PositionFamily::PositionIndependent])?;
+    let posdep = fit(&[
+        PositionFamily::AllAxes,
+        PositionFamily::AllAxesSquared,
+        PositionFamily::BedFactor,
+    ])?;
     Ok((prior, posdep))
 }
 

@@ -13,7 +13,8 @@ use std::time::Instant;
 use crate::error::CliError;
 use truepos_fit::dataset::{Columns, Dataset, Patterns};
 use truepos_fit::export::{model_file, plausible, predictions_csv, TargetAxis};
-use truepos_fit::settings::{Families, InnerCv, Ridges, Rule, Selection, Settings};
+use truepos_fit::family::Families;
+use truepos_fit::settings::{InnerCv, Ridges, Rule, Selection, Settings};
 use truepos_fit::validate::{fit, Outcome, Split, Validation};
 use truepos_io::limits::int_in;
 use truepos_io::run::{read_shaped, Table, Time};
@@ -84,7 +85,7 @@ pub struct Args {
     /// ridge, always fitted and reported beside the choice). Default: chosen automatically among
     /// all of them but static and transfer2 (see --selection).
     #[arg(long)]
-    pub(crate) family: Option<String>,
+    pub(crate) family: Option<Families>,
     /// Fix the ridge parameter(s), comma-separated, each 0–10¹². Default: chosen automatically.
     #[arg(long)]
     pub(crate) ridge: Option<Ridges>,
@@ -206,11 +207,7 @@ pub(crate) fn settings(args: &Args, ds: &Dataset) -> Result<Settings, CliError> 
         Selection::Paired => Settings::paired(),
     };
     let families = match &args.family {
-        Some(f) => {
-            f.parse::<Families>()
-                .map_err(|e| CliError::refused(format!("--family: {e}")))?
-                .0
-        }
+        Some(f) => f.filtered.clone(),
         None => defaults.families,
     };
     Ok(Settings {
@@ -269,6 +266,11 @@ pub fn run(args: Args) -> Result<(), CliError> {
     }
     if args.machine.ends_with(".toml") {
         return machine::run(args);
+    }
+    if let Some(f) = args.family.as_ref().and_then(|f| f.position.first()) {
+        return Err(CliError::refused(format!(
+            "--family {f}: a position family needs a machine file (--machine MACHINE.toml)"
+        )));
     }
     let inputs = args.inputs.clone().ok_or_else(|| {
         CliError::refused("--inputs is required without a machine file (--machine MACHINE.toml)")

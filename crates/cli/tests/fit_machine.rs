@@ -282,6 +282,21 @@ fn a_machine_fit_refuses_what_it_cannot_do() {
     );
     let e = fit(&["--target", "dx_um", "--family", "all-axes,warm"]);
     assert!(e.contains("--family") && e.contains("got `warm`"), "{e}");
+    // One list of families: the unknown name's error offers both forms.
+    assert!(e.contains("dynamic-rates") && e.contains("bed-factor"), "{e}");
+    // A position family without a machine file is refused, naming what it needs.
+    let out = truepos()
+        .args(["fit", "--inputs", "*_c", "--target", "dx_um", "--run"])
+        .arg(&run)
+        .args(["--family", "dynamic,bed-factor"])
+        .output()
+        .unwrap();
+    let e = String::from_utf8(out.stderr).unwrap();
+    assert!(
+        !out.status.success()
+            && e.contains("--family bed-factor: a position family needs a machine file"),
+        "{e}"
+    );
     std::fs::remove_dir_all(&dir).ok();
 }
 

@@ -5,6 +5,8 @@
 //!
 //! - [`dataset`]: runs in memory, built from run tables and column globs
 //!   ([`dataset::Dataset::from_tables`]); targets are taken relative to each run's first sample.
+//! - [`family`]: the one list of families a person chooses from, of both forms (filtered and
+//!   position), by name.
 //! - [`settings`]: what the selection may choose from and how — family, ridge, inner CV, rule,
 //!   sensors, reference sensor — as typed values whose `FromStr` says what it expects.
 //! - [`features`]: candidate regressors — temperature rises, their first-order low-pass filters
@@ -69,6 +71,7 @@
 mod blend;
 pub mod dataset;
 pub mod export;
+pub mod family;
 pub mod features;
 mod forward;
 pub mod inner_cv;

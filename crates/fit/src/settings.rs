@@ -255,19 +255,6 @@ fn items(s: &str) -> impl Iterator<Item = &str> {
     s.split(',').map(str::trim).filter(|p| !p.is_empty())
 }
 
-/// Candidate families, comma-separated: `dynamic` fixes the family, `static,dynamic` lets the
-/// selection choose between two.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct Families(pub Vec<Family>);
-
-impl FromStr for Families {
-    type Err = String;
-
-    fn from_str(s: &str) -> Result<Self, String> {
-        items(s).map(str::parse).collect::<Result<_, _>>().map(Self)
-    }
-}
-
 /// The largest ridge parameter a person may give: relative to unit-norm columns, 10¹² already
 /// shrinks every coefficient to nothing.
 pub const MAX_RIDGE: f64 = 1e12;
@@ -325,14 +312,6 @@ mod tests {
             .parse::<InnerCv>()
             .unwrap_err()
             .contains("blocked or rolling"));
-        assert_eq!(
-            "dynamic, static,".parse::<Families>(),
-            Ok(Families(vec![Family::Dynamic, Family::Static]))
-        );
-        assert!("dynamic,warm"
-            .parse::<Families>()
-            .unwrap_err()
-            .ends_with("got `warm`"));
         assert_eq!("0, 1e-3".parse::<Ridges>(), Ok(Ridges(vec![0.0, 1e-3])));
         for bad in ["-1", "1e13", "nan", "x"] {
             assert!(

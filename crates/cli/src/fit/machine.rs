@@ -9,30 +9,13 @@ use super::{load, print_per_run, settings, tables, Args, Progress};
 use crate::error::CliError;
 use truepos_fit::dataset::{Dataset, Patterns};
 use truepos_fit::export::{dynamic_model_file, plausible_predictions, predictions_csv_of};
+use truepos_fit::family::PositionFamily;
 use truepos_fit::features::candidates;
 use truepos_fit::machine_fit::{fit_machine, Chosen, MachineData, MachineOutcome};
-use truepos_fit::position_model::{reference_sensor, Family};
+use truepos_fit::position_model::reference_sensor;
 use truepos_io::dynamic_model_file::axis_named_like;
 use truepos_io::model_file::ModelFile;
 use truepos_model::Machine;
-
-/// `--family` split into the dynamic families and the position-dependent ones; without it, all of
-/// both.
-fn families(args: &Args) -> Result<(Option<String>, Vec<Family>), CliError> {
-    let Some(list) = &args.family else {
-        return Ok((None, Family::ALL.to_vec()));
-    };
-    let (mut dynamic, mut fixed) = (Vec::new(), Vec::new());
-    for item in list.split(',').map(str::trim).filter(|s| !s.is_empty()) {
-        match item.parse::<Family>() {
-            Ok(f) => fixed.push(f),
-            Err(_) => dynamic.push(item),
-        }
-    }
-    // An empty dynamic list means "none": the parser of the dynamic families would read "" as
-    // no family at all, which is what is meant.
-    Ok((Some(dynamic.join(",")), fixed))
-}
 
 /// The default inputs of the dynamic families: the machine's measured temperature channels
 /// and operating channels that the first run holds.
@@ -108,8 +91,11 @@ pub fn run(mut args: Args) -> Result<(), CliError> {
     let path = Path::new(&args.machine).to_path_buf();
     let config = truepos_io::machine_file::load(&path)?;
     let machine = config.machine.clone();
-    let (dynamic, fixed) = families(&args)?;
-    args.family = dynamic;
+    // The filtered families of `--family` reach the selection through `settings`.
+    let fixed = args
+        .family
+        .as_ref()
+        .map_or(PositionFamily::ALL.to_vec(), |f| f.position.clone());
     let first = tables(&args)?;
     let columns = first.first().map(|t| t.columns.clone()).unwrap_or_default();
     let inputs = match args.inputs.clone() {
