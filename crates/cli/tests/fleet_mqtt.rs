@@ -405,6 +405,12 @@ fn check_data(m: &[serde_json::Value], log: &LogSeconds, events: &[(f64, String)
             }
         }
     }
+    // Copies come from the cursor file saved at most once a second (the kill: ~20 seconds of
+    // data at 20×, and one save's lag) and from the window in flight at the broker's death (32).
+    assert!(
+        duplicates <= 20 + 20 + 32,
+        "{duplicates} seconds sent twice"
+    );
     got_events.sort_by_key(|e| e.0);
     got_events.dedup();
     assert_eq!(
