@@ -13,7 +13,7 @@ DATA="${FL_THERMAL:-../shared/data/fl_thermal/fl_thermal.csv}"
 cargo build --quiet --release -p truepos >&2
 START="$(date +%s.%N)"
 OUT="$(target/release/truepos fit --run "$DATA" --target 'ch*_um' --inputs 't*_c,spindle_rpm' \
-  --time time_s --split chrono:0.6 --machine fl-thermal --json "$@")"
+  --time time_s --split chrono:0.6 --machine-name fl-thermal --json "$@")"
 END="$(date +%s.%N)"
 python3 - "$OUT" "$START" "$END" <<'PY'
 import json, sys

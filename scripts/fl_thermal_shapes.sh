@@ -33,7 +33,7 @@ with open(f"{out}/semicolon.csv", "w") as f:
             cells.append((repr(float(v) * 1.8 + 32) if temp(c) else v).replace(".", ","))
         f.write(";".join(cells) + "\n")
 PY
-fit() { "$BIN" fit --target 'ch*_um' --split chrono:0.6 --machine fl-thermal --json "$@"; }
+fit() { "$BIN" fit --target 'ch*_um' --split chrono:0.6 --machine-name fl-thermal --json "$@"; }
 show() {
   python3 -c '
 import json, sys

@@ -21,15 +21,17 @@ use truepos_io::run::{read_shaped, Table, Time};
 
 use crate::shape::ShapeArgs;
 
-/// Arguments of `truepos fit`.
 /// The files `truepos fit` reads, which none of its outputs may be.
 pub(crate) fn input_files(args: &Args) -> Vec<(&'static str, &Path)> {
     let mut v: Vec<(&'static str, &Path)> =
         args.runs.iter().map(|r| ("--run", r.as_path())).collect();
-    v.push(("--machine", Path::new(&args.machine)));
+    if let Some(m) = &args.machine {
+        v.push(("--machine", m.as_path()));
+    }
     v
 }
 
+/// Arguments of `truepos fit`.
 #[derive(clap::Args)]
 pub struct Args {
     /// A run: CSV, or a workbook (.xlsx; every sheet is a run). Repeat for several runs, which are
@@ -115,11 +117,13 @@ pub struct Args {
     /// (only those before it, as time goes; the first two blocks only train).
     #[arg(long, default_value = "blocked")]
     pub(crate) inner_cv: InnerCv,
-    /// A machine description (a path ending in `.toml`): the position-dependent families are fitted too,
-    /// from its channels and axis positions, and targets are taken as measured. Otherwise the
-    /// machine name written into the dynamic model file.
-    #[arg(long, default_value = "unnamed")]
-    pub(crate) machine: String,
+    /// A machine description (TOML): the position families are fitted too, from its channels
+    /// and axis positions, and targets are taken as measured.
+    #[arg(long)]
+    pub(crate) machine: Option<PathBuf>,
+    /// Without a machine file: the machine name written into the model file.
+    #[arg(long, default_value = "unnamed", conflicts_with = "machine")]
+    pub(crate) machine_name: String,
     /// Write the model here (JSON): the same selection and fit on every row of every run — the
     /// validation measures that procedure on its folds and the figures are theirs.
     #[arg(long)]
@@ -264,8 +268,15 @@ pub fn run(args: Args) -> Result<(), CliError> {
     for out in [&args.model, &args.predictions].into_iter().flatten() {
         crate::write::check(out, &input_files(&args))?;
     }
-    if args.machine.ends_with(".toml") {
-        return machine::run(args);
+    if let Some(path) = args.machine.clone() {
+        if !path.exists() && path.extension().is_none() {
+            return Err(CliError::refused(format!(
+                "--machine {}: expected a machine file (TOML); a model fitted without one \
+                 names its machine with --machine-name",
+                path.display()
+            )));
+        }
+        return machine::run(args, &path);
     }
     if let Some(f) = args.family.as_ref().and_then(|f| f.position.first()) {
         return Err(CliError::refused(format!(
@@ -320,7 +331,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
             &ds,
             &settings,
             &outcome,
-            &args.machine,
+            &args.machine_name,
             &args.axes,
             &created_by,
         )

@@ -283,7 +283,32 @@ fn a_machine_fit_refuses_what_it_cannot_do() {
     let e = fit(&["--target", "dx_um", "--family", "all-axes,warm"]);
     assert!(e.contains("--family") && e.contains("got `warm`"), "{e}");
     // One list of families: the unknown name's error offers both forms.
-    assert!(e.contains("dynamic-rates") && e.contains("bed-factor"), "{e}");
+    assert!(
+        e.contains("dynamic-rates") && e.contains("bed-factor"),
+        "{e}"
+    );
+    // --machine is a machine file; a name alone (what it once also took) says where a name goes.
+    let out = truepos()
+        .args([
+            "fit",
+            "--inputs",
+            "*_c",
+            "--target",
+            "dx_um",
+            "--machine",
+            "fl-thermal",
+            "--run",
+        ])
+        .arg(&run)
+        .output()
+        .unwrap();
+    let e = String::from_utf8(out.stderr).unwrap();
+    assert!(
+        !out.status.success()
+            && e.contains("expected a machine file (TOML)")
+            && e.contains("--machine-name"),
+        "{e}"
+    );
     // A position family without a machine file is refused, naming what it needs.
     let out = truepos()
         .args(["fit", "--inputs", "*_c", "--target", "dx_um", "--run"])

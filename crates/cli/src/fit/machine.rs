@@ -84,12 +84,11 @@ fn owners(args: &Args, machine: &Machine) -> Result<Vec<Option<usize>>, CliError
 }
 
 /// Runs `truepos fit --machine MACHINE.toml`.
-pub fn run(mut args: Args) -> Result<(), CliError> {
+pub fn run(mut args: Args, path: &Path) -> Result<(), CliError> {
     if let Some(out) = &args.model {
         super::model_name(out, &["toml", "json"], "a model of the machine")?;
     }
-    let path = Path::new(&args.machine).to_path_buf();
-    let config = truepos_io::machine_file::load(&path)?;
+    let config = truepos_io::machine_file::load(path)?;
     let machine = config.machine.clone();
     // The filtered families of `--family` reach the selection through `settings`.
     let fixed = args
@@ -174,7 +173,7 @@ pub fn run(mut args: Args) -> Result<(), CliError> {
         .as_ref()
         .map_or("fitted".to_string(), |p| p.display().to_string());
     warnings.extend(
-        crate::envelope_check::warnings(&config, &path, &name, "its training runs", &beyond)
+        crate::envelope_check::warnings(&config, path, &name, "its training runs", &beyond)
             .into_iter()
             .map(|w| w.trim_start_matches("warning: ").to_string()),
     );
