@@ -147,42 +147,35 @@ fn status_does_not_call_sensors_good_that_never_delivered() {
 fn a_source_configurations_mistake_names_its_file_line_column_and_key() {
     let dir = scratch("source-config-file");
     let cfg = dir.join("modules.toml");
-    std::fs::write(
-        &cfg,
-        "address = \"127.0.0.1:5020\"\npoll_ms = 0\n\n[[channel]]\ntemperature = \"ambient\"\nregister = 1\nencoding = \"int16-x0.1\"\n",
-    )
-    .unwrap();
-    let out = truepos()
-        .args(["run", "--duration-s", "1", "--source"])
-        .arg(format!("modbus:{}", cfg.display()))
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success());
+    // The configuration's text, then what `run` says of it after the file's name.
+    let refused = |text: &str| {
+        std::fs::write(&cfg, text).unwrap();
+        let out = truepos()
+            .args(["run", "--duration-s", "1", "--source"])
+            .arg(format!("modbus:{}", cfg.display()))
+            .output()
+            .unwrap();
+        assert!(!out.status.success());
+        let err = String::from_utf8_lossy(&out.stderr).to_string();
+        let at = err
+            .find(&cfg.display().to_string())
+            .unwrap_or_else(|| panic!("{err}"));
+        err[at + cfg.display().to_string().len()..].to_string()
+    };
+    let channel =
+        "[[channel]]\ntemperature = \"ambient\"\nregister = 1\nencoding = \"int16-x0.1\"\n";
+    let err = refused(&format!(
+        "address = \"127.0.0.1:5020\"\npoll_ms = 0\n\n{channel}"
+    ));
     assert!(
-        err.contains(&format!(
-            "{}:2:1: modbus.poll_ms: expected a time of at least 1 ms",
-            cfg.display()
-        )),
+        err.starts_with(":2:1: modbus.poll_ms: expected a time of at least 1 ms"),
         "{err}"
     );
-    std::fs::write(
-        &cfg,
-        "address = \"127.0.0.1:5020\"\n\n[[channel]]\ntemperature = \"ambient\"\nregister = 1\nencoding = \"int16-x0.1\"\n\n[[channel]]\nregister = 2\nencoding = \"int16-x0.1\"\ntemperature = \"no_such_sensor\"\n",
-    )
-    .unwrap();
-    let out = truepos()
-        .args(["run", "--duration-s", "1", "--source"])
-        .arg(format!("modbus:{}", cfg.display()))
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success());
+    let err = refused(&format!(
+        "address = \"127.0.0.1:5020\"\n\n{channel}\n[[channel]]\nregister = 2\nencoding = \"int16-x0.1\"\ntemperature = \"no_such_sensor\"\n"
+    ));
     assert!(
-        err.contains(&format!(
-            "{}:11:1: modbus.channel[2].temperature:",
-            cfg.display()
-        )),
+        err.starts_with(":11:1: modbus.channel[2].temperature:"),
         "{err}"
     );
 }
