@@ -175,9 +175,7 @@ fn run(args: RunArgs) -> Result<(), Error> {
     let loader_machine = machine.clone();
     let reload = ReloadSetup {
         files: args.models.clone(),
-        loader: Box::new(move |path| {
-            load_entry(path, &loader_machine).map_err(|e| e.to_string())
-        }),
+        loader: Box::new(move |path| load_entry(path, &loader_machine).map_err(|e| e.to_string())),
         watch: false,
     };
     let source_names = vec![truepos_runtime::Source::name(&source).to_string()];
