@@ -81,6 +81,13 @@ struct RunArgs {
     /// The live view's token: the first line of FILE (at least 16 characters).
     #[arg(long, value_name = "FILE")]
     http_token_file: Option<PathBuf>,
+    /// Forward the log to an MQTT broker as Sparkplug B, `mqtt://HOST[:PORT]`, on a thread of
+    /// its own that reads the log (needs --log; docs/fleet.md).
+    #[arg(long, value_name = "URL")]
+    mqtt: Option<String>,
+    /// Sparkplug group id of --mqtt.
+    #[arg(long, default_value = "truepos")]
+    mqtt_group: String,
 }
 
 /// Histogram bucket edges of the cycle-to-cycle interval, ms.
@@ -139,6 +146,7 @@ fn run(args: RunArgs) -> Result<(), Error> {
     // Before HAL is touched: a live view beyond loopback without a token is refused here.
     let http = HttpArgs::check(args.http.as_deref(), args.http_token_file.as_deref())
         .map_err(Error::Refused)?;
+    let mqtt = mqtt_config(&args)?;
     let machine = truepos_io::machine_file::load(&args.machine)?;
     // Before HAL is touched: a channel id that is no pin name is the machine file's mistake.
     pins::check_names(&machine.machine)?;
@@ -204,6 +212,11 @@ fn run(args: RunArgs) -> Result<(), Error> {
         ),
         None => None,
     };
+    // Like the logger's and the live view's, before the cycle thread's priority.
+    let publisher = match mqtt {
+        Some(c) => Some(truepos_fleet::Publisher::start(c).map_err(Error::Refused)?),
+        None => None,
+    };
     // After the logger has started, so that its thread inherits neither priority nor CPU.
     let setup = realtime_setup(args.rt_priority, args.cpu);
     if let Some(p) = setup.fifo_priority {
@@ -221,6 +234,13 @@ fn run(args: RunArgs) -> Result<(), Error> {
     // Bumpless stop: blend the offsets to zero before leaving HAL.
     ramp_to_zero(&mut host.service, s.start, period_ns, args.blend_s);
     let stopped = host.stop();
+    if let Some(p) = publisher {
+        let m = p.stop(std::time::Duration::from_secs(10));
+        eprintln!(
+            "truepos-hal: mqtt: {} of {} messages acknowledged, caught up: {}",
+            m.acknowledged, m.published, m.caught_up
+        );
+    }
     if let Some((result, _)) = stopped.log {
         result?;
     }
@@ -248,6 +268,22 @@ fn run(args: RunArgs) -> Result<(), Error> {
             .map_err(|e| Error::Stats(std::io::Error::other(e.to_string())))?;
     }
     Ok(())
+}
+
+/// `--mqtt` checked before HAL is touched: the broker's address, a log to forward, and the
+/// log's rows of earlier runs (not sent to a broker that has no cursor yet).
+fn mqtt_config(args: &RunArgs) -> Result<Option<truepos_fleet::Config>, Error> {
+    let Some(url) = &args.mqtt else {
+        return Ok(None);
+    };
+    let broker = truepos_fleet::BrokerUrl::parse(url).map_err(Error::Refused)?;
+    let log = args.log.clone().ok_or_else(|| {
+        Error::Refused("--mqtt forwards the log: give --log FILE as well (docs/fleet.md)".into())
+    })?;
+    let mut c = truepos_fleet::Config::new(broker, log);
+    c.start_after = truepos_fleet::last_rows(&c.log);
+    c.group = args.mqtt_group.clone();
+    Ok(Some(c))
 }
 
 /// Compensates every period until `stop`: reads the control pins, runs the cycle, writes the

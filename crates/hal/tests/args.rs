@@ -54,3 +54,23 @@ fn a_live_view_beyond_loopback_without_a_token_is_refused_first() {
     assert!(err.contains("TRUEPOS_HTTP_TOKEN"), "{err}");
     assert!(!err.contains("no-such-machine"), "checked first: {err}");
 }
+
+/// `--mqtt` without a log, or with a URL that is no broker, is refused before HAL is touched
+/// (docs/fleet.md): the telemetry is forwarded from the log.
+#[test]
+fn mqtt_without_a_log_or_with_a_bad_url_is_refused_first() {
+    for (extra, says) in [
+        (&["--mqtt", "mqtt://127.0.0.1:1883"][..], "give --log"),
+        (
+            &["--mqtt", "http://broker", "--log", "x.sqlite"][..],
+            "mqtt://HOST",
+        ),
+    ] {
+        let mut args = vec!["run", "--machine", "no-such-machine.toml", "--model", "k"];
+        args.extend_from_slice(extra);
+        let (code, err) = bounded(&args);
+        assert_ne!(code, 0, "{err}");
+        assert!(err.contains(says), "{extra:?}: {err}");
+        assert!(!err.contains("no-such-machine"), "checked first: {err}");
+    }
+}
