@@ -12,9 +12,9 @@ use std::io::{ErrorKind, Read, Write};
 use std::net::{TcpStream, ToSocketAddrs};
 use std::time::Duration;
 
-/// Largest packet accepted from the broker: a broker sends us only 2-4 byte packets, so
-/// anything longer is not ours and ends the connection rather than buffering it.
-const MAX_INCOMING: usize = 1024;
+/// Largest packet accepted from the broker by a publisher: a broker sends it only 2-5 byte
+/// packets, so anything longer is not ours and ends the connection rather than buffering it.
+pub const MAX_ACK: usize = 1024;
 
 /// A broker's address, from `mqtt://HOST[:PORT]` or `tcp://HOST[:PORT]` (port 1883 unless given).
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -80,18 +80,30 @@ pub struct Will<'a> {
 }
 
 /// What the broker sent.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq, Eq)]
 pub enum Incoming {
     /// PUBACK of a packet id.
     PubAck(u16),
     /// PINGRESP.
     PingResp,
+    /// SUBACK of a packet id with the granted QoS (0x80: refused).
+    SubAck(u16, u8),
+    /// A message on a subscribed topic (`packet_id` for QoS 1 and 2, which must be acknowledged).
+    Publish {
+        /// Its topic (invalid UTF-8 replaced).
+        topic: String,
+        /// The packet id to acknowledge, `None` at QoS 0.
+        packet_id: Option<u16>,
+        /// Its payload.
+        payload: Vec<u8>,
+    },
 }
 
 /// One connection to a broker.
 pub struct Connection {
     stream: TcpStream,
     buf: Vec<u8>,
+    max_incoming: usize,
 }
 
 fn push_str(out: &mut Vec<u8>, s: &[u8]) {
@@ -130,8 +142,9 @@ pub fn publish_packet(topic: &str, packet_id: u16, payload: &[u8]) -> Vec<u8> {
 }
 
 /// Decodes one packet from the start of `buf`: `Ok(None)` when it is not complete yet,
-/// otherwise the packet and its length. Anything but CONNACK-less traffic we expect is an error.
-pub fn decode(buf: &[u8]) -> Result<Option<(Incoming, usize)>, String> {
+/// otherwise the packet and its length. A packet longer than `max`, of a type a client does
+/// not receive, or malformed inside is an error (never a panic).
+pub fn decode(buf: &[u8], max: usize) -> Result<Option<(Incoming, usize)>, String> {
     let Some(&first) = buf.first() else {
         return Ok(None);
     };
@@ -150,7 +163,7 @@ pub fn decode(buf: &[u8]) -> Result<Option<(Incoming, usize)>, String> {
             return Err("a packet length longer than 4 bytes".into());
         }
     }
-    if len > MAX_INCOMING {
+    if len > max {
         return Err(format!("a packet of {len} bytes from the broker"));
     }
     if buf.len() < i + len {
@@ -160,6 +173,8 @@ pub fn decode(buf: &[u8]) -> Result<Option<(Incoming, usize)>, String> {
     let p = match (first, len) {
         (0x40, 2) => Incoming::PubAck(u16::from_be_bytes([body[0], body[1]])),
         (0xd0, 0) => Incoming::PingResp,
+        (0x90, 3) => Incoming::SubAck(u16::from_be_bytes([body[0], body[1]]), body[2]),
+        (f, _) if f & 0xf0 == 0x30 => publish(f, body)?,
         _ => {
             return Err(format!(
                 "an unexpected packet from the broker (type {}, {len} bytes)",
@@ -170,6 +185,33 @@ pub fn decode(buf: &[u8]) -> Result<Option<(Incoming, usize)>, String> {
     Ok(Some((p, i + len)))
 }
 
+/// The body of an incoming PUBLISH.
+fn publish(first: u8, body: &[u8]) -> Result<Incoming, String> {
+    let qos = (first >> 1) & 3;
+    if qos == 3 {
+        return Err("a PUBLISH with QoS 3".into());
+    }
+    let short = || "a PUBLISH shorter than its header".to_string();
+    let n = usize::from(u16::from_be_bytes([
+        *body.first().ok_or_else(short)?,
+        *body.get(1).ok_or_else(short)?,
+    ]));
+    let topic = body.get(2..2 + n).ok_or_else(short)?;
+    let mut rest = 2 + n;
+    let packet_id = if qos > 0 {
+        let id = body.get(rest..rest + 2).ok_or_else(short)?;
+        rest += 2;
+        Some(u16::from_be_bytes([id[0], id[1]]))
+    } else {
+        None
+    };
+    Ok(Incoming::Publish {
+        topic: String::from_utf8_lossy(topic).into_owned(),
+        packet_id,
+        payload: body[rest..].to_vec(),
+    })
+}
+
 impl Connection {
     /// Connects (TCP, then CONNECT with a clean session and the will) and waits for CONNACK,
     /// each within `timeout`.
@@ -178,6 +220,27 @@ impl Connection {
         client_id: &str,
         keep_alive_s: u16,
         will: Will<'_>,
+        timeout: Duration,
+    ) -> Result<Self, String> {
+        Self::open(url, client_id, keep_alive_s, Some(will), timeout)
+    }
+
+    /// Connects a subscriber: no will and a persistent session (clean session off), so that
+    /// the broker keeps its subscriptions and queues QoS 1 messages while it is away.
+    pub fn connect_subscriber(
+        url: &BrokerUrl,
+        client_id: &str,
+        keep_alive_s: u16,
+        timeout: Duration,
+    ) -> Result<Self, String> {
+        Self::open(url, client_id, keep_alive_s, None, timeout)
+    }
+
+    fn open(
+        url: &BrokerUrl,
+        client_id: &str,
+        keep_alive_s: u16,
+        will: Option<Will<'_>>,
         timeout: Duration,
     ) -> Result<Self, String> {
         let addrs = (url.host.as_str(), url.port)
@@ -199,7 +262,7 @@ impl Connection {
         mut stream: TcpStream,
         client_id: &str,
         keep_alive_s: u16,
-        will: Will<'_>,
+        will: Option<Will<'_>>,
         timeout: Duration,
     ) -> Result<Self, String> {
         let _ = stream.set_nodelay(true);
@@ -207,15 +270,23 @@ impl Connection {
             .set_write_timeout(Some(timeout))
             .and_then(|()| stream.set_read_timeout(Some(timeout)))
             .map_err(|e| e.to_string())?;
-        let mut body = Vec::with_capacity(64 + will.payload.len());
+        let mut body = Vec::with_capacity(64 + will.as_ref().map_or(0, |w| w.payload.len()));
         push_str(&mut body, b"MQTT");
-        body.push(4); // protocol level 3.1.1
-                      // Clean session (0x02), will (0x04) at QoS 1 (0x08), not retained: Sparkplug's NDEATH.
-        body.push(0x02 | 0x04 | 0x08);
+        // Protocol level 4: MQTT 3.1.1.
+        body.push(4);
+        // A publisher: clean session (0x02), will (0x04) at QoS 1 (0x08), not retained:
+        // Sparkplug's NDEATH. A subscriber: a persistent session and no will.
+        body.push(if will.is_some() {
+            0x02 | 0x04 | 0x08
+        } else {
+            0
+        });
         body.extend_from_slice(&keep_alive_s.to_be_bytes());
         push_str(&mut body, client_id.as_bytes());
-        push_str(&mut body, will.topic.as_bytes());
-        push_str(&mut body, will.payload);
+        if let Some(will) = &will {
+            push_str(&mut body, will.topic.as_bytes());
+            push_str(&mut body, will.payload);
+        }
         stream
             .write_all(&packet(0x10, &body))
             .map_err(|e| format!("CONNECT: {e}"))?;
@@ -240,6 +311,7 @@ impl Connection {
         Ok(Connection {
             stream,
             buf: Vec::with_capacity(64),
+            max_incoming: MAX_ACK,
         })
     }
 
@@ -251,6 +323,26 @@ impl Connection {
     /// Sends a QoS 1 PUBLISH.
     pub fn publish(&mut self, topic: &str, packet_id: u16, payload: &[u8]) -> Result<(), String> {
         self.send(&publish_packet(topic, packet_id, payload))
+    }
+
+    /// Accepts packets from the broker up to `bytes` (a subscriber receives messages).
+    pub fn set_max_incoming(&mut self, bytes: usize) {
+        self.max_incoming = bytes;
+    }
+
+    /// Subscribes to a topic filter at QoS 1 (packet id `id`); SUBACK comes through [`Self::poll`].
+    pub fn subscribe(&mut self, id: u16, filter: &str) -> Result<(), String> {
+        let mut body = Vec::with_capacity(filter.len() + 5);
+        body.extend_from_slice(&id.to_be_bytes());
+        push_str(&mut body, filter.as_bytes());
+        body.push(1);
+        self.send(&packet(0x82, &body))
+    }
+
+    /// Acknowledges a QoS 1 message.
+    pub fn puback(&mut self, id: u16) -> Result<(), String> {
+        let [a, b] = id.to_be_bytes();
+        self.send(&[0x40, 2, a, b])
     }
 
     /// Sends PINGREQ.
@@ -276,7 +368,7 @@ impl Connection {
             Err(e) if matches!(e.kind(), ErrorKind::WouldBlock | ErrorKind::TimedOut) => {}
             Err(e) => return Err(e.to_string()),
         }
-        while let Some((p, used)) = decode(&self.buf)? {
+        while let Some((p, used)) = decode(&self.buf, self.max_incoming)? {
             out.push(p);
             self.buf.drain(..used);
         }
@@ -317,18 +409,56 @@ mod tests {
 
     #[test]
     fn what_the_broker_sends_is_decoded_or_refused_never_a_panic() {
-        assert_eq!(decode(&[0x40, 2, 0, 7]), Ok(Some((Incoming::PubAck(7), 4))));
-        assert_eq!(decode(&[0xd0, 0]), Ok(Some((Incoming::PingResp, 2))));
-        assert_eq!(decode(&[0x40, 2, 0]), Ok(None));
-        assert_eq!(decode(&[0x40]), Ok(None));
-        assert!(decode(&[0x30, 2, 0, 0]).is_err());
-        assert!(decode(&[0x40, 0xff, 0xff, 0xff, 0xff, 1]).is_err());
-        assert!(decode(&[0x40, 0xff, 0xff, 0x7f]).is_err());
+        let d = |b: &[u8]| decode(b, MAX_ACK);
+        assert_eq!(d(&[0x40, 2, 0, 7]), Ok(Some((Incoming::PubAck(7), 4))));
+        assert_eq!(d(&[0xd0, 0]), Ok(Some((Incoming::PingResp, 2))));
+        assert_eq!(
+            d(&[0x90, 3, 0, 1, 1]),
+            Ok(Some((Incoming::SubAck(1, 1), 5)))
+        );
+        assert_eq!(d(&[0x40, 2, 0]), Ok(None));
+        assert_eq!(d(&[0x40]), Ok(None));
+        assert!(d(&[0x20, 2, 0, 0]).is_err());
+        assert!(d(&[0x40, 0xff, 0xff, 0xff, 0xff, 1]).is_err());
+        assert!(d(&[0x40, 0xff, 0xff, 0x7f]).is_err());
         // Every short byte string: decoded, incomplete or refused.
         for a in 0..=255u8 {
-            for b in [0u8, 1, 2, 0x7f, 0x80, 0xff] {
-                let _ = decode(&[a, b, a, b, a]);
+            for b in [0u8, 1, 2, 3, 4, 5, 0x7f, 0x80, 0xff] {
+                let _ = d(&[a, b, a, b, a]);
+                let _ = d(&[a, b, 0, b, a, 0, 0]);
             }
         }
+    }
+
+    #[test]
+    fn an_incoming_publish_is_taken_apart() {
+        let p = publish_packet("a/b", 9, b"xy");
+        assert_eq!(
+            decode(&p, MAX_ACK),
+            Ok(Some((
+                Incoming::Publish {
+                    topic: "a/b".into(),
+                    packet_id: Some(9),
+                    payload: b"xy".to_vec()
+                },
+                p.len()
+            )))
+        );
+        // QoS 0: no packet id; QoS 3 and a topic longer than the packet: refused.
+        assert_eq!(
+            decode(&[0x30, 4, 0, 1, b't', b'z'], MAX_ACK),
+            Ok(Some((
+                Incoming::Publish {
+                    topic: "t".into(),
+                    packet_id: None,
+                    payload: b"z".to_vec()
+                },
+                6
+            )))
+        );
+        assert!(decode(&[0x36, 3, 0, 1, b't'], MAX_ACK).is_err());
+        assert!(decode(&[0x32, 3, 0, 9, b't'], MAX_ACK).is_err());
+        assert!(decode(&[0x32, 4, 0, 1, b't', 0], MAX_ACK).is_err());
+        assert!(decode(&p, 4).is_err(), "longer than allowed");
     }
 }

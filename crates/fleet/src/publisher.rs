@@ -442,6 +442,10 @@ impl State {
                     }
                 }
                 Incoming::PingResp => s.ping_since = None,
+                // Nothing was subscribed: a broker that sends these is not talking to us.
+                Incoming::SubAck(..) | Incoming::Publish { .. } => {
+                    return Err(format!("{}: an unexpected packet", self.config.broker))
+                }
             }
         }
         while s.in_flight.front().is_some_and(|m| m.acked) {

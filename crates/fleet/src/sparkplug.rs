@@ -198,6 +198,144 @@ impl Payload {
     }
 }
 
+/// Reads protobuf fields from a byte string; every read is checked, nothing panics.
+struct Reader<'a> {
+    b: &'a [u8],
+}
+
+/// One field's value as its wire type carries it.
+enum Field<'a> {
+    Varint(u64),
+    Fixed64([u8; 8]),
+    Fixed32([u8; 4]),
+    Bytes(&'a [u8]),
+}
+
+impl<'a> Reader<'a> {
+    fn varint(&mut self) -> Result<u64, String> {
+        let mut v = 0u64;
+        for i in 0..10 {
+            let (&b, rest) = self.b.split_first().ok_or("a varint cut short")?;
+            self.b = rest;
+            v |= u64::from(b & 0x7f) << (7 * i);
+            if b & 0x80 == 0 {
+                return Ok(v);
+            }
+        }
+        Err("a varint longer than 10 bytes".into())
+    }
+
+    fn take(&mut self, n: usize) -> Result<&'a [u8], String> {
+        if n > self.b.len() {
+            return Err(format!(
+                "a field of {n} bytes where {} are left",
+                self.b.len()
+            ));
+        }
+        let (a, rest) = self.b.split_at(n);
+        self.b = rest;
+        Ok(a)
+    }
+
+    /// The next field, `None` at the end.
+    fn field(&mut self) -> Result<Option<(u64, Field<'a>)>, String> {
+        if self.b.is_empty() {
+            return Ok(None);
+        }
+        let key = self.varint()?;
+        let f = match key & 7 {
+            0 => Field::Varint(self.varint()?),
+            1 => Field::Fixed64(self.take(8)?.try_into().map_err(|_| "fixed64")?),
+            2 => {
+                let n = usize::try_from(self.varint()?).map_err(|_| "a length beyond memory")?;
+                Field::Bytes(self.take(n)?)
+            }
+            5 => Field::Fixed32(self.take(4)?.try_into().map_err(|_| "fixed32")?),
+            w => return Err(format!("wire type {w} (groups are not Sparkplug)")),
+        };
+        Ok(Some((key >> 3, f)))
+    }
+}
+
+impl Metric {
+    fn decode(b: &[u8]) -> Result<Self, String> {
+        let mut r = Reader { b };
+        let mut m = Metric::new("", Value::Null(0));
+        let mut datatype = 0u32;
+        let mut null = false;
+        while let Some((n, f)) = r.field()? {
+            m.value = match (n, f) {
+                (1, Field::Bytes(x)) => {
+                    m.name = String::from_utf8_lossy(x).into_owned();
+                    continue;
+                }
+                (2, Field::Varint(v)) => {
+                    m.alias = Some(v);
+                    continue;
+                }
+                (3, Field::Varint(v)) => {
+                    m.timestamp_ms = Some(v);
+                    continue;
+                }
+                (4, Field::Varint(v)) => {
+                    datatype = u32::try_from(v).unwrap_or(0);
+                    continue;
+                }
+                (5, Field::Varint(v)) => {
+                    m.historical = v != 0;
+                    continue;
+                }
+                (7, Field::Varint(v)) => {
+                    null = v != 0;
+                    continue;
+                }
+                (10, Field::Varint(v)) => Value::UInt32(v as u32),
+                (11, Field::Varint(v)) => Value::UInt64(v),
+                (12, Field::Fixed32(x)) => Value::Double(f64::from(f32::from_le_bytes(x))),
+                (13, Field::Fixed64(x)) => Value::Double(f64::from_le_bytes(x)),
+                (14, Field::Varint(v)) => Value::Boolean(v != 0),
+                (15, Field::Bytes(x)) => Value::String(String::from_utf8_lossy(x).into_owned()),
+                // Fields this node never sends (metadata, properties, data sets): skipped.
+                _ => continue,
+            };
+        }
+        if null {
+            m.value = Value::Null(datatype);
+        }
+        Ok(m)
+    }
+}
+
+impl Payload {
+    /// Decodes a Sparkplug B payload; bytes that are not one are an error, never a panic.
+    /// Values come back by their protobuf field (`int_value` as `UInt32`, `float_value` as
+    /// `Double`); a metric by alias alone has an empty name.
+    pub fn decode(bytes: &[u8]) -> Result<Self, String> {
+        let mut r = Reader { b: bytes };
+        let mut p = Payload {
+            timestamp_ms: 0,
+            seq: None,
+            metrics: Vec::new(),
+        };
+        let mut has_timestamp = false;
+        while let Some((n, f)) = r.field()? {
+            match (n, f) {
+                (1, Field::Varint(v)) => {
+                    p.timestamp_ms = v;
+                    has_timestamp = true;
+                }
+                (2, Field::Bytes(m)) => p.metrics.push(Metric::decode(m)?),
+                (3, Field::Varint(v)) => p.seq = Some(v),
+                _ => {}
+            }
+        }
+        if !has_timestamp {
+            return Err("no timestamp: not a Sparkplug B payload".into());
+        }
+        Ok(p)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -231,6 +369,41 @@ mod tests {
         m.encode(&mut out);
         // alias 300 = 10 ac 02, timestamp 1 = 18 01, int_value 5 = 50 05.
         assert_eq!(out, [0x10, 0xac, 0x02, 0x18, 0x01, 0x50, 0x05]);
+    }
+
+    #[test]
+    fn what_is_encoded_decodes_and_what_is_not_a_payload_is_refused() {
+        let p = Payload {
+            timestamp_ms: 1_764_000_000_000,
+            seq: Some(7),
+            metrics: vec![
+                Metric::new("a", Value::Double(-1.5)),
+                Metric {
+                    alias: Some(9),
+                    timestamp_ms: Some(5),
+                    historical: true,
+                    ..Metric::new("", Value::UInt32(3))
+                },
+                Metric::new("s", Value::String("x y".into())),
+                Metric::new("n", Value::Null(DOUBLE)),
+                Metric::new("b", Value::Boolean(true)),
+                Metric::new("l", Value::UInt64(u64::MAX)),
+            ],
+        };
+        assert_eq!(Payload::decode(&p.encode()), Ok(p.clone()));
+        let bytes = p.encode();
+        for cut in 0..bytes.len() {
+            let _ = Payload::decode(&bytes[..cut]);
+        }
+        assert!(Payload::decode(b"").is_err());
+        assert!(Payload::decode(b"{\"json\": true}").is_err());
+        assert!(Payload::decode(&[0x08, 0xff, 0xff]).is_err());
+        assert!(Payload::decode(&[0x12, 0xff, 0xff, 0xff, 0xff, 0x0f]).is_err());
+        for a in 0..=255u8 {
+            for b in [0u8, 1, 2, 0x7f, 0x80, 0xff] {
+                let _ = Payload::decode(&[a, b, a, b, 0x0a, a]);
+            }
+        }
     }
 
     #[test]
