@@ -17,7 +17,7 @@ use truepos_fit::family::Families;
 use truepos_fit::settings::{InnerCv, Ridges, Rule, Selection, Settings};
 use truepos_fit::validate::{fit, Outcome, Split, Validation};
 use truepos_io::limits::int_in;
-use truepos_io::run::{read_shaped, Table, Time};
+use truepos_io::run::{read_shaped, RunTable, Time};
 
 use crate::shape::ShapeArgs;
 
@@ -155,7 +155,7 @@ pub struct Args {
 }
 
 /// The runs named on the command line, as one dataset.
-pub(crate) fn load(args: &Args, inputs: &Patterns) -> Result<(Dataset, Vec<Table>), CliError> {
+pub(crate) fn load(args: &Args, inputs: &Patterns) -> Result<(Dataset, Vec<RunTable>), CliError> {
     let tables = tables(args)?;
     let columns = Columns {
         time: args
@@ -196,8 +196,8 @@ fn default_targets(columns: &[String]) -> Result<Patterns, CliError> {
 }
 
 /// The run tables named on the command line.
-pub(crate) fn tables(args: &Args) -> Result<Vec<Table>, CliError> {
-    let mut tables: Vec<Table> = Vec::new();
+pub(crate) fn tables(args: &Args) -> Result<Vec<RunTable>, CliError> {
+    let mut tables: Vec<RunTable> = Vec::new();
     let shape = args.shape.shape();
     for path in &args.runs {
         tables.extend(read_shaped(path, args.sheet.as_deref(), &shape)?);

@@ -112,14 +112,14 @@ fn tool_length(c: &Common, k: &KinematicsFile) -> Result<f64, CliError> {
 }
 
 /// A numeric CSV: header names and rows with their line numbers.
-struct Table {
+struct PointList {
     header: Vec<String>,
     rows: Vec<(usize, Vec<f64>)>,
 }
 
 /// Reads a point list: `#` comments and blank lines skipped, every cell a finite number (an
 /// error names its line and character column), every row as wide as the header.
-fn read_csv(path: &Path) -> Result<Table, CliError> {
+fn read_csv(path: &Path) -> Result<PointList, CliError> {
     use truepos_io::table::{self, Number};
     let t = table::load_csv(
         path,
@@ -166,14 +166,14 @@ fn read_csv(path: &Path) -> Result<Table, CliError> {
         }
         rows.push((row.line(), values));
     }
-    Ok(Table {
+    Ok(PointList {
         header: t.columns,
         rows,
     })
 }
 
 /// Column index of each of `names` in the header.
-fn columns(path: &Path, t: &Table, names: &[&str]) -> Result<Vec<usize>, CliError> {
+fn columns(path: &Path, t: &PointList, names: &[&str]) -> Result<Vec<usize>, CliError> {
     for (c, h) in t.header.iter().enumerate() {
         if !names.contains(&h.as_str()) {
             return Err(InputError::at(

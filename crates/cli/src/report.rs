@@ -81,7 +81,7 @@ fn relative_to_first(values: &mut [f64]) {
 /// The clock time (s since 1970-01-01 UTC) of a run's first row when its time column holds
 /// date-times — the column `--time` names, else `time_s`, the one the cycles are timed by —, so
 /// that the drift plots read the shop's clock; `None` for seconds, row numbers or a period.
-fn clock_start(args: &Args, table: &truepos_io::run::Table) -> Option<f64> {
+fn clock_start(args: &Args, table: &truepos_io::run::RunTable) -> Option<f64> {
     let period = matches!(
         args.shape.time(None),
         Some(truepos_io::run::Time::Period(_))
@@ -119,11 +119,11 @@ fn read_measured(args: &Args, names: &[String]) -> Result<Vec<Measured>, CliErro
     let listed = || {
         tables
             .iter()
-            .map(truepos_io::run::Table::name)
+            .map(truepos_io::run::RunTable::name)
             .collect::<Vec<_>>()
             .join(", ")
     };
-    let selected: Vec<&truepos_io::run::Table> = match &args.select_run {
+    let selected: Vec<&truepos_io::run::RunTable> = match &args.select_run {
         Some(name) => vec![tables.iter().find(|t| t.name() == *name).ok_or_else(|| {
             CliError::refused(format!(
                 "--select-run `{name}`: no such run in {}; the runs are: {}",

@@ -8,7 +8,7 @@ use std::str::FromStr;
 
 pub use truepos_io::dynamic_model_file::InputKind;
 pub use truepos_io::run::Time;
-use truepos_io::run::{glob_match, Table};
+use truepos_io::run::{glob_match, RunTable};
 use truepos_io::units::Role;
 use truepos_io::InputError;
 
@@ -35,7 +35,7 @@ pub struct Run {
 impl Run {
     /// The columns named `inputs` and `targets` of a table, and its time column.
     fn from_table(
-        t: &Table,
+        t: &RunTable,
         time: &Time,
         inputs: &[(String, InputKind)],
         targets: &[String],
@@ -312,7 +312,7 @@ fn glob_leaves_out(name: &str, time: &Time) -> bool {
 /// The input columns of `first`: each pattern in order, each column once; a glob never takes
 /// what [`glob_leaves_out`], and a glob that matches only such columns is an error naming them.
 fn input_columns(
-    first: &Table,
+    first: &RunTable,
     patterns: &Patterns,
     time: &Time,
 ) -> Result<Vec<String>, InputError> {
@@ -386,7 +386,7 @@ impl Dataset {
     /// The dataset of several runs with the same columns: inputs and targets are chosen on the
     /// first table (in pattern order, each column once) and read by name from every table, so
     /// a run without one of them is refused naming it. Checked ([`Dataset::check`]).
-    pub fn from_tables(tables: &[Table], columns: &Columns) -> Result<Dataset, DatasetError> {
+    pub fn from_tables(tables: &[RunTable], columns: &Columns) -> Result<Dataset, DatasetError> {
         let first = tables.first().ok_or(DatasetError::Empty)?;
         let names = |patterns: &Patterns| -> Result<Vec<String>, InputError> {
             let cols = first.select(&patterns.as_strs())?;
@@ -580,7 +580,7 @@ mod tests {
         assert!(matches!(d.check(), Err(DatasetError::Length { .. })));
     }
 
-    fn table(text: &str) -> Table {
+    fn table(text: &str) -> RunTable {
         truepos_io::run::parse_csv(std::path::Path::new("day.csv"), text).unwrap()
     }
 

@@ -11,7 +11,7 @@
 //! axis' summands never touch another axis' coefficients, so the choices are independent and one
 //! [`Model`] holds them all). The form is chosen by the pooled inner-CV RMSE over the targets.
 
-use truepos_io::run::Table;
+use truepos_io::run::RunTable;
 use truepos_io::units::{find_channel, Role};
 use truepos_io::InputError;
 use truepos_model::{CycleInput, LagSource, Machine, Model, Part, RecordedRun, Reference};
@@ -54,7 +54,7 @@ pub struct MachineData {
 /// any unit (`X_mm`, `X [mm]`, `X (in)`).
 fn position_column(
     machine: &Machine,
-    t: &Table,
+    t: &RunTable,
     a: usize,
     name: &str,
     given: bool,
@@ -82,7 +82,7 @@ impl MachineData {
     /// A channel a table lacks reads NaN, and the differences that read it are left out.
     pub fn from_tables(
         machine: &Machine,
-        tables: &[Table],
+        tables: &[RunTable],
         dataset: &Dataset,
         positions: Option<&[String]>,
         target_axes: Vec<usize>,

@@ -28,7 +28,7 @@ use crate::units::{self, Role};
 
 /// One run as a table of named columns, read by [`crate::table`].
 #[derive(Debug, Clone, PartialEq)]
-pub struct Table {
+pub struct RunTable {
     /// The file it came from.
     pub file: PathBuf,
     /// The sheet, for workbooks.
@@ -72,7 +72,7 @@ impl Default for Time {
     }
 }
 
-impl Table {
+impl RunTable {
     fn new(table: table::Table) -> Self {
         Self {
             file: table.file.clone(),
@@ -92,7 +92,7 @@ impl Table {
     /// Splits the table into runs by the value of column `column` (text or number), in order of
     /// first appearance. The rows of one run must be together: a run that appears again after
     /// another one is an error at the row where it does, as is an empty cell.
-    pub fn split_runs(self, column: &str) -> Result<Vec<Table>, InputError> {
+    pub fn split_runs(self, column: &str) -> Result<Vec<RunTable>, InputError> {
         let col = self.select(&[column])?[0];
         let t = &self.table;
         // (key, first line, first row, end row) of each run, in order.
@@ -127,7 +127,7 @@ impl Table {
         }
         Ok(runs
             .into_iter()
-            .map(|(key, _, start, end)| Table {
+            .map(|(key, _, start, end)| RunTable {
                 run: Some(key),
                 table: t.sub_table(start..end),
                 ..self.clone_header()
@@ -135,8 +135,8 @@ impl Table {
             .collect())
     }
 
-    fn clone_header(&self) -> Table {
-        Table {
+    fn clone_header(&self) -> RunTable {
+        RunTable {
             file: self.file.clone(),
             sheet: self.sheet.clone(),
             run: self.run.clone(),
@@ -376,7 +376,7 @@ pub fn glob_match(pattern: &str, name: &str) -> bool {
 }
 
 /// Parses a CSV run (header row of column names, comma-separated).
-pub fn parse_csv(file: &Path, text: &str) -> Result<Table, InputError> {
+pub fn parse_csv(file: &Path, text: &str) -> Result<RunTable, InputError> {
     csv_run(table::parse_csv(
         file,
         text.as_bytes(),
@@ -385,7 +385,7 @@ pub fn parse_csv(file: &Path, text: &str) -> Result<Table, InputError> {
 }
 
 /// A run's rules on a CSV table: a header of distinct names, every row as wide, a data row.
-fn csv_run(t: table::Table) -> Result<Table, InputError> {
+fn csv_run(t: table::Table) -> Result<RunTable, InputError> {
     if t.columns.iter().all(String::is_empty) {
         return Err(InputError::file(
             &t.file,
@@ -399,23 +399,23 @@ fn csv_run(t: table::Table) -> Result<Table, InputError> {
     if t.is_empty() {
         return Err(InputError::file(&t.file, "no data rows below the header"));
     }
-    Ok(Table::new(t))
+    Ok(RunTable::new(t))
 }
 
 /// Reads a workbook: every non-empty sheet (or only `sheet`) is one run; the first non-empty
 /// row of a sheet holds the column names.
-pub fn read_workbook(file: &Path, sheet: Option<&str>) -> Result<Vec<Table>, InputError> {
+pub fn read_workbook(file: &Path, sheet: Option<&str>) -> Result<Vec<RunTable>, InputError> {
     table::read_workbook(file, sheet)?
         .into_iter()
         .map(|t| {
             t.check_unique_columns()?;
-            Ok(Table::new(t))
+            Ok(RunTable::new(t))
         })
         .collect()
 }
 
 /// Reads a run file by its extension: `.csv` (one run) or a workbook (one run per sheet).
-pub fn read(file: &Path, sheet: Option<&str>) -> Result<Vec<Table>, InputError> {
+pub fn read(file: &Path, sheet: Option<&str>) -> Result<Vec<RunTable>, InputError> {
     read_shaped(file, sheet, &Shape::default())
 }
 
@@ -425,7 +425,7 @@ pub fn read_shaped(
     file: &Path,
     sheet: Option<&str>,
     shape: &Shape,
-) -> Result<Vec<Table>, InputError> {
+) -> Result<Vec<RunTable>, InputError> {
     let tables = if table::is_workbook(file) {
         read_workbook(file, sheet)?
     } else {
@@ -435,9 +435,9 @@ pub fn read_shaped(
         };
         vec![csv_run(table::load_csv(file, options)?)?]
     };
-    let tables: Vec<Table> = tables
+    let tables: Vec<RunTable> = tables
         .into_iter()
-        .map(|t| Table {
+        .map(|t| RunTable {
             time_format: shape.time_format.clone(),
             ..t
         })
