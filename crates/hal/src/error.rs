@@ -30,6 +30,15 @@ pub enum Error {
     Refused(String),
 }
 
+impl From<truepos_runtime::StartError> for Error {
+    fn from(e: truepos_runtime::StartError) -> Self {
+        match e {
+            truepos_runtime::StartError::Refused(why) => Self::Refused(why),
+            truepos_runtime::StartError::Log(e) => Self::Log(e),
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -70,14 +79,5 @@ mod tests {
         let io = || std::io::Error::new(std::io::ErrorKind::PermissionDenied, "denied");
         assert_eq!(Error::Stats(io()).to_string(), "denied");
         assert_eq!(Error::Signal(io()).to_string(), "denied");
-    }
-}
-
-impl From<truepos_runtime::StartError> for Error {
-    fn from(e: truepos_runtime::StartError) -> Self {
-        match e {
-            truepos_runtime::StartError::Refused(why) => Self::Refused(why),
-            truepos_runtime::StartError::Log(e) => Self::Log(e),
-        }
     }
 }
