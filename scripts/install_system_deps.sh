@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Debian packages the build and the tests need (idempotent). Called by .ci/run.
-# mosquitto: the MQTT broker crates/cli/tests/fleet_mqtt.rs starts on loopback (docs/fleet.md).
+# mosquitto and postgresql: the MQTT broker and the fleet store crates/cli/tests/fleet_mqtt.rs
+# starts on loopback (docs/fleet.md).
 set -euo pipefail
-pkgs=(libsqlite3-dev pkg-config mosquitto)
+pkgs=(libsqlite3-dev pkg-config mosquitto postgresql)
 missing=()
 for p in "${pkgs[@]}"; do
   dpkg -s "$p" >/dev/null 2>&1 || missing+=("$p")

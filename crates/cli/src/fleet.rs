@@ -1,6 +1,7 @@
-//! `truepos run --mqtt URL` (the publisher beside the service) and `truepos fleet publish`
-//! (forward a log that is already written, e.g. after the service was killed): options into
-//! `truepos_fleet`'s values, the summary printed.
+//! `truepos run --mqtt URL` (the publisher beside the service), `truepos fleet publish`
+//! (forward a log that is already written, e.g. after the service was killed) and `truepos
+//! fleet ingest` (the broker into PostgreSQL): options into `truepos_fleet`'s and
+//! `truepos_fleet_store`'s values, the summary printed.
 
 use std::path::{Path, PathBuf};
 use std::time::Duration;
@@ -83,6 +84,29 @@ enum Command {
     /// Forward a service's log to an MQTT broker as Sparkplug B from this broker's cursor, then
     /// exit: what a killed service left unsent goes out, marked historical.
     Publish(PublishArgs),
+    /// Take the fleet's Sparkplug B telemetry from an MQTT broker into PostgreSQL (migrations
+    /// applied first; a message sent twice is written once; docs/fleet.md).
+    Ingest(IngestArgs),
+}
+
+#[derive(clap::Args)]
+struct IngestArgs {
+    /// The broker, `mqtt://HOST[:PORT]`.
+    #[arg(long, value_name = "URL")]
+    mqtt: String,
+    /// PostgreSQL, `postgres://USER@HOST:PORT/DB`.
+    #[arg(long, value_name = "URL")]
+    db: String,
+    /// MQTT client id: the broker keeps this id's subscription and queues for it while away.
+    #[arg(long, default_value = "truepos-fleet-ingest")]
+    client_id: String,
+    /// Stop after this many seconds without a message (default: run until stopped or
+    /// --duration-s).
+    #[arg(long)]
+    idle_exit_s: Option<f64>,
+    /// Stop after this many seconds.
+    #[arg(long)]
+    duration_s: Option<f64>,
 }
 
 #[derive(clap::Args)]
@@ -108,7 +132,42 @@ struct PublishArgs {
 pub fn run(args: Args) -> Result<(), CliError> {
     match args.command {
         Command::Publish(a) => publish(a),
+        Command::Ingest(a) => ingest(a),
     }
+}
+
+fn seconds(name: &str, v: Option<f64>) -> Result<Option<Duration>, CliError> {
+    match v {
+        None => Ok(None),
+        Some(s) if s.is_finite() && s > 0.0 && s <= 31_536_000.0 => {
+            Ok(Some(Duration::from_secs_f64(s)))
+        }
+        Some(_) => Err(CliError::refused(format!("{name}: give 0-31536000 s"))),
+    }
+}
+
+fn ingest(a: IngestArgs) -> Result<(), CliError> {
+    let config = truepos_fleet_store::ingest::Config {
+        broker: BrokerUrl::parse(&a.mqtt).map_err(CliError::refused)?,
+        db: a.db,
+        client_id: a.client_id,
+        idle_exit: seconds("--idle-exit-s", a.idle_exit_s)?,
+        deadline: seconds("--duration-s", a.duration_s)?,
+    };
+    let s = truepos_fleet_store::ingest::run(&config);
+    eprintln!(
+        "ingest: {} messages; {} seconds and {} events written, {} already there; {} skipped{}; {} database failure(s), {} broker connection(s){}",
+        s.messages,
+        s.seconds,
+        s.events,
+        s.duplicates,
+        s.skipped,
+        s.last_skip.as_deref().map(|w| format!(" (last: {w})")).unwrap_or_default(),
+        s.db_failures,
+        s.connects,
+        s.last_error.as_deref().map(|w| format!("; last error: {w}")).unwrap_or_default(),
+    );
+    Ok(())
 }
 
 fn publish(a: PublishArgs) -> Result<(), CliError> {

@@ -463,3 +463,293 @@ fn check_kept_compensating(db: &Path) {
     let inactive = rows.iter().filter(|r| r.1 != "active").count();
     assert!(inactive < 10, "{inactive} cycles without compensation");
 }
+
+/// PostgreSQL 15 (Debian `postgresql`, installed by scripts/install_system_deps.sh), a cluster
+/// of its own in the scratch directory on a free loopback port, stopped when dropped.
+struct Postgres {
+    data: PathBuf,
+    port: u16,
+}
+
+fn pg_bin(name: &str) -> PathBuf {
+    let p = PathBuf::from("/usr/lib/postgresql/15/bin").join(name);
+    assert!(
+        p.exists(),
+        "{} is missing: run scripts/install_system_deps.sh (Debian package postgresql)",
+        p.display()
+    );
+    p
+}
+
+/// PostgreSQL refuses to run as root: as root, its commands run as the `postgres` user.
+fn as_postgres(program: &Path) -> Command {
+    let root = Command::new("id")
+        .arg("-u")
+        .output()
+        .is_ok_and(|o| o.stdout.starts_with(b"0\n"));
+    if root {
+        let mut c = Command::new("runuser");
+        c.args(["-u", "postgres", "--"]).arg(program);
+        c
+    } else {
+        Command::new(program)
+    }
+}
+
+fn run_ok(c: &mut Command, what: &str) {
+    let out = c.output().unwrap();
+    assert!(
+        out.status.success(),
+        "{what}: {}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+impl Postgres {
+    fn start(dir: &Path) -> Self {
+        let data = dir.join("pg");
+        std::fs::create_dir_all(&data).unwrap();
+        run_ok(
+            Command::new("chown")
+                .args(["-R", "postgres:postgres"])
+                .arg(&data),
+            "chown",
+        );
+        let mut init = as_postgres(&pg_bin("initdb"));
+        init.args(["-A", "trust", "-U", "postgres", "--no-sync", "-D"])
+            .arg(&data);
+        run_ok(&mut init, "initdb");
+        let pg = Postgres {
+            data,
+            port: free_port(),
+        };
+        pg.pg_ctl_start();
+        pg
+    }
+
+    fn pg_ctl_start(&self) {
+        let mut c = as_postgres(&pg_bin("pg_ctl"));
+        c.arg("-D").arg(&self.data).arg("-o").arg(format!(
+            "-p {} -k {} -c listen_addresses=127.0.0.1 -c fsync=off",
+            self.port,
+            self.data.display()
+        ));
+        c.arg("-l").arg(self.data.join("log")).args(["-w", "start"]);
+        run_ok(&mut c, "pg_ctl start");
+    }
+
+    fn stop(&self) {
+        let mut c = as_postgres(&pg_bin("pg_ctl"));
+        c.arg("-D")
+            .arg(&self.data)
+            .args(["-m", "fast", "-w", "stop"]);
+        run_ok(&mut c, "pg_ctl stop");
+    }
+
+    fn url(&self) -> String {
+        format!("postgres://postgres@127.0.0.1:{}/postgres", self.port)
+    }
+
+    fn query(&self, sql: &str) -> String {
+        let out = Command::new("psql")
+            .args([
+                "-h",
+                "127.0.0.1",
+                "-U",
+                "postgres",
+                "-d",
+                "postgres",
+                "-At",
+                "-F",
+                ",",
+            ])
+            .args(["-p", &self.port.to_string(), "-c", sql])
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{sql}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        String::from_utf8(out.stdout).unwrap().trim().to_string()
+    }
+}
+
+impl Drop for Postgres {
+    fn drop(&mut self) {
+        let mut c = as_postgres(&pg_bin("pg_ctl"));
+        c.arg("-D")
+            .arg(&self.data)
+            .args(["-m", "immediate", "stop"]);
+        let _ = c.output();
+    }
+}
+
+/// Publishes one raw message with paho-mqtt (not with our client: a foreign publisher);
+/// `payload` is the inside of a Python bytes literal.
+fn publish_foreign(port: u16, topic: &str, payload: &str) {
+    run_ok(
+        Command::new(repo(".venv/bin/python")).args([
+            "-c",
+            &format!(
+                "import paho.mqtt.publish as p; p.single('{topic}', b'{payload}', qos=1, port={port})"
+            ),
+        ]),
+        "paho publish",
+    );
+}
+
+#[test]
+fn the_fleet_store_holds_each_second_once_through_a_database_outage_and_a_replay() {
+    let dir = scratch("fleet-ingest");
+    let port = free_port();
+    let url = format!("mqtt://127.0.0.1:{port}");
+    let db = dir.join("log.sqlite");
+    let _broker = start_broker(&dir, port);
+    let pg = Postgres::start(&dir);
+    let ingest = truepos()
+        .args(["fleet", "ingest", "--mqtt", &url, "--db", &pg.url()])
+        .args(["--idle-exit-s", "8", "--duration-s", "180"])
+        .stdout(Stdio::null())
+        .stderr(std::fs::File::create(dir.join("ingest.err")).unwrap())
+        .spawn()
+        .unwrap();
+    let mut ingest = Reaped(ingest);
+    // The ingester's subscription exists before anything is published.
+    let deadline = Instant::now() + Duration::from_secs(30);
+    while pg.query("SELECT count(*) FROM pg_tables WHERE tablename = 'fleet_seconds'") != "1" {
+        assert!(Instant::now() < deadline, "no schema within 30 s");
+        std::thread::sleep(Duration::from_millis(200));
+    }
+    std::thread::sleep(Duration::from_millis(500));
+    // Bad input on the topics: not a payload, and NDATA of a node nobody knows.
+    publish_foreign(
+        port,
+        "spBv1.0/truepos/NDATA/intruder",
+        "not protobuf at all",
+    );
+    publish_foreign(port, "spBv1.0/other/NDATA/nobody", r"\x08\x01");
+
+    let mut service = Reaped(
+        truepos()
+            .args([
+                "run",
+                "--source",
+                "replay:examples/vmc3/run.csv@20",
+                "--period-ms",
+                "100",
+            ])
+            .args(["--duration-s", "240", "--log"])
+            .arg(&db)
+            .args(["--mqtt", &url])
+            .stdout(Stdio::null())
+            .stderr(std::fs::File::create(dir.join("run.err")).unwrap())
+            .spawn()
+            .unwrap(),
+    );
+    std::thread::sleep(Duration::from_secs(4));
+    // PostgreSQL away for three seconds: the ingester stops taking messages, the broker keeps them.
+    pg.stop();
+    std::thread::sleep(Duration::from_secs(3));
+    pg.pg_ctl_start();
+    let status = service.0.wait().unwrap();
+    assert!(
+        status.success(),
+        "{}",
+        std::fs::read_to_string(dir.join("run.err")).unwrap()
+    );
+    // The whole log again from a new cursor: every row is there already.
+    for e in std::fs::read_dir(&dir).unwrap() {
+        let p = e.unwrap().path();
+        if p.to_string_lossy().ends_with(".mqtt-cursor") {
+            std::fs::remove_file(p).unwrap();
+        }
+    }
+    let out = truepos()
+        .args(["fleet", "publish", "--log"])
+        .arg(&db)
+        .args(["--mqtt", &url, "--replay-per-s", "1000"])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let deadline = Instant::now() + Duration::from_secs(60);
+    while ingest.0.try_wait().unwrap().is_none() {
+        assert!(Instant::now() < deadline, "the ingester did not go idle");
+        std::thread::sleep(Duration::from_millis(200));
+    }
+    let summary = std::fs::read_to_string(dir.join("ingest.err")).unwrap();
+    eprintln!("{summary}");
+
+    let (log, events) = log_seconds(&db);
+    let stored = pg.query("SELECT count(*), sum(cycles) FROM fleet_seconds");
+    let cycles: u32 = log.values().map(|v| v.0).sum();
+    assert_eq!(stored, format!("{},{cycles}", log.len()), "{summary}");
+    assert_eq!(
+        pg.query("SELECT count(*) FROM fleet_events"),
+        events.len().to_string()
+    );
+    let rows = pg.query(
+        "SELECT (extract(epoch FROM t) * 1000)::bigint, cycles, stats->'Offsets/Z_offset_um'->>1, \
+         historical FROM fleet_seconds ORDER BY t",
+    );
+    let first_ms: i64 = rows
+        .lines()
+        .next()
+        .unwrap()
+        .split(',')
+        .next()
+        .unwrap()
+        .parse()
+        .unwrap();
+    let first_s = *log.keys().next().unwrap();
+    for line in rows.lines() {
+        let f: Vec<&str> = line.split(',').collect();
+        let s = first_s + (f[0].parse::<i64>().unwrap() - first_ms) / 1000;
+        let (n, stats) = &log[&s];
+        assert_eq!(f[1], n.to_string(), "second {s}");
+        let z = stats
+            .iter()
+            .find(|c| c.0 == "Z_offset_um")
+            .unwrap()
+            .1
+            .unwrap()[1];
+        let got: f64 = f[2].parse().unwrap();
+        assert!(
+            (got - z).abs() <= 1e-9 * z.abs().max(1.0),
+            "second {s}: {got} vs {z}"
+        );
+    }
+    assert!(summary.contains("already there"), "{summary}");
+    let already: u64 = summary
+        .split("written, ")
+        .nth(1)
+        .and_then(|r| r.split(' ').next())
+        .and_then(|n| n.parse().ok())
+        .unwrap();
+    assert!(
+        already >= log.len() as u64,
+        "the replay was not recognised: {summary}"
+    );
+    assert!(summary.contains("2 skipped"), "{summary}");
+    assert!(
+        !summary.contains(" 0 database failure"),
+        "the outage went unseen: {summary}"
+    );
+    assert_eq!(
+        pg.query("SELECT string_agg(version::text, ',') FROM fleet_schema_migrations"),
+        "1"
+    );
+    let partitions =
+        pg.query("SELECT count(*) FROM pg_inherits WHERE inhparent = 'fleet_seconds'::regclass");
+    assert_ne!(partitions, "0");
+    assert_eq!(
+        pg.query("SELECT machine FROM fleet_nodes WHERE node_id = 'vmc-3axis'"),
+        "vmc-3axis"
+    );
+    check_kept_compensating(&db);
+}

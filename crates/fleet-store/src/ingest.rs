@@ -1,0 +1,495 @@
+//! The ingester: subscribes to `spBv1.0/#` at QoS 1 with a persistent session and writes each
+//! node's births, seconds and events to PostgreSQL, acknowledging a message only once its rows
+//! are committed. A row that exists already (the same machine and data time) is left as it is,
+//! so whatever the broker or a publisher sends again is written once. A message that is not
+//! Sparkplug, or NDATA of a node whose birth is unknown, is counted and acknowledged (skipped);
+//! a database failure drops the MQTT connection unacknowledged, so the broker keeps the
+//! message for the reconnect.
+
+use std::collections::HashMap;
+use std::time::{Duration, Instant};
+
+use postgres::{Client, NoTls};
+use truepos_fleet::mqtt::{Connection, Incoming};
+use truepos_fleet::sparkplug::{Payload, Value};
+use truepos_fleet::BrokerUrl;
+
+use crate::schema::{self, Partitions};
+
+/// What a message was, for the summary.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Outcome {
+    /// NBIRTH: the node's names recorded.
+    Birth,
+    /// NDEATH.
+    Death,
+    /// A second's row: written, or there already.
+    Second {
+        /// New.
+        written: bool,
+    },
+    /// An event's row.
+    Event {
+        /// New.
+        written: bool,
+    },
+    /// Not stored, and why.
+    Skipped(String),
+}
+
+/// A decoded NDATA as rows.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Row {
+    /// A second of cycles.
+    Second {
+        /// Data time, ms since the epoch.
+        t_ms: i64,
+        /// Cycles and active cycles.
+        cycles: Option<i64>,
+        /// Of those, active.
+        active: Option<i64>,
+        /// `{"Inputs/t1": [min, mean, max], …}`.
+        stats: serde_json::Value,
+        /// Sent from the store after an outage.
+        historical: bool,
+    },
+    /// An event.
+    Event {
+        /// Data time, ms since the epoch.
+        t_ms: i64,
+        /// Kind, subject, detail.
+        fields: [String; 3],
+        /// Sent from the store after an outage.
+        historical: bool,
+    },
+}
+
+/// `spBv1.0/<group>/<NBIRTH|NDATA|NDEATH>/<node>` taken apart; anything else is `None`.
+pub fn parse_topic(topic: &str) -> Option<(&str, &str, &str)> {
+    let mut parts = topic.split('/');
+    let (ns, group, kind, node) = (parts.next()?, parts.next()?, parts.next()?, parts.next()?);
+    (ns == "spBv1.0" && parts.next().is_none() && !group.is_empty() && !node.is_empty())
+        .then_some((group, kind, node))
+}
+
+fn number(v: &Value) -> Option<f64> {
+    match v {
+        Value::Double(x) => Some(*x),
+        Value::UInt32(x) => Some(f64::from(*x)),
+        Value::UInt64(x) => Some(*x as f64),
+        _ => None,
+    }
+}
+
+/// An NDATA's rows, its metrics named through the node's birth (`names`: alias → name).
+pub fn rows(p: &Payload, names: &HashMap<u64, String>) -> Result<Row, String> {
+    let mut stats = serde_json::Map::new();
+    let (mut cycles, mut active) = (None, None);
+    let mut event: [Option<String>; 3] = Default::default();
+    let mut t_ms = None;
+    let mut historical = false;
+    for m in &p.metrics {
+        let name = if m.name.is_empty() {
+            let a = m.alias.ok_or("a metric with neither name nor alias")?;
+            names
+                .get(&a)
+                .ok_or_else(|| format!("alias {a} is not in the node's birth"))?
+                .as_str()
+        } else {
+            m.name.as_str()
+        };
+        t_ms = t_ms.or(m.timestamp_ms);
+        historical |= m.historical;
+        match name {
+            "Cycles" => cycles = number(&m.value).map(|x| x as i64),
+            "Active cycles" => active = number(&m.value).map(|x| x as i64),
+            "Event/Kind" | "Event/Subject" | "Event/Detail" => {
+                let i = ["Event/Kind", "Event/Subject", "Event/Detail"]
+                    .iter()
+                    .position(|n| *n == name)
+                    .unwrap_or(0);
+                if let Value::String(s) = &m.value {
+                    event[i] = Some(s.clone());
+                }
+            }
+            _ => {
+                let Some((column, stat)) = name.rsplit_once('/') else {
+                    continue;
+                };
+                let k = match stat {
+                    "min" => 0,
+                    "mean" => 1,
+                    "max" => 2,
+                    _ => continue,
+                };
+                let entry = stats
+                    .entry(column.to_string())
+                    .or_insert_with(|| serde_json::json!([null, null, null]));
+                entry[k] = number(&m.value).map_or(serde_json::Value::Null, |x| x.into());
+            }
+        }
+    }
+    let t_ms =
+        i64::try_from(t_ms.unwrap_or(p.timestamp_ms)).map_err(|_| "a time beyond 2^63 ms")?;
+    if let [Some(k), Some(s), Some(d)] = event {
+        return Ok(Row::Event {
+            t_ms,
+            fields: [k, s, d],
+            historical,
+        });
+    }
+    if cycles.is_none() && stats.is_empty() {
+        return Err("NDATA with neither a second's aggregates nor a whole event".into());
+    }
+    Ok(Row::Second {
+        t_ms,
+        cycles,
+        active,
+        stats: serde_json::Value::Object(stats),
+        historical,
+    })
+}
+
+/// The ingester's state between messages.
+#[derive(Default)]
+pub struct Ingester {
+    births: HashMap<(String, String), HashMap<u64, String>>,
+    partitions: Partitions,
+}
+
+fn seconds_f64(t_ms: i64) -> f64 {
+    t_ms as f64 / 1000.0
+}
+
+impl Ingester {
+    /// Stores one message. `Err` only for a database failure (the message must not be
+    /// acknowledged); anything wrong with the message itself is `Ok(Outcome::Skipped)`.
+    pub fn handle(
+        &mut self,
+        db: &mut Client,
+        topic: &str,
+        payload: &[u8],
+    ) -> Result<Outcome, postgres::Error> {
+        let Some((group, kind, node)) = parse_topic(topic) else {
+            return Ok(Outcome::Skipped(format!(
+                "not a Sparkplug node topic: {topic}"
+            )));
+        };
+        let key = (group.to_string(), node.to_string());
+        let p = match Payload::decode(payload) {
+            Ok(p) => p,
+            Err(e) => return Ok(Outcome::Skipped(format!("{topic}: {e}"))),
+        };
+        match kind {
+            "NBIRTH" => self.birth(db, key, &p),
+            "NDEATH" => {
+                db.execute(
+                    "UPDATE fleet_nodes SET died_at = to_timestamp($3) WHERE group_id = $1 AND node_id = $2",
+                    &[&key.0, &key.1, &seconds_f64(p.timestamp_ms as i64)],
+                )?;
+                Ok(Outcome::Death)
+            }
+            "NDATA" => self.data(db, key, &p),
+            _ => Ok(Outcome::Skipped(format!("{topic}: not stored"))),
+        }
+    }
+
+    fn birth(
+        &mut self,
+        db: &mut Client,
+        key: (String, String),
+        p: &Payload,
+    ) -> Result<Outcome, postgres::Error> {
+        let mut names = HashMap::new();
+        let text = |n: &str| {
+            p.metrics
+                .iter()
+                .find(|m| m.name == n)
+                .and_then(|m| match &m.value {
+                    Value::String(s) => Some(s.clone()),
+                    _ => None,
+                })
+        };
+        let bd_seq = p
+            .metrics
+            .iter()
+            .find(|m| m.name == "bdSeq")
+            .and_then(|m| number(&m.value))
+            .map(|x| x as i64);
+        for m in &p.metrics {
+            if let Some(a) = m.alias {
+                names.insert(a, m.name.clone());
+            }
+        }
+        let aliases: serde_json::Map<String, serde_json::Value> = names
+            .iter()
+            .map(|(a, n)| (a.to_string(), n.clone().into()))
+            .collect();
+        db.execute(
+            "INSERT INTO fleet_nodes (group_id, node_id, machine, models, bd_seq, aliases, born_at)
+             VALUES ($1, $2, $3, $4, $5, $6::text::jsonb, to_timestamp($7))
+             ON CONFLICT (group_id, node_id) DO UPDATE SET machine = $3, models = $4, bd_seq = $5,
+                 aliases = $6::text::jsonb, born_at = to_timestamp($7)",
+            &[
+                &key.0,
+                &key.1,
+                &text("Properties/Machine"),
+                &text("Properties/Models"),
+                &bd_seq,
+                &serde_json::Value::Object(aliases).to_string(),
+                &seconds_f64(p.timestamp_ms as i64),
+            ],
+        )?;
+        self.births.insert(key, names);
+        Ok(Outcome::Birth)
+    }
+
+    /// The node's names by alias: this process's, else the last birth the store holds (an
+    /// ingester restarted in the middle of a node's session).
+    fn names(
+        &mut self,
+        db: &mut Client,
+        key: &(String, String),
+    ) -> Result<Option<&HashMap<u64, String>>, postgres::Error> {
+        if !self.births.contains_key(key) {
+            let row = db.query_opt(
+                "SELECT aliases::text FROM fleet_nodes WHERE group_id = $1 AND node_id = $2",
+                &[&key.0, &key.1],
+            )?;
+            let stored: Option<String> = row.and_then(|r| r.get(0));
+            if let Some(Ok(serde_json::Value::Object(m))) = stored.map(|s| serde_json::from_str(&s))
+            {
+                let names = m
+                    .into_iter()
+                    .filter_map(|(a, n)| Some((a.parse().ok()?, n.as_str()?.to_string())))
+                    .collect();
+                self.births.insert(key.clone(), names);
+            }
+        }
+        Ok(self.births.get(key))
+    }
+
+    fn data(
+        &mut self,
+        db: &mut Client,
+        key: (String, String),
+        p: &Payload,
+    ) -> Result<Outcome, postgres::Error> {
+        let Some(names) = self.names(db, &key)? else {
+            return Ok(Outcome::Skipped(format!(
+                "NDATA of {}/{} before any birth",
+                key.0, key.1
+            )));
+        };
+        let row = match rows(p, names) {
+            Ok(r) => r,
+            Err(e) => return Ok(Outcome::Skipped(format!("{}/{}: {e}", key.0, key.1))),
+        };
+        match row {
+            Row::Second {
+                t_ms,
+                cycles,
+                active,
+                stats,
+                historical,
+            } => {
+                self.partitions.ensure(db, "fleet_seconds", t_ms)?;
+                let n = db.execute(
+                    "INSERT INTO fleet_seconds (group_id, node_id, t, cycles, active_cycles, stats, historical)
+                     VALUES ($1, $2, to_timestamp($3), $4, $5, $6::text::jsonb, $7) ON CONFLICT DO NOTHING",
+                    &[
+                        &key.0,
+                        &key.1,
+                        &seconds_f64(t_ms),
+                        &cycles.map(|c| c as i32),
+                        &active.map(|c| c as i32),
+                        &stats.to_string(),
+                        &historical,
+                    ],
+                )?;
+                Ok(Outcome::Second { written: n == 1 })
+            }
+            Row::Event {
+                t_ms,
+                fields,
+                historical,
+            } => {
+                self.partitions.ensure(db, "fleet_events", t_ms)?;
+                let n = db.execute(
+                    "INSERT INTO fleet_events (group_id, node_id, t, kind, subject, detail, historical)
+                     VALUES ($1, $2, to_timestamp($3), $4, $5, $6, $7) ON CONFLICT DO NOTHING",
+                    &[&key.0, &key.1, &seconds_f64(t_ms), &fields[0], &fields[1], &fields[2], &historical],
+                )?;
+                Ok(Outcome::Event { written: n == 1 })
+            }
+        }
+    }
+}
+
+/// How to ingest.
+#[derive(Debug, Clone)]
+pub struct Config {
+    /// The broker.
+    pub broker: BrokerUrl,
+    /// PostgreSQL, `postgres://USER@HOST:PORT/DB` (or a libpq key=value string).
+    pub db: String,
+    /// MQTT client id: the broker keeps this session's subscription and queue.
+    pub client_id: String,
+    /// Stop after this long without a message (`None`: run until the deadline).
+    pub idle_exit: Option<Duration>,
+    /// Stop after this long in all (`None`: never).
+    pub deadline: Option<Duration>,
+}
+
+/// What the ingester did.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Summary {
+    /// Messages received (a redelivery counts again).
+    pub messages: u64,
+    /// Seconds and events written.
+    pub seconds: u64,
+    /// Events written.
+    pub events: u64,
+    /// Rows that were there already (sent again).
+    pub duplicates: u64,
+    /// Messages skipped, and the last reason.
+    pub skipped: u64,
+    /// Why the last one was skipped.
+    pub last_skip: Option<String>,
+    /// Times the database failed and was connected again.
+    pub db_failures: u64,
+    /// MQTT connections made.
+    pub connects: u64,
+    /// The last error, if any.
+    pub last_error: Option<String>,
+}
+
+fn connect_db(url: &str) -> Result<Client, String> {
+    let mut db = Client::connect(url, NoTls).map_err(|e| format!("PostgreSQL: {e}"))?;
+    schema::migrate(&mut db).map_err(|e| format!("PostgreSQL: migrations: {e}"))?;
+    Ok(db)
+}
+
+/// Ingests until idle or the deadline: the database first (no message is taken while it is
+/// away, so the broker keeps them), then the broker.
+pub fn run(config: &Config) -> Summary {
+    let start = Instant::now();
+    let mut last_message = Instant::now();
+    let mut s = Summary::default();
+    let mut ingester = Ingester::default();
+    let mut db: Option<Client> = None;
+    let mut mq: Option<Connection> = None;
+    let mut backoff = Duration::from_millis(250);
+    let mut last_ping = Instant::now();
+    loop {
+        if config.deadline.is_some_and(|d| start.elapsed() >= d)
+            || config
+                .idle_exit
+                .is_some_and(|d| last_message.elapsed() >= d)
+        {
+            break;
+        }
+        if db.is_none() {
+            match connect_db(&config.db) {
+                Ok(c) => {
+                    db = Some(c);
+                    ingester.partitions.forget();
+                    backoff = Duration::from_millis(250);
+                }
+                Err(e) => {
+                    s.last_error = Some(e);
+                    std::thread::sleep(backoff);
+                    backoff = (backoff * 2).min(Duration::from_secs(2));
+                    continue;
+                }
+            }
+        }
+        if mq.is_none() {
+            let c = Connection::connect_subscriber(
+                &config.broker,
+                &config.client_id,
+                30,
+                Duration::from_secs(5),
+            )
+            .and_then(|mut c| {
+                c.set_max_incoming(1 << 20);
+                c.subscribe(1, "spBv1.0/#").map(|()| c)
+            });
+            match c {
+                Ok(c) => {
+                    mq = Some(c);
+                    s.connects += 1;
+                    last_ping = Instant::now();
+                }
+                Err(e) => {
+                    s.last_error = Some(e);
+                    std::thread::sleep(backoff);
+                    backoff = (backoff * 2).min(Duration::from_secs(2));
+                    continue;
+                }
+            }
+        }
+        let (Some(c), Some(d)) = (mq.as_mut(), db.as_mut()) else {
+            continue;
+        };
+        let mut incoming = Vec::new();
+        let polled = c.poll(Duration::from_millis(100), &mut incoming);
+        let mut drop_mq = polled.is_err();
+        if let Err(e) = polled {
+            s.last_error = Some(e);
+        }
+        for p in incoming {
+            let Incoming::Publish {
+                topic,
+                packet_id,
+                payload,
+            } = p
+            else {
+                continue;
+            };
+            s.messages += 1;
+            last_message = Instant::now();
+            match ingester.handle(d, &topic, &payload) {
+                Ok(o) => {
+                    match o {
+                        Outcome::Second { written: true } => s.seconds += 1,
+                        Outcome::Event { written: true } => s.events += 1,
+                        Outcome::Second { written: false } | Outcome::Event { written: false } => {
+                            s.duplicates += 1
+                        }
+                        Outcome::Skipped(why) => {
+                            s.skipped += 1;
+                            s.last_skip = Some(why);
+                        }
+                        Outcome::Birth | Outcome::Death => {}
+                    }
+                    if let Some(id) = packet_id {
+                        if c.puback(id).is_err() {
+                            drop_mq = true;
+                            break;
+                        }
+                    }
+                }
+                Err(e) => {
+                    // Unacknowledged, this message and those after it stay with the broker.
+                    s.db_failures += 1;
+                    s.last_error = Some(format!("PostgreSQL: {e}"));
+                    db = None;
+                    drop_mq = true;
+                    break;
+                }
+            }
+        }
+        if !drop_mq && last_ping.elapsed() >= Duration::from_secs(10) {
+            drop_mq = c.ping().is_err();
+            last_ping = Instant::now();
+        }
+        if drop_mq {
+            mq = None;
+        }
+    }
+    if let Some(c) = mq {
+        c.disconnect();
+    }
+    s
+}
