@@ -269,13 +269,6 @@ pub fn run(args: Args) -> Result<(), CliError> {
         crate::write::check(out, &input_files(&args))?;
     }
     if let Some(path) = args.machine.clone() {
-        if !path.exists() && path.extension().is_none() {
-            return Err(CliError::refused(format!(
-                "--machine {}: expected a machine file (TOML); a model fitted without one \
-                 names its machine with --machine-name",
-                path.display()
-            )));
-        }
         return machine::run(args, &path);
     }
     if let Some(f) = args.family.as_ref().and_then(|f| f.position.first()) {

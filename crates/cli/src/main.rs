@@ -23,6 +23,7 @@ mod reidentify;
 mod report;
 mod run;
 mod shape;
+mod sign;
 mod sim;
 mod status;
 mod update_period;
@@ -68,6 +69,9 @@ enum Command {
     Log(run::LogArgs),
     /// Run the cyclic compensation service: sources → validation → model set → envelope → sinks.
     Run(run::RunArgs),
+    /// Sign model files with an Ed25519 key (MODEL.sig), or make a new key pair; a service
+    /// started with --trusted-keys loads only models signed by a key of its list.
+    Sign(sign::Args),
     /// Run the thermal twin on a scenario and write the run as CSV (works with no files).
     Sim(sim::Args),
     /// Show the state of a running or finished service from its log.
@@ -107,6 +111,7 @@ fn main() -> ExitCode {
         Command::Log(args) => run::show_log(args),
         Command::Run(args) => run::run(args),
         Command::Status(args) => status::show_status(args),
+        Command::Sign(args) => sign::run(args),
         Command::Sim(args) => sim::run(args),
     };
     match result {

@@ -9,8 +9,9 @@ use std::time::{Duration, Instant};
 
 use crate::envelope_check;
 use crate::error::CliError;
-use truepos_io::compensation::{load_entry, load_set};
+use truepos_io::compensation::{load_entry_trusted, load_set_trusted};
 use truepos_io::limits::{check_in, finite_in};
+use truepos_io::signature::TrustedKeys;
 use truepos_io::{cycles, machine_file};
 use truepos_live::host::{HttpArgs, Live};
 use truepos_model::RecordedRun;
@@ -51,6 +52,10 @@ pub struct RunArgs {
         default_value = "examples/vmc3/model.toml"
     )]
     models: Vec<PathBuf>,
+    /// A list of public keys (one in hex a line, from `truepos sign --new-key`): every model
+    /// must then carry a signature (MODEL.sig) by one of them, at start and at every reload.
+    #[arg(long, value_name = "FILE")]
+    trusted_keys: Option<PathBuf>,
     /// Sources: `replay:RUN.csv[@SPEED]` (a recorded run), `twin:SCENARIO[@SPEED]` (the
     /// thermal twin's sensors on a built-in scenario or scenario file; temperatures and
     /// operating state only, positions come from the other sources), `probes:RUN.csv[@SPEED]`
@@ -233,7 +238,12 @@ pub fn run(mut args: RunArgs) -> Result<(), CliError> {
     let mqtt =
         crate::fleet::MqttArgs::check(args.mqtt.as_deref(), &args.mqtt_group, args.log.as_deref())?;
     let machine = machine_file::load(&args.machine)?;
-    let entries = load_set(&args.models, &machine)?;
+    let trusted = args
+        .trusted_keys
+        .as_deref()
+        .map(TrustedKeys::load)
+        .transpose()?;
+    let entries = load_set_trusted(&args.models, &machine, trusted.as_ref())?;
     let period_s = args.period_ms / 1000.0;
     let clock = run_clock(&args)?;
     // The service clock's zero, shared with network sources that stamp values themselves.
@@ -262,7 +272,8 @@ pub fn run(mut args: RunArgs) -> Result<(), CliError> {
         ReloadSetup {
             files: args.models.clone(),
             loader: Box::new(move |path: &std::path::Path| {
-                load_entry(path, &loader_machine).map_err(|e| e.to_string())
+                load_entry_trusted(path, &loader_machine, trusted.as_ref())
+                    .map_err(|e| e.to_string())
             }) as ModelLoader,
             watch: true,
         }

@@ -246,6 +246,19 @@ impl Pending {
         Ok(())
     }
 
+    /// Makes the file readable and writable by its owner only (a secret key), before anything
+    /// is written to it, so that no one else ever sees its content.
+    #[cfg(unix)]
+    pub fn owner_only(&self) -> Result<(), FileError> {
+        use std::os::unix::fs::PermissionsExt;
+        let f = self
+            .file
+            .as_ref()
+            .ok_or_else(|| FileError::new(&self.path, "already written"))?;
+        f.set_permissions(std::fs::Permissions::from_mode(0o600))
+            .map_err(|e| FileError::io(&self.path, "cannot restrict the permissions of", e))
+    }
+
     /// Syncs the content and renames it over the output; on failure the temporary file is
     /// removed and the output is untouched.
     pub fn commit(mut self) -> Result<(), FileError> {

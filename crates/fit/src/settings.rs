@@ -1,7 +1,7 @@
 //! What a fit may choose from and how it chooses — family, ridge, inner cross-validation,
 //! selection rule, sensors, reference sensor — as typed values. Each value a person types has a
 //! [`FromStr`] whose error says what was expected, so the command line (as clap value parsers),
-//! scripts and tests read them the same way; lists are comma-separated ([`Families`],
+//! scripts and tests read them the same way; lists are comma-separated ([`crate::family::Families`],
 //! [`Ridges`]). The outer validation protocol is [`crate::validate::Split`].
 
 use std::fmt;

@@ -14,8 +14,9 @@ use truepos_hal::ffi::{self, Component, HalError};
 use truepos_hal::pacer::{keep_off_cpu, realtime_setup, Pacer};
 use truepos_hal::source::Edge;
 use truepos_hal::{pins, Error, HalSink, HalSource};
-use truepos_io::compensation::{load_entry, load_set};
+use truepos_io::compensation::{load_entry_trusted, load_set_trusted};
 use truepos_io::limits::{finite_in, int_in};
+use truepos_io::signature::TrustedKeys;
 use truepos_live::host::{HttpArgs, Live};
 use truepos_runtime::admission;
 use truepos_runtime::host::ReloadSetup;
@@ -46,6 +47,10 @@ struct RunArgs {
     /// Model file; repeat for several (`truepos.model-select` picks one, 0-based).
     #[arg(long = "model", required = true)]
     models: Vec<PathBuf>,
+    /// A list of public keys (one in hex a line, from `truepos sign --new-key`): every model
+    /// must then carry a signature (MODEL.sig) by one of them, at start and at every reload.
+    #[arg(long, value_name = "FILE")]
+    trusted_keys: Option<PathBuf>,
     /// HAL component name.
     #[arg(long, default_value = "truepos")]
     name: String,
@@ -151,7 +156,12 @@ fn run(args: RunArgs) -> Result<(), Error> {
     // Before HAL is touched: a channel id that is no pin name is the machine file's mistake.
     pins::check_names(&machine.machine)?;
     // A model without an axis-combination index in its file serves path 1's axes.
-    let entries = load_set(&args.models, &machine)?;
+    let trusted = args
+        .trusted_keys
+        .as_deref()
+        .map(TrustedKeys::load)
+        .transpose()?;
+    let entries = load_set_trusted(&args.models, &machine, trusted.as_ref())?;
     let period_s = args.period_ms / 1000.0;
     // Before HAL is touched, so that `loadusr -W` sees the refusal and no pins appear; the host
     // admits again at start and at every reload.
@@ -183,7 +193,9 @@ fn run(args: RunArgs) -> Result<(), Error> {
     let loader_machine = machine.clone();
     let reload = ReloadSetup {
         files: args.models.clone(),
-        loader: Box::new(move |path| load_entry(path, &loader_machine).map_err(|e| e.to_string())),
+        loader: Box::new(move |path| {
+            load_entry_trusted(path, &loader_machine, trusted.as_ref()).map_err(|e| e.to_string())
+        }),
         watch: false,
     };
     let source_names = vec![truepos_runtime::Source::name(&source).to_string()];

@@ -14,6 +14,7 @@ use truepos_model::{CompensationModel, Machine};
 use crate::dynamic_model_file;
 use crate::error::{read_text, InputError};
 use crate::model_file;
+use crate::signature::TrustedKeys;
 
 /// A model file bound to a machine.
 #[derive(Debug, Clone)]
@@ -34,33 +35,53 @@ pub fn load(path: &Path, machine: &Machine) -> Result<Loaded, InputError> {
 /// machine. A model whose file carries no axis-combination index serves path 1's axes (the
 /// index of the axes whose `path` is 1, by their codes).
 pub fn load_set(paths: &[PathBuf], machine: &MachineConfig) -> Result<Vec<ModelEntry>, InputError> {
-    let default_index = index_of(
-        machine
-            .axes
-            .iter()
-            .filter(|a| a.path == 1)
-            .map(|a| a.code()),
-    );
+    load_set_trusted(paths, machine, None)
+}
+
+/// [`load_set`] where, with a trust list, every file must carry a signature from one of its
+/// keys ([`crate::signature`]); the bytes verified are the bytes parsed.
+pub fn load_set_trusted(
+    paths: &[PathBuf],
+    machine: &MachineConfig,
+    trusted: Option<&TrustedKeys>,
+) -> Result<Vec<ModelEntry>, InputError> {
     paths
         .iter()
-        .map(|path| {
-            let loaded = load(path, &machine.machine)?;
-            Ok(ModelEntry {
-                name: loaded.model.name().to_string(),
-                index: loaded
-                    .axis_index
-                    .as_ref()
-                    .map_or(default_index, |b| index_of(b.iter().copied())),
-                model: loaded.model,
-            })
-        })
+        .map(|path| load_entry_trusted(path, machine, trusted))
         .collect()
 }
 
 /// One model file as an entry of the set ([`load_set`] of one file): what a hot reload reads.
 pub fn load_entry(path: &Path, machine: &MachineConfig) -> Result<ModelEntry, InputError> {
-    let mut entries = load_set(&[path.to_path_buf()], machine)?;
-    Ok(entries.remove(0))
+    load_entry_trusted(path, machine, None)
+}
+
+/// [`load_entry`], signed by a trusted key when a trust list is given.
+pub fn load_entry_trusted(
+    path: &Path,
+    machine: &MachineConfig,
+    trusted: Option<&TrustedKeys>,
+) -> Result<ModelEntry, InputError> {
+    let text = read_text(path, truepos_files::MODEL)?;
+    if let Some(keys) = trusted {
+        keys.verify(path, text.as_bytes())?;
+    }
+    let loaded = parse(path, &text, &machine.machine)?;
+    let index = match &loaded.axis_index {
+        Some(b) => index_of(b.iter().copied()),
+        None => index_of(
+            machine
+                .axes
+                .iter()
+                .filter(|a| a.path == 1)
+                .map(|a| a.code()),
+        ),
+    };
+    Ok(ModelEntry {
+        name: loaded.model.name().to_string(),
+        index,
+        model: loaded.model,
+    })
 }
 
 /// [`load`] on a file's text; `path` names it in errors and, by its extension, tells JSON from

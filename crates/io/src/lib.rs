@@ -35,6 +35,7 @@ pub mod limits;
 pub mod machine_file;
 pub mod model_file;
 pub mod run;
+pub mod signature;
 pub mod table;
 pub mod timestamp;
 pub mod units;

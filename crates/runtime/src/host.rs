@@ -8,7 +8,7 @@
 //! logger writes what is still queued and stops, and its health over the run comes back with
 //! the service.
 //!
-//! Every model passes [`admission`](crate::admission) here, at start and at every hot reload,
+//! Every model passes [`crate::admission`] here, at start and at every hot reload,
 //! so no host can forget it: a model implausible for the machine, or too slow for the cycle
 //! period ([`ServiceHost::period_s`]), never reaches the service.
 //!

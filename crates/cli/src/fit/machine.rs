@@ -85,6 +85,13 @@ fn owners(args: &Args, machine: &Machine) -> Result<Vec<Option<usize>>, CliError
 
 /// Runs `truepos fit --machine MACHINE.toml`.
 pub fn run(mut args: Args, path: &Path) -> Result<(), CliError> {
+    if !path.exists() && path.extension().is_none() {
+        return Err(CliError::refused(format!(
+            "--machine {}: expected a machine file (TOML); a model fitted without one names \
+             its machine with --machine-name",
+            path.display()
+        )));
+    }
     if let Some(out) = &args.model {
         super::model_name(out, &["toml", "json"], "a model of the machine")?;
     }
