@@ -20,16 +20,38 @@ export PATH="$BIN:/usr/bin:/bin:/usr/sbin:/sbin:$PATH"
 
 rm -rf "$OUT" && mkdir -p "$OUT"
 chmod 0777 "$OUT"
-# HTTP=ADDR: the component also serves its live view on ADDR during the run (docs/live_view.md).
-http_sed="s|^||"
-[ -n "${HTTP:-}" ] && http_sed="s|--stats \(.*\)stats.json|--stats \1stats.json --http $HTTP|"
+# The component serves its live view during the run (docs/live_view.md) on HTTP=ADDR, by default
+# a free loopback port; a poller reads its state and metrics as a person's browser would.
+HTTP="${HTTP:-127.0.0.1:$(python3 -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')}"
+http_sed="s|--stats \(.*\)stats.json|--stats \1stats.json --http $HTTP|"
 for f in vmc3.ini vmc3.hal; do
     sed -e "s|@REPO@|$REPO|g" -e "s|@OUT@|$OUT|g" -e "$http_sed" "tests/linuxcnc/$f.in" > "$OUT/$f"
 done
 cp tests/linuxcnc/tool.tbl "$OUT/"
 : > "$OUT/sim.var"
 
+python3 - "$HTTP" "$OUT/live_view.json" <<'PY' &
+import json, sys, time, urllib.request
+addr, out = sys.argv[1:3]
+seen = {"states": [], "generations": [], "metrics": False}
+deadline = time.time() + 330
+while time.time() < deadline:
+    try:
+        s = json.load(urllib.request.urlopen(f"http://{addr}/api/state", timeout=2))
+        m = urllib.request.urlopen(f"http://{addr}/metrics", timeout=2).read().decode()
+    except Exception:
+        time.sleep(0.5)
+        continue
+    seen["states"] = sorted(set(seen["states"]) | {s.get("state")})
+    seen["metrics"] = seen["metrics"] or ("truepos_cycles_total" in m and "truepos_model_generation" in m)
+    with open(out + ".tmp", "w") as f:
+        json.dump(seen, f)
+    import os; os.replace(out + ".tmp", out)
+    time.sleep(1)
+PY
+poller=$!
 run_linuxcnc_headless "$OUT/vmc3.ini" 300 "$OUT/e2e_result.txt" "^e2e:|truepos-hal"
+kill "$poller" 2>/dev/null || true
 
 echo "== compare what LinuxCNC applied with the models; the events in the log"
 fail=0
@@ -43,6 +65,18 @@ CHECK=(--machine examples/vmc3/machine.toml --model examples/vmc3/model.toml
        --expect-event "model-selected:path 1:model_d" --expect-event "extrapolating:path 1")
 truepos-hal-check check "${CHECK[@]}" || fail=1
 truepos-hal-check check --json "${CHECK[@]}" > "$OUT/check.json" || true
+
+echo "== the live view served by the component during the run"
+python3 - "$OUT/live_view.json" <<'PY' || fail=1
+import json, sys
+try:
+    seen = json.load(open(sys.argv[1]))
+except OSError:
+    sys.exit("FAIL: the live view never answered")
+print(f"live view: states seen {seen['states']}, metrics {'ok' if seen['metrics'] else 'missing'}")
+if "active" not in seen["states"] or not seen["metrics"]:
+    sys.exit("FAIL: the live view did not show an active compensation with its metrics")
+PY
 
 echo "== the worked HAL file for real sensors of docs/linuxcnc.md, loaded by halcmd"
 bash scripts/linuxcnc_sensors_hal.sh "$OUT/sensors" || fail=1
