@@ -405,6 +405,8 @@ impl State {
     /// One turn: send what the window allows, read acknowledgements, keep the link alive.
     fn step(&mut self, s: &mut Session, finished: bool) -> Result<(), String> {
         let room = WINDOW.saturating_sub(s.in_flight.len());
+        // Replaying at the bounded rate: the time until the next historical message may go.
+        let mut rate_wait = None;
         if room > 0 {
             let units = self.reader.units(s.sent, room, finished)?;
             s.idle = units.is_empty();
@@ -415,25 +417,28 @@ impl State {
                     Unit::Event(e) => e.row <= s.historical_upto.events,
                 };
                 if historical {
-                    if Instant::now() < s.next_historical {
+                    let now = Instant::now();
+                    if now < s.next_historical {
                         s.idle = false;
                         s.drained = false;
+                        rate_wait = Some(s.next_historical - now);
                         break;
                     }
-                    s.next_historical +=
-                        Duration::from_secs_f64(1.0 / self.config.replay_per_s.max(0.1));
-                    s.next_historical = s
-                        .next_historical
-                        .max(Instant::now() - Duration::from_secs(1));
+                    // A burst after a pause is bounded to one second's worth.
+                    s.next_historical = (s.next_historical
+                        + Duration::from_secs_f64(1.0 / self.config.replay_per_s.max(0.1)))
+                    .max(now.checked_sub(Duration::from_secs(1)).unwrap_or(now));
                 }
                 self.send(s, &u, historical)?;
             }
         }
         let mut incoming = Vec::new();
-        s.conn.poll(
-            Duration::from_millis(if s.idle { 100 } else { 5 }),
-            &mut incoming,
-        )?;
+        let wait = match rate_wait {
+            Some(w) => w.clamp(Duration::from_millis(1), Duration::from_millis(100)),
+            None if s.idle => Duration::from_millis(100),
+            None => Duration::from_millis(5),
+        };
+        s.conn.poll(wait, &mut incoming)?;
         for p in incoming {
             match p {
                 Incoming::PubAck(id) => {

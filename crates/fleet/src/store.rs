@@ -236,9 +236,11 @@ impl LogReader {
         })
     }
 
-    /// The complete seconds of cycles after `after` (a second is complete once a later row
-    /// exists; with `finished`, the log will not grow and the last second counts too).
-    pub fn seconds(&self, after: i64, finished: bool) -> Result<Vec<Second>, String> {
+    /// Up to `limit` complete seconds of cycles after `after` (a second is complete once a
+    /// later row exists; with `finished`, the log will not grow and the last second counts
+    /// too). Reads only the rows those seconds need, so a publisher that may send one message
+    /// reads one second's rows, however long the backlog.
+    pub fn seconds(&self, after: i64, finished: bool, limit: usize) -> Result<Vec<Second>, String> {
         let mut stmt = self
             .conn
             .prepare_cached("SELECT rowid, * FROM cycles WHERE rowid > ?1 ORDER BY rowid LIMIT ?2")
@@ -248,8 +250,19 @@ impl LogReader {
             .map_err(err(&self.path))?;
         let mut out: Vec<Second> = Vec::new();
         let mut open: Option<(Second, Vec<Acc>)> = None;
-        let mut previous_t = f64::NEG_INFINITY;
+        // The row before the first one read: a run boundary right at the cursor is seen too.
+        let mut previous_t = self
+            .conn
+            .query_row(
+                "SELECT time_s FROM cycles WHERE rowid <= ?1 ORDER BY rowid DESC LIMIT 1",
+                [after],
+                |r| Ok(real(r.get_ref(0)?)),
+            )
+            .ok()
+            .flatten()
+            .unwrap_or(f64::NEG_INFINITY);
         let mut n = 0i64;
+        let mut limited = false;
         let width = self.columns.len();
         while let Some(r) = rows.next().map_err(err(&self.path))? {
             n += 1;
@@ -265,6 +278,10 @@ impl LogReader {
             if starts {
                 if let Some(done) = open.take() {
                     out.push(close(done));
+                }
+                if out.len() >= limit {
+                    limited = true;
+                    break;
                 }
                 let s = Second {
                     second,
@@ -296,7 +313,7 @@ impl LogReader {
         }
         // The last second may still be growing, unless the log is final and was read whole.
         if let Some(done) = open {
-            if finished && n < CYCLE_BATCH {
+            if finished && n < CYCLE_BATCH && !limited && out.len() < limit {
                 out.push(close(done));
             }
         }
@@ -329,7 +346,7 @@ impl LogReader {
     /// Up to `limit` units after `cursor`, seconds and events merged in time order (an event
     /// goes before the first second that ends after it).
     pub fn units(&self, cursor: Rows, limit: usize, finished: bool) -> Result<Vec<Unit>, String> {
-        let seconds = self.seconds(cursor.cycles, finished)?;
+        let seconds = self.seconds(cursor.cycles, finished, limit)?;
         let events = self.events(cursor.events, limit)?;
         let mut out = Vec::with_capacity(limit.min(seconds.len() + events.len()));
         let (mut s, mut e) = (

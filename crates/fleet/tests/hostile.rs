@@ -132,15 +132,47 @@ fn text_where_numbers_belong_counts_as_no_value() {
     );
     let r = LogReader::open(&db).unwrap();
     assert_eq!(r.columns(), ["t1", "X_offset_um"]);
-    let s = r.seconds(0, true).unwrap();
+    let s = r.seconds(0, true, 100).unwrap();
     assert_eq!(s.len(), 3);
     assert_eq!((s[0].cycles, s[0].active), (3, 2));
     assert_eq!(s[0].stats[0], Some((20.0, 21.0, 22.0)));
     assert_eq!(s[1].stats[0], None, "a second of text only has no value");
     assert_eq!(s[1].stats[1], Some((2.0, 2.0, 2.0)));
     // Not final: the last second may still grow, so it waits.
-    assert_eq!(r.seconds(0, false).unwrap().len(), 2);
-    assert_eq!(r.seconds(s[1].last_row, true).unwrap().len(), 1);
+    assert_eq!(r.seconds(0, false, 100).unwrap().len(), 2);
+    // A limit reads no further than it needs.
+    let one = r.seconds(0, true, 1).unwrap();
+    assert_eq!((one.len(), one[0].last_row), (1, s[0].last_row));
+    assert_eq!(r.seconds(one[0].last_row, true, 1).unwrap(), &s[1..2]);
+    assert_eq!(r.seconds(s[1].last_row, true, 100).unwrap().len(), 1);
+}
+
+#[test]
+fn a_run_appended_to_the_log_is_seen_at_any_read_boundary() {
+    let dir = scratch("runs");
+    // Two runs in one log: the second restarts its service time at 0.
+    let db = log(
+        &dir,
+        &[
+            (0.0, "active", "1"),
+            (1.0, "active", "2"),
+            (2.0, "active", "3"),
+            (0.0, "active", "4"),
+            (1.0, "active", "5"),
+        ],
+    );
+    let r = LogReader::open(&db).unwrap();
+    let all = r.seconds(0, true, 100).unwrap();
+    let new: Vec<bool> = all.iter().map(|s| s.new_run).collect();
+    assert_eq!(new, [false, false, false, true, false]);
+    // Read one at a time, the boundary falls between two reads and is still seen.
+    let mut cursor = 0;
+    let mut one_by_one = Vec::new();
+    while let Some(s) = r.seconds(cursor, true, 1).unwrap().pop() {
+        cursor = s.last_row;
+        one_by_one.push(s.new_run);
+    }
+    assert_eq!(one_by_one, new);
 }
 
 #[test]
