@@ -13,7 +13,8 @@
 #    page's `performance.now()`, fetches included) and as the driver saw it. The page's size, and
 #    its JavaScript's, gzipped.
 #
-# Not part of scripts/test.sh (a figure of the host as much as of truepos).
+# scripts/test.sh runs it short (D=15, STREAMS="0 1") and prints its figures; none is asserted,
+# since each is a figure of the host as much as of truepos.
 #
 #   bash scripts/live_view_bench.sh            # 40 s per 1 kHz run
 #   D=60 bash scripts/live_view_bench.sh

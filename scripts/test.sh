@@ -56,6 +56,9 @@ echo "== FL_THERMAL benchmark (real measured run; prints its figures)"
 bash scripts/fl_thermal_bench.sh
 echo "== FL_THERMAL benchmark, rolling-origin selection (docs/fitting.md: why it is not the default)"
 bash scripts/fl_thermal_bench.sh --inner-cv rolling
+echo "== live view benchmark: first paint of 24 h of history in Chromium, the view's CPU with a page"
+echo "   streaming at 1 kHz (figures printed; a figure of the host, no bar asserted: docs/benchmarks.md)"
+D=15 STREAMS="0 1" bash scripts/live_view_bench.sh
 echo "== twin population: issue 14's development benchmark at the ci size, its bars asserted"
 echo "   (median reduction >= 85 %, no run made worse, median inner/test within 1.5; the full size"
 echo "   meets them too: docs/fitting.md)"
