@@ -15,7 +15,9 @@ as_pg() { if [ "$(id -u)" = 0 ]; then runuser -u postgres -- "$@"; else "$@"; fi
 cargo build --release -q -p truepos
 dir=$(mktemp -d /tmp/truepos-fleet-sizes.XXXXXX)
 port=$(python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1",0)); print(s.getsockname()[1])')
-printf 'listener %s 127.0.0.1\nallow_anonymous true\n' "$port" > "$dir/m.conf"
+# Mosquitto queues at most 1000 messages for a subscriber by default and drops the rest: the
+# ingester, one commit per message, is slower than a replay, so the queue here is unbounded.
+printf 'listener %s 127.0.0.1\nallow_anonymous true\nmax_queued_messages 0\n' "$port" > "$dir/m.conf"
 "$MOSQUITTO" -c "$dir/m.conf" >"$dir/mosquitto.log" 2>&1 &
 broker=$!
 pgport=$(python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1",0)); print(s.getsockname()[1])')
@@ -39,14 +41,17 @@ target/release/truepos fleet publish --log "$dir/log.sqlite" --mqtt "mqtt://127.
   --replay-per-s 100000 --timeout-s 600 2>"$dir/publish.err"
 end=$(date +%s.%N)
 wait $ingest
+# The ingester stops 5 s after its last message.
+ingested=$(python3 -c "import time; print(time.time() - 5)")
 line=$(cat "$dir/publish.err")
 echo "$line"
 cat "$dir/ingest.err"
 store=$(psql -h 127.0.0.1 -p "$pgport" -U postgres -Atc \
   "select coalesce(sum(pg_total_relation_size(inhrelid)), 0) from pg_inherits where inhparent in ('fleet_seconds'::regclass, 'fleet_events'::regclass)")
-python3 - "$dir/log.sqlite" "$hours" "$start" "$end" "$line" "$store" <<'PY'
+python3 - "$dir/log.sqlite" "$hours" "$start" "$end" "$line" "$store" "$ingested" "$(cat "$dir/ingest.err")" <<'PY'
 import os, re, sqlite3, sys
 db, hours, start, end, line, store = sys.argv[1], int(sys.argv[2]), float(sys.argv[3]), float(sys.argv[4]), sys.argv[5], int(sys.argv[6])
+ingested, ingest_line = float(sys.argv[7]), sys.argv[8]
 c = sqlite3.connect(db)
 rows = c.execute("select count(*) from cycles").fetchone()[0]
 size = os.path.getsize(db) + (os.path.getsize(db + "-wal") if os.path.exists(db + "-wal") else 0)
@@ -56,5 +61,7 @@ day = 24 / hours
 print(f"log: {rows} cycle records, {size} bytes for {hours} h of service time -> {size * day / 1e6:.1f} MB per machine-day")
 print(f"mqtt: {sent} NDATA, {payload / sent:.0f} bytes each on average -> {payload * day / 1e6:.1f} MB of payload per machine-day")
 print(f"PostgreSQL: {store} bytes (tables and indexes) -> {store * day / 1e6:.1f} MB per machine-day")
-print(f"forwarding {sent} messages (into the broker and PostgreSQL) took {end - start:.1f} s ({sent / (end - start):.0f} messages/s, QoS 1, window 32, loopback)")
+print(f"fleet publish: {sent} messages into the broker in {end - start:.1f} s ({sent / (end - start):.0f} messages/s, QoS 1, window 32, loopback)")
+got = int(re.search(r"ingest: (\d+) messages", ingest_line).group(1))
+print(f"fleet ingest: {got} messages into PostgreSQL by {ingested - start:.1f} s ({got / (ingested - start):.0f} messages/s, one commit each)")
 PY
