@@ -48,8 +48,16 @@ fn new_key(path: &std::path::Path) -> Result<(), CliError> {
     public.push(".pub");
     let public = PathBuf::from(public);
     let line = format!("{}\n", public_hex(&key.public()));
-    let mut secret = crate::write::create(path, &[])?;
-    secret.owner_only()?;
+    // A key already there may be the one a fleet's trust lists name: never replaced.
+    for p in [path, public.as_path()] {
+        if std::fs::symlink_metadata(p).is_ok() {
+            return Err(CliError::refused(format!(
+                "--new-key: {} exists; a key is never overwritten (remove it first)",
+                p.display()
+            )));
+        }
+    }
+    let mut secret = truepos_files::write::Pending::create_private(path, &[])?;
     secret
         .write_all(key.to_text().as_bytes())
         .map_err(|e| CliError::refused(format!("{}: cannot write: {e}", path.display())))?;

@@ -1,7 +1,7 @@
 //! Where a key of a TOML text stands: a mistake found after parsing — a value out of range, a
 //! channel naming no machine input — is named at its line and column like a syntax error.
 //!
-//! A key path is a list of [`Step`]s (`channel[2].register` is `channel`, the third table of
+//! A key path is a list of [`Step`]s (`channel[2].register` is `channel`, the second table of
 //! the array, `register`); [`span`] finds the deepest step the text has, so a missing key is
 //! named at the table that should hold it.
 //!
@@ -57,7 +57,10 @@ pub fn place(text: &str, path: &[Step]) -> Option<(usize, usize)> {
 /// (`[[channel]]` → `channel`): the key of a mistake the TOML reader found, which names only
 /// its place.
 pub fn key_on_line(text: &str, offset: usize) -> String {
-    let offset = offset.min(text.len());
+    let mut offset = offset.min(text.len());
+    while !text.is_char_boundary(offset) {
+        offset -= 1;
+    }
     let start = text[..offset].rfind('\n').map_or(0, |i| i + 1);
     let end = text[start..].find('\n').map_or(text.len(), |i| start + i);
     let line = text[start..end].trim();

@@ -175,15 +175,28 @@ impl Pending {
     /// random name in the output's directory (so the rename stays on one file system). An
     /// existing output's permissions are kept.
     pub fn create(path: &Path, inputs: Inputs<'_>) -> Result<Self, FileError> {
+        Self::create_with_mode(path, inputs, 0o666)
+    }
+
+    /// [`Pending::create`] for a secret (a signing key): the temporary file is created readable
+    /// and writable by its owner only, so no one else can open it at any moment — not even
+    /// before its content is written.
+    pub fn create_private(path: &Path, inputs: Inputs<'_>) -> Result<Self, FileError> {
+        Self::create_with_mode(path, inputs, 0o600)
+    }
+
+    fn create_with_mode(path: &Path, inputs: Inputs<'_>, mode: u32) -> Result<Self, FileError> {
         check_output(path, inputs)?;
         let mut tries = 0;
         let (tmp, file) = loop {
             let tmp = random_name(path);
-            match std::fs::OpenOptions::new()
-                .write(true)
-                .create_new(true)
-                .open(&tmp)
-            {
+            let mut options = std::fs::OpenOptions::new();
+            options.write(true).create_new(true);
+            #[cfg(unix)]
+            std::os::unix::fs::OpenOptionsExt::mode(&mut options, mode);
+            #[cfg(not(unix))]
+            let _ = mode;
+            match options.open(&tmp) {
                 Ok(f) => break (tmp, f),
                 Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists && tries < 16 => tries += 1,
                 Err(e) => {
@@ -195,8 +208,11 @@ impl Pending {
                 }
             }
         };
-        if let Ok(m) = std::fs::metadata(path) {
-            let _ = file.set_permissions(m.permissions());
+        // A secret keeps its own mode; anything else the permissions of the file it replaces.
+        if mode == 0o666 {
+            if let Ok(m) = std::fs::metadata(path) {
+                let _ = file.set_permissions(m.permissions());
+            }
         }
         Ok(Self {
             path: path.to_path_buf(),
@@ -244,19 +260,6 @@ impl Pending {
             let _ = d.sync_all();
         }
         Ok(())
-    }
-
-    /// Makes the file readable and writable by its owner only (a secret key), before anything
-    /// is written to it, so that no one else ever sees its content.
-    #[cfg(unix)]
-    pub fn owner_only(&self) -> Result<(), FileError> {
-        use std::os::unix::fs::PermissionsExt;
-        let f = self
-            .file
-            .as_ref()
-            .ok_or_else(|| FileError::new(&self.path, "already written"))?;
-        f.set_permissions(std::fs::Permissions::from_mode(0o600))
-            .map_err(|e| FileError::io(&self.path, "cannot restrict the permissions of", e))
     }
 
     /// Syncs the content and renames it over the output; on failure the temporary file is

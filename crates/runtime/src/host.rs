@@ -143,6 +143,12 @@ impl ServiceHost {
     /// if a model is refused, the log cannot be opened or is refused ([`Logger::start`]), or
     /// the reload thread cannot start; nothing has run then.
     pub fn start(self) -> Result<Running, StartError> {
+        if !(self.period_s.is_finite() && self.period_s > 0.0 && self.period_s <= 3600.0) {
+            return Err(StartError::Refused(format!(
+                "cycle period {} s: expected a time above 0 and at most an hour",
+                self.period_s
+            )));
+        }
         admission::admit_set(&self.models, &self.machine, self.period_s)
             .map_err(StartError::Refused)?;
         let reload = self

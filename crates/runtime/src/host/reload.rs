@@ -54,10 +54,19 @@ pub(crate) struct Reloader {
 
 /// What tells a changed file: modification time, size and (on Unix) the inode, since a file
 /// replaced by a rename — how `truepos reidentify` writes — is a new inode even when its time
-/// falls in the same tick of the file system's clock and its size is unchanged.
-type Stamp = Option<(SystemTime, u64, u64)>;
+/// falls in the same tick of the file system's clock and its size is unchanged. The model's own
+/// stamp and that of its signature beside it (`MODEL.sig`): a signed update whose signature
+/// arrives after the model (rsync writes `model.toml` before `model.toml.sig`) is read again.
+type Stamp = (FileStamp, FileStamp);
+type FileStamp = Option<(SystemTime, u64, u64)>;
 
 fn stamp(path: &Path) -> Stamp {
+    let mut sig = path.as_os_str().to_owned();
+    sig.push(".sig");
+    (file_stamp(path), file_stamp(Path::new(&sig)))
+}
+
+fn file_stamp(path: &Path) -> FileStamp {
     let m = std::fs::metadata(path).ok()?;
     #[cfg(unix)]
     let inode = std::os::unix::fs::MetadataExt::ino(&m);
