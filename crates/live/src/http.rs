@@ -108,19 +108,37 @@ enum Head {
     Gone,
 }
 
+/// A socket read with one deadline for the whole request, however its bytes trickle in: each
+/// read may wait only for what is left of it (a socket's read timeout alone restarts with every
+/// byte, so a client sending one byte every few seconds would hold a thread for hours).
+struct UntilDeadline {
+    stream: TcpStream,
+    deadline: Instant,
+}
+
+impl Read for UntilDeadline {
+    fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
+        let left = self.deadline.saturating_duration_since(Instant::now());
+        if left.is_zero() {
+            return Err(io::Error::new(io::ErrorKind::TimedOut, "request deadline"));
+        }
+        self.stream.set_read_timeout(Some(left))?;
+        self.stream.read(buf)
+    }
+}
+
 fn read_request(stream: TcpStream) -> Head {
-    let deadline = Instant::now() + HEAD_TIMEOUT;
     let Ok(reader) = stream.try_clone() else {
         return Head::Gone;
+    };
+    let reader = UntilDeadline {
+        stream: reader,
+        deadline: Instant::now() + HEAD_TIMEOUT,
     };
     let mut reader = BufReader::with_capacity(4096, reader);
     let mut lines: Vec<String> = Vec::new();
     let mut size = 0;
     loop {
-        let left = deadline.saturating_duration_since(Instant::now());
-        if left.is_zero() || stream.set_read_timeout(Some(left)).is_err() {
-            return Head::Gone;
-        }
         let mut line = Vec::new();
         // At most the rest of the head's budget, plus one to tell a head too large.
         let budget = (MAX_HEAD - size) as u64 + 1;
@@ -390,5 +408,60 @@ mod tests {
         }
         assert!(exchange(a, "GET / HTTP/1.1\r\n\r\n").starts_with("HTTP/1.1 200"));
         srv.stop(Duration::from_secs(2));
+    }
+
+    /// A client that sends its head a byte at a time, each well within a socket timeout, still
+    /// loses its connection when the head's whole time is up.
+    #[test]
+    fn a_trickling_client_is_closed_when_the_heads_time_is_up() {
+        let mut srv = served();
+        let mut s = TcpStream::connect(srv.addr()).unwrap();
+        let start = Instant::now();
+        let mut closed = false;
+        for b in b"GET / HTTP/1.1\r\nX: ".iter().chain([b'a'; 200].iter()) {
+            if s.write_all(&[*b]).is_err() {
+                closed = true;
+                break;
+            }
+            std::thread::sleep(Duration::from_millis(100));
+            if start.elapsed() > HEAD_TIMEOUT + Duration::from_secs(3) {
+                break;
+            }
+        }
+        let deadline = Instant::now() + Duration::from_secs(3);
+        while srv.connections() > 0 && Instant::now() < deadline {
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        assert!(
+            closed || srv.connections() == 0,
+            "still served after {:?}",
+            start.elapsed()
+        );
+        srv.stop(Duration::from_secs(2));
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(64))]
+        /// Any bytes as a request get an answer or a closed connection, never a panic or a
+        /// thread that stays.
+        #[test]
+        fn any_bytes_as_a_request_are_answered_or_dropped(
+            bytes in proptest::collection::vec(proptest::prelude::any::<u8>(), 0..600),
+            end in proptest::prelude::any::<bool>(),
+        ) {
+            let mut srv = served();
+            let mut s = TcpStream::connect(srv.addr()).unwrap();
+            s.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
+            let _ = s.write_all(&bytes);
+            if end {
+                let _ = s.write_all(b"\r\n\r\n");
+            }
+            let _ = s.shutdown(std::net::Shutdown::Write);
+            let mut out = Vec::new();
+            let _ = s.read_to_end(&mut out);
+            proptest::prop_assert!(out.is_empty() || out.starts_with(b"HTTP/1.1 "));
+            srv.stop(Duration::from_secs(2));
+            proptest::prop_assert_eq!(srv.connections(), 0);
+        }
     }
 }
