@@ -136,8 +136,11 @@ impl Publisher {
             shared: Arc::clone(&shared),
             finish: Arc::clone(&finish),
         };
+        // A small stack, as the live view's threads: the LinuxCNC component locks all its
+        // memory (mlockall), every thread's stack included.
         let thread = std::thread::Builder::new()
             .name("truepos-mqtt".into())
+            .stack_size(512 * 1024)
             .spawn(move || state.run())
             .map_err(|e| format!("cannot start the MQTT thread: {e}"))?;
         Ok(Publisher {
