@@ -9,7 +9,7 @@
 use std::collections::HashMap;
 use std::time::{Duration, Instant};
 
-use postgres::{Client, NoTls};
+use postgres::{Client, GenericClient, NoTls};
 use truepos_fleet::mqtt::{Connection, Incoming};
 use truepos_fleet::sparkplug::{Payload, Value};
 use truepos_fleet::BrokerUrl;
@@ -166,7 +166,7 @@ impl Ingester {
     /// acknowledged); anything wrong with the message itself is `Ok(Outcome::Skipped)`.
     pub fn handle(
         &mut self,
-        db: &mut Client,
+        db: &mut impl GenericClient,
         topic: &str,
         payload: &[u8],
     ) -> Result<Outcome, postgres::Error> {
@@ -196,7 +196,7 @@ impl Ingester {
 
     fn birth(
         &mut self,
-        db: &mut Client,
+        db: &mut impl GenericClient,
         key: (String, String),
         p: &Payload,
     ) -> Result<Outcome, postgres::Error> {
@@ -248,7 +248,7 @@ impl Ingester {
     /// ingester restarted in the middle of a node's session).
     fn names(
         &mut self,
-        db: &mut Client,
+        db: &mut impl GenericClient,
         key: &(String, String),
     ) -> Result<Option<&HashMap<u64, String>>, postgres::Error> {
         if !self.births.contains_key(key) {
@@ -271,7 +271,7 @@ impl Ingester {
 
     fn data(
         &mut self,
-        db: &mut Client,
+        db: &mut impl GenericClient,
         key: (String, String),
         p: &Payload,
     ) -> Result<Outcome, postgres::Error> {
@@ -370,6 +370,57 @@ fn connect_db(url: &str) -> Result<Client, String> {
     Ok(db)
 }
 
+/// Stores what one poll brought in one transaction and returns the packet ids to acknowledge
+/// (a commit per message would bound the ingester to the disk's syncs per second). The counts
+/// go into the summary only once committed: a batch the database refused comes again.
+fn store_batch(
+    ingester: &mut Ingester,
+    db: &mut Client,
+    incoming: Vec<Incoming>,
+    s: &mut Summary,
+) -> Result<Vec<u16>, postgres::Error> {
+    let mut ids = Vec::new();
+    let mut batch = Summary::default();
+    let mut tx = db.transaction()?;
+    for p in incoming {
+        let Incoming::Publish {
+            topic,
+            packet_id,
+            payload,
+        } = p
+        else {
+            continue;
+        };
+        batch.messages += 1;
+        match ingester.handle(&mut tx, &topic, &payload)? {
+            Outcome::Second { written: true } => batch.seconds += 1,
+            Outcome::Event { written: true } => batch.events += 1,
+            Outcome::Second { written: false } | Outcome::Event { written: false } => {
+                batch.duplicates += 1
+            }
+            Outcome::Skipped(why) => {
+                batch.skipped += 1;
+                batch.last_skip = Some(why);
+            }
+            Outcome::Birth | Outcome::Death => {}
+        }
+        ids.extend(packet_id);
+    }
+    if batch.messages == 0 {
+        return Ok(ids);
+    }
+    tx.commit()?;
+    s.messages += batch.messages;
+    s.seconds += batch.seconds;
+    s.events += batch.events;
+    s.duplicates += batch.duplicates;
+    s.skipped += batch.skipped;
+    if batch.last_skip.is_some() {
+        s.last_skip = batch.last_skip;
+    }
+    Ok(ids)
+}
+
 /// Ingests until idle or the deadline: the database first (no message is taken while it is
 /// away, so the broker keeps them), then the broker.
 pub fn run(config: &Config) -> Summary {
@@ -438,46 +489,22 @@ pub fn run(config: &Config) -> Summary {
         if let Err(e) = polled {
             s.last_error = Some(e);
         }
-        for p in incoming {
-            let Incoming::Publish {
-                topic,
-                packet_id,
-                payload,
-            } = p
-            else {
-                continue;
-            };
-            s.messages += 1;
+        if !incoming.is_empty() {
             last_message = Instant::now();
-            match ingester.handle(d, &topic, &payload) {
-                Ok(o) => {
-                    match o {
-                        Outcome::Second { written: true } => s.seconds += 1,
-                        Outcome::Event { written: true } => s.events += 1,
-                        Outcome::Second { written: false } | Outcome::Event { written: false } => {
-                            s.duplicates += 1
-                        }
-                        Outcome::Skipped(why) => {
-                            s.skipped += 1;
-                            s.last_skip = Some(why);
-                        }
-                        Outcome::Birth | Outcome::Death => {}
-                    }
-                    if let Some(id) = packet_id {
-                        if c.puback(id).is_err() {
-                            drop_mq = true;
-                            break;
-                        }
-                    }
-                }
-                Err(e) => {
-                    // Unacknowledged, this message and those after it stay with the broker.
-                    s.db_failures += 1;
-                    s.last_error = Some(format!("PostgreSQL: {e}"));
-                    db = None;
+        }
+        match store_batch(&mut ingester, d, incoming, &mut s) {
+            Ok(ids) => {
+                // Acknowledged only now that the batch is committed.
+                if ids.into_iter().any(|id| c.puback(id).is_err()) {
                     drop_mq = true;
-                    break;
                 }
+            }
+            Err(e) => {
+                // Unacknowledged, the batch stays with the broker for the reconnect.
+                s.db_failures += 1;
+                s.last_error = Some(format!("PostgreSQL: {e}"));
+                db = None;
+                drop_mq = true;
             }
         }
         if !drop_mq && last_ping.elapsed() >= Duration::from_secs(10) {

@@ -4,7 +4,7 @@
 
 use std::collections::HashSet;
 
-use postgres::Client;
+use postgres::{Client, GenericClient};
 
 /// The migrations, in order: (version, name, SQL).
 pub const MIGRATIONS: &[(i32, &str, &str)] =
@@ -66,7 +66,7 @@ impl Partitions {
     /// Makes sure `table` has the partition of the UTC day holding `t_ms`.
     pub fn ensure(
         &mut self,
-        db: &mut Client,
+        db: &mut impl GenericClient,
         table: &'static str,
         t_ms: i64,
     ) -> Result<(), postgres::Error> {

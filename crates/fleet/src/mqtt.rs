@@ -361,7 +361,8 @@ impl Connection {
         self.stream
             .set_read_timeout(Some(wait.max(Duration::from_millis(1))))
             .map_err(|e| e.to_string())?;
-        let mut chunk = [0u8; 512];
+        // Large enough for a batch of messages per call (a subscriber receives ~2 kB each).
+        let mut chunk = [0u8; 16 * 1024];
         match self.stream.read(&mut chunk) {
             Ok(0) => return Err("the broker closed the connection".into()),
             Ok(n) => self.buf.extend_from_slice(&chunk[..n]),
