@@ -271,7 +271,42 @@ fn the_log_reaches_a_sparkplug_host_through_a_broker_restart_and_a_killed_servic
     let (log, events) = log_seconds(&db);
     check_sessions(&m);
     check_data(&m, &log, &events, &dir);
+    check_replay_rate(&m);
     check_kept_compensating(&db);
+}
+
+/// The replay after a reconnect (session 2) and `fleet publish`'s (session 3) go at most 100
+/// messages a second, the default: their payload timestamps (when each was made) span at least
+/// 10 ms per message after the first.
+fn check_replay_rate(m: &[serde_json::Value]) {
+    let mut session = 0;
+    let mut made: HashMap<usize, Vec<i64>> = HashMap::new();
+    for x in m {
+        match x["type"].as_str() {
+            Some("NBIRTH") => session += 1,
+            Some("NDATA") if x["metrics"][0][3] == true => made
+                .entry(session)
+                .or_default()
+                .push(x["timestamp"].as_i64().unwrap()),
+            _ => {}
+        }
+    }
+    for s in [2, 3] {
+        let t = &made[&s];
+        assert!(
+            t.len() >= 10,
+            "session {s}: only {} historical messages",
+            t.len()
+        );
+        let span = t.last().unwrap() - t[0];
+        let least = (t.len() as i64 - 1) * 10;
+        // 20 ms for the clock's and the scheduler's slack.
+        assert!(
+            span >= least - 20,
+            "session {s}: {} historical messages in {span} ms, faster than 100/s",
+            t.len()
+        );
+    }
 }
 
 /// Births, sequence numbers and deaths: each session (an NBIRTH) numbers its NDATA 1, 2, …
