@@ -40,7 +40,7 @@ pub mod work;
 use std::net::SocketAddr;
 use std::path::PathBuf;
 use std::sync::atomic::Ordering;
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 use std::time::Duration;
 
@@ -96,6 +96,10 @@ struct Shared {
     log: Option<(PathBuf, Rows)>,
     probes_after: i64,
     model_files: Vec<Option<PathBuf>>,
+    /// Per model, the generation its figures were read at and the figures: read again only when
+    /// a reload was applied, so a file refused at reload (unsigned, implausible) never shows
+    /// its figures beside the model that still runs.
+    figures: Mutex<Vec<(u64, Value)>>,
     hub: Arc<Hub>,
 }
 
@@ -128,6 +132,13 @@ impl LiveServer {
             info: setup.info,
             log: setup.log,
             probes_after: setup.probes_after,
+            figures: Mutex::new(
+                setup
+                    .model_files
+                    .iter()
+                    .map(|f| (1, quality::figures_of(f.as_deref())))
+                    .collect(),
+            ),
             model_files: setup.model_files,
             hub: Arc::clone(&hub),
         });
@@ -351,12 +362,23 @@ fn quality(rq: Request, s: &Shared) {
         .map(|(i, n)| (n.clone(), s.model_files.get(i).cloned().flatten()))
         .collect();
     let generations = s.board.read().map(|b| b.generations).unwrap_or_default();
+    let figures: Vec<Value> = {
+        let mut cache = s.figures.lock().unwrap_or_else(|p| p.into_inner());
+        for (i, (generation, figures)) in cache.iter_mut().enumerate() {
+            let now = generations.get(i).copied().unwrap_or(*generation);
+            if now != *generation {
+                *generation = now;
+                *figures = quality::figures_of(models.get(i).and_then(|m| m.1.as_deref()));
+            }
+        }
+        cache.iter().map(|(_, f)| f.clone()).collect()
+    };
     let axes: Vec<String> = s.info.axes.iter().map(|a| a.name.clone()).collect();
     let probes = s.log.as_ref().map(|(f, _)| (f.as_path(), s.probes_after));
     respond_json(
         rq,
         200,
-        &quality::quality_json(&models, &generations, probes, &axes),
+        &quality::quality_json(&models, &generations, &figures, probes, &axes),
     );
 }
 

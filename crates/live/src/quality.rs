@@ -175,11 +175,13 @@ pub fn probes_json(file: &Path, after: i64, axes: &[String]) -> Value {
     json!({"events": events, "count": count, "residual_rms": rms})
 }
 
-/// `/api/quality`: per model of the set its name, generation, file and validation figures;
-/// the last probe events with their residuals (`null` without a log).
+/// `/api/quality`: per model of the set its name, generation, file and validation figures
+/// (`figures`: as read when that generation was loaded, [`model_file_quality`]); the last probe
+/// events with their residuals (`null` without a log).
 pub fn quality_json(
     models: &[(String, Option<PathBuf>)],
     generations: &[u64],
+    figures: &[Value],
     probes: Option<(&Path, i64)>,
     axes: &[String],
 ) -> Value {
@@ -187,10 +189,7 @@ pub fn quality_json(
         .iter()
         .enumerate()
         .map(|(i, (name, file))| {
-            let mut v = match file {
-                Some(f) => model_file_quality(f),
-                None => json!({"error": "no model file (a model built in)"}),
-            };
+            let mut v = figures.get(i).cloned().unwrap_or_else(|| json!({}));
             v["name"] = json!(name);
             v["generation"] = json!(generations.get(i));
             v["file"] = json!(file.as_ref().map(|f| f.display().to_string()));
@@ -199,6 +198,14 @@ pub fn quality_json(
         .collect();
     let probes = probes.map(|(f, after)| probes_json(f, after, axes));
     json!({"models": models, "probes": probes})
+}
+
+/// A model's figures from its file, or what stands in for them when it has none.
+pub fn figures_of(file: Option<&Path>) -> Value {
+    match file {
+        Some(f) => model_file_quality(f),
+        None => json!({"error": "no model file (a model built in)"}),
+    }
 }
 
 #[cfg(test)]
