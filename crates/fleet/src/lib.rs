@@ -8,6 +8,10 @@
 //! historical and bounded in rate. Nothing on the cycle's path touches the network: the only
 //! link between the cycle and this crate is the log file.
 //!
+//! Its MQTT client ([`mqtt`]) and Sparkplug codec ([`sparkplug`]) are also what the fleet
+//! store (`truepos-fleet-store`, `truepos fleet ingest`) subscribes and decodes with; this
+//! crate links no database client.
+//!
 //! The messages, without a broker:
 //!
 //! ```
