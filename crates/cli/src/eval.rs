@@ -18,7 +18,7 @@ pub struct Args {
     machine: PathBuf,
     /// Model file: a position-dependent thermal model or a reference-sensor regression (TOML, or
     /// JSON by extension), or a fitted dynamic model (JSON with
-    /// `"format": "truepos-dynamic-model"`).
+    /// `"form": "filtered"`).
     #[arg(long, default_value = "examples/vmc3/model.toml")]
     model: PathBuf,
     /// Run CSV (or workbook) of cycles: time_s, <axis>_mm / <axis>_deg, temperatures,

@@ -139,7 +139,7 @@ fn a_fitted_dynamic_model_runs_in_the_service() {
             "spindle_front,spindle_rear,spindle_motor,ambient,spindle_rpm",
         ])
         .args([
-            "--machine",
+            "--machine-name",
             "twin-vmc3",
             "--family",
             "dynamic",

@@ -24,7 +24,7 @@
 //! - [`validate`]: chronological split, leave one run out, blocked k-fold; RMSE, max |e|,
 //!   peak-to-peak and reduction versus uncompensated, per target channel; [`validate::fit`]
 //!   runs features and validation in one call.
-//! - [`export`]: the fit as a dynamic model file (`format = "truepos-dynamic-model"`, JSON),
+//! - [`export`]: the fit as a model file of the filtered form (`form = "filtered"`, JSON),
 //!   whose reading and writing live in `truepos_io::dynamic_model_file`, so that the runtime
 //!   reads it without the solvers.
 //! - [`position_model`]: the position-dependent thermal model's families (down to the prior art,

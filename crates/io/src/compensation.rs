@@ -1,5 +1,6 @@
 //! The one loader of a compensation model file, whatever its form: reads the file once,
-//! recognises a fitted dynamic model (JSON with `"format": "truepos-dynamic-model"`,
+//! recognises a filtered model (JSON with `"form": "filtered"`, or version 1's
+//! `"format": "truepos-dynamic-model"`,
 //! [`crate::dynamic_model_file`]) or a position-dependent model (TOML, or JSON by extension,
 //! [`crate::model_file`]), and returns it bound to the machine as the core's
 //! [`CompensationModel`], with the axis-combination index the file gives. Every user —
@@ -108,7 +109,13 @@ fn is_dynamic(path: &Path, text: &str) -> bool {
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("json"));
     dynamic_model_file::is_dynamic(text)
-        || (json && text.contains(&format!("\"{}\"", dynamic_model_file::FORMAT)))
+        || (json
+            && [
+                dynamic_model_file::LEGACY_FORMAT,
+                dynamic_model_file::FORM_FILTERED,
+            ]
+            .iter()
+            .any(|f| text.contains(&format!("\"{f}\""))))
 }
 
 #[cfg(test)]

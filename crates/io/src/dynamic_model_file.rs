@@ -2,7 +2,7 @@
 //! control, with its provenance and validation figures, readable by a person.
 //!
 //! ```json
-//! { "format": "truepos-dynamic-model", "version": 1, "machine": "fl-thermal",
+//! { "format": "truepos-model", "version": 2, "form": "filtered", "machine": "fl-thermal",
 //!   "inputs": [{"name": "t5_c", "kind": "temperature"}, {"name": "spindle_rpm", "kind": "operating"}],
 //!   "temperature_rise": true, "temperature_taus_s": [900, 3600, 28800], "rate_taus_s": [1800],
 //!   "operating_taus_s": [300, …], "operating_square": true, "rise_while_running": true,
@@ -44,10 +44,11 @@ pub enum InputKind {
     Operating,
 }
 
-/// The `format` value.
-pub const FORMAT: &str = "truepos-dynamic-model";
-/// The `version` value this crate writes and reads.
-pub const VERSION: u32 = 1;
+/// The `format` value of files written before both forms shared one (read as version 1).
+pub const LEGACY_FORMAT: &str = "truepos-dynamic-model";
+/// The `format`, `version` and `form` this crate writes: the model file's, of the filtered
+/// form.
+pub use crate::model_file::{FORMAT, FORM_FILTERED, VERSION};
 
 /// One input the model reads every cycle.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -75,10 +76,13 @@ pub struct OutputEntry {
 /// The whole file.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct DynamicModelFile {
-    /// Always [`FORMAT`].
+    /// [`FORMAT`] (or [`LEGACY_FORMAT`] in version 1).
     pub format: String,
-    /// Always [`VERSION`].
+    /// [`VERSION`] (or 1 with [`LEGACY_FORMAT`]).
     pub version: u32,
+    /// [`FORM_FILTERED`] (absent in version 1).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub form: Option<String>,
     /// The machine it belongs to.
     pub machine: String,
     /// Inputs, temperatures first, in the order the cycle gives them.
@@ -128,6 +132,7 @@ impl DynamicModelFile {
         Self {
             format: FORMAT.into(),
             version: VERSION,
+            form: Some(FORM_FILTERED.into()),
             machine: machine.into(),
             features: model
                 .bank()
@@ -168,16 +173,28 @@ impl DynamicModelFile {
 
     /// [`Self::to_model`], naming the key of the problem.
     fn check(&self) -> Result<DynamicModel, Problem> {
-        if self.format != FORMAT {
+        let legacy = self.format == LEGACY_FORMAT;
+        if !legacy && self.format != FORMAT {
             return Err((
                 "format".into(),
                 format!("expected \"{FORMAT}\", got \"{}\"", self.format),
             ));
         }
-        if self.version != VERSION {
+        let version = if legacy { 1 } else { VERSION };
+        if self.version != version {
             return Err((
                 "version".into(),
-                format!("expected {VERSION}, got {}", self.version),
+                format!("expected {version}, got {}", self.version),
+            ));
+        }
+        let form = if legacy { None } else { Some(FORM_FILTERED) };
+        if self.form.as_deref() != form {
+            return Err((
+                "form".into(),
+                match form {
+                    Some(f) => format!("expected \"{f}\", got {:?}", self.form),
+                    None => format!("no `form` in version 1, got {:?}", self.form),
+                },
             ));
         }
         let temperatures = self
@@ -399,13 +416,17 @@ impl DynamicModelFile {
     }
 }
 
-/// Whether a model file's text is a dynamic model file (JSON with this crate's `format`).
+/// Whether a model file's text is a filtered model file: JSON of the filtered `form`, or of
+/// version 1's own `format`.
 pub fn is_dynamic(text: &str) -> bool {
     #[derive(Deserialize)]
     struct Head {
         format: String,
+        #[serde(default)]
+        form: Option<String>,
     }
-    serde_json::from_str::<Head>(text).is_ok_and(|h| h.format == FORMAT)
+    serde_json::from_str::<Head>(text)
+        .is_ok_and(|h| h.format == LEGACY_FORMAT || h.form.as_deref() == Some(FORM_FILTERED))
 }
 
 /// Reads a dynamic model file and binds it to the machine.
@@ -503,8 +524,11 @@ mod tests {
             .unwrap_err()
             .to_string()
             .contains("expected 5 values (one per feature), got 4"));
-        bad.version = 2;
+        bad.version = 3;
         assert!(bad.to_model(path).is_err());
+        bad.version = VERSION;
+        bad.form = None;
+        assert!(bad.to_model(path).unwrap_err().to_string().contains("form"));
         assert!(DynamicModelFile::from_json(path, "{\n\"format\": 3}")
             .unwrap_err()
             .to_string()

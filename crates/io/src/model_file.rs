@@ -1,6 +1,8 @@
 //! The model file: the contract between learning and compensating.
 //!
-//! A model file is versioned (`format = "truepos-model"`, `version = 1`), names the machine it
+//! A model file is versioned (`format = "truepos-model"`, `version = 2`) and says its form
+//! (`form = "position"` here; the filtered form is [`crate::dynamic_model_file`]; version 1,
+//! without `form`, still loads as the position form). It names the machine it
 //! belongs to, lists the inputs it was made for (axes with their travel, temperature differences
 //! with their definitions) and holds its parts and coefficients, plus free-form provenance and
 //! validation tables. Loading binds it to a machine description and refuses any mismatch: a
@@ -12,7 +14,8 @@
 //!
 //! ```toml
 //! format = "truepos-model"
-//! version = 1
+//! version = 2
+//! form = "position"
 //! name = "vmc3-structure"
 //! machine = "vmc-3axis"
 //!
@@ -46,10 +49,15 @@ use truepos_model::{
 use crate::envelope_file::EnvelopeEntry;
 use crate::error::{parse_toml, read_text, InputError};
 
-/// The `format` every model file carries.
+/// The `format` every model file carries, of either form.
 pub const FORMAT: &str = "truepos-model";
-/// The version this build reads and writes.
-pub const VERSION: u32 = 1;
+/// The version this build writes: version 2 says its `form`. Version 1 (no `form`: a
+/// position model) is read as well.
+pub const VERSION: u32 = 2;
+/// The `form` of a model that is a function of this cycle's values (this module).
+pub const FORM_POSITION: &str = "position";
+/// The `form` of a model whose filters carry history ([`crate::dynamic_model_file`]: JSON).
+pub const FORM_FILTERED: &str = "filtered";
 
 /// A model file as written: names, not indices. Build one from a bound model with
 /// [`ModelFile::from_model`], write it with [`ModelFile::to_toml`], read one with [`load`].
@@ -58,8 +66,11 @@ pub const VERSION: u32 = 1;
 pub struct ModelFile {
     /// Always [`FORMAT`].
     pub format: Spanned<String>,
-    /// Always [`VERSION`].
+    /// [`VERSION`], or 1 in files written before forms were named.
     pub version: Spanned<u32>,
+    /// [`FORM_POSITION`] (absent in version 1).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub form: Option<Spanned<String>>,
     /// The model's name.
     pub name: Spanned<String>,
     /// The machine it belongs to (`[machine] name` of the machine description).
@@ -435,15 +446,35 @@ impl ModelFile {
                 ),
             ));
         }
-        if *self.version.get_ref() != VERSION {
+        let version = *self.version.get_ref();
+        if version != 1 && version != VERSION {
             return Err((
                 self.version.span(),
                 "version".into(),
                 format!(
-                    "model file version {} is not supported; this build reads version {VERSION}",
-                    self.version.get_ref()
+                    "model file version {version} is not supported; this build reads versions 1 and {VERSION}"
                 ),
             ));
+        }
+        match &self.form {
+            Some(f) if f.get_ref() != FORM_POSITION => {
+                return Err(err(
+                    f,
+                    "form".into(),
+                    format!(
+                        "expected \"{FORM_POSITION}\" in a TOML model file, got \"{}\" (a \"{FORM_FILTERED}\" model is a JSON file)",
+                        f.get_ref()
+                    ),
+                ))
+            }
+            None if version == VERSION => {
+                return Err((
+                    self.version.span(),
+                    "form".into(),
+                    format!("expected `form = \"{FORM_POSITION}\"` in a version {VERSION} model file"),
+                ))
+            }
+            _ => {}
         }
         if self.machine.get_ref() != &machine.name {
             return Err(err(
@@ -768,6 +799,7 @@ impl ModelFile {
         ModelFile {
             format: spanned(FORMAT.into()),
             version: spanned(VERSION),
+            form: Some(spanned(FORM_POSITION.to_string())),
             name: spanned(model.name().into()),
             machine: spanned(machine.name.clone()),
             description: String::new(),

@@ -375,8 +375,22 @@ fn k02_unsupported_version() {
     let text = edit(MODEL, "version = 1", "version = 7");
     assert_eq!(
         model_error(&text),
-        "k.toml:2:11: `version`: model file version 7 is not supported; this build reads version 1"
+        "k.toml:2:11: `version`: model file version 7 is not supported; this build reads versions 1 and 2"
     );
+}
+
+/// Version 2 names its form; a TOML file of the filtered form, or a version 2 file without
+/// one, is named at its key. Version 1 (no form) still loads.
+#[test]
+fn k03_the_form_of_a_version_2_file() {
+    let v2 = edit(MODEL, "version = 1", "version = 2\nform = \"filtered\"");
+    let e = model_error(&v2);
+    assert!(
+        e.contains("`form`") && e.contains("expected \"position\""),
+        "{e}"
+    );
+    let e = model_error(&edit(MODEL, "version = 1", "version = 2"));
+    assert!(e.contains("`form`") && e.contains("version 2"), "{e}");
 }
 
 #[test]
