@@ -623,6 +623,43 @@ impl Drop for Postgres {
     }
 }
 
+/// A birth of node `poison`, then two events the database cannot take as sent, as (message
+/// kind, Python bytes literal).
+fn poison() -> Vec<(&'static str, String)> {
+    use truepos_fleet::sparkplug::{Metric, Payload, Value};
+    let now_ms = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap()
+        .as_millis() as u64;
+    let metric = |name: &str, value: Value| Metric {
+        name: name.into(),
+        alias: None,
+        timestamp_ms: None,
+        value,
+        historical: false,
+    };
+    let event = |t_ms: u64, detail: &str| Payload {
+        timestamp_ms: t_ms,
+        seq: Some(1),
+        metrics: vec![
+            metric("Event/Kind", Value::String("sensor-fault".into())),
+            metric("Event/Subject", Value::String("x".into())),
+            metric("Event/Detail", Value::String(detail.into())),
+        ],
+    };
+    let birth = Payload {
+        timestamp_ms: now_ms,
+        seq: Some(0),
+        metrics: vec![metric("bdSeq", Value::UInt64(0))],
+    };
+    let py = |p: Payload| p.encode().iter().map(|b| format!("\\x{b:02x}")).collect();
+    vec![
+        ("NBIRTH", py(birth)),
+        ("NDATA", py(event(now_ms, "bad\0detail"))),
+        ("NDATA", py(event(1 << 62, "far future"))),
+    ]
+}
+
 /// Publishes one raw message with paho-mqtt (not with our client: a foreign publisher);
 /// `payload` is the inside of a Python bytes literal.
 fn publish_foreign(port: u16, topic: &str, payload: &str) {
@@ -667,6 +704,12 @@ fn the_fleet_store_holds_each_second_once_through_a_database_outage_and_a_replay
         "not protobuf at all",
     );
     publish_foreign(port, "spBv1.0/other/NDATA/nobody", r"\x08\x01");
+    // Valid Sparkplug the database cannot hold as sent: a NUL in an event's text (stored with
+    // a replacement character) and a time 2^62 ms after 1970 (skipped). Either used to fail
+    // its batch, which the broker sent again and again, stalling every machine behind it.
+    for (kind, payload) in poison() {
+        publish_foreign(port, &format!("spBv1.0/truepos/{kind}/poison"), &payload);
+    }
 
     let mut service = Reaped(
         truepos()
@@ -722,6 +765,12 @@ fn the_fleet_store_holds_each_second_once_through_a_database_outage_and_a_replay
     let summary = std::fs::read_to_string(dir.join("ingest.err")).unwrap();
     eprintln!("{summary}");
 
+    assert_eq!(
+        pg.query("SELECT count(*), min(detail) FROM fleet_events WHERE node_id = 'poison'"),
+        "1,bad\u{fffd}detail",
+        "{summary}"
+    );
+    pg.query("DELETE FROM fleet_events WHERE node_id = 'poison'");
     let (log, events) = log_seconds(&db);
     let stored = pg.query("SELECT count(*), sum(cycles) FROM fleet_seconds");
     let cycles: u32 = log.values().map(|v| v.0).sum();
@@ -772,7 +821,8 @@ fn the_fleet_store_holds_each_second_once_through_a_database_outage_and_a_replay
         already >= log.len() as u64,
         "the replay was not recognised: {summary}"
     );
-    assert!(summary.contains("2 skipped"), "{summary}");
+    // The two foreign messages and the far-future event.
+    assert!(summary.contains("3 skipped"), "{summary}");
     assert!(
         !summary.contains(" 0 database failure"),
         "the outage went unseen: {summary}"

@@ -81,6 +81,28 @@ fn number(v: &Value) -> Option<f64> {
     }
 }
 
+/// The first and last instants a stored row may have, ms since the Unix epoch (2000-01-01 and
+/// 2200-01-01): beyond them PostgreSQL's timestamps and the day partitions still work, but no
+/// machine's clock is right, and a time far beyond them fails the database's conversion.
+const TIME_RANGE_MS: (u64, u64) = (946_684_800_000, 7_258_118_400_000);
+
+/// A message's time in ms, if a machine's clock can have read it.
+fn plausible_time(t_ms: u64) -> Result<i64, String> {
+    if (TIME_RANGE_MS.0..=TIME_RANGE_MS.1).contains(&t_ms) {
+        Ok(t_ms as i64)
+    } else {
+        Err(format!(
+            "a time of {t_ms} ms since 1970, outside the years 2000 to 2200"
+        ))
+    }
+}
+
+/// Text as PostgreSQL can store it: `text` and `jsonb` refuse the NUL character, which a
+/// Sparkplug string may carry.
+fn storable(text: &str) -> String {
+    text.replace('\0', "\u{fffd}")
+}
+
 /// An NDATA's rows, its metrics named through the node's birth (`names`: alias → name).
 pub fn rows(p: &Payload, names: &HashMap<u64, String>) -> Result<Row, String> {
     let mut stats = serde_json::Map::new();
@@ -123,18 +145,17 @@ pub fn rows(p: &Payload, names: &HashMap<u64, String>) -> Result<Row, String> {
                     _ => continue,
                 };
                 let entry = stats
-                    .entry(column.to_string())
+                    .entry(storable(column))
                     .or_insert_with(|| serde_json::json!([null, null, null]));
                 entry[k] = number(&m.value).map_or(serde_json::Value::Null, |x| x.into());
             }
         }
     }
-    let t_ms =
-        i64::try_from(t_ms.unwrap_or(p.timestamp_ms)).map_err(|_| "a time beyond 2^63 ms")?;
+    let t_ms = plausible_time(t_ms.unwrap_or(p.timestamp_ms))?;
     if let [Some(k), Some(s), Some(d)] = event {
         return Ok(Row::Event {
             t_ms,
-            fields: [k, s, d],
+            fields: [k, s, d].map(|f| storable(&f)),
             historical,
         });
     }
@@ -148,6 +169,13 @@ pub fn rows(p: &Payload, names: &HashMap<u64, String>) -> Result<Row, String> {
         stats: serde_json::Value::Object(stats),
         historical,
     })
+}
+
+/// Whether the database refused a message's values (SQLSTATE classes 22, data exception, and
+/// 23, integrity constraint), as opposed to failing itself (a lost connection, a full disk).
+fn refused_data(e: &postgres::Error) -> bool {
+    e.code()
+        .is_some_and(|c| c.code().starts_with("22") || c.code().starts_with("23"))
 }
 
 /// The ingester's state between messages.
@@ -183,9 +211,12 @@ impl Ingester {
         match kind {
             "NBIRTH" => self.birth(db, key, &p),
             "NDEATH" => {
+                let Ok(died_ms) = plausible_time(p.timestamp_ms) else {
+                    return Ok(Outcome::Skipped(format!("{topic}: an implausible time")));
+                };
                 db.execute(
                     "UPDATE fleet_nodes SET died_at = to_timestamp($3) WHERE group_id = $1 AND node_id = $2",
-                    &[&key.0, &key.1, &seconds_f64(p.timestamp_ms as i64)],
+                    &[&key.0, &key.1, &seconds_f64(died_ms)],
                 )?;
                 Ok(Outcome::Death)
             }
@@ -200,13 +231,17 @@ impl Ingester {
         key: (String, String),
         p: &Payload,
     ) -> Result<Outcome, postgres::Error> {
+        let born_ms = match plausible_time(p.timestamp_ms) {
+            Ok(t) => t,
+            Err(e) => return Ok(Outcome::Skipped(format!("{}/{} birth: {e}", key.0, key.1))),
+        };
         let mut names = HashMap::new();
         let text = |n: &str| {
             p.metrics
                 .iter()
                 .find(|m| m.name == n)
                 .and_then(|m| match &m.value {
-                    Value::String(s) => Some(s.clone()),
+                    Value::String(s) => Some(storable(s)),
                     _ => None,
                 })
         };
@@ -218,7 +253,7 @@ impl Ingester {
             .map(|x| x as i64);
         for m in &p.metrics {
             if let Some(a) = m.alias {
-                names.insert(a, m.name.clone());
+                names.insert(a, storable(&m.name));
             }
         }
         let aliases: serde_json::Map<String, serde_json::Value> = names
@@ -237,7 +272,7 @@ impl Ingester {
                 &text("Properties/Models"),
                 &bd_seq,
                 &serde_json::Value::Object(aliases).to_string(),
-                &seconds_f64(p.timestamp_ms as i64),
+                &seconds_f64(born_ms),
             ],
         )?;
         self.births.insert(key, names);
@@ -392,7 +427,24 @@ fn store_batch(
             continue;
         };
         batch.messages += 1;
-        match ingester.handle(&mut tx, &topic, &payload)? {
+        // A savepoint per message: a message the database refuses (a value it cannot hold)
+        // undoes itself alone and is skipped and acknowledged, instead of failing the batch,
+        // which the broker would send again and again and stall every machine behind it.
+        let mut one = tx.transaction()?;
+        let outcome = match ingester.handle(&mut one, &topic, &payload) {
+            Ok(o) => {
+                one.commit()?;
+                o
+            }
+            Err(e) if refused_data(&e) => {
+                drop(one);
+                // Partitions made inside the undone savepoint are gone again.
+                ingester.partitions.forget();
+                Outcome::Skipped(format!("{topic}: refused by the database: {e}"))
+            }
+            Err(e) => return Err(e),
+        };
+        match outcome {
             Outcome::Second { written: true } => batch.seconds += 1,
             Outcome::Event { written: true } => batch.events += 1,
             Outcome::Second { written: false } | Outcome::Event { written: false } => {
