@@ -291,13 +291,20 @@ fn check_replay_rate(m: &[serde_json::Value]) {
             _ => {}
         }
     }
-    for s in [2, 3] {
-        let t = &made[&s];
+    // Session 2 follows a 3 s outage at 20 messages a second: dozens to replay. What session 3
+    // replays is what the killed service had not saved as acknowledged, anywhere from none to a
+    // second's worth (its cursor is saved once a second): its rate is judged when it has two.
+    for (s, least_messages) in [(2, 10), (3, 0)] {
+        let none = Vec::new();
+        let t = made.get(&s).unwrap_or(&none);
         assert!(
-            t.len() >= 10,
+            t.len() >= least_messages,
             "session {s}: only {} historical messages",
             t.len()
         );
+        if t.len() < 2 {
+            continue;
+        }
         let span = t.last().unwrap() - t[0];
         let least = (t.len() as i64 - 1) * 10;
         // 20 ms for the clock's and the scheduler's slack.
