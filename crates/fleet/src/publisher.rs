@@ -376,33 +376,15 @@ impl State {
         })
     }
 
-    /// NBIRTH: every metric NDATA will carry, with its type and alias (values null until the
-    /// first data). The alias of a metric is its index here; NDATA follows [`data_alias`].
+    /// NBIRTH: every metric NDATA will carry ([`birth_payload`]).
     fn birth(&self) -> Payload {
-        let mut metrics = vec![
-            Metric::new("bdSeq", Value::UInt64(u64::from(self.cursor.bd_seq))),
-            Metric::new("Node Control/Rebirth", Value::Boolean(false)),
-            Metric::new("Properties/Machine", Value::String(self.machine.clone())),
-            Metric::new("Properties/Models", Value::String(self.models.clone())),
-            Metric::new("Cycles", Value::Null(7)),
-            Metric::new("Active cycles", Value::Null(7)),
-        ];
-        for c in self.reader.columns() {
-            for s in STATS {
-                metrics.push(Metric::new(metric_name(c, s), Value::Null(DOUBLE)));
-            }
-        }
-        for f in EVENT_FIELDS {
-            metrics.push(Metric::new(format!("Event/{f}"), Value::Null(STRING)));
-        }
-        for (i, m) in metrics.iter_mut().enumerate() {
-            m.alias = Some(i as u64);
-        }
-        Payload {
-            timestamp_ms: now_ms(),
-            seq: Some(0),
-            metrics,
-        }
+        birth_payload(
+            self.cursor.bd_seq,
+            &self.machine,
+            &self.models,
+            self.reader.columns(),
+            now_ms(),
+        )
     }
 
     /// One turn: send what the window allows, read acknowledgements, keep the link alive.
@@ -513,17 +495,7 @@ impl State {
     }
 
     fn data(&mut self, u: &Unit, seq: u64, historical: bool) -> Payload {
-        let mut metrics = Vec::new();
-        let columns = self.reader.columns().len();
-        let mut push = |slot: DataSlot, ts: u64, value: Value| {
-            metrics.push(Metric {
-                alias: Some(data_alias(slot, columns)),
-                timestamp_ms: Some(ts),
-                historical,
-                ..Metric::new("", value)
-            })
-        };
-        match u {
+        let ts = match u {
             Unit::Second(x) => {
                 if x.new_run {
                     // The service time restarted: a later run appended to the log. The latest
@@ -532,29 +504,18 @@ impl State {
                         self.cursor.run_start_unix_s = m.started_unix_s;
                     }
                 }
-                let ts = self.stamp(x.second);
-                push(DataSlot::Cycles, ts, Value::UInt32(x.cycles));
-                push(DataSlot::Active, ts, Value::UInt32(x.active));
-                for (c, st) in x.stats.iter().enumerate() {
-                    let parts = st.map_or([None; 3], |t| [Some(t.0), Some(t.1), Some(t.2)]);
-                    for (k, v) in parts.into_iter().enumerate() {
-                        let value = v.map_or(Value::Null(DOUBLE), Value::Double);
-                        push(DataSlot::Stat(c, k), ts, value);
-                    }
-                }
+                self.stamp(x.second)
             }
-            Unit::Event(e) => {
-                let ts = self.stamp(e.time_s);
-                for (k, v) in [&e.kind, &e.subject, &e.detail].into_iter().enumerate() {
-                    push(DataSlot::Event(k), ts, Value::String(v.clone()));
-                }
-            }
-        }
-        Payload {
-            timestamp_ms: now_ms(),
-            seq: Some(seq),
-            metrics,
-        }
+            Unit::Event(e) => self.stamp(e.time_s),
+        };
+        unit_payload(
+            u,
+            self.reader.columns().len(),
+            ts,
+            seq,
+            historical,
+            now_ms(),
+        )
     }
 
     /// A clean end: NDEATH published by us (Sparkplug: the will is not sent on DISCONNECT),
@@ -576,6 +537,90 @@ impl State {
         }
         s.conn.disconnect();
         self.shared.connected.store(false, Ordering::Relaxed);
+    }
+}
+
+/// The NBIRTH a service sends: `bdSeq`, `Node Control/Rebirth`, the machine and its models,
+/// then every metric NDATA will carry for the log's `columns`, with its type and alias (values
+/// null until the first data). The alias of a metric is its index here; NDATA follows
+/// [`data_alias`]. Public so that a load generator sends exactly what a service sends.
+pub fn birth_payload(
+    bd_seq: u8,
+    machine: &str,
+    models: &str,
+    columns: &[String],
+    now_ms: u64,
+) -> Payload {
+    let mut metrics = vec![
+        Metric::new("bdSeq", Value::UInt64(u64::from(bd_seq))),
+        Metric::new("Node Control/Rebirth", Value::Boolean(false)),
+        Metric::new("Properties/Machine", Value::String(machine.to_string())),
+        Metric::new("Properties/Models", Value::String(models.to_string())),
+        Metric::new("Cycles", Value::Null(7)),
+        Metric::new("Active cycles", Value::Null(7)),
+    ];
+    for c in columns {
+        for s in STATS {
+            metrics.push(Metric::new(metric_name(c, s), Value::Null(DOUBLE)));
+        }
+    }
+    for f in EVENT_FIELDS {
+        metrics.push(Metric::new(format!("Event/{f}"), Value::Null(STRING)));
+    }
+    for (i, m) in metrics.iter_mut().enumerate() {
+        m.alias = Some(i as u64);
+    }
+    Payload {
+        timestamp_ms: now_ms,
+        seq: Some(0),
+        metrics,
+    }
+}
+
+/// The NDATA a service sends for one unit of its log (a second's aggregates or an event) of a
+/// log with `columns` columns: metrics by alias, each stamped `data_ms` (the data's clock
+/// time), the payload stamped `now_ms` (when the message was made).
+pub fn unit_payload(
+    u: &Unit,
+    columns: usize,
+    data_ms: u64,
+    seq: u64,
+    historical: bool,
+    now_ms: u64,
+) -> Payload {
+    let mut metrics = Vec::new();
+    let mut push = |slot: DataSlot, value: Value| {
+        metrics.push(Metric {
+            alias: Some(data_alias(slot, columns)),
+            timestamp_ms: Some(data_ms),
+            historical,
+            ..Metric::new("", value)
+        })
+    };
+    match u {
+        Unit::Second(x) => {
+            push(DataSlot::Cycles, Value::UInt32(x.cycles));
+            push(DataSlot::Active, Value::UInt32(x.active));
+            for (c, st) in x.stats.iter().enumerate() {
+                let parts = st.map_or([None; 3], |t| [Some(t.0), Some(t.1), Some(t.2)]);
+                for (k, v) in parts.into_iter().enumerate() {
+                    push(
+                        DataSlot::Stat(c, k),
+                        v.map_or(Value::Null(DOUBLE), Value::Double),
+                    );
+                }
+            }
+        }
+        Unit::Event(e) => {
+            for (k, v) in [&e.kind, &e.subject, &e.detail].into_iter().enumerate() {
+                push(DataSlot::Event(k), Value::String(v.clone()));
+            }
+        }
+    }
+    Payload {
+        timestamp_ms: now_ms,
+        seq: Some(seq),
+        metrics,
     }
 }
 
