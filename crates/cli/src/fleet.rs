@@ -1,12 +1,17 @@
 //! `truepos run --mqtt URL` (the publisher beside the service), `truepos fleet publish`
-//! (forward a log that is already written, e.g. after the service was killed) and `truepos
-//! fleet ingest` (the broker into PostgreSQL): options into `truepos_fleet`'s and
-//! `truepos_fleet_store`'s values, the summary printed.
+//! (forward a log that is already written, e.g. after the service was killed), `truepos
+//! fleet ingest` (the broker into PostgreSQL), `truepos fleet models …`, `activate`,
+//! `rollback` (model generations in the store) and `status` (the fleet per machine): options
+//! into `truepos_fleet`'s and `truepos_fleet_store`'s values, the summary or table printed.
 
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use truepos_fleet::{BrokerUrl, Config, Publisher, Summary};
+use truepos_fleet_store::models::{self, Change, Model, ModelError, NewModel, State, Which};
+use truepos_fleet_store::postgres::{Client, NoTls};
+use truepos_fleet_store::status::{utc_text, MachineStatus};
+use truepos_io::signature::{signature_path, verify_line, TrustedKeys};
 
 use crate::error::CliError;
 
@@ -87,6 +92,135 @@ enum Command {
     /// Take the fleet's Sparkplug B telemetry from an MQTT broker into PostgreSQL (migrations
     /// applied first; a message sent twice is written once; docs/fleet.md).
     Ingest(IngestArgs),
+    /// Models as fleet objects: register a signed model, list, fetch, mark as shadow.
+    #[command(subcommand)]
+    Models(ModelsCommand),
+    /// Make a candidate or shadow model a machine's active one; the active one is retired.
+    Activate(ActivateArgs),
+    /// Retire a machine's active model and make the one it replaced active again.
+    Rollback(RollbackArgs),
+    /// Per machine: online, last message, model generation and state, compensating, faults in
+    /// the last hour.
+    Status(StatusArgs),
+}
+
+#[derive(clap::Subcommand)]
+enum ModelsCommand {
+    /// Register a signed model as a machine's candidate (signature verified, model loaded and
+    /// admitted for the machine file first; nothing written if any of it fails).
+    Register(RegisterArgs),
+    /// The models in the store, of one machine or all.
+    List(ListArgs),
+    /// Write a stored model and its signature (MODEL.sig) into a directory.
+    Get(GetArgs),
+    /// Mark a candidate as run in shadow.
+    Shadow(ActivateArgs),
+}
+
+/// Where the store is and who acts, common to the model commands.
+#[derive(clap::Args)]
+struct Store {
+    /// PostgreSQL, `postgres://USER@HOST:PORT/DB`.
+    #[arg(long, value_name = "URL")]
+    db: String,
+}
+
+/// Who changes a model and why, for the history (`fleet_model_changes`).
+#[derive(clap::Args)]
+struct Why {
+    /// Why (kept in the history; default: the command's name).
+    #[arg(long)]
+    reason: Option<String>,
+    /// Who (default: $USER, else the database role).
+    #[arg(long)]
+    by: Option<String>,
+}
+
+#[derive(clap::Args)]
+struct RegisterArgs {
+    #[command(flatten)]
+    store: Store,
+    /// The machine (its Sparkplug node id: the machine file's name with `/`, `+`, `#` as `_`).
+    #[arg(long)]
+    machine: String,
+    /// The model file; its signature is MODEL.sig beside it.
+    #[arg(long)]
+    model: PathBuf,
+    /// The public keys trusted to sign models (one in hex a line).
+    #[arg(long, value_name = "FILE")]
+    trusted_keys: PathBuf,
+    /// The machine description the model is loaded and admitted for.
+    #[arg(long, value_name = "FILE")]
+    machine_file: PathBuf,
+    /// The cycle period the model must fit, ms (as `truepos run --period-ms`).
+    #[arg(long, default_value_t = 1.0)]
+    period_ms: f64,
+    #[command(flatten)]
+    why: Why,
+}
+
+#[derive(clap::Args)]
+struct ListArgs {
+    #[command(flatten)]
+    store: Store,
+    /// Only this machine's.
+    #[arg(long)]
+    machine: Option<String>,
+    /// JSON instead of the table.
+    #[arg(long)]
+    json: bool,
+}
+
+#[derive(clap::Args)]
+struct GetArgs {
+    #[command(flatten)]
+    store: Store,
+    /// The machine.
+    #[arg(long)]
+    machine: String,
+    /// The newest model in this state (candidate, shadow, active, retired).
+    #[arg(long, default_value = "active", conflicts_with = "version")]
+    state: String,
+    /// This version instead.
+    #[arg(long)]
+    version: Option<i32>,
+    /// The directory the model file and its MODEL.sig are written to (each whole).
+    #[arg(long, value_name = "DIR")]
+    out: PathBuf,
+}
+
+#[derive(clap::Args)]
+struct ActivateArgs {
+    #[command(flatten)]
+    store: Store,
+    /// The machine.
+    #[arg(long)]
+    machine: String,
+    /// The version.
+    #[arg(long)]
+    version: i32,
+    #[command(flatten)]
+    why: Why,
+}
+
+#[derive(clap::Args)]
+struct RollbackArgs {
+    #[command(flatten)]
+    store: Store,
+    /// The machine.
+    #[arg(long)]
+    machine: String,
+    #[command(flatten)]
+    why: Why,
+}
+
+#[derive(clap::Args)]
+struct StatusArgs {
+    #[command(flatten)]
+    store: Store,
+    /// JSON instead of the table.
+    #[arg(long)]
+    json: bool,
 }
 
 #[derive(clap::Args)]
@@ -133,6 +267,13 @@ pub fn run(args: Args) -> Result<(), CliError> {
     match args.command {
         Command::Publish(a) => publish(a),
         Command::Ingest(a) => ingest(a),
+        Command::Models(ModelsCommand::Register(a)) => register(a),
+        Command::Models(ModelsCommand::List(a)) => list(a),
+        Command::Models(ModelsCommand::Get(a)) => get(a),
+        Command::Models(ModelsCommand::Shadow(a)) => shadow(a),
+        Command::Activate(a) => activate(a),
+        Command::Rollback(a) => rollback(a),
+        Command::Status(a) => status(a),
     }
 }
 
@@ -192,4 +333,293 @@ fn publish(a: PublishArgs) -> Result<(), CliError> {
             a.timeout_s
         )))
     }
+}
+
+/// Connects to the store and applies the migrations not applied yet.
+fn connect(store: &Store) -> Result<Client, CliError> {
+    let mut db = Client::connect(&store.db, NoTls)
+        .map_err(|e| CliError::refused(format!("--db: PostgreSQL: {e}")))?;
+    truepos_fleet_store::schema::migrate(&mut db)
+        .map_err(|e| CliError::refused(format!("--db: PostgreSQL: migrations: {e}")))?;
+    Ok(db)
+}
+
+fn store_error(e: ModelError) -> CliError {
+    CliError::refused(e.to_string())
+}
+
+impl Why {
+    /// Who and why, the reason defaulting to `command`'s name.
+    fn words(&self, command: &str) -> (Option<String>, String) {
+        let by = self
+            .by
+            .clone()
+            .or_else(|| std::env::var("USER").ok().filter(|u| !u.is_empty()));
+        let reason = self
+            .reason
+            .clone()
+            .unwrap_or_else(|| format!("`truepos fleet {command}`"));
+        (by, reason)
+    }
+}
+
+/// The `provenance` and `validation` tables of a model file's text, as JSON (`{}` where it
+/// has none): JSON for a `.json` file or text that opens with `{`, else TOML.
+fn figures(path: &Path, text: &str) -> Result<(serde_json::Value, serde_json::Value), CliError> {
+    let json = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("json"))
+        || text.trim_start().starts_with('{');
+    let doc: serde_json::Value = if json {
+        serde_json::from_str(text)
+            .map_err(|e| CliError::refused(format!("{}: {e}", path.display())))?
+    } else {
+        let table: toml::Table = toml::from_str(text)
+            .map_err(|e| CliError::refused(format!("{}: {e}", path.display())))?;
+        serde_json::to_value(table)?
+    };
+    let table = |key: &str| match doc.get(key) {
+        Some(v @ serde_json::Value::Object(_)) => v.clone(),
+        _ => serde_json::json!({}),
+    };
+    Ok((table("provenance"), table("validation")))
+}
+
+/// The model's text, read once: its signature verified, loaded for the machine and admitted
+/// through the same door as `truepos run --trusted-keys` (`io::compensation`, runtime's
+/// admission); returns the text and its signature line.
+fn verified_and_admitted(a: &RegisterArgs) -> Result<(String, String), CliError> {
+    if !(a.period_ms.is_finite() && (0.1..=10_000.0).contains(&a.period_ms)) {
+        return Err(CliError::refused("--period-ms: give 0.1-10000"));
+    }
+    let machine = truepos_io::machine_file::load(&a.machine_file)?;
+    let keys = TrustedKeys::load(&a.trusted_keys)?;
+    let text = crate::write::read_text(&a.model, truepos_files::MODEL)?;
+    let entry = truepos_io::compensation::entry_of_text(&a.model, &text, &machine, Some(&keys))?;
+    truepos_runtime::admission::admit(&entry, &machine, a.period_ms / 1000.0).map_err(|why| {
+        CliError::refused(format!(
+            "{}: refused at admission: {why}",
+            a.model.display()
+        ))
+    })?;
+    // The line read again is checked again against the very bytes verified and loaded.
+    let sig_path = signature_path(&a.model);
+    let line = crate::write::read_text(&sig_path, truepos_files::CONFIG)?;
+    verify_line(&line, text.as_bytes(), &keys.keys).map_err(|why| {
+        CliError::refused(format!(
+            "{}: refused: {}: {why}",
+            a.model.display(),
+            sig_path.display()
+        ))
+    })?;
+    Ok((text, line.trim().to_string()))
+}
+
+fn register(a: RegisterArgs) -> Result<(), CliError> {
+    let (text, line) = verified_and_admitted(&a)?;
+    let (provenance, validation) = figures(&a.model, &text)?;
+    let file_name = a
+        .model
+        .file_name()
+        .and_then(|n| n.to_str())
+        .ok_or_else(|| CliError::refused(format!("{}: not a file name", a.model.display())))?;
+    let public_key = line.split_whitespace().nth(1).unwrap_or_default();
+    let (by, reason) = a.why.words("models register");
+    let mut db = connect(&a.store)?;
+    let m = models::register(
+        &mut db,
+        &NewModel {
+            machine: &a.machine,
+            file_name,
+            bytes: text.as_bytes(),
+            signature: &line,
+            public_key,
+            provenance,
+            validation,
+        },
+        &Change {
+            by: by.as_deref(),
+            reason: &reason,
+        },
+    )
+    .map_err(store_error)?;
+    println!(
+        "{}: registered as version {} (candidate{}), sha256 {}",
+        m.machine,
+        m.version,
+        m.parent
+            .map(|p| format!(", parent {p}"))
+            .unwrap_or_default(),
+        m.sha256
+    );
+    Ok(())
+}
+
+fn model_row(m: &Model) -> String {
+    format!(
+        "{:<20} {:>7} {:>6} {:<9} {:<20} {:<12} {}",
+        m.machine,
+        m.version,
+        m.parent
+            .map(|p| p.to_string())
+            .unwrap_or_else(|| "-".into()),
+        m.state.as_str(),
+        utc_text(m.state_changed_unix_s),
+        &m.sha256[..12.min(m.sha256.len())],
+        m.file_name
+    )
+}
+
+fn list(a: ListArgs) -> Result<(), CliError> {
+    let mut db = connect(&a.store)?;
+    let all = models::list(&mut db, a.machine.as_deref()).map_err(store_error)?;
+    if a.json {
+        let v: Vec<serde_json::Value> = all.iter().map(Model::to_json).collect();
+        println!("{}", serde_json::json!({ "models": v }));
+        return Ok(());
+    }
+    println!(
+        "{:<20} {:>7} {:>6} {:<9} {:<20} {:<12} file",
+        "machine", "version", "parent", "state", "since", "sha256"
+    );
+    for m in &all {
+        println!("{}", model_row(m));
+    }
+    Ok(())
+}
+
+fn get(a: GetArgs) -> Result<(), CliError> {
+    let which = match a.version {
+        Some(v) => Which::Version(v),
+        None => Which::State(State::parse(&a.state).ok_or_else(|| {
+            CliError::refused("--state: give candidate, shadow, active or retired")
+        })?),
+    };
+    let mut db = connect(&a.store)?;
+    let f = models::fetch(&mut db, &a.machine, which).map_err(store_error)?;
+    if models::sha256_hex(&f.bytes) != f.sha256 {
+        return Err(CliError::refused(format!(
+            "{} version {}: the stored bytes do not match their sha256; nothing written",
+            a.machine, f.version
+        )));
+    }
+    std::fs::create_dir_all(&a.out).map_err(|e| CliError::File {
+        path: a.out.clone(),
+        doing: Some("cannot create"),
+        source: Box::new(e),
+    })?;
+    let model = a.out.join(&f.file_name);
+    let sig = signature_path(&model);
+    let line = format!("{}\n", f.signature);
+    // The model first, then its signature: a service reloading on change waits for both.
+    crate::write::write_whole(&model, &f.bytes, &[])?;
+    crate::write::write_whole(&sig, line, &[])?;
+    println!(
+        "{}: version {} ({}) written, with {}",
+        model.display(),
+        f.version,
+        f.state,
+        sig.display()
+    );
+    Ok(())
+}
+
+fn shadow(a: ActivateArgs) -> Result<(), CliError> {
+    let mut db = connect(&a.store)?;
+    let (by, reason) = a.why.words("models shadow");
+    let change = Change {
+        by: by.as_deref(),
+        reason: &reason,
+    };
+    models::shadow(&mut db, &a.machine, a.version, &change).map_err(store_error)?;
+    println!("{}: version {} is shadow", a.machine, a.version);
+    Ok(())
+}
+
+fn activate(a: ActivateArgs) -> Result<(), CliError> {
+    let mut db = connect(&a.store)?;
+    let (by, reason) = a.why.words("activate");
+    let change = Change {
+        by: by.as_deref(),
+        reason: &reason,
+    };
+    let old = models::activate(&mut db, &a.machine, a.version, &change).map_err(store_error)?;
+    println!(
+        "{}: version {} is active{}",
+        a.machine,
+        a.version,
+        old.map(|o| format!(", version {o} retired"))
+            .unwrap_or_default()
+    );
+    Ok(())
+}
+
+fn rollback(a: RollbackArgs) -> Result<(), CliError> {
+    let mut db = connect(&a.store)?;
+    let (by, reason) = a.why.words("rollback");
+    let change = Change {
+        by: by.as_deref(),
+        reason: &reason,
+    };
+    let (retired, now) = models::rollback(&mut db, &a.machine, &change).map_err(store_error)?;
+    println!(
+        "{}: version {retired} retired, version {now} is active again",
+        a.machine
+    );
+    Ok(())
+}
+
+fn status_row(s: &MachineStatus) -> String {
+    let online = match s.online {
+        Some(true) => "online",
+        Some(false) => "offline",
+        None => "never",
+    };
+    let model = match s.active_model {
+        Some(v) => format!("v{v} active"),
+        None => "none active".into(),
+    };
+    let waiting: Vec<String> = s
+        .waiting
+        .iter()
+        .map(|(v, st)| format!("v{v} {st}"))
+        .collect();
+    format!(
+        "{:<20} {:<8} {:<21} {:<13} {:<12} {:>6}  {}",
+        s.machine,
+        online,
+        s.last_message_unix_s
+            .map(utc_text)
+            .unwrap_or_else(|| "-".into()),
+        model,
+        s.compensating().as_str(),
+        s.faults_last_hour,
+        if waiting.is_empty() {
+            "-".into()
+        } else {
+            waiting.join(", ")
+        }
+    )
+}
+
+fn status(a: StatusArgs) -> Result<(), CliError> {
+    let mut db = connect(&a.store)?;
+    let all = truepos_fleet_store::status::fleet(&mut db)
+        .map_err(|e| CliError::refused(format!("--db: PostgreSQL: {e}")))?;
+    if a.json {
+        let v: Vec<serde_json::Value> = all.iter().map(MachineStatus::to_json).collect();
+        println!("{}", serde_json::json!({ "machines": v }));
+        return Ok(());
+    }
+    println!(
+        "{:<20} {:<8} {:<21} {:<13} {:<12} {:>6}  waiting",
+        "machine", "online", "last message", "model", "compensating", "faults"
+    );
+    for s in &all {
+        println!("{}", status_row(s));
+    }
+    if all.is_empty() {
+        println!("(no machine in the store yet)");
+    }
+    Ok(())
 }

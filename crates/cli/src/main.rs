@@ -52,7 +52,8 @@ enum Command {
     /// Learn a dynamic compensation model (filtered temperatures and spindle speed, or the
     /// reference-sensor regression) from recorded runs (CSV/XLSX) and validate it honestly.
     Fit(Box<fit::Args>),
-    /// Telemetry to a fleet: forward a service's log to an MQTT broker as Sparkplug B.
+    /// The fleet: a service's log to an MQTT broker as Sparkplug B, the store in PostgreSQL,
+    /// signed models activated and rolled back, the fleet's status.
     Fleet(fleet::Args),
     /// Kinematics table with error tables: forward/inverse transforms, G-code rewrite.
     Kin(kin::Args),

@@ -7,6 +7,11 @@
 //! schema is versioned in `migrations/` ([`schema::MIGRATIONS`]), applied once each; the time
 //! tables are partitioned by day.
 //!
+//! [`models`] keeps every generation of a machine's model — signed bytes, provenance and
+//! validation figures, state (candidate, shadow, active, retired) — and moves them: register,
+//! activate, roll back, each with a history row. [`status`] reads the fleet at a glance per
+//! machine: online, last message, model generation, compensating, faults in the last hour.
+//!
 //! An NDATA message as rows, without a broker or a database:
 //!
 //! ```
@@ -41,4 +46,9 @@
 #![warn(missing_docs)]
 
 pub mod ingest;
+pub mod models;
 pub mod schema;
+pub mod status;
+
+/// The PostgreSQL client the store's functions take, for callers that connect themselves.
+pub use postgres;

@@ -7,8 +7,10 @@ use std::collections::HashSet;
 use postgres::{Client, GenericClient};
 
 /// The migrations, in order: (version, name, SQL).
-pub const MIGRATIONS: &[(i32, &str, &str)] =
-    &[(1, "fleet", include_str!("../migrations/0001_fleet.sql"))];
+pub const MIGRATIONS: &[(i32, &str, &str)] = &[
+    (1, "fleet", include_str!("../migrations/0001_fleet.sql")),
+    (2, "models", include_str!("../migrations/0002_models.sql")),
+];
 
 /// Applies the migrations not applied yet, each in a transaction of its own; returns the
 /// versions applied now. Two ingesters starting at once: the table lock makes the second wait

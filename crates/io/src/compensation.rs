@@ -63,11 +63,26 @@ pub fn load_entry_trusted(
     machine: &MachineConfig,
     trusted: Option<&TrustedKeys>,
 ) -> Result<ModelEntry, InputError> {
-    let text = read_text(path, truepos_files::MODEL)?;
+    entry_of_text(
+        path,
+        &read_text(path, truepos_files::MODEL)?,
+        machine,
+        trusted,
+    )
+}
+
+/// [`load_entry_trusted`] on a file's text already read: what a caller that keeps the bytes
+/// (the fleet store registers exactly the bytes it verified and parsed) loads through.
+pub fn entry_of_text(
+    path: &Path,
+    text: &str,
+    machine: &MachineConfig,
+    trusted: Option<&TrustedKeys>,
+) -> Result<ModelEntry, InputError> {
     if let Some(keys) = trusted {
         keys.verify(path, text.as_bytes())?;
     }
-    let loaded = parse(path, &text, &machine.machine)?;
+    let loaded = parse(path, text, &machine.machine)?;
     let index = match &loaded.axis_index {
         Some(b) => index_of(b.iter().copied()),
         None => index_of(
