@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Debian packages the build and the tests need (idempotent). Called by .ci/run.
 # mosquitto and postgresql: the MQTT broker and the fleet store crates/cli/tests/fleet_mqtt.rs
-# starts on loopback (docs/fleet.md).
+# starts on loopback, and PostgreSQL for crates/cli/tests/fleet_models.rs (docs/fleet.md).
 set -euo pipefail
 pkgs=(libsqlite3-dev pkg-config mosquitto postgresql)
 missing=()

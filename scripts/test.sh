@@ -13,6 +13,8 @@ bash scripts/install_chromium.sh      # Chromium (Debian), to render the HTML re
 bash scripts/install_prometheus.sh    # promtool (Debian `prometheus`), to check the live view's /metrics
 
 echo "== unit, integration and doc tests of every crate"
+# Among them the fleet's, against Mosquitto and PostgreSQL 15 started on loopback by the tests:
+# crates/cli/tests/fleet_mqtt.rs (telemetry, store) and fleet_models.rs (models, fleet status).
 cargo test --workspace
 
 echo "== fault campaign: 10 000 random fault schedules, the output invariant checked every cycle (release)"
