@@ -224,8 +224,15 @@ fn fit_both(
         ..Settings::default()
     };
     let fit = |families: &[PositionFamily]| -> Result<Selected, CliError> {
-        let sel =
-            select(&ds, &data, None, &rows, &settings, families).map_err(CliError::Refused)?;
+        let sel = select(
+            &ds,
+            &data,
+            None,
+            &rows,
+            &settings,
+            &PositionFamily::designs(families),
+        )
+        .map_err(CliError::Refused)?;
         for c in &sel.candidates {
             let cv: Vec<String> = c
                 .targets
@@ -291,7 +298,7 @@ fn save(
         .model
         .choices
         .iter()
-        .map(|c| c.2.observations)
+        .map(|c| c.fitted.observations)
         .sum();
     file.provenance
         .insert("observations".into(), (observations as i64).into());
@@ -529,7 +536,7 @@ fn report(
             ("training".into(), format!("twin scenario `{}`, seed 1: the only data the fit saw", args.train)),
             ("test".into(), format!("twin scenario `{}`, seed 2: a different day, held out entirely", args.test)),
             ("family".into(), format!("per axis {} — family, inputs and ridge λ chosen over the alternatives by blocked 8-fold time-series cross-validation inside the training day (`truepos fit --machine`'s selection)", selected.chosen(machine))),
-            ("solver".into(), posdep.choices.iter().zip(&machine.axes).map(|(c, a)| format!("{}: rank {} of {}, condition {:.3e}", a.name, c.2.solution.rank, c.2.model.parameter_count(), c.2.solution.condition)).collect::<Vec<_>>().join("; ")),
+            ("solver".into(), posdep.choices.iter().zip(&machine.axes).map(|(c, a)| format!("{}: rank {} of {}, condition {:.3e}", a.name, c.fitted.solution.rank, c.fitted.model.parameter_count(), c.fitted.solution.condition)).collect::<Vec<_>>().join("; ")),
             ("working volume".into(), format!("{0}×{0}×{0} grid over the travel, every {stride}-th sample of the test day", args.grid)),
         ],
         volume: Some(volume),

@@ -10,7 +10,9 @@
 //! - **position** families ([`PositionFamily`]): the machine's temperature differences times
 //!   factors of the axis positions — a function of this cycle's values, fitted by
 //!   [`crate::position_model`] (prior-art, all-axes, all-axes-squared, bed-factor, own-axis,
-//!   serial, reference-sensor). They need a machine file.
+//!   serial, reference-sensor). They need a machine file. Each builds its model through
+//!   [`crate::position_model::PositionDesign`], which a caller may implement for a family of
+//!   its own (docs/how-to-add-a-family.md).
 //!
 //! Both forms are chosen among by the same inner cross-validation and judged by the same outer
 //! loop ([`crate::machine_fit`]). Names are unique across both, so one comma-separated list

@@ -20,8 +20,7 @@ use crate::dataset::Dataset;
 use crate::features::Candidates;
 use crate::out_of_fold::{cross_validate, Procedure};
 use crate::position_model::{
-    family_differences, fit_blocks, input_sets, structure_owned, CvOptions, Family, Fitted,
-    Observation,
+    fit_blocks, input_sets, CvOptions, Fitted, Observation, PositionDesign, Shape,
 };
 use crate::settings::{InnerCv, Settings};
 use crate::train::{train, Trained};
@@ -224,8 +223,21 @@ pub struct CandidateFigures {
 pub struct StaticModel {
     /// The model, every target axis' summands in it.
     pub model: Model,
-    /// Per target: (family, input set label, fitted candidate).
-    pub choices: Vec<(Family, &'static str, Fitted)>,
+    /// Per target, what was chosen.
+    pub choices: Vec<PositionChoice>,
+}
+
+/// What the selection chose for one target of a position model.
+#[derive(Debug, Clone)]
+pub struct PositionChoice {
+    /// The family's name on the command line ([`PositionDesign::key`]).
+    pub family: &'static str,
+    /// Its name in reports ([`PositionDesign::name`]).
+    pub family_name: &'static str,
+    /// The input set's label.
+    pub inputs: &'static str,
+    /// The fitted candidate.
+    pub fitted: Fitted,
 }
 
 /// The model the selection chose: one form.
@@ -273,7 +285,7 @@ fn static_selection(
     targets: &[Vec<Vec<f64>>],
     rows: &[(usize, usize)],
     settings: &Settings,
-    families: &[Family],
+    families: &[&dyn PositionDesign],
     candidates: &mut Vec<CandidateFigures>,
 ) -> Result<Option<StaticModel>, String> {
     let machine = &data.machine;
@@ -292,15 +304,15 @@ fn static_selection(
         })
         .filter(|s| !s.differences.is_empty())
         .collect();
-    let mut best: Vec<Option<(Family, &'static str, Fitted)>> = vec![None; nt];
+    let mut best: Vec<Option<PositionChoice>> = vec![None; nt];
     for &family in families {
         let owned = data.owners.iter().any(Option::is_some);
-        if matches!(family, Family::OwnAxis | Family::Serial) && !owned {
+        if family.needs_owners() && !owned {
             continue;
         }
         let mut seen: Vec<Vec<usize>> = Vec::new();
         for set in &sets {
-            let diffs = family_differences(machine, family, &set.differences, data.reference);
+            let diffs = family.differences(machine, &set.differences, data.reference);
             // The reference-sensor regression reads only sensor-minus-reference differences: two
             // input sets can leave it the same, and an empty one is no candidate.
             if diffs.is_empty() || seen.contains(&diffs) {
@@ -310,9 +322,15 @@ fn static_selection(
             let mut scores = Vec::new();
             for k in 0..nt {
                 let axis = data.target_axes[k];
-                let s =
-                    structure_owned("fit", machine, family, &diffs, &[axis], true, &data.owners)
-                        .map_err(|e| e.to_string())?;
+                let shape = Shape {
+                    name: "fit",
+                    machine,
+                    differences: &diffs,
+                    targets: &[axis],
+                    constant: true,
+                    owners: &data.owners,
+                };
+                let s = family.structure(&shape).map_err(|e| e.to_string())?;
                 let obs: Vec<Vec<Observation<'_>>> = blocks
                     .iter()
                     .map(|b| {
@@ -335,9 +353,14 @@ fn static_selection(
                 });
                 if best[k]
                     .as_ref()
-                    .is_none_or(|b| fitted.score_um < b.2.score_um)
+                    .is_none_or(|b| fitted.score_um < b.fitted.score_um)
                 {
-                    best[k] = Some((family, set.label, fitted));
+                    best[k] = Some(PositionChoice {
+                        family: family.key(),
+                        family_name: family.name(),
+                        inputs: set.label,
+                        fitted,
+                    });
                 }
             }
             candidates.push(CandidateFigures {
@@ -353,9 +376,9 @@ fn static_selection(
     };
     // One model: every target's parts, named by their axis so that they stay apart.
     let mut parts: Vec<Part> = Vec::new();
-    for (k, (_, _, fitted)) in choices.iter().enumerate() {
+    for (k, choice) in choices.iter().enumerate() {
         let axis = &machine.axes[data.target_axes[k]].name;
-        for p in fitted.model.parts() {
+        for p in choice.fitted.model.parts() {
             let mut p = p.clone();
             if p.name == "thermal" {
                 p.name = format!("thermal-{axis}");
@@ -370,14 +393,15 @@ fn static_selection(
 
 /// Chooses among every family on the training `rows` by inner CV and fits the choice on them:
 /// the dynamic `settings.families` (none when empty or without `cand`, their candidate
-/// features) and the position-dependent `families`.
+/// features) and the position-dependent `families` (the shipped [`crate::family::PositionFamily`]
+/// or any other [`PositionDesign`]).
 pub fn select(
     ds: &Dataset,
     data: &MachineData,
     cand: Option<&Candidates>,
     rows: &[(usize, usize)],
     settings: &Settings,
-    families: &[Family],
+    families: &[&dyn PositionDesign],
 ) -> Result<Selection, String> {
     if rows.len() < 4 * settings.folds.max(2) {
         return Err(format!(
@@ -429,9 +453,14 @@ pub fn select(
                 .collect::<Vec<_>>(),
         )
     });
-    let static_score = fixed
-        .as_ref()
-        .map(|s| pooled(&s.choices.iter().map(|c| c.2.score_um).collect::<Vec<_>>()));
+    let static_score = fixed.as_ref().map(|s| {
+        pooled(
+            &s.choices
+                .iter()
+                .map(|c| c.fitted.score_um)
+                .collect::<Vec<_>>(),
+        )
+    });
     let take_static = match (dynamic_score, static_score) {
         (Some(d), Some(s)) => s <= d,
         (None, Some(_)) => true,
@@ -443,19 +472,19 @@ pub fn select(
             let labels = s
                 .choices
                 .iter()
-                .map(|(f, inputs, fitted)| format!("{} on {inputs}, λ={:e}", f.key(), fitted.ridge))
+                .map(|c| format!("{} on {}, λ={:e}", c.family, c.inputs, c.fitted.ridge))
                 .collect();
-            let cv = s.choices.iter().map(|c| c.2.score_um).collect();
+            let cv = s.choices.iter().map(|c| c.fitted.score_um).collect();
             let warnings = s
                 .choices
                 .iter()
                 .zip(&ds.target_names)
-                .filter(|(c, _)| c.2.skipped > 0)
+                .filter(|(c, _)| c.fitted.skipped > 0)
                 .map(|(c, t)| {
                     format!(
                         "{t}: {} of {} training samples left out of the position-dependent fit (an input invalid or outside its range)",
-                        c.2.skipped,
-                        c.2.skipped + c.2.observations
+                        c.fitted.skipped,
+                        c.fitted.skipped + c.fitted.observations
                     )
                 })
                 .collect();
@@ -560,7 +589,7 @@ struct MachineFit<'a> {
     data: &'a MachineData,
     cand: Option<&'a Candidates>,
     settings: &'a Settings,
-    families: &'a [Family],
+    families: &'a [&'a dyn PositionDesign],
 }
 
 impl Procedure for MachineFit<'_> {
@@ -617,7 +646,7 @@ pub fn fit_machine(
     cand: Option<&Candidates>,
     split: Split,
     settings: &Settings,
-    families: &[Family],
+    families: &[&dyn PositionDesign],
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<MachineOutcome, String> {
     let nt = ds.target_names.len();

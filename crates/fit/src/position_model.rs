@@ -139,10 +139,96 @@ pub fn family_differences(
     }
 }
 
+/// What a position model is built for: its name, the machine, the differences its summands
+/// read, the target axes, whether each target has a constant, and the axis each of the
+/// machine's differences belongs to (by difference index; missing or `None`: no axis).
+#[derive(Debug, Clone, Copy)]
+pub struct Shape<'a> {
+    /// The model's name.
+    pub name: &'a str,
+    /// The machine.
+    pub machine: &'a Machine,
+    /// The machine's differences the summands read.
+    pub differences: &'a [usize],
+    /// The axes whose errors the model predicts.
+    pub targets: &'a [usize],
+    /// A constant per target axis.
+    pub constant: bool,
+    /// The owner of each of the machine's differences ([`Family::OwnAxis`], [`Family::Serial`]).
+    pub owners: &'a [Option<usize>],
+}
+
+/// What the fit needs of a position family: its names, the machine's differences it reads, and
+/// its model with every coefficient zero, built of the core's parts so that the fitted model is
+/// exactly the model file the control evaluates. [`Family`] is the list the project ships; a
+/// caller may bring its own (docs/how-to-add-a-family.md) and hand it to
+/// [`crate::machine_fit::select`] beside them.
+pub trait PositionDesign: fmt::Debug + Sync {
+    /// The name on the command line and in the model file's provenance (kebab-case).
+    fn key(&self) -> &'static str;
+    /// The name in reports.
+    fn name(&self) -> &'static str;
+    /// Whether its summands need the axis each difference belongs to; a machine that states
+    /// none leaves such a family out.
+    fn needs_owners(&self) -> bool {
+        false
+    }
+    /// The differences of `differences` it reads (`reference`: the reference sensor).
+    fn differences(
+        &self,
+        _machine: &Machine,
+        differences: &[usize],
+        _reference: Option<usize>,
+    ) -> Vec<usize> {
+        differences.to_vec()
+    }
+    /// The model of `shape` with every coefficient zero.
+    fn structure(&self, shape: &Shape<'_>) -> Result<Model, ModelError>;
+}
+
+impl Family {
+    /// The families of `list` as the designs [`crate::machine_fit::select`] takes.
+    pub fn designs(list: &[Family]) -> Vec<&dyn PositionDesign> {
+        list.iter().map(|f| f as &dyn PositionDesign).collect()
+    }
+}
+
+impl PositionDesign for Family {
+    fn key(&self) -> &'static str {
+        Family::key(*self)
+    }
+
+    fn name(&self) -> &'static str {
+        Family::name(*self)
+    }
+
+    fn needs_owners(&self) -> bool {
+        matches!(self, Family::OwnAxis | Family::Serial)
+    }
+
+    fn differences(
+        &self,
+        machine: &Machine,
+        differences: &[usize],
+        reference: Option<usize>,
+    ) -> Vec<usize> {
+        family_differences(machine, *self, differences, reference)
+    }
+
+    fn structure(&self, shape: &Shape<'_>) -> Result<Model, ModelError> {
+        if *self == Family::ReferenceSensor {
+            regression_structure(shape)
+        } else {
+            position_structure(*self, shape)
+        }
+    }
+}
+
 /// The model of a family with every coefficient zero: for each target axis n and each listed
-/// difference m one summand, plus a constant per target axis when `constant` is set. The
-/// reference-sensor regression is one regression part per target axis (as its model files state
-/// it); every other family one position-dependent part.
+/// difference m one summand, plus a constant per target axis when `constant` is set, without
+/// owners ([`Shape`] for a family that needs them). The reference-sensor regression is one
+/// regression part per target axis (as its model files state it); every other family one
+/// position-dependent part.
 pub fn structure(
     name: &str,
     machine: &Machine,
@@ -151,7 +237,14 @@ pub fn structure(
     targets: &[usize],
     constant: bool,
 ) -> Result<Model, ModelError> {
-    structure_owned(name, machine, family, differences, targets, constant, &[])
+    family.structure(&Shape {
+        name,
+        machine,
+        differences,
+        targets,
+        constant,
+        owners: &[],
+    })
 }
 
 /// The axes whose positions the summand of a difference owned by `owner` carries in
@@ -180,81 +273,96 @@ fn owned_axes(machine: &Machine, family: Family, owner: Option<usize>) -> Vec<us
     }
 }
 
-/// [`structure`], with the axis each of the machine's differences belongs to (`owners`, by
-/// difference index; missing or `None`: no axis), which [`Family::OwnAxis`] and
-/// [`Family::Serial`] need.
-pub fn structure_owned(
-    name: &str,
-    machine: &Machine,
-    family: Family,
-    differences: &[usize],
-    targets: &[usize],
-    constant: bool,
-    owners: &[Option<usize>],
-) -> Result<Model, ModelError> {
-    if family == Family::ReferenceSensor {
-        let parts = targets
-            .iter()
-            .map(|&n| Part {
-                name: format!("reference-{}", machine.axes[n].name),
-                enabled: true,
-                form: PartForm::Regression,
-                summands: differences
-                    .iter()
-                    .map(|&m| Summand {
-                        axis: n,
-                        difference: m,
-                        k0_um_per_k: 0.0,
-                        position_terms: Vec::new(),
-                        bed_multiplier: None,
-                    })
-                    .collect(),
-                constants_um: if constant { vec![(n, 0.0)] } else { Vec::new() },
-            })
-            .collect();
-        return Model::new(name, machine, parts);
-    }
-    let natural = |j: usize| match machine.axes[j].carriage {
+/// The position factor an axis' carriage gives: r for a cantilevered slide, KFA for a slide on
+/// a bed.
+pub fn natural_factor(machine: &Machine, axis: usize) -> PositionFactor {
+    match machine.axes[axis].carriage {
         Carriage::Cantilever => PositionFactor::Ratio,
         Carriage::Bed => PositionFactor::BedFactor,
-    };
+    }
+}
+
+/// A term of `axis` at its natural factor, coefficient zero.
+fn natural_term(machine: &Machine, axis: usize) -> PositionTerm {
+    PositionTerm {
+        axis,
+        factor: natural_factor(machine, axis),
+        k_um_per_k: 0.0,
+    }
+}
+
+/// The reference-sensor regression: one regression part per target axis.
+fn regression_structure(shape: &Shape<'_>) -> Result<Model, ModelError> {
+    let parts = shape
+        .targets
+        .iter()
+        .map(|&n| Part {
+            name: format!("reference-{}", shape.machine.axes[n].name),
+            enabled: true,
+            form: PartForm::Regression,
+            summands: shape
+                .differences
+                .iter()
+                .map(|&m| Summand {
+                    axis: n,
+                    difference: m,
+                    k0_um_per_k: 0.0,
+                    position_terms: Vec::new(),
+                    bed_multiplier: None,
+                })
+                .collect(),
+            constants_um: if shape.constant {
+                vec![(n, 0.0)]
+            } else {
+                Vec::new()
+            },
+        })
+        .collect();
+    Model::new(shape.name, shape.machine, parts)
+}
+
+/// The position terms of one summand of difference `m` in `family`.
+fn position_terms(family: Family, shape: &Shape<'_>, m: usize) -> Vec<PositionTerm> {
+    let machine = shape.machine;
+    let axes = 0..machine.axes.len();
+    match family {
+        Family::OwnAxis | Family::Serial => {
+            let owner = shape.owners.get(m).copied().flatten();
+            owned_axes(machine, family, owner)
+                .into_iter()
+                .map(|j| natural_term(machine, j))
+                .collect()
+        }
+        Family::PositionIndependent | Family::ReferenceSensor => Vec::new(),
+        Family::AllAxesSquared => axes
+            .flat_map(|j| {
+                let square = PositionTerm {
+                    axis: j,
+                    factor: PositionFactor::RatioSquared,
+                    k_um_per_k: 0.0,
+                };
+                [natural_term(machine, j), square]
+            })
+            .collect(),
+        Family::AllAxes | Family::BedFactor => axes.map(|j| natural_term(machine, j)).collect(),
+    }
+}
+
+/// One position-dependent part: per target axis and difference a summand, and with the bed
+/// factor one more per axis on a bed, multiplied by that axis' KFA.
+fn position_structure(family: Family, shape: &Shape<'_>) -> Result<Model, ModelError> {
+    let machine = shape.machine;
     let beds: Vec<usize> = (0..machine.axes.len())
         .filter(|&j| machine.axes[j].carriage == Carriage::Bed)
         .collect();
     let mut summands = Vec::new();
-    for &n in targets {
-        for &m in differences {
-            let mut position_terms = Vec::new();
-            if matches!(family, Family::OwnAxis | Family::Serial) {
-                let owner = owners.get(m).copied().flatten();
-                for j in owned_axes(machine, family, owner) {
-                    position_terms.push(PositionTerm {
-                        axis: j,
-                        factor: natural(j),
-                        k_um_per_k: 0.0,
-                    });
-                }
-            } else if family != Family::PositionIndependent {
-                for j in 0..machine.axes.len() {
-                    position_terms.push(PositionTerm {
-                        axis: j,
-                        factor: natural(j),
-                        k_um_per_k: 0.0,
-                    });
-                    if family == Family::AllAxesSquared {
-                        position_terms.push(PositionTerm {
-                            axis: j,
-                            factor: PositionFactor::RatioSquared,
-                            k_um_per_k: 0.0,
-                        });
-                    }
-                }
-            }
+    for &n in shape.targets {
+        for &m in shape.differences {
             summands.push(Summand {
                 axis: n,
                 difference: m,
                 k0_um_per_k: 0.0,
-                position_terms,
+                position_terms: position_terms(family, shape, m),
                 bed_multiplier: None,
             });
             if family == Family::BedFactor {
@@ -279,13 +387,13 @@ pub fn structure_owned(
         enabled: true,
         form: PartForm::PositionDependent,
         summands,
-        constants_um: if constant {
-            targets.iter().map(|&n| (n, 0.0)).collect()
+        constants_um: if shape.constant {
+            shape.targets.iter().map(|&n| (n, 0.0)).collect()
         } else {
             Vec::new()
         },
     };
-    Model::new(name, machine, vec![part])
+    Model::new(shape.name, machine, vec![part])
 }
 
 /// One measured error of one axis at one instant, with what the control knew then.
@@ -606,7 +714,15 @@ mod tests {
         // serial r_Y and r_X (KFA: both ride on beds).
         let owners = [None, Some(1)];
         for (f, n) in [(Family::OwnAxis, 2), (Family::Serial, 3)] {
-            let m = structure_owned("m", &machine, f, &[0, 1], &[2], false, &owners).unwrap();
+            let shape = Shape {
+                name: "m",
+                machine: &machine,
+                differences: &[0, 1],
+                targets: &[2],
+                constant: false,
+                owners: &owners,
+            };
+            let m = f.structure(&shape).unwrap();
             assert_eq!(m.parameter_count(), 1 + n, "{f}");
         }
         // The reference-sensor regression reads only the differences against the reference sensor.

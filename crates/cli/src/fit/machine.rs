@@ -163,7 +163,7 @@ pub fn run(mut args: Args, path: &Path) -> Result<(), CliError> {
         Some(&cand),
         args.split,
         &settings,
-        &fixed,
+        &PositionFamily::designs(&fixed),
         &mut |d, t| progress.update(d, t),
     )
     .map_err(CliError::Refused)?;
@@ -392,18 +392,18 @@ fn model_text(
                 "validation".into(),
                 outcome.validation.protocol_text.clone().into(),
             );
-            for (k, (family, inputs, fitted)) in s.choices.iter().enumerate() {
+            for (k, c) in s.choices.iter().enumerate() {
                 let t = &ds.target_names[k];
                 file.provenance.insert(
                     format!("{t}_family"),
-                    format!("{} ({})", family.key(), family.name()).into(),
+                    format!("{} ({})", c.family, c.family_name).into(),
                 );
                 file.provenance
-                    .insert(format!("{t}_inputs"), (*inputs).into());
+                    .insert(format!("{t}_inputs"), c.inputs.into());
                 file.provenance
-                    .insert(format!("{t}_ridge"), fitted.ridge.into());
+                    .insert(format!("{t}_ridge"), c.fitted.ridge.into());
                 file.provenance
-                    .insert(format!("{t}_inner_cv_rmse_um"), fitted.score_um.into());
+                    .insert(format!("{t}_inner_cv_rmse_um"), c.fitted.score_um.into());
             }
             if super::model_name(out, &["json"], "").is_ok() {
                 serde_json::to_string_pretty(&file)? + "\n"
