@@ -835,8 +835,10 @@ fn the_fleet_store_holds_each_second_once_through_a_database_outage_and_a_replay
         "the outage went unseen: {summary}"
     );
     assert_eq!(
-        pg.query("SELECT string_agg(version::text, ',') FROM fleet_schema_migrations"),
-        "1"
+        pg.query(
+            "SELECT string_agg(version::text, ',' ORDER BY version) FROM fleet_schema_migrations"
+        ),
+        "1,2"
     );
     let partitions =
         pg.query("SELECT count(*) FROM pg_inherits WHERE inhparent = 'fleet_seconds'::regclass");
