@@ -84,21 +84,21 @@ fn cycle_columns(machine: &MachineConfig, paths: usize) -> Vec<String> {
     let m = &machine.machine;
     let mut cols = vec!["time_s".to_string(), "state".to_string()];
     cols.extend((1..=paths).map(|p| format!("model_path{p}")));
-    cols.extend(m.axes.iter().map(|a| a.position_column()));
-    cols.extend(
-        m.temperatures
-            .iter()
-            .take(MAX_LOG_TEMPERATURES)
-            .map(|t| t.id.clone()),
-    );
-    cols.extend(
-        m.operating
-            .iter()
-            .take(MAX_LOG_OPERATING)
-            .map(|o| o.id.clone()),
-    );
+    cols.extend(input_columns(machine));
     cols.extend(m.axes.iter().map(|a| format!("{}_offset_um", a.name)));
     cols
+}
+
+/// The columns of a cycle's inputs, as the `cycles` and `probes` tables name them: the axis
+/// positions, the temperatures and the operating state, as many as a record holds.
+fn input_columns(machine: &MachineConfig) -> impl Iterator<Item = String> + '_ {
+    let m = &machine.machine;
+    let positions = m.axes.iter().map(|a| a.position_column());
+    let temperatures = m.temperatures.iter().take(MAX_LOG_TEMPERATURES);
+    let operating = m.operating.iter().take(MAX_LOG_OPERATING);
+    positions
+        .chain(temperatures.map(|t| t.id.clone()))
+        .chain(operating.map(|o| o.id.clone()))
 }
 
 pub(crate) fn quote(name: &str) -> String {

@@ -10,7 +10,7 @@ use super::{err, open_read, quote, real, LogError};
 use crate::config::MachineConfig;
 use crate::probe::ProbeRecord;
 use crate::replay::state_name;
-use crate::service::{MAX_LOG_OPERATING, MAX_LOG_TEMPERATURES, MAX_PATHS};
+use crate::service::MAX_PATHS;
 
 /// Column names of an axis' probe values: where it touched, the measured error, the error the
 /// model in effect predicted there.
@@ -33,19 +33,7 @@ pub(super) fn columns(machine: &MachineConfig, paths: usize) -> Vec<String> {
         .to_vec();
     cols.extend((1..=paths.min(MAX_PATHS)).map(|p| format!("model_path{p}")));
     cols.extend(m.axes.iter().flat_map(|a| axis_columns(&a.name)));
-    cols.extend(m.axes.iter().map(|a| a.position_column()));
-    cols.extend(
-        m.temperatures
-            .iter()
-            .take(MAX_LOG_TEMPERATURES)
-            .map(|t| t.id.clone()),
-    );
-    cols.extend(
-        m.operating
-            .iter()
-            .take(MAX_LOG_OPERATING)
-            .map(|o| o.id.clone()),
-    );
+    cols.extend(super::input_columns(machine));
     cols
 }
 
