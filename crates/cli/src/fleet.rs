@@ -393,6 +393,16 @@ fn verified_and_admitted(a: &RegisterArgs) -> Result<(String, String), CliError>
         return Err(CliError::refused("--period-ms: give 0.1-10000"));
     }
     let machine = truepos_io::machine_file::load(&a.machine_file)?;
+    let node = truepos_fleet::sparkplug::sanitize_id(&machine.machine.name);
+    if node != a.machine {
+        // A machine type's name is allowed; a service of another machine than the file's
+        // that fetched the model would refuse it (the loader binds a model to its machine).
+        eprintln!(
+            "note: --machine `{}` is not the node id of {} (`{node}`)",
+            a.machine,
+            a.machine_file.display()
+        );
+    }
     let keys = TrustedKeys::load(&a.trusted_keys)?;
     let text = crate::write::read_text(&a.model, truepos_files::MODEL)?;
     let entry = truepos_io::compensation::entry_of_text(&a.model, &text, &machine, Some(&keys))?;
