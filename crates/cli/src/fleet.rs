@@ -117,7 +117,7 @@ enum ModelsCommand {
     Shadow(ActivateArgs),
 }
 
-/// Where the store is and who acts, common to the model commands.
+/// The store, common to the model and status commands.
 #[derive(clap::Args)]
 struct Store {
     /// PostgreSQL, `postgres://USER@HOST:PORT/DB`.
