@@ -115,6 +115,8 @@ enum ModelsCommand {
     Get(GetArgs),
     /// Mark a candidate as run in shadow.
     Shadow(ActivateArgs),
+    /// Every state a machine's models entered: when, which version, from, to, who, why.
+    History(HistoryArgs),
 }
 
 /// The store, common to the model and status commands.
@@ -187,6 +189,22 @@ struct GetArgs {
     /// The directory the model file and its MODEL.sig are written to (each whole).
     #[arg(long, value_name = "DIR")]
     out: PathBuf,
+    /// Write only a model whose signature verifies under one of these keys (the store is not
+    /// trusted: a row changed in it is refused here, as the service would refuse it).
+    #[arg(long, value_name = "FILE")]
+    trusted_keys: Option<PathBuf>,
+}
+
+#[derive(clap::Args)]
+struct HistoryArgs {
+    #[command(flatten)]
+    store: Store,
+    /// The machine.
+    #[arg(long)]
+    machine: String,
+    /// JSON instead of the table.
+    #[arg(long)]
+    json: bool,
 }
 
 #[derive(clap::Args)]
@@ -271,6 +289,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
         Command::Models(ModelsCommand::List(a)) => list(a),
         Command::Models(ModelsCommand::Get(a)) => get(a),
         Command::Models(ModelsCommand::Shadow(a)) => shadow(a),
+        Command::Models(ModelsCommand::History(a)) => history(a),
         Command::Activate(a) => activate(a),
         Command::Rollback(a) => rollback(a),
         Command::Status(a) => status(a),
@@ -505,6 +524,11 @@ fn get(a: GetArgs) -> Result<(), CliError> {
             CliError::refused("--state: give candidate, shadow, active or retired")
         })?),
     };
+    let keys = a
+        .trusted_keys
+        .as_deref()
+        .map(TrustedKeys::load)
+        .transpose()?;
     let mut db = connect(&a.store)?;
     let f = models::fetch(&mut db, &a.machine, which).map_err(store_error)?;
     if models::sha256_hex(&f.bytes) != f.sha256 {
@@ -512,6 +536,14 @@ fn get(a: GetArgs) -> Result<(), CliError> {
             "{} version {}: the stored bytes do not match their sha256; nothing written",
             a.machine, f.version
         )));
+    }
+    if let Some(keys) = &keys {
+        verify_line(&f.signature, &f.bytes, &keys.keys).map_err(|why| {
+            CliError::refused(format!(
+                "{} version {} in the store: refused: {why}; nothing written",
+                a.machine, f.version
+            ))
+        })?;
     }
     std::fs::create_dir_all(&a.out).map_err(|e| CliError::File {
         path: a.out.clone(),
@@ -531,6 +563,32 @@ fn get(a: GetArgs) -> Result<(), CliError> {
         f.state,
         sig.display()
     );
+    Ok(())
+}
+
+fn history(a: HistoryArgs) -> Result<(), CliError> {
+    let mut db = connect(&a.store)?;
+    let all = models::history(&mut db, &a.machine).map_err(store_error)?;
+    if a.json {
+        let v: Vec<serde_json::Value> = all.iter().map(models::Changed::to_json).collect();
+        println!("{}", serde_json::json!({ "changes": v }));
+        return Ok(());
+    }
+    println!(
+        "{:<21} {:>7} {:<9} {:<9} {:<12} reason",
+        "when", "version", "from", "to", "by"
+    );
+    for c in &all {
+        println!(
+            "{:<21} {:>7} {:<9} {:<9} {:<12} {}",
+            utc_text(c.unix_s),
+            c.version,
+            c.from.map_or("-", State::as_str),
+            c.to.as_str(),
+            c.by,
+            c.reason
+        );
+    }
     Ok(())
 }
 

@@ -293,6 +293,17 @@ fn generations(f: &Fixture) -> (PathBuf, PathBuf) {
         ),
         "2"
     );
+    let history: serde_json::Value = serde_json::from_str(&ok(fleet(
+        &f.pg,
+        &["models", "history", "--machine", "vmc-3axis", "--json"],
+        &[],
+    )))
+    .unwrap();
+    let changes = history["changes"].as_array().unwrap();
+    assert_eq!(changes.len(), 8, "{history}");
+    assert_eq!(changes[7]["from"], "retired");
+    assert_eq!(changes[7]["to"], "active");
+    assert_eq!(changes[7]["reason"], "`truepos fleet rollback`");
     // What the file carries, and its hash.
     let listed: serde_json::Value = serde_json::from_str(&ok(fleet(
         &f.pg,
@@ -356,6 +367,43 @@ fn fetched_model_runs(f: &Fixture, v1: &Path, v2: &Path) {
         ),
         &["has no candidate model"],
     );
+    tampered_rows_are_not_written(f, &out_dir);
+}
+
+/// The store is not trusted: a model changed in its row is not written out.
+fn tampered_rows_are_not_written(f: &Fixture, out_dir: &Path) {
+    let got = out_dir.join("model.toml");
+    let before = std::fs::read(&got).unwrap();
+    let get = |keys: bool| {
+        let mut paths = vec![("--out", out_dir)];
+        if keys {
+            paths.push(("--trusted-keys", f.trusted.as_path()));
+        }
+        fleet(&f.pg, &["models", "get", "--machine", "vmc-3axis"], &paths)
+    };
+    ok(get(true));
+    let active = std::fs::read(&got).unwrap();
+    f.pg.query("UPDATE fleet_models SET model = model || '\\x23'::bytea WHERE state = 'active'");
+    refused(get(false), &["do not match their sha256"]);
+    f.pg.query(
+        "UPDATE fleet_models SET sha256 = encode(sha256(model), 'hex') WHERE state = 'active'",
+    );
+    refused(get(true), &["refused", "does not match the file"]);
+    assert_eq!(std::fs::read(&got).unwrap(), active);
+    assert_ne!(before, active);
+    // Without a trust list the changed bytes are written, and a service refuses them.
+    ok(get(false));
+    let r = truepos(&[
+        "run".as_ref(),
+        "--fast".as_ref(),
+        "--duration-s".as_ref(),
+        "1".as_ref(),
+        "--models".as_ref(),
+        got.as_os_str(),
+        "--trusted-keys".as_ref(),
+        f.trusted.as_os_str(),
+    ]);
+    assert!(!r.0 && r.2.contains("does not match the file"), "{}", r.2);
 }
 
 /// A birth, two seconds (the last all compensating) and a sensor fault, through the ingester.

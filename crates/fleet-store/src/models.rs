@@ -531,6 +531,58 @@ pub fn list(db: &mut impl GenericClient, machine: Option<&str>) -> Result<Vec<Mo
     Ok(rows.iter().map(model_of).collect())
 }
 
+/// A row of a machine's history: a state a model entered.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Changed {
+    /// The version.
+    pub version: i32,
+    /// The state it left (`None`: registered).
+    pub from: Option<State>,
+    /// The state it entered.
+    pub to: State,
+    /// Why.
+    pub reason: String,
+    /// Who.
+    pub by: String,
+    /// When, s since the Unix epoch.
+    pub unix_s: f64,
+}
+
+impl Changed {
+    /// The row as JSON.
+    pub fn to_json(&self) -> serde_json::Value {
+        serde_json::json!({
+            "version": self.version,
+            "from": self.from.map(State::as_str),
+            "to": self.to.as_str(),
+            "reason": self.reason,
+            "by": self.by,
+            "unix_s": self.unix_s,
+        })
+    }
+}
+
+/// A machine's history, oldest first.
+pub fn history(db: &mut impl GenericClient, machine: &str) -> Result<Vec<Changed>, ModelError> {
+    let rows = db.query(
+        "SELECT version, from_state, to_state, reason, changed_by,
+                extract(epoch FROM changed_at)::float8
+         FROM fleet_model_changes WHERE machine = $1 ORDER BY id",
+        &[&machine],
+    )?;
+    Ok(rows
+        .iter()
+        .map(|r| Changed {
+            version: r.get(0),
+            from: r.get::<_, Option<&str>>(1).and_then(State::parse),
+            to: State::parse(r.get(2)).unwrap_or(State::Retired),
+            reason: r.get(3),
+            by: r.get(4),
+            unix_s: r.get(5),
+        })
+        .collect())
+}
+
 /// One model's file and signature: a version, or the newest in a state.
 pub fn fetch(
     db: &mut impl GenericClient,
