@@ -155,6 +155,7 @@ fn a_signed_model_is_registered_activated_rolled_back_fetched_and_the_fleet_seen
     let (v1, v2) = generations(&f);
     fetched_model_runs(&f, &v1, &v2);
     status_shows_the_machine(&f);
+    activations_at_once_run_one_after_the_other(&f);
     assert!(
         started.elapsed() < Duration::from_secs(120),
         "took {:?}",
@@ -506,4 +507,57 @@ fn status_shows_the_machine(f: &Fixture) {
     let s: serde_json::Value =
         serde_json::from_str(&ok(fleet(&f.pg, &["status", "--json"], &[]))).unwrap();
     assert_eq!(s["machines"][0]["online"], false, "{s}");
+}
+
+/// Two operators activating two candidates at the same moment: one after the other, each
+/// replacing the active model of its moment, never two active.
+fn activations_at_once_run_one_after_the_other(f: &Fixture) {
+    for (name, k0) in [("v3", "2.1"), ("v4", "2.2")] {
+        let m = model_in(
+            &f.dir,
+            name,
+            "k0_um_per_k = 2.0",
+            &format!("k0_um_per_k = {k0}"),
+        );
+        sign(&f.key, &m);
+        ok(f.register(&m));
+    }
+    let url = f.pg.url();
+    let both: Vec<_> = ["3", "4"]
+        .into_iter()
+        .map(|v| {
+            let url = url.clone();
+            std::thread::spawn(move || {
+                let args = [
+                    "fleet",
+                    "activate",
+                    "--db",
+                    &url,
+                    "--machine",
+                    "vmc-3axis",
+                    "--version",
+                    v,
+                ];
+                let refs: Vec<&std::ffi::OsStr> = args.iter().map(|a| a.as_ref()).collect();
+                truepos(&refs)
+            })
+        })
+        .collect();
+    for t in both {
+        ok(t.join().unwrap());
+    }
+    let states = f.states();
+    let active: Vec<&str> = states.lines().filter(|l| l.contains(",active,")).collect();
+    assert_eq!(active.len(), 1, "{states}");
+    // The later one replaced the earlier, which replaced version 1.
+    let (first, second) = if active[0].starts_with("4,") {
+        ("3", "4")
+    } else {
+        ("4", "3")
+    };
+    assert!(states.contains(&format!("{first},retired,1")), "{states}");
+    assert!(
+        states.contains(&format!("{second},active,{first}")),
+        "{states}"
+    );
 }
