@@ -156,7 +156,10 @@ fn log_seconds(db: &Path) -> (LogSeconds, Vec<(f64, String)>) {
         .query_map([], |r| r.get(0))
         .unwrap()
         .map(Result::unwrap)
-        .filter(|n: &String| n != "time_s" && n != "state" && !n.starts_with("model_path"))
+        .filter(|n: &String| {
+            let not_sent = n.starts_with("model_path") || n.ends_with("_target_um");
+            n != "time_s" && n != "state" && !not_sent
+        })
         .collect();
     let select: Vec<String> = cols
         .iter()

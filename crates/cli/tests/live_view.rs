@@ -306,9 +306,16 @@ fn the_live_view_serves_the_page_state_history_stream_and_metrics() {
         .map(|c| c.as_str().unwrap())
         .collect();
     let z = cols.iter().position(|c| *c == "Z_offset_um").unwrap();
+    // The model's target is history too (the dashed trace), not only live.
+    let zt = cols.iter().position(|c| *c == "Z_target_um").unwrap();
     for b in buckets {
         let (lo, hi) = (b["min"][z].as_f64().unwrap(), b["max"][z].as_f64().unwrap());
         assert!(lo <= hi, "{b}");
+        let (lo, hi) = (
+            b["min"][zt].as_f64().unwrap(),
+            b["max"][zt].as_f64().unwrap(),
+        );
+        assert!(lo <= hi && hi.is_finite(), "{b}");
     }
     let zipped = get(
         a,

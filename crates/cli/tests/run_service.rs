@@ -58,7 +58,7 @@ fn fast_replay_logs_cycles_and_events_and_exports_a_run() {
         "{header}"
     );
     assert!(
-        header.ends_with("X_offset_um,Y_offset_um,Z_offset_um"),
+        header.ends_with("X_offset_um,Y_offset_um,Z_offset_um,X_target_um,Y_target_um,Z_target_um"),
         "{header}"
     );
 

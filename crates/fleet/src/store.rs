@@ -95,8 +95,8 @@ const CYCLE_BATCH: i64 = 20_000;
 pub struct LogReader {
     conn: Connection,
     path: PathBuf,
-    /// The aggregated columns of `cycles`: every numeric column but `time_s` and the paths'
-    /// model numbers, in table order.
+    /// The aggregated columns of `cycles`: every numeric column but `time_s`, the paths'
+    /// model numbers and the axes' targets, in table order.
     columns: Vec<String>,
     /// Their indices in `SELECT rowid, *`.
     indices: Vec<usize>,
@@ -169,6 +169,9 @@ impl LogReader {
                 "time_s" => {}
                 "state" => state_index = Some(i + 1),
                 _ if n.starts_with("model_path") => {}
+                // The offsets say what reached the axes; a target differs from them only in a
+                // blend, a hold or a clamp, which the fleet receives as events.
+                _ if n.ends_with("_target_um") => {}
                 _ => {
                     columns.push(n.clone());
                     indices.push(i + 1);

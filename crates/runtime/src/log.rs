@@ -86,7 +86,21 @@ fn cycle_columns(machine: &MachineConfig, paths: usize) -> Vec<String> {
     cols.extend((1..=paths).map(|p| format!("model_path{p}")));
     cols.extend(input_columns(machine));
     cols.extend(m.axes.iter().map(|a| format!("{}_offset_um", a.name)));
+    cols.extend(target_columns(machine));
     cols
+}
+
+/// How many of the last `columns` are targets.
+fn target_columns_count(columns: &[String]) -> usize {
+    let last = columns.iter().rev();
+    last.take_while(|c| c.ends_with("_target_um")).count()
+}
+
+/// The columns of the axes' targets, last in `cycles`: a log written before they were logged
+/// gets them added ([`check_owner`]).
+fn target_columns(machine: &MachineConfig) -> impl Iterator<Item = String> + '_ {
+    let axes = machine.machine.axes.iter();
+    axes.map(|a| format!("{}_target_um", a.name))
 }
 
 /// The columns of a cycle's inputs, as the `cycles` and `probes` tables name them: the axis
@@ -166,7 +180,8 @@ pub struct Logger {
 }
 
 /// Refuses a log written for another machine or with another layout of cycles: appending would
-/// mix two machines' records under one `meta`, and the inserts would fail only later.
+/// mix two machines' records under one `meta`, and the inserts would fail only later. A log
+/// written before the axes' targets were logged gets their columns.
 fn check_owner(
     conn: &Connection,
     path: &Path,
@@ -200,6 +215,16 @@ fn check_owner(
         .map_err(err(path))?
         .collect::<Result<Vec<_>, _>>()
         .map_err(err(path))?;
+    let targets = target_columns_count(columns);
+    let before_targets = &columns[..columns.len() - targets];
+    if !existing.is_empty() && existing == before_targets {
+        // A log of an earlier version: its rows keep no target, later rows have one.
+        for c in &columns[before_targets.len()..] {
+            conn.execute_batch(&format!("ALTER TABLE cycles ADD COLUMN {} REAL", quote(c)))
+                .map_err(err(path))?;
+        }
+        return Ok(());
+    }
     if !existing.is_empty() && existing != columns {
         return Err(refuse(format!(
             "this log's cycles have the columns [{}], machine `{machine}` needs [{}] \
@@ -729,6 +754,7 @@ impl Writer {
                 values.extend(r.temperatures_c[..l.temperatures].iter().map(|&v| real(v)));
                 values.extend(r.operating[..l.operating].iter().map(|&v| real(v)));
                 values.extend(r.offsets_um[..l.axes].iter().map(|&v| real(v)));
+                values.extend(r.targets_um[..l.axes].iter().map(|&v| real(v)));
                 insert.execute(params_from_iter(values))?;
             }
             let mut probe = tx.prepare_cached(&self.probe_insert)?;
@@ -889,10 +915,73 @@ mod tests {
             state: CompensationState::Active,
             positions: [0.0; MAX_AXES],
             offsets_um: [0.0; MAX_AXES],
+            targets_um: [0.0; MAX_AXES],
             temperatures_c: [20.0; MAX_LOG_TEMPERATURES],
             operating: [0.0; MAX_LOG_OPERATING],
             model_per_path: [0; MAX_PATHS],
         }
+    }
+
+    /// Each cycle row carries the axes' targets beside their offsets; a log written before
+    /// targets were logged is appended to with the columns added, its old rows without one.
+    #[test]
+    fn targets_are_logged_and_an_older_log_gets_their_column() {
+        let dir = std::env::temp_dir().join(format!("truepos-logtarget-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let db = dir.join("log.sqlite");
+        let machine = machine();
+        {
+            // The layout of the earlier version: no target column.
+            let c = Connection::open(&db).unwrap();
+            c.execute_batch(
+                "CREATE TABLE cycles (\"time_s\" REAL, \"state\" TEXT, \"model_path1\" REAL, \
+                 \"X_mm\" REAL, \"X_offset_um\" REAL); \
+                 INSERT INTO cycles VALUES (0.5, 'active', 0, 10.0, 1.5); \
+                 CREATE TABLE meta (key TEXT PRIMARY KEY, value TEXT NOT NULL); \
+                 INSERT INTO meta VALUES ('service', '{\"machine\": \"one-axis\"}');",
+            )
+            .unwrap();
+        }
+        let setup = LogSetup {
+            path: &db,
+            machine: &machine,
+            models: vec!["m".into()],
+            sources: vec![],
+            sinks: vec![],
+            paths: 1,
+            commit_every: Duration::from_millis(250),
+        };
+        let mut w = Writer::open(&setup).unwrap();
+        let events = EventQueue::new(4);
+        let records = ArrayQueue::new(4);
+        let probes = ArrayQueue::new(1);
+        let mut r = record(1.0);
+        r.offsets_um[0] = 2.0;
+        r.targets_um[0] = 3.25;
+        records.push(r).unwrap();
+        w.collect(Queues {
+            events: &events,
+            records: &records,
+            probes: &probes,
+        });
+        w.attempt();
+        assert!(
+            w.failure.is_none(),
+            "{:?}",
+            w.failure.as_ref().map(|f| &f.reason)
+        );
+        let (names, rows) = read_cycles(&db, None).unwrap();
+        assert_eq!(names.last().map(String::as_str), Some("X_target_um"));
+        assert_eq!(rows[0].last().map(String::as_str), Some(""));
+        assert_eq!(rows[1].last().map(String::as_str), Some("3.25"));
+        // A layout that is neither is still refused.
+        drop(w);
+        let c = Connection::open(&db).unwrap();
+        c.execute_batch("ALTER TABLE cycles ADD COLUMN \"other\" REAL")
+            .unwrap();
+        assert!(Writer::open(&setup).is_err());
+        let _ = std::fs::remove_dir_all(&dir);
     }
 
     /// While the log fails, the buffer keeps what fits; the rest is counted, and the count is

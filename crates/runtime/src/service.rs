@@ -100,6 +100,9 @@ pub struct CycleRecord {
     pub positions: [f64; MAX_AXES],
     /// Offsets sent (µm).
     pub offsets_um: [f64; MAX_AXES],
+    /// What the offsets blend towards (µm): the model's value, or zero while holding or
+    /// disabled; it differs from the offset during a blend and by a clamp.
+    pub targets_um: [f64; MAX_AXES],
     /// Temperatures (first [`MAX_LOG_TEMPERATURES`] channels).
     pub temperatures_c: [f64; MAX_LOG_TEMPERATURES],
     /// Operating state (first [`MAX_LOG_OPERATING`] channels).
@@ -889,6 +892,7 @@ impl Service {
             state: self.output.state,
             positions: self.output.positions,
             offsets_um: self.output.offset_um,
+            targets_um: self.target,
             temperatures_c: [f64::NAN; MAX_LOG_TEMPERATURES],
             operating: [f64::NAN; MAX_LOG_OPERATING],
             model_per_path: [-1; MAX_PATHS],
