@@ -9,7 +9,9 @@
 //!
 //! [`models`] keeps every generation of a machine's model — signed bytes, provenance and
 //! validation figures, state (candidate, shadow, active, retired) — and moves them: register,
-//! activate, roll back, each with a history row. [`status`] reads the fleet at a glance per
+//! activate, roll back, each with a history row. [`shadow`] is the rule a model in shadow is
+//! activated by and a new active model rolled back by (pure, on probe residuals that
+//! [`shadow_probes`] keeps). [`status`] reads the fleet at a glance per
 //! machine: online, last message, model generation, compensating, faults in the last hour.
 //!
 //! An NDATA message as rows, without a broker or a database:
@@ -48,6 +50,8 @@
 pub mod ingest;
 pub mod models;
 pub mod schema;
+pub mod shadow;
+pub mod shadow_probes;
 pub mod status;
 
 /// The PostgreSQL client the store's functions take, for callers that connect themselves.

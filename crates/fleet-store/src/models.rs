@@ -519,6 +519,37 @@ pub fn shadow(
     Ok(())
 }
 
+/// Retires a candidate or shadow model that will not run (refused by a service, or not better
+/// than the active model), with the reason in its history row.
+pub fn retire(
+    db: &mut impl GenericClient,
+    machine: &str,
+    version: i32,
+    change: &Change<'_>,
+) -> Result<(), ModelError> {
+    let mut tx = db.transaction()?;
+    lock(&mut tx, machine)?;
+    let state = state_of(&mut tx, machine, version)?;
+    if !matches!(state, State::Candidate | State::Shadow) {
+        return Err(ModelError::WrongState {
+            machine: machine.to_string(),
+            version,
+            state,
+            rule: "only a candidate or a shadow model is retired this way (an active one by `fleet rollback` or by activating another)",
+        });
+    }
+    set_state(
+        &mut tx,
+        machine,
+        version,
+        Some(state),
+        State::Retired,
+        change,
+    )?;
+    tx.commit()?;
+    Ok(())
+}
+
 /// The models, of one machine or all, by machine and version.
 pub fn list(db: &mut impl GenericClient, machine: Option<&str>) -> Result<Vec<Model>, ModelError> {
     let rows = db.query(
