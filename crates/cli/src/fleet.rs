@@ -1,7 +1,8 @@
 //! `truepos run --mqtt URL` (the publisher beside the service), `truepos fleet publish`
 //! (forward a log that is already written, e.g. after the service was killed), `truepos
 //! fleet ingest` (the broker into PostgreSQL), `truepos fleet models …`, `activate`,
-//! `rollback` (model generations in the store) and `status` (the fleet per machine): options
+//! `rollback` (model generations in the store), `status` (the fleet per machine) and `follow`
+//! (the sidecar that shadows, activates and rolls back a service's models, [`follow`]): options
 //! into `truepos_fleet`'s and `truepos_fleet_store`'s values, the summary or table printed.
 
 use std::path::{Path, PathBuf};
@@ -14,6 +15,8 @@ use truepos_fleet_store::status::{utc_text, MachineStatus};
 use truepos_io::signature::{signature_path, verify_line, TrustedKeys};
 
 use crate::error::CliError;
+
+mod follow;
 
 /// How long `truepos run` forwards what is left after the service stopped, at most; what is not
 /// acknowledged by then stays in the log and goes with the next start.
@@ -102,6 +105,10 @@ enum Command {
     /// Per machine: online, last message, model generation and state, compensating, faults in
     /// the last hour.
     Status(StatusArgs),
+    /// Beside a service: write the store's active model into its model file, shadow its
+    /// candidates on the probe events of its log, activate a better one, roll back a worse one
+    /// (docs/fleet.md, "The service follows the store").
+    Follow(follow::FollowArgs),
 }
 
 #[derive(clap::Subcommand)]
@@ -293,6 +300,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
         Command::Activate(a) => activate(a),
         Command::Rollback(a) => rollback(a),
         Command::Status(a) => status(a),
+        Command::Follow(a) => follow::follow(a),
     }
 }
 

@@ -1,0 +1,640 @@
+//! `truepos fleet follow`: the sidecar beside a service that moves models between the fleet
+//! store and the machine (docs/fleet.md, "The service follows the store"). The service's cycle
+//! is not touched: the follower reads the service's log, talks to PostgreSQL and writes the
+//! model file the service reloads on change.
+//!
+//! Each round:
+//! 1. the store's active model is the file at `--model`: when they differ (an activation or a
+//!    rollback, by hand or by this follower), the active model is fetched, checked (SHA-256,
+//!    signature under `--trusted-keys`, loaded for the machine) and written with its `.sig`
+//!    (the signature renamed into place first, both synced before either rename);
+//! 2. a candidate is fetched and checked the same way: refused, it is retired with the reason;
+//!    else it becomes the shadow;
+//! 3. the accepted probe events the log gained are evaluated with the shadow (and, after an
+//!    activation, with the new model's parent) and stored (`fleet_shadow_probes`);
+//! 4. the rules of `truepos_fleet_store::shadow` decide: activate or retire the shadow, roll
+//!    the new model back.
+
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use truepos_fleet_store::models::{self, Change, ModelFile, State, Which};
+use truepos_fleet_store::postgres::Client;
+use truepos_fleet_store::shadow::{self, Rule, ShadowDecision, WatchDecision};
+use truepos_fleet_store::shadow_probes::{self, ShadowProbe};
+use truepos_io::signature::{signature_path, verify_line, TrustedKeys};
+use truepos_model::config::MachineConfig;
+use truepos_model::{CompensationModel, CycleInput};
+use truepos_runtime::log;
+
+use super::{connect, store_error, Store};
+use crate::error::CliError;
+
+/// Arguments of `truepos fleet follow`.
+#[derive(clap::Args)]
+pub struct FollowArgs {
+    #[command(flatten)]
+    store: Store,
+    /// The machine (its node id in the store).
+    #[arg(long)]
+    machine: String,
+    /// The machine description models are loaded for.
+    #[arg(long, value_name = "FILE")]
+    machine_file: PathBuf,
+    /// The service's log (`truepos run --log`): its probe events and reload events are read.
+    #[arg(long, value_name = "FILE")]
+    log: PathBuf,
+    /// The model file the service runs and reloads on change (`--models`); the follower writes
+    /// the active model here, with its MODEL.sig.
+    #[arg(long, value_name = "FILE")]
+    model: PathBuf,
+    /// The public keys trusted to sign models (the service's `--trusted-keys`).
+    #[arg(long, value_name = "FILE")]
+    trusted_keys: PathBuf,
+    /// Residuals (probe events × measured axes) before a shadow or a new model is judged.
+    #[arg(long, default_value_t = Rule::DEFAULT.min_probes)]
+    min_probes: usize,
+    /// Relative margin of the rules (0.1: a shadow must be 10 % better, a new model is rolled
+    /// back when 10 % worse than its parent).
+    #[arg(long, default_value_t = Rule::DEFAULT.margin)]
+    margin: f64,
+    /// Seconds between rounds.
+    #[arg(long, default_value_t = 5.0)]
+    interval_s: f64,
+    /// One round, then exit.
+    #[arg(long)]
+    once: bool,
+    /// Stop after this many seconds (default: run until stopped).
+    #[arg(long)]
+    duration_s: Option<f64>,
+    /// Who the store's history names for the follower's moves.
+    #[arg(long, default_value = "truepos fleet follow")]
+    by: String,
+}
+
+/// A model the follower evaluates: the shadow, or the parent of a new model.
+struct Evaluated {
+    version: i32,
+    model: CompensationModel,
+}
+
+/// A model activated while following, judged against its parent.
+struct Watch {
+    /// The active version watched.
+    active: i32,
+    /// Its parent, evaluated at every probe.
+    parent: Evaluated,
+    /// The log's events before the file was written: the reload is looked for after them.
+    events_before: usize,
+    /// Service time of the `model-reloaded` event of the file: probes from then on count.
+    reloaded_at_s: Option<f64>,
+}
+
+struct Follower {
+    a: FollowArgs,
+    rule: Rule,
+    machine: MachineConfig,
+    keys: TrustedKeys,
+    db: Client,
+    /// The log's probes rows read so far (rowid).
+    cursor: i64,
+    shadow: Option<Evaluated>,
+    watch: Option<Watch>,
+    /// The last thing said about waiting, so a round that changes nothing prints nothing.
+    said: String,
+}
+
+/// `truepos fleet follow`.
+pub fn follow(a: FollowArgs) -> Result<(), CliError> {
+    let rule = Rule {
+        min_probes: a.min_probes,
+        margin: a.margin,
+    };
+    rule.check()
+        .map_err(|why| CliError::refused(format!("--{why}")))?;
+    if !(a.interval_s.is_finite() && (0.01..=3600.0).contains(&a.interval_s)) {
+        return Err(CliError::refused("--interval-s: give 0.01-3600"));
+    }
+    let deadline = super::seconds("--duration-s", a.duration_s)?.map(|d| Instant::now() + d);
+    let machine = truepos_io::machine_file::load(&a.machine_file)?;
+    let keys = TrustedKeys::load(&a.trusted_keys)?;
+    let db = connect(&a.store)?;
+    // Probes already in the log came before anything this follower shadows.
+    let cursor = last_probe_row(&a.log);
+    let mut f = Follower {
+        rule,
+        machine,
+        keys,
+        db,
+        cursor,
+        shadow: None,
+        watch: None,
+        said: String::new(),
+        a,
+    };
+    loop {
+        if let Err(e) = f.round() {
+            eprintln!("{}: round failed: {e}", f.a.machine);
+            if f.db.is_closed() {
+                match connect(&f.a.store) {
+                    Ok(db) => f.db = db,
+                    Err(e) => eprintln!("{}: {e}", f.a.machine),
+                }
+            }
+        }
+        if f.a.once || deadline.is_some_and(|d| Instant::now() >= d) {
+            return Ok(());
+        }
+        std::thread::sleep(Duration::from_secs_f64(f.a.interval_s));
+    }
+}
+
+/// The largest rowid of the log's probes (0 without a log or probes yet).
+fn last_probe_row(path: &Path) -> i64 {
+    if !path.exists() {
+        return 0;
+    }
+    log::read_probes(path)
+        .ok()
+        .and_then(|t| t.rows.last().map(|r| r.row))
+        .unwrap_or(0)
+}
+
+impl Follower {
+    fn say(&self, what: &str) {
+        println!("{}: {what}", self.a.machine);
+    }
+
+    fn round(&mut self) -> Result<(), CliError> {
+        self.sync_active()?;
+        self.take_candidate()?;
+        self.read_probes()?;
+        self.judge()
+    }
+
+    /// A stored model checked as the service would check its file: its bytes against their
+    /// SHA-256, its signature under the trusted keys, loaded for the machine. `Err` says why.
+    fn checked(&self, f: &ModelFile) -> Result<CompensationModel, String> {
+        if models::sha256_hex(&f.bytes) != f.sha256 {
+            return Err("the stored bytes do not match their sha256".into());
+        }
+        verify_line(&f.signature, &f.bytes, &self.keys.keys)
+            .map_err(|why| format!("signature: {why}"))?;
+        let text = std::str::from_utf8(&f.bytes).map_err(|_| "not UTF-8 text".to_string())?;
+        // Parsed as the service parses the file it runs (its extension tells TOML from JSON).
+        let entry =
+            truepos_io::compensation::entry_of_text(&self.a.model, text, &self.machine, None)
+                .map_err(|e| e.to_string())?;
+        Ok(entry.model)
+    }
+
+    /// Writes the store's active model into `--model` when the file is another one.
+    fn sync_active(&mut self) -> Result<(), CliError> {
+        let active = match models::fetch(&mut self.db, &self.a.machine, Which::State(State::Active))
+        {
+            Ok(f) => f,
+            Err(models::ModelError::NoneInState { .. }) => {
+                self.note("no active model in the store; the file stays as it is");
+                return Ok(());
+            }
+            Err(e) => return Err(store_error(e)),
+        };
+        let on_disk = std::fs::read(&self.a.model)
+            .ok()
+            .map(|b| models::sha256_hex(&b));
+        if on_disk.as_deref() == Some(active.sha256.as_str()) {
+            return Ok(());
+        }
+        if let Err(why) = self.checked(&active) {
+            self.note(&format!(
+                "active version {} refused: {why}; {} left as it is",
+                active.version,
+                self.a.model.display()
+            ));
+            return Ok(());
+        }
+        let events_before = log::read_events(&self.a.log).map_or(0, |e| e.len());
+        let sig = signature_path(&self.a.model);
+        let line = format!("{}\n", active.signature.trim());
+        // Both synced before either rename, the signature renamed first: a reload that reads
+        // the new model reads its signature after it, never the old one.
+        crate::write::write_all_whole(
+            &[(&sig, line.as_bytes()), (&self.a.model, &active.bytes)],
+            &[],
+        )?;
+        self.say(&format!(
+            "version {} written to {} (sha256 {}), with {}",
+            active.version,
+            self.a.model.display(),
+            &active.sha256[..12],
+            sig.display()
+        ));
+        self.watch_new(active.version, events_before)
+    }
+
+    /// After the active model's file was written: judge it against its parent, unless it is a
+    /// model returned to by a rollback or has no parent.
+    fn watch_new(&mut self, version: i32, events_before: usize) -> Result<(), CliError> {
+        self.watch = None;
+        let all = models::list(&mut self.db, Some(&self.a.machine)).map_err(store_error)?;
+        let Some(m) = all.iter().find(|m| m.version == version) else {
+            return Ok(());
+        };
+        let history = models::history(&mut self.db, &self.a.machine).map_err(store_error)?;
+        let times_active = history
+            .iter()
+            .filter(|c| c.version == version && c.to == State::Active)
+            .count();
+        let Some(parent) = m.parent else {
+            self.say(&format!("version {version} has no parent: not watched"));
+            return Ok(());
+        };
+        if times_active > 1 {
+            self.say(&format!(
+                "version {version} is active again (a rollback): not watched"
+            ));
+            return Ok(());
+        }
+        let file = models::fetch(&mut self.db, &self.a.machine, Which::Version(parent))
+            .map_err(store_error)?;
+        match self.checked(&file) {
+            Ok(model) if !model.keeps_state() => {
+                self.say(&format!(
+                    "version {version} watched against its parent, version {parent}"
+                ));
+                self.watch = Some(Watch {
+                    active: version,
+                    parent: Evaluated {
+                        version: parent,
+                        model,
+                    },
+                    events_before,
+                    reloaded_at_s: None,
+                });
+            }
+            Ok(_) => self.say(&format!(
+                "version {version} not watched: its parent {parent} is a filtered model (its filters need every cycle replayed)"
+            )),
+            Err(why) => self.say(&format!(
+                "version {version} not watched: its parent {parent} is refused: {why}"
+            )),
+        }
+        Ok(())
+    }
+
+    /// The shadow, or a candidate made the shadow (refused ones retired with the reason).
+    fn take_candidate(&mut self) -> Result<(), CliError> {
+        if let Some(s) = &self.shadow {
+            let all = models::list(&mut self.db, Some(&self.a.machine)).map_err(store_error)?;
+            let still = all
+                .iter()
+                .any(|m| m.version == s.version && m.state == State::Shadow);
+            if still {
+                return Ok(());
+            }
+            // Moved by someone else (activated or retired by hand).
+            self.say(&format!("version {} is no longer in shadow", s.version));
+            self.shadow = None;
+        }
+        let state = [State::Shadow, State::Candidate].into_iter().find_map(|s| {
+            models::fetch(&mut self.db, &self.a.machine, Which::State(s))
+                .ok()
+                .map(|f| (s, f))
+        });
+        let Some((state, file)) = state else {
+            return Ok(());
+        };
+        let Some(active) = self.active_version()? else {
+            self.note(&format!(
+                "version {} waits: no active model to shadow it beside",
+                file.version
+            ));
+            return Ok(());
+        };
+        let model = self.checked(&file).and_then(|m| {
+            if m.keeps_state() {
+                Err(
+                    "a filtered model: its filters carry state from cycle to cycle, and the \
+                     follower does not replay the cycles through it (activate it by hand)"
+                        .into(),
+                )
+            } else {
+                Ok(m)
+            }
+        });
+        let model = match model {
+            Ok(m) => m,
+            Err(why) => {
+                let reason = format!("refused by fleet follow: {why}");
+                models::retire(
+                    &mut self.db,
+                    &self.a.machine,
+                    file.version,
+                    &change(&self.a.by, &reason),
+                )
+                .map_err(store_error)?;
+                self.say(&format!("version {} {reason}; retired", file.version));
+                return Ok(());
+            }
+        };
+        if state == State::Candidate {
+            let reason =
+                format!("fleet follow: signature verified, shadowed beside version {active}");
+            models::shadow(
+                &mut self.db,
+                &self.a.machine,
+                file.version,
+                &change(&self.a.by, &reason),
+            )
+            .map_err(store_error)?;
+        }
+        self.say(&format!(
+            "version {} in shadow beside version {active}",
+            file.version
+        ));
+        self.shadow = Some(Evaluated {
+            version: file.version,
+            model,
+        });
+        Ok(())
+    }
+
+    fn active_version(&mut self) -> Result<Option<i32>, CliError> {
+        let all = models::list(&mut self.db, Some(&self.a.machine)).map_err(store_error)?;
+        Ok(all
+            .iter()
+            .find(|m| m.state == State::Active)
+            .map(|m| m.version))
+    }
+
+    /// Says a waiting state once.
+    fn note(&mut self, what: &str) {
+        if self.said != what {
+            self.say(what);
+            self.said = what.to_string();
+        }
+    }
+
+    /// Evaluates the probes the log gained with the shadow and the watched parent, and stores
+    /// them.
+    fn read_probes(&mut self) -> Result<(), CliError> {
+        if !self.a.log.exists() {
+            return Ok(());
+        }
+        if let Some(w) = &mut self.watch {
+            if w.reloaded_at_s.is_none() {
+                let events = log::read_events(&self.a.log)?;
+                for e in events.iter().skip(w.events_before) {
+                    if e.kind == "model-reloaded" && same_file(&e.detail, &self.a.model) {
+                        w.reloaded_at_s = Some(e.time_s);
+                        println!(
+                            "{}: the service reloaded {} at its {:.1} s",
+                            self.a.machine, e.detail, e.time_s
+                        );
+                        break;
+                    }
+                    if e.kind == "model-reload-failed"
+                        && e.detail.contains(&file_name(&self.a.model))
+                    {
+                        println!(
+                            "{}: the service's reload failed: {}",
+                            self.a.machine, e.detail
+                        );
+                    }
+                }
+            }
+        }
+        let table = log::read_probes(&self.a.log)?;
+        let Some(last) = table.rows.last().map(|r| r.row) else {
+            return Ok(());
+        };
+        if last <= self.cursor {
+            if last < self.cursor {
+                // A new log in the same place: read it from its start.
+                self.cursor = 0;
+            }
+            return Ok(());
+        }
+        let Some(active) = self.active_version()? else {
+            self.cursor = last;
+            return Ok(());
+        };
+        let started = log::read_meta(&self.a.log)?
+            .and_then(|m| m["started_unix_s"].as_f64())
+            .unwrap_or(0.0);
+        let layout = Layout::of(&table.columns, &self.machine)
+            .map_err(|m| CliError::refused(format!("{}: {m}", self.a.log.display())))?;
+        let rows: Vec<&log::ProbeRow> = table
+            .rows
+            .iter()
+            .filter(|r| r.row > self.cursor && r.accepted)
+            .collect();
+        if let Some(s) = &mut self.shadow {
+            let probes = layout.residuals(&rows, &mut s.model, started, None);
+            shadow_probes::record(&mut self.db, &self.a.machine, s.version, active, &probes)
+                .map_err(|e| CliError::refused(format!("--db: PostgreSQL: {e}")))?;
+        }
+        if let Some(w) = &mut self.watch {
+            if let (Some(t), true) = (w.reloaded_at_s, w.active == active) {
+                let probes = layout.residuals(&rows, &mut w.parent.model, started, Some(t));
+                shadow_probes::record(
+                    &mut self.db,
+                    &self.a.machine,
+                    w.parent.version,
+                    active,
+                    &probes,
+                )
+                .map_err(|e| CliError::refused(format!("--db: PostgreSQL: {e}")))?;
+            }
+        }
+        self.cursor = last;
+        Ok(())
+    }
+
+    /// The rules on what is stored.
+    fn judge(&mut self) -> Result<(), CliError> {
+        let Some(active) = self.active_version()? else {
+            return Ok(());
+        };
+        let (m, margin) = (self.a.machine.clone(), self.rule.margin);
+        if let Some(s) = &self.shadow {
+            let version = s.version;
+            let pairs = shadow_probes::pairs(&mut self.db, &m, version, active)
+                .map_err(|e| CliError::refused(format!("--db: PostgreSQL: {e}")))?;
+            match shadow::judge_shadow(&self.rule, &pairs) {
+                ShadowDecision::Wait(_) => {}
+                ShadowDecision::Activate(f) => {
+                    let reason = format!(
+                        "fleet follow: better than version {active} in shadow, {f}; rule: below (1 − {margin}) × the active RMS after {} residuals",
+                        self.rule.min_probes
+                    );
+                    match models::activate(&mut self.db, &m, version, &change(&self.a.by, &reason))
+                    {
+                        Ok(_) => self.say(&format!("version {version} activated: {f}")),
+                        Err(e) => self.say(&format!("version {version} not activated: {e}")),
+                    }
+                    self.shadow = None;
+                    self.sync_active()?;
+                }
+                ShadowDecision::Retire(f) => {
+                    let reason = format!(
+                        "fleet follow: not better than version {active} by the margin {margin} in shadow, {f}"
+                    );
+                    match models::retire(&mut self.db, &m, version, &change(&self.a.by, &reason)) {
+                        Ok(()) => self.say(&format!("version {version} retired: {f}")),
+                        Err(e) => self.say(&format!("version {version} not retired: {e}")),
+                    }
+                    self.shadow = None;
+                }
+            }
+        }
+        let Some(w) = &self.watch else {
+            return Ok(());
+        };
+        if w.active != active {
+            // Moved by someone else: the next round writes and watches what is active now.
+            self.watch = None;
+            return Ok(());
+        }
+        let parent = w.parent.version;
+        let pairs = shadow_probes::pairs(&mut self.db, &m, parent, active)
+            .map_err(|e| CliError::refused(format!("--db: PostgreSQL: {e}")))?;
+        if let WatchDecision::Rollback(f) = shadow::judge_rollback(&self.rule, &pairs) {
+            let reason = format!(
+                "fleet follow: version {active} worse than its parent {parent} on the probes since its reload, {f}; rule: above (1 + {margin}) × the parent's RMS after {} residuals",
+                self.rule.min_probes
+            );
+            self.watch = None;
+            match models::rollback(&mut self.db, &m, &change(&self.a.by, &reason)) {
+                Ok((retired, now)) => {
+                    self.say(&format!(
+                        "version {retired} rolled back to version {now}: {f}"
+                    ));
+                    self.sync_active()?;
+                }
+                Err(e) => self.say(&format!("rollback of version {active} refused: {e}")),
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The follower's move, for the store's history.
+fn change<'a>(by: &'a str, reason: &'a str) -> Change<'a> {
+    Change {
+        by: Some(by),
+        reason,
+    }
+}
+
+fn file_name(p: &Path) -> String {
+    p.file_name()
+        .map(|n| n.to_string_lossy().to_string())
+        .unwrap_or_default()
+}
+
+/// Whether an event's file is `--model`: the same path once both are made absolute, or — the
+/// service may have been started from another directory — the same file name.
+fn same_file(detail: &str, model: &Path) -> bool {
+    let d = Path::new(detail);
+    match (d.canonicalize(), model.canonicalize()) {
+        (Ok(a), Ok(b)) if a == b => true,
+        _ => !file_name(model).is_empty() && file_name(d) == file_name(model),
+    }
+}
+
+/// Where the model's inputs and the probe's numbers are in the log's probes table.
+struct Layout {
+    /// Per machine axis: its name, probed position, measured error, the running model's
+    /// prediction.
+    axes: Vec<(String, usize, usize, usize)>,
+    temperatures: Vec<usize>,
+    operating: Vec<usize>,
+}
+
+impl Layout {
+    fn of(columns: &[String], machine: &MachineConfig) -> Result<Self, String> {
+        let col = |name: &str| -> Result<usize, String> {
+            columns.iter().position(|c| c == name).ok_or_else(|| {
+                format!(
+                    "the probes table has no column `{name}`; it has: {}",
+                    columns.join(", ")
+                )
+            })
+        };
+        let m = &machine.machine;
+        let mut axes = Vec::new();
+        for a in &m.axes {
+            let [pos, dev, pred] = log::probe_axis_columns(&a.name);
+            axes.push((a.name.clone(), col(&pos)?, col(&dev)?, col(&pred)?));
+        }
+        Ok(Layout {
+            axes,
+            temperatures: m
+                .temperatures
+                .iter()
+                .map(|t| col(&t.id))
+                .collect::<Result<_, _>>()?,
+            operating: m
+                .operating
+                .iter()
+                .map(|o| col(&o.id))
+                .collect::<Result<_, _>>()?,
+        })
+    }
+
+    /// The residuals of `model` at each row's inputs (the probed positions, the cycle's
+    /// temperatures and operating state), per measured axis with the running model's
+    /// prediction; rows before `from_s` (service time) are left out. The model is evaluated
+    /// as the service evaluates it (its training envelope applied).
+    fn residuals(
+        &self,
+        rows: &[&log::ProbeRow],
+        model: &mut CompensationModel,
+        started_unix_s: f64,
+        from_s: Option<f64>,
+    ) -> Vec<ShadowProbe> {
+        let nan = |v: Option<f64>| v.unwrap_or(f64::NAN);
+        let (mut t, mut o) = (Vec::new(), Vec::new());
+        let mut out = Vec::new();
+        for r in rows {
+            // A NaN time is before any reload.
+            if from_s.is_some_and(|f| r.time_s.is_nan() || r.time_s < f) {
+                continue;
+            }
+            let temperatures: Vec<f64> = self
+                .temperatures
+                .iter()
+                .map(|&c| nan(r.values[c]))
+                .collect();
+            let operating: Vec<f64> = self.operating.iter().map(|&c| nan(r.values[c])).collect();
+            let positions: Vec<f64> = self.axes.iter().map(|a| nan(r.values[a.1])).collect();
+            let input = CycleInput {
+                temperatures_c: &temperatures,
+                positions: &positions,
+                operating: &operating,
+            };
+            let Ok((error_um, _)) = model.step_guarded(0.0, &input, (&mut t, &mut o)) else {
+                continue;
+            };
+            for (i, (name, _, dev, pred)) in self.axes.iter().enumerate() {
+                let (Some(measured), Some(active)) = (r.values[*dev], r.values[*pred]) else {
+                    continue;
+                };
+                let shadow = error_um.get(i).copied().unwrap_or(f64::NAN);
+                if !(measured.is_finite() && active.is_finite() && shadow.is_finite()) {
+                    continue;
+                }
+                out.push(ShadowProbe {
+                    t_unix_s: started_unix_s + r.time_s,
+                    axis: name.clone(),
+                    measured_um: measured,
+                    active_um: active,
+                    shadow_um: shadow,
+                    log_row: r.row,
+                });
+            }
+        }
+        out
+    }
+}
