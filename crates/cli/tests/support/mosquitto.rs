@@ -39,6 +39,33 @@ pub fn free_port() -> u16 {
 /// Starts Mosquitto on `port` with its persistence file in `dir` (saved every second) and no
 /// limit on the messages it queues for a client that is away, waiting until it listens.
 pub fn start(dir: &Path, port: u16) -> Reaped {
+    let conf = config(dir, port, dir);
+    let mut c = Command::new(mosquitto());
+    c.arg("-c").arg(&conf);
+    spawn(c, dir, port)
+}
+
+/// As [`start`], with the persistence directory `dir/full` a 1 MiB tmpfs filled to its last
+/// block before the broker starts, in a mount namespace of the broker's own (`unshare`, as root
+/// or as a user the kernel lets map itself to root). The directory as the broker sees it is
+/// `/proc/<pid>/root/<dir>/full`.
+pub fn start_on_full_disk(dir: &Path, port: u16) -> Reaped {
+    let full = dir.join("full");
+    std::fs::create_dir_all(&full).unwrap();
+    let conf = config(dir, port, &full);
+    let script = format!(
+        "mount -t tmpfs -o size=1m tmpfs '{0}' && \
+         (dd if=/dev/zero of='{0}/filler' bs=4k 2>/dev/null; true) && exec '{1}' -c '{2}'",
+        full.display(),
+        mosquitto().display(),
+        conf.display()
+    );
+    let mut c = Command::new("unshare");
+    c.args(["--mount", "--map-root-user", "sh", "-c", &script]);
+    spawn(c, dir, port)
+}
+
+fn config(dir: &Path, port: u16, persistence: &Path) -> PathBuf {
     let conf = dir.join("mosquitto.conf");
     std::fs::write(
         &conf,
@@ -46,13 +73,15 @@ pub fn start(dir: &Path, port: u16) -> Reaped {
             "listener {port} 127.0.0.1\nallow_anonymous true\npersistence true\n\
              persistence_location {}/\nautosave_interval 1\nmax_queued_messages 0\n\
              # As root Mosquitto would switch to its own user, who cannot write the scratch dir.\nuser root\n",
-            dir.display()
+            persistence.display()
         ),
     )
     .unwrap();
-    let child = Command::new(mosquitto())
-        .arg("-c")
-        .arg(&conf)
+    conf
+}
+
+fn spawn(mut c: Command, dir: &Path, port: u16) -> Reaped {
+    let child = c
         .stdout(Stdio::null())
         .stderr(std::fs::File::create(dir.join("mosquitto.log")).unwrap())
         .spawn()
@@ -62,7 +91,8 @@ pub fn start(dir: &Path, port: u16) -> Reaped {
     while TcpStream::connect(("127.0.0.1", port)).is_err() {
         assert!(
             Instant::now() < deadline,
-            "mosquitto did not listen on {port} within 10 s"
+            "mosquitto did not listen on {port} within 10 s: {}",
+            std::fs::read_to_string(dir.join("mosquitto.log")).unwrap_or_default()
         );
         std::thread::sleep(Duration::from_millis(50));
     }
