@@ -9,7 +9,7 @@
 //! into the service's model file, and the service reloads it (its log's `model-reloaded`).
 //! Then D is activated by hand: the follower writes it, the service reloads it, and on the
 //! probes since that reload D is worse than its parent B by more than the margin: rolled back,
-//! B written again.
+//! B written again. Last, E, a little worse than B, is shadowed and retired.
 
 #[path = "support/postgres.rs"]
 mod postgres_cluster;
@@ -226,6 +226,7 @@ fn the_follower_refuses_a_tampered_model_activates_a_better_one_and_rolls_back_a
     let b = signed_model(&dir, &f.key, "b", spindle, spindle);
     let c = signed_model(&dir, &f.key, "c", spindle, "k_um_per_k = 3.0");
     let d = signed_model(&dir, &f.key, "d", spindle, "k_um_per_k = 6.2");
+    let e = signed_model(&dir, &f.key, "e", spindle, "k_um_per_k = 3.6");
     let probes = probe_run(&dir, &b);
 
     // A active, B and C candidates; C's bytes changed in the store, its hash recomputed.
@@ -402,6 +403,25 @@ fn the_follower_refuses_a_tampered_model_activates_a_better_one_and_rolls_back_a
     // Every reload loaded: the signature was always there for the model it came with.
     let events = reload_events(&log);
     assert!(events.iter().all(|e| e.1 == "model-reloaded"), "{events:?}");
+    // E, a little worse than B, shadowed and retired after twice the minimum.
+    f.register(&e);
+    f.wait_state(5, "retired", 40, &said);
+    let e_history = f.history(5);
+    assert_eq!(e_history.len(), 3, "{e_history:?}");
+    assert!(e_history[1].starts_with("shadow|"), "{e_history:?}");
+    assert!(
+        e_history[2].starts_with("retired|fleet follow: not better than version 2 by the margin"),
+        "{e_history:?}"
+    );
+    assert_eq!(
+        f.pg.query(
+            "SELECT count(*) >= 8 FROM fleet_shadow_probes \
+             WHERE machine = 'vmc-3axis' AND version = 5 AND active_version = 2"
+        ),
+        "t"
+    );
+    assert_eq!(f.state(2), "active");
+    assert_eq!(std::fs::read(&model).unwrap(), std::fs::read(&b).unwrap());
     let out = said();
     assert!(out.contains("version 2 activated"), "{out}");
     assert!(out.contains("version 4 rolled back to version 2"), "{out}");
