@@ -229,6 +229,32 @@ fn the_follower_refuses_a_tampered_model_activates_a_better_one_and_rolls_back_a
     let e = signed_model(&dir, &f.key, "e", spindle, "k_um_per_k = 3.6");
     let probes = probe_run(&dir, &b);
 
+    // A rule that cannot decide is refused before anything is read.
+    for (flag, value, word) in [
+        ("--margin", "1.5", "--margin 1.5: give 0 to below 1"),
+        ("--min-probes", "0", "--min-probes 0: give 1 to 1000000"),
+    ] {
+        let r = run_words(
+            &[
+                "fleet",
+                "follow",
+                "--db",
+                &f.pg.url(),
+                "--machine",
+                MACHINE,
+                flag,
+                value,
+            ],
+            &[
+                ("--machine-file", &f.machine_file),
+                ("--log", &dir.join("none.sqlite")),
+                ("--model", &a),
+                ("--trusted-keys", &f.trusted),
+            ],
+        );
+        assert!(!r.0 && r.2.contains(word), "{}", r.2);
+    }
+
     // A active, B and C candidates; C's bytes changed in the store, its hash recomputed.
     f.register(&a);
     f.fleet(&["activate", "--machine", MACHINE, "--version", "1"], &[]);
@@ -422,6 +448,30 @@ fn the_follower_refuses_a_tampered_model_activates_a_better_one_and_rolls_back_a
     );
     assert_eq!(f.state(2), "active");
     assert_eq!(std::fs::read(&model).unwrap(), std::fs::read(&b).unwrap());
+    // A probe stored again is kept once (a follower that read the same log rows twice).
+    let mut db = truepos_fleet_store::postgres::Client::connect(
+        &f.pg.url(),
+        truepos_fleet_store::postgres::NoTls,
+    )
+    .unwrap();
+    let again = f.pg.query(
+        "SELECT extract(epoch FROM t)::float8, axis, measured_um, active_um, shadow_um, log_row \
+         FROM fleet_shadow_probes WHERE version = 5 ORDER BY t LIMIT 1",
+    );
+    let w: Vec<&str> = again.split(',').collect();
+    let probe = truepos_fleet_store::shadow_probes::ShadowProbe {
+        t_unix_s: w[0].parse().unwrap(),
+        axis: w[1].to_string(),
+        measured_um: w[2].parse().unwrap(),
+        active_um: w[3].parse().unwrap(),
+        shadow_um: w[4].parse().unwrap(),
+        log_row: w[5].parse().unwrap(),
+    };
+    let rows = || f.pg.query("SELECT count(*) FROM fleet_shadow_probes");
+    let before = rows();
+    let new = truepos_fleet_store::shadow_probes::record(&mut db, MACHINE, 5, 2, &[probe]).unwrap();
+    assert_eq!((new, rows()), (0, before));
+
     let out = said();
     assert!(out.contains("version 2 activated"), "{out}");
     assert!(out.contains("version 4 rolled back to version 2"), "{out}");
