@@ -291,6 +291,7 @@ fn the_follower_refuses_a_tampered_model_activates_a_better_one_and_rolls_back_a
             .unwrap(),
     );
     let follower_out = dir.join("follow.out");
+    let written = dir.join("written.txt");
     let follower = Killed(
         command()
             .args(["fleet", "follow", "--db", &f.pg.url(), "--machine", MACHINE])
@@ -310,7 +311,11 @@ fn the_follower_refuses_a_tampered_model_activates_a_better_one_and_rolls_back_a
                 "--interval-s",
                 "0.2",
             ])
-            .args(["--duration-s", "90"])
+            .args(["--duration-s", "90", "--after-write"])
+            .arg(format!(
+                "echo \"$TRUEPOS_MODEL_VERSION $TRUEPOS_MODEL\" >> {}",
+                written.display()
+            ))
             .stdout(std::fs::File::create(&follower_out).unwrap())
             .stderr(Stdio::inherit())
             .spawn()
@@ -471,6 +476,13 @@ fn the_follower_refuses_a_tampered_model_activates_a_better_one_and_rolls_back_a
     let before = rows();
     let new = truepos_fleet_store::shadow_probes::record(&mut db, MACHINE, 5, 2, &[probe]).unwrap();
     assert_eq!((new, rows()), (0, before));
+
+    // --after-write ran after each file written (what pulses truepos-hal's reload pin).
+    let m = model.display();
+    assert_eq!(
+        std::fs::read_to_string(&written).unwrap(),
+        format!("2 {m}\n4 {m}\n2 {m}\n")
+    );
 
     let out = said();
     assert!(out.contains("version 2 activated"), "{out}");

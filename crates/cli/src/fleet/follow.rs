@@ -67,6 +67,12 @@ pub struct FollowArgs {
     /// Stop after this many seconds (default: run until stopped).
     #[arg(long)]
     duration_s: Option<f64>,
+    /// A shell command run after each model written (`sh -c`, at most 30 s): for a service
+    /// that does not watch its file — beside `truepos-hal`, `halcmd setp truepos.model.reload 1;
+    /// halcmd setp truepos.model.reload 0`. The written file is in `TRUEPOS_MODEL`, its
+    /// version in `TRUEPOS_MODEL_VERSION`.
+    #[arg(long, value_name = "COMMAND")]
+    after_write: Option<String>,
     /// Who the store's history names for the follower's moves.
     #[arg(long, default_value = "truepos fleet follow")]
     by: String,
@@ -229,6 +235,9 @@ impl Follower {
             &active.sha256[..12],
             sig.display()
         ));
+        if let Some(cmd) = &self.a.after_write {
+            self.say(&after_write(cmd, &self.a.model, active.version));
+        }
         self.watch_new(active.version, events_before)
     }
 
@@ -516,6 +525,39 @@ impl Follower {
             }
         }
         Ok(())
+    }
+}
+
+/// Runs `--after-write`, bounded: what it did, in words.
+fn after_write(cmd: &str, model: &Path, version: i32) -> String {
+    const LIMIT: Duration = Duration::from_secs(30);
+    let child = std::process::Command::new("sh")
+        .arg("-c")
+        .arg(cmd)
+        .env("TRUEPOS_MODEL", model)
+        .env("TRUEPOS_MODEL_VERSION", version.to_string())
+        .stdin(std::process::Stdio::null())
+        .spawn();
+    let mut child = match child {
+        Ok(c) => c,
+        Err(e) => return format!("--after-write: cannot start `sh`: {e}"),
+    };
+    let start = Instant::now();
+    loop {
+        match child.try_wait() {
+            Ok(Some(status)) if status.success() => return "--after-write: done".into(),
+            Ok(Some(status)) => return format!("--after-write: failed ({status})"),
+            Ok(None) if start.elapsed() > LIMIT => {
+                let _ = child.kill();
+                let _ = child.wait();
+                return format!(
+                    "--after-write: still running after {} s, killed",
+                    LIMIT.as_secs()
+                );
+            }
+            Ok(None) => std::thread::sleep(Duration::from_millis(20)),
+            Err(e) => return format!("--after-write: {e}"),
+        }
     }
 }
 
