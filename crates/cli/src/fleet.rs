@@ -22,42 +22,9 @@ mod follow;
 /// acknowledged by then stays in the log and goes with the next start.
 const DRAIN_AT_STOP: Duration = Duration::from_secs(10);
 
-/// `--mqtt` checked before anything starts: the broker's address, and the log's rows of the
-/// runs before this one (not sent unless this broker's cursor already covers them).
-pub struct MqttArgs {
-    broker: BrokerUrl,
-    group: String,
-    log: PathBuf,
-    before: truepos_fleet::Rows,
-}
-
-impl MqttArgs {
-    /// `None` without `--mqtt`; refuses a bad URL or a run without a log.
-    pub fn check(
-        url: Option<&str>,
-        group: &str,
-        log: Option<&Path>,
-    ) -> Result<Option<Self>, CliError> {
-        let Some(url) = url else { return Ok(None) };
-        let broker = BrokerUrl::parse(url).map_err(CliError::refused)?;
-        let log = log.ok_or_else(|| {
-            CliError::refused("--mqtt forwards the log: give --log FILE as well (docs/fleet.md)")
-        })?;
-        Ok(Some(MqttArgs {
-            broker,
-            group: group.to_string(),
-            log: log.to_path_buf(),
-            before: truepos_fleet::last_rows(log),
-        }))
-    }
-
-    /// Starts the publisher (after the service, which creates the log).
-    pub fn start(self) -> Result<Publisher, CliError> {
-        let mut config = Config::new(self.broker, self.log);
-        config.group = self.group;
-        config.start_after = self.before;
-        Publisher::start(config).map_err(|e| CliError::refused(format!("--mqtt: {e}")))
-    }
+/// Starts the publisher of a service's `--mqtt` (after the service, which creates the log).
+pub fn start(config: Config) -> Result<Publisher, CliError> {
+    Publisher::start(config).map_err(|e| CliError::refused(format!("--mqtt: {e}")))
 }
 
 /// Stops the publisher after the service and says what it did.

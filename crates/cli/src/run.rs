@@ -235,8 +235,12 @@ pub fn run(mut args: RunArgs) -> Result<(), CliError> {
     args.models = args.models.drain(..).map(crate::examples::find).collect();
     let http = HttpArgs::check(args.http.as_deref(), args.http_token_file.as_deref())
         .map_err(CliError::refused)?;
-    let mqtt =
-        crate::fleet::MqttArgs::check(args.mqtt.as_deref(), &args.mqtt_group, args.log.as_deref())?;
+    let mqtt = truepos_fleet::Config::for_service(
+        args.mqtt.as_deref(),
+        &args.mqtt_group,
+        args.log.as_deref(),
+    )
+    .map_err(CliError::refused)?;
     let machine = machine_file::load(&args.machine)?;
     let trusted = args
         .trusted_keys
@@ -294,7 +298,7 @@ pub fn run(mut args: RunArgs) -> Result<(), CliError> {
         None => None,
     };
     // Beside the service, on a thread of its own that reads the log: the cycle never waits on it.
-    let publisher = mqtt.map(crate::fleet::MqttArgs::start).transpose()?;
+    let publisher = mqtt.map(crate::fleet::start).transpose()?;
     let stop = Arc::new(AtomicBool::new(false));
     for signal in [signal_hook::consts::SIGTERM, signal_hook::consts::SIGINT] {
         signal_hook::flag::register(signal, Arc::clone(&stop))

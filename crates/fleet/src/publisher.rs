@@ -9,7 +9,7 @@
 //! thread's only link to the service is the log file.
 
 use std::collections::VecDeque;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
@@ -57,6 +57,24 @@ impl Config {
             replay_per_s: 100.0,
             keep_alive_s: 10,
         }
+    }
+
+    /// A service's `--mqtt URL` and `--mqtt-group`, checked before the service starts: `None`
+    /// without a URL; refused for a bad URL or a service without a log (the publisher forwards
+    /// the log). The log's rows of the runs before this one are not sent to a broker that has
+    /// no cursor yet.
+    pub fn for_service(
+        url: Option<&str>,
+        group: &str,
+        log: Option<&Path>,
+    ) -> Result<Option<Self>, String> {
+        let Some(url) = url else { return Ok(None) };
+        let broker = BrokerUrl::parse(url)?;
+        let log = log.ok_or("--mqtt forwards the log: give --log FILE as well (docs/fleet.md)")?;
+        let mut c = Config::new(broker, log.to_path_buf());
+        c.group = group.to_string();
+        c.start_after = crate::last_rows(log);
+        Ok(Some(c))
     }
 }
 

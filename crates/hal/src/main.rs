@@ -151,7 +151,13 @@ fn run(args: RunArgs) -> Result<(), Error> {
     // Before HAL is touched: a live view beyond loopback without a token is refused here.
     let http = HttpArgs::check(args.http.as_deref(), args.http_token_file.as_deref())
         .map_err(Error::Refused)?;
-    let mqtt = mqtt_config(&args)?;
+    // Before HAL is touched, as the live view's address.
+    let mqtt = truepos_fleet::Config::for_service(
+        args.mqtt.as_deref(),
+        &args.mqtt_group,
+        args.log.as_deref(),
+    )
+    .map_err(Error::Refused)?;
     let machine = truepos_io::machine_file::load(&args.machine)?;
     // Before HAL is touched: a channel id that is no pin name is the machine file's mistake.
     pins::check_names(&machine.machine)?;
@@ -280,22 +286,6 @@ fn run(args: RunArgs) -> Result<(), Error> {
             .map_err(|e| Error::Stats(std::io::Error::other(e.to_string())))?;
     }
     Ok(())
-}
-
-/// `--mqtt` checked before HAL is touched: the broker's address, a log to forward, and the
-/// log's rows of earlier runs (not sent to a broker that has no cursor yet).
-fn mqtt_config(args: &RunArgs) -> Result<Option<truepos_fleet::Config>, Error> {
-    let Some(url) = &args.mqtt else {
-        return Ok(None);
-    };
-    let broker = truepos_fleet::BrokerUrl::parse(url).map_err(Error::Refused)?;
-    let log = args.log.clone().ok_or_else(|| {
-        Error::Refused("--mqtt forwards the log: give --log FILE as well (docs/fleet.md)".into())
-    })?;
-    let mut c = truepos_fleet::Config::new(broker, log);
-    c.start_after = truepos_fleet::last_rows(&c.log);
-    c.group = args.mqtt_group.clone();
-    Ok(Some(c))
 }
 
 /// Compensates every period until `stop`: reads the control pins, runs the cycle, writes the
