@@ -150,6 +150,9 @@ impl Machine {
         )?;
         self.counters.connected.fetch_add(1, Ordering::Relaxed);
         let mut unacked: u64 = 1;
+        // The broker drops a connection silent for 1.5 keep-alives: during the ramp a machine
+        // pings, as a service's publisher does when it has nothing to send.
+        let mut last_send = Instant::now();
         let mut incoming = Vec::new();
         // This machine's seconds begin at its phase within the second.
         let phase = Duration::from_secs_f64(self.index as f64 / o.machines as f64);
@@ -158,7 +161,13 @@ impl Machine {
         while next < end {
             // Until this machine's next second: read acknowledgements.
             while Instant::now() < next {
-                let wait = next.saturating_duration_since(Instant::now());
+                if last_send.elapsed() >= Duration::from_secs(5) {
+                    conn.ping()?;
+                    last_send = Instant::now();
+                }
+                let wait = next
+                    .saturating_duration_since(Instant::now())
+                    .min(Duration::from_secs(1));
                 conn.poll(wait, &mut incoming)?;
                 for p in incoming.drain(..) {
                     if let Incoming::PubAck(_) = p {
@@ -179,6 +188,7 @@ impl Machine {
             let t = now_ms();
             let payload = unit_payload(&second, self.columns.len(), t, seq, false, t).encode();
             conn.publish(&topic_data, id, &payload)?;
+            last_send = Instant::now();
             unacked += 1;
             self.counters.sent.fetch_add(1, Ordering::Relaxed);
             self.counters

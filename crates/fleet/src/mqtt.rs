@@ -345,6 +345,17 @@ impl Connection {
         self.send(&[0x40, 2, a, b])
     }
 
+    /// Acknowledges QoS 1 messages, all in one write (one TCP segment for a batch, rather than
+    /// one each).
+    pub fn pubacks(&mut self, ids: &[u16]) -> Result<(), String> {
+        let mut out = Vec::with_capacity(4 * ids.len());
+        for id in ids {
+            let [a, b] = id.to_be_bytes();
+            out.extend_from_slice(&[0x40, 2, a, b]);
+        }
+        self.send(&out)
+    }
+
     /// Sends PINGREQ.
     pub fn ping(&mut self) -> Result<(), String> {
         self.send(&[0xc0, 0])
@@ -361,18 +372,26 @@ impl Connection {
         self.stream
             .set_read_timeout(Some(wait.max(Duration::from_millis(1))))
             .map_err(|e| e.to_string())?;
-        // Large enough for a batch of messages per call (a subscriber receives ~2 kB each).
-        let mut chunk = [0u8; 16 * 1024];
-        match self.stream.read(&mut chunk) {
+        // A read takes what the socket holds, up to a quarter of the largest packet accepted:
+        // 4 kB for a publisher (acknowledgements), 1 MB for the ingester, so that one poll
+        // brings as many messages as the broker has in flight (~650 of a service's NDATA).
+        let chunk = (self.max_incoming / 4).clamp(4 * 1024, 1024 * 1024);
+        let old = self.buf.len();
+        self.buf.resize(old + chunk, 0);
+        let read = self.stream.read(&mut self.buf[old..]);
+        self.buf.truncate(old + *read.as_ref().unwrap_or(&0));
+        match read {
             Ok(0) => return Err("the broker closed the connection".into()),
-            Ok(n) => self.buf.extend_from_slice(&chunk[..n]),
+            Ok(_) => {}
             Err(e) if matches!(e.kind(), ErrorKind::WouldBlock | ErrorKind::TimedOut) => {}
             Err(e) => return Err(e.to_string()),
         }
-        while let Some((p, used)) = decode(&self.buf, self.max_incoming)? {
+        let mut used = 0;
+        while let Some((p, n)) = decode(&self.buf[used..], self.max_incoming)? {
             out.push(p);
-            self.buf.drain(..used);
+            used += n;
         }
+        self.buf.drain(..used);
         Ok(())
     }
 }
