@@ -7,9 +7,12 @@
 //! A is active; B and a tampered C wait as candidates. The follower refuses C (retired, the
 //! reason in the history, never shadowed), shadows B on the probes, activates it, writes it
 //! into the service's model file, and the service reloads it (its log's `model-reloaded`).
-//! Then D is activated by hand: the follower writes it, the service reloads it, and on the
-//! probes since that reload D is worse than its parent B by more than the margin: rolled back,
-//! B written again. Last, E, a little worse than B, is shadowed and retired.
+//! Then D is activated by hand while no follower runs; `fleet follow --once` writes it, the
+//! service reloads it, and a follower started afresh finds it in the file, judges it on the
+//! probes from then on, worse than its parent B by more than the margin: rolled back, B
+//! written again. E, a little worse than B, is shadowed and retired. Last, F, activated by
+//! hand while the follower runs, is written, reloaded, judged on the probes after the reload
+//! and rolled back.
 
 #[path = "support/postgres.rs"]
 mod postgres_cluster;
@@ -227,6 +230,7 @@ fn the_follower_refuses_a_tampered_model_activates_a_better_one_and_rolls_back_a
     let c = signed_model(&dir, &f.key, "c", spindle, "k_um_per_k = 3.0");
     let d = signed_model(&dir, &f.key, "d", spindle, "k_um_per_k = 6.2");
     let e = signed_model(&dir, &f.key, "e", spindle, "k_um_per_k = 3.6");
+    let f6 = signed_model(&dir, &f.key, "f", spindle, "k_um_per_k = 7.0");
     let probes = probe_run(&dir, &b);
 
     // A rule that cannot decide is refused before anything is read.
@@ -292,9 +296,10 @@ fn the_follower_refuses_a_tampered_model_activates_a_better_one_and_rolls_back_a
     );
     let follower_out = dir.join("follow.out");
     let written = dir.join("written.txt");
-    let follower = Killed(
-        command()
-            .args(["fleet", "follow", "--db", &f.pg.url(), "--machine", MACHINE])
+    // The follower's command: --min-probes 4, a round every 0.2 s, each write recorded.
+    let follow = || {
+        let mut c = command();
+        c.args(["fleet", "follow", "--db", &f.pg.url(), "--machine", MACHINE])
             .arg("--machine-file")
             .arg(&f.machine_file)
             .arg("--log")
@@ -311,13 +316,18 @@ fn the_follower_refuses_a_tampered_model_activates_a_better_one_and_rolls_back_a
                 "--interval-s",
                 "0.2",
             ])
-            .args(["--duration-s", "90", "--after-write"])
+            .arg("--after-write")
             .arg(format!(
                 "echo \"$TRUEPOS_MODEL_VERSION $TRUEPOS_MODEL\" >> {}",
                 written.display()
             ))
+            .stderr(Stdio::inherit());
+        c
+    };
+    let follower = Killed(
+        follow()
+            .args(["--duration-s", "90"])
             .stdout(std::fs::File::create(&follower_out).unwrap())
-            .stderr(Stdio::inherit())
             .spawn()
             .unwrap(),
     );
@@ -384,7 +394,10 @@ fn the_follower_refuses_a_tampered_model_activates_a_better_one_and_rolls_back_a
         "0"
     );
 
-    // D activated by hand: written, reloaded, judged worse than B by the margin, rolled back.
+    // D activated by hand while no follower runs; a follower run once writes it into the file
+    // and exits (its watch gone with it); the follower started next finds D in the file,
+    // judges it against its parent B on the probes from then on, and rolls back.
+    drop(follower);
     let reloads_before = reload_events(&log).len();
     f.register(&d);
     f.fleet(
@@ -399,6 +412,37 @@ fn the_follower_refuses_a_tampered_model_activates_a_better_one_and_rolls_back_a
         ],
         &[],
     );
+    let mut once = follow()
+        .arg("--once")
+        .stdout(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let deadline = Instant::now() + Duration::from_secs(60);
+    while once.try_wait().unwrap().is_none() {
+        assert!(
+            Instant::now() < deadline,
+            "fleet follow --once ran over 60 s"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let once = once.wait_with_output().unwrap();
+    let once_said = String::from_utf8_lossy(&once.stdout).to_string();
+    assert!(once.status.success(), "{once_said}");
+    assert!(once_said.contains("version 4 written to"), "{once_said}");
+    assert!(
+        once_said.contains("version 4 watched against its parent, version 2"),
+        "{once_said}"
+    );
+    let follower_out = dir.join("follow-again.out");
+    let follower = Killed(
+        follow()
+            .args(["--duration-s", "90"])
+            .stdout(std::fs::File::create(&follower_out).unwrap())
+            .spawn()
+            .unwrap(),
+    );
+    let first_said = said();
+    let said = || std::fs::read_to_string(&follower_out).unwrap_or_default();
     f.wait_state(4, "retired", 40, &said);
     assert_eq!(f.state(2), "active");
     let d_history = f.history(4);
@@ -477,15 +521,65 @@ fn the_follower_refuses_a_tampered_model_activates_a_better_one_and_rolls_back_a
     let new = truepos_fleet_store::shadow_probes::record(&mut db, MACHINE, 5, 2, &[probe]).unwrap();
     assert_eq!((new, rows()), (0, before));
 
+    // F activated by hand while the follower runs: it writes F, waits for the service's
+    // reload, judges F on the probes after it, and rolls back to B.
+    f.register(&f6);
+    f.fleet(
+        &[
+            "activate",
+            "--machine",
+            MACHINE,
+            "--version",
+            "6",
+            "--reason",
+            "by hand",
+        ],
+        &[],
+    );
+    f.wait_state(6, "retired", 40, &said);
+    assert_eq!(f.state(2), "active");
+    assert!(
+        f.history(6).last().unwrap().starts_with(
+            "retired|rolled back to version 2: fleet follow: version 6 worse than its parent 2"
+        ),
+        "{:?}",
+        f.history(6)
+    );
+    let figures = f.pg.query(
+        "SELECT count(*), sqrt(avg((measured_um - active_um)^2)), \
+                sqrt(avg((measured_um - shadow_um)^2)) \
+         FROM fleet_shadow_probes WHERE machine = 'vmc-3axis' AND version = 2 AND active_version = 6",
+    );
+    let v: Vec<f64> = figures.split(',').map(|x| x.parse().unwrap()).collect();
+    eprintln!(
+        "F watched against B: {} residuals, RMS F {:.3} µm, B {:.3} µm",
+        v[0], v[1], v[2]
+    );
+    assert!(v[0] >= 4.0 && v[1] > 1.1 * v[2], "{figures}");
+    let reloaded_f = said();
+    assert!(
+        reloaded_f.contains(&format!("the service reloaded {}", model.display())),
+        "{reloaded_f}"
+    );
+    let deadline = Instant::now() + Duration::from_secs(20);
+    while std::fs::read(&model).unwrap() != std::fs::read(&b).unwrap() {
+        assert!(Instant::now() < deadline, "B not written back");
+        std::thread::sleep(Duration::from_millis(100));
+    }
+
     // --after-write ran after each file written (what pulses truepos-hal's reload pin).
     let m = model.display();
     assert_eq!(
         std::fs::read_to_string(&written).unwrap(),
-        format!("2 {m}\n4 {m}\n2 {m}\n")
+        format!("2 {m}\n4 {m}\n2 {m}\n6 {m}\n2 {m}\n")
     );
 
     let out = said();
-    assert!(out.contains("version 2 activated"), "{out}");
+    assert!(first_said.contains("version 2 activated"), "{first_said}");
+    assert!(
+        out.contains("version 4 watched against its parent, version 2"),
+        "{out}"
+    );
     assert!(out.contains("version 4 rolled back to version 2"), "{out}");
     assert!(
         out.contains("version 2 is active again (a rollback): not watched"),

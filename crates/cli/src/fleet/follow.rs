@@ -106,6 +106,8 @@ struct Follower {
     cursor: i64,
     shadow: Option<Evaluated>,
     watch: Option<Watch>,
+    /// The active version last considered for watching (so each is considered once).
+    considered: Option<i32>,
     /// The last thing said about waiting, so a round that changes nothing prints nothing.
     said: String,
 }
@@ -135,6 +137,7 @@ pub fn follow(a: FollowArgs) -> Result<(), CliError> {
         cursor,
         shadow: None,
         watch: None,
+        considered: None,
         said: String::new(),
         a,
     };
@@ -209,6 +212,11 @@ impl Follower {
             .ok()
             .map(|b| models::sha256_hex(&b));
         if on_disk.as_deref() == Some(active.sha256.as_str()) {
+            if self.considered != Some(active.version) {
+                // Written before this follower ran (a follower restarted after an
+                // activation): the service runs it; judged on the probes from now on.
+                self.watch_new(active.version, None)?;
+            }
             return Ok(());
         }
         if let Err(why) = self.checked(&active) {
@@ -238,13 +246,16 @@ impl Follower {
         if let Some(cmd) = &self.a.after_write {
             self.say(&after_write(cmd, &self.a.model, active.version));
         }
-        self.watch_new(active.version, events_before)
+        self.watch_new(active.version, Some(events_before))
     }
 
-    /// After the active model's file was written: judge it against its parent, unless it is a
-    /// model returned to by a rollback or has no parent.
-    fn watch_new(&mut self, version: i32, events_before: usize) -> Result<(), CliError> {
+    /// After the active model's file was written (`events_before`: the log's events then; the
+    /// service's reload is awaited after them) or found written (`None`: the service runs it):
+    /// judge it against its parent, unless it is a model returned to by a rollback or has no
+    /// parent.
+    fn watch_new(&mut self, version: i32, events_before: Option<usize>) -> Result<(), CliError> {
         self.watch = None;
+        self.considered = Some(version);
         let all = models::list(&mut self.db, Some(&self.a.machine)).map_err(store_error)?;
         let Some(m) = all.iter().find(|m| m.version == version) else {
             return Ok(());
@@ -277,8 +288,11 @@ impl Follower {
                         version: parent,
                         model,
                     },
-                    events_before,
-                    reloaded_at_s: None,
+                    events_before: events_before.unwrap_or(0),
+                    reloaded_at_s: match events_before {
+                        Some(_) => None,
+                        None => Some(f64::NEG_INFINITY),
+                    },
                 });
             }
             Ok(_) => self.say(&format!(
