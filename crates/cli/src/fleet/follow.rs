@@ -90,10 +90,15 @@ struct Watch {
     active: i32,
     /// Its parent, evaluated at every probe.
     parent: Evaluated,
+}
+
+/// The service's reload of the file this follower wrote last: until it is in the log, the
+/// service's predictions are the previous model's, and no probe is judged.
+struct Reload {
     /// The log's events before the file was written: the reload is looked for after them.
     events_before: usize,
     /// Service time of the `model-reloaded` event of the file: probes from then on count.
-    reloaded_at_s: Option<f64>,
+    at_s: Option<f64>,
 }
 
 struct Follower {
@@ -106,6 +111,8 @@ struct Follower {
     cursor: i64,
     shadow: Option<Evaluated>,
     watch: Option<Watch>,
+    /// The reload of the last file written (`None`: none written; every probe counts).
+    reload: Option<Reload>,
     /// The active version last considered for watching (so each is considered once).
     considered: Option<i32>,
     /// The last thing said about waiting, so a round that changes nothing prints nothing.
@@ -137,6 +144,7 @@ pub fn follow(a: FollowArgs) -> Result<(), CliError> {
         cursor,
         shadow: None,
         watch: None,
+        reload: None,
         considered: None,
         said: String::new(),
         a,
@@ -215,7 +223,7 @@ impl Follower {
             if self.considered != Some(active.version) {
                 // Written before this follower ran (a follower restarted after an
                 // activation): the service runs it; judged on the probes from now on.
-                self.watch_new(active.version, None)?;
+                self.watch_new(active.version)?;
             }
             return Ok(());
         }
@@ -246,14 +254,17 @@ impl Follower {
         if let Some(cmd) = &self.a.after_write {
             self.say(&after_write(cmd, &self.a.model, active.version));
         }
-        self.watch_new(active.version, Some(events_before))
+        self.reload = Some(Reload {
+            events_before,
+            at_s: None,
+        });
+        self.watch_new(active.version)
     }
 
-    /// After the active model's file was written (`events_before`: the log's events then; the
-    /// service's reload is awaited after them) or found written (`None`: the service runs it):
-    /// judge it against its parent, unless it is a model returned to by a rollback or has no
-    /// parent.
-    fn watch_new(&mut self, version: i32, events_before: Option<usize>) -> Result<(), CliError> {
+    /// After the active model's file was written (judged once the service reloaded it) or
+    /// found written (the service runs it): judge it against its parent, unless it is a model
+    /// returned to by a rollback or has no parent.
+    fn watch_new(&mut self, version: i32) -> Result<(), CliError> {
         self.watch = None;
         self.considered = Some(version);
         let all = models::list(&mut self.db, Some(&self.a.machine)).map_err(store_error)?;
@@ -287,11 +298,6 @@ impl Follower {
                     parent: Evaluated {
                         version: parent,
                         model,
-                    },
-                    events_before: events_before.unwrap_or(0),
-                    reloaded_at_s: match events_before {
-                        Some(_) => None,
-                        None => Some(f64::NEG_INFINITY),
                     },
                 });
             }
@@ -404,12 +410,12 @@ impl Follower {
         if !self.a.log.exists() {
             return Ok(());
         }
-        if let Some(w) = &mut self.watch {
-            if w.reloaded_at_s.is_none() {
+        if let Some(r) = &mut self.reload {
+            if r.at_s.is_none() {
                 let events = log::read_events(&self.a.log)?;
-                for e in events.iter().skip(w.events_before) {
+                for e in events.iter().skip(r.events_before) {
                     if e.kind == "model-reloaded" && same_file(&e.detail, &self.a.model) {
-                        w.reloaded_at_s = Some(e.time_s);
+                        r.at_s = Some(e.time_s);
                         println!(
                             "{}: the service reloaded {} at its {:.1} s",
                             self.a.machine, e.detail, e.time_s
@@ -447,19 +453,29 @@ impl Follower {
             .unwrap_or(0.0);
         let layout = Layout::of(&table.columns, &self.machine)
             .map_err(|m| CliError::refused(format!("{}: {m}", self.a.log.display())))?;
+        let from_s = match &self.reload {
+            None => None,
+            Some(Reload { at_s: Some(t), .. }) => Some(*t),
+            Some(Reload { at_s: None, .. }) => {
+                // The service still runs the previous file: its predictions are not the active
+                // model's. These probes are not judged.
+                self.cursor = last;
+                return Ok(());
+            }
+        };
         let rows: Vec<&log::ProbeRow> = table
             .rows
             .iter()
             .filter(|r| r.row > self.cursor && r.accepted)
             .collect();
         if let Some(s) = &mut self.shadow {
-            let probes = layout.residuals(&rows, &mut s.model, started, None);
+            let probes = layout.residuals(&rows, &mut s.model, started, from_s);
             shadow_probes::record(&mut self.db, &self.a.machine, s.version, active, &probes)
                 .map_err(|e| CliError::refused(format!("--db: PostgreSQL: {e}")))?;
         }
         if let Some(w) = &mut self.watch {
-            if let (Some(t), true) = (w.reloaded_at_s, w.active == active) {
-                let probes = layout.residuals(&rows, &mut w.parent.model, started, Some(t));
+            if w.active == active {
+                let probes = layout.residuals(&rows, &mut w.parent.model, started, from_s);
                 shadow_probes::record(
                     &mut self.db,
                     &self.a.machine,
