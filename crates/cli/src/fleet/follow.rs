@@ -151,6 +151,9 @@ pub fn follow(a: FollowArgs) -> Result<(), CliError> {
     };
     loop {
         if let Err(e) = f.round() {
+            if f.a.once {
+                return Err(e);
+            }
             eprintln!("{}: round failed: {e}", f.a.machine);
             if f.db.is_closed() {
                 match connect(&f.a.store) {
@@ -325,12 +328,19 @@ impl Follower {
             self.say(&format!("version {} is no longer in shadow", s.version));
             self.shadow = None;
         }
-        let state = [State::Shadow, State::Candidate].into_iter().find_map(|s| {
-            models::fetch(&mut self.db, &self.a.machine, Which::State(s))
-                .ok()
-                .map(|f| (s, f))
-        });
-        let Some((state, file)) = state else {
+        // A shadow left by a follower before this one first, else the newest candidate.
+        let mut found = None;
+        for state in [State::Shadow, State::Candidate] {
+            match models::fetch(&mut self.db, &self.a.machine, Which::State(state)) {
+                Ok(f) => {
+                    found = Some((state, f));
+                    break;
+                }
+                Err(models::ModelError::NoneInState { .. }) => {}
+                Err(e) => return Err(store_error(e)),
+            }
+        }
+        let Some((state, file)) = found else {
             return Ok(());
         };
         let Some(active) = self.active_version()? else {
