@@ -12,7 +12,8 @@
 //! probes from then on, worse than its parent B by more than the margin: rolled back, B
 //! written again. E, a little worse than B, is shadowed and retired. Last, F, activated by
 //! hand while the follower runs, is written, reloaded, judged on the probes after the reload
-//! and rolled back.
+//! and rolled back. With no follower running, H is shadowed and retired by `fleet follow
+//! --once` run again and again, each run going on from the cursor the last left.
 
 #[path = "support/postgres.rs"]
 mod postgres_cluster;
@@ -231,6 +232,7 @@ fn the_follower_refuses_a_tampered_model_activates_a_better_one_and_rolls_back_a
     let d = signed_model(&dir, &f.key, "d", spindle, "k_um_per_k = 6.2");
     let e = signed_model(&dir, &f.key, "e", spindle, "k_um_per_k = 3.6");
     let f6 = signed_model(&dir, &f.key, "f", spindle, "k_um_per_k = 7.0");
+    let h = signed_model(&dir, &f.key, "h", spindle, "k_um_per_k = 3.7");
     let probes = probe_run(&dir, &b);
 
     // A rule that cannot decide is refused before anything is read.
@@ -567,6 +569,53 @@ fn the_follower_refuses_a_tampered_model_activates_a_better_one_and_rolls_back_a
         std::thread::sleep(Duration::from_millis(100));
     }
 
+    // No follower running, H registered: `fleet follow --once` run again and again (as from
+    // cron) shadows it and, each run reading the probes after the cursor the last one left
+    // beside the log, retires it after twice the minimum.
+    drop(follower);
+    let last_said = said();
+    f.register(&h);
+    let deadline = Instant::now() + Duration::from_secs(40);
+    let mut runs = 0;
+    while f.state(7) != "retired" {
+        assert!(
+            Instant::now() < deadline,
+            "H not retired by {runs} runs of --once: {:?}",
+            f.history(7)
+        );
+        let mut once = follow()
+            .arg("--once")
+            .stdout(Stdio::null())
+            .spawn()
+            .unwrap();
+        let started = Instant::now();
+        while once.try_wait().unwrap().is_none() {
+            assert!(started.elapsed() < Duration::from_secs(60), "--once hung");
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        assert!(once.wait().unwrap().success());
+        runs += 1;
+        std::thread::sleep(Duration::from_millis(300));
+    }
+    let h_history = f.history(7);
+    assert!(
+        h_history[2].starts_with("retired|fleet follow: not better than version 2"),
+        "{h_history:?}"
+    );
+    assert_eq!(
+        f.pg.query(
+            "SELECT count(*) >= 8 FROM fleet_shadow_probes \
+             WHERE machine = 'vmc-3axis' AND version = 7 AND active_version = 2"
+        ),
+        "t"
+    );
+    eprintln!("H retired after {runs} runs of fleet follow --once");
+    assert!(
+        std::fs::read_to_string(log.with_file_name("service.sqlite.follow-cursor"))
+            .unwrap()
+            .contains("probes_row")
+    );
+
     // --after-write ran after each file written (what pulses truepos-hal's reload pin).
     let m = model.display();
     assert_eq!(
@@ -574,7 +623,7 @@ fn the_follower_refuses_a_tampered_model_activates_a_better_one_and_rolls_back_a
         format!("2 {m}\n4 {m}\n2 {m}\n6 {m}\n2 {m}\n")
     );
 
-    let out = said();
+    let out = last_said;
     assert!(first_said.contains("version 2 activated"), "{first_said}");
     assert!(
         out.contains("version 4 watched against its parent, version 2"),
@@ -585,7 +634,6 @@ fn the_follower_refuses_a_tampered_model_activates_a_better_one_and_rolls_back_a
         out.contains("version 2 is active again (a rollback): not watched"),
         "{out}"
     );
-    drop(follower);
     drop(service);
     eprintln!("{out}");
     assert!(

@@ -82,6 +82,9 @@ pub struct FollowArgs {
 struct Evaluated {
     version: i32,
     model: CompensationModel,
+    /// Only the log's probes rows after this one count for it (a shadow: those logged after
+    /// it arrived).
+    from_row: i64,
 }
 
 /// A model activated while following, judged against its parent.
@@ -107,7 +110,7 @@ struct Follower {
     machine: MachineConfig,
     keys: TrustedKeys,
     db: Client,
-    /// The log's probes rows read so far (rowid).
+    /// The log's probes rows read so far (rowid), kept in `LOG.follow-cursor`.
     cursor: i64,
     shadow: Option<Evaluated>,
     watch: Option<Watch>,
@@ -134,8 +137,9 @@ pub fn follow(a: FollowArgs) -> Result<(), CliError> {
     let machine = truepos_io::machine_file::load(&a.machine_file)?;
     let keys = TrustedKeys::load(&a.trusted_keys)?;
     let db = connect(&a.store)?;
-    // Probes already in the log came before anything this follower shadows.
-    let cursor = last_probe_row(&a.log);
+    // Where the last follower of this log stopped; without one, the log's end: probes already
+    // in it came before anything this follower shadows.
+    let (cursor, reload) = load_cursor(&a.log).unwrap_or_else(|| (last_probe_row(&a.log), None));
     let mut f = Follower {
         rule,
         machine,
@@ -144,7 +148,7 @@ pub fn follow(a: FollowArgs) -> Result<(), CliError> {
         cursor,
         shadow: None,
         watch: None,
-        reload: None,
+        reload,
         considered: None,
         said: String::new(),
         a,
@@ -167,6 +171,25 @@ pub fn follow(a: FollowArgs) -> Result<(), CliError> {
         }
         std::thread::sleep(Duration::from_secs_f64(f.a.interval_s));
     }
+}
+
+/// The side file that keeps the follower's cursor in a log's probes.
+fn cursor_path(log: &Path) -> PathBuf {
+    let mut p = log.as_os_str().to_owned();
+    p.push(".follow-cursor");
+    PathBuf::from(p)
+}
+
+/// The cursor and the awaited reload an earlier follower of this log left.
+fn load_cursor(log: &Path) -> Option<(i64, Option<Reload>)> {
+    let text = std::fs::read_to_string(cursor_path(log)).ok()?;
+    let v: serde_json::Value = serde_json::from_str(&text).ok()?;
+    let row = v["probes_row"].as_i64().filter(|&n| n >= 0)?;
+    let reload = v["reload"]["events_before"].as_u64().map(|n| Reload {
+        events_before: n as usize,
+        at_s: v["reload"]["at_s"].as_f64(),
+    });
+    Some((row, reload))
 }
 
 /// The largest rowid of the log's probes (0 without a log or probes yet).
@@ -261,6 +284,7 @@ impl Follower {
             events_before,
             at_s: None,
         });
+        self.save()?;
         self.watch_new(active.version)
     }
 
@@ -301,6 +325,7 @@ impl Follower {
                     parent: Evaluated {
                         version: parent,
                         model,
+                        from_row: 0,
                     },
                 });
             }
@@ -394,6 +419,13 @@ impl Follower {
         self.shadow = Some(Evaluated {
             version: file.version,
             model,
+            // A new shadow counts the probes logged from now on; one taken up again (a shadow
+            // left by an earlier follower) those after the cursor.
+            from_row: if state == State::Candidate {
+                last_probe_row(&self.a.log)
+            } else {
+                0
+            },
         });
         Ok(())
     }
@@ -450,13 +482,12 @@ impl Follower {
         if last <= self.cursor {
             if last < self.cursor {
                 // A new log in the same place: read it from its start.
-                self.cursor = 0;
+                return self.advance(0);
             }
             return Ok(());
         }
         let Some(active) = self.active_version()? else {
-            self.cursor = last;
-            return Ok(());
+            return self.advance(last);
         };
         let started = log::read_meta(&self.a.log)?
             .and_then(|m| m["started_unix_s"].as_f64())
@@ -469,8 +500,7 @@ impl Follower {
             Some(Reload { at_s: None, .. }) => {
                 // The service still runs the previous file: its predictions are not the active
                 // model's. These probes are not judged.
-                self.cursor = last;
-                return Ok(());
+                return self.advance(last);
             }
         };
         let rows: Vec<&log::ProbeRow> = table
@@ -479,7 +509,12 @@ impl Follower {
             .filter(|r| r.row > self.cursor && r.accepted)
             .collect();
         if let Some(s) = &mut self.shadow {
-            let probes = layout.residuals(&rows, &mut s.model, started, from_s);
+            let since: Vec<&log::ProbeRow> = rows
+                .iter()
+                .filter(|r| r.row > s.from_row)
+                .copied()
+                .collect();
+            let probes = layout.residuals(&since, &mut s.model, started, from_s);
             shadow_probes::record(&mut self.db, &self.a.machine, s.version, active, &probes)
                 .map_err(|e| CliError::refused(format!("--db: PostgreSQL: {e}")))?;
         }
@@ -496,8 +531,23 @@ impl Follower {
                 .map_err(|e| CliError::refused(format!("--db: PostgreSQL: {e}")))?;
             }
         }
-        self.cursor = last;
-        Ok(())
+        self.advance(last)
+    }
+
+    /// Moves the cursor and keeps it beside the log.
+    fn advance(&mut self, row: i64) -> Result<(), CliError> {
+        self.cursor = row;
+        self.save()
+    }
+
+    /// Writes the cursor and the awaited reload beside the log (whole), for the next follower.
+    fn save(&self) -> Result<(), CliError> {
+        let reload = self
+            .reload
+            .as_ref()
+            .map(|r| serde_json::json!({ "events_before": r.events_before, "at_s": r.at_s }));
+        let text = serde_json::json!({ "probes_row": self.cursor, "reload": reload }).to_string();
+        crate::write::write_whole(&cursor_path(&self.a.log), text + "\n", &[])
     }
 
     /// The rules on what is stored.
