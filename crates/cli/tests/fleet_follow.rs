@@ -396,6 +396,34 @@ fn the_follower_refuses_a_tampered_model_activates_a_better_one_and_rolls_back_a
         "0"
     );
 
+    // The follower watches what it activated: B judged against its parent A on the probes
+    // after the reload, and kept.
+    let deadline = Instant::now() + Duration::from_secs(20);
+    while f.pg.query(
+        "SELECT count(*) >= 4 FROM fleet_shadow_probes \
+         WHERE machine = 'vmc-3axis' AND version = 1 AND active_version = 2",
+    ) != "t"
+    {
+        assert!(
+            Instant::now() < deadline,
+            "B never judged against A: {}",
+            said()
+        );
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    let figures = f.pg.query(
+        "SELECT count(*), sqrt(avg((measured_um - active_um)^2)), \
+                sqrt(avg((measured_um - shadow_um)^2)) \
+         FROM fleet_shadow_probes WHERE machine = 'vmc-3axis' AND version = 1 AND active_version = 2",
+    );
+    eprintln!("B watched against A (residuals, RMS B, RMS A): {figures}");
+    assert!(
+        said().contains("version 2 watched against its parent, version 1"),
+        "{}",
+        said()
+    );
+    assert_eq!(f.state(2), "active");
+
     // D activated by hand while no follower runs; a follower run once writes it into the file
     // and exits (its watch gone with it); the follower started next finds D in the file,
     // judges it against its parent B on the probes from then on, and rolls back.

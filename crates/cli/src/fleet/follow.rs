@@ -573,7 +573,9 @@ impl Follower {
                         Err(e) => self.say(&format!("version {version} not activated: {e}")),
                     }
                     self.shadow = None;
-                    self.sync_active()?;
+                    // Written now, watched from the next round (the watch below is of the
+                    // model this round began with).
+                    return self.sync_active();
                 }
                 ShadowDecision::Retire(f) => {
                     let reason = format!(
