@@ -11,9 +11,13 @@
 //! 2. a candidate is fetched and checked the same way: refused, it is retired with the reason;
 //!    else it becomes the shadow;
 //! 3. the accepted probe events the log gained are evaluated with the shadow (and, after an
-//!    activation, with the new model's parent) and stored (`fleet_shadow_probes`);
+//!    activation, with the new model's parent) and stored (`fleet_shadow_probes`) — after a
+//!    file written, only those from the service's `model-reloaded` event on;
 //! 4. the rules of `truepos_fleet_store::shadow` decide: activate or retire the shadow, roll
 //!    the new model back.
+//!
+//! The cursor in the log's probes and the awaited reload live in `LOG.follow-cursor`, so a
+//! follower restarted, or run `--once` from a timer, goes on where the last one stopped.
 
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
@@ -248,7 +252,8 @@ impl Follower {
         if on_disk.as_deref() == Some(active.sha256.as_str()) {
             if self.considered != Some(active.version) {
                 // Written before this follower ran (a follower restarted after an
-                // activation): the service runs it; judged on the probes from now on.
+                // activation): judged from the cursor on, once the reload awaited (if any) is in
+                // the log.
                 self.watch_new(active.version)?;
             }
             return Ok(());
