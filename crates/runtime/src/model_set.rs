@@ -284,7 +284,7 @@ mod tests {
     /// [201, 202, 0]. After X1 and X2 are switched: path 1 → [201, 102, 0] (model 3), path 2 →
     /// [101, 202, 0] (model 4).
     #[test]
-    fn seed_d_example_with_axis_switching() {
+    fn each_axis_combination_selects_its_model() {
         let entry = |name: &str, index| ModelEntry {
             name: name.into(),
             model: model().into(),

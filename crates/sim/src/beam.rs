@@ -239,7 +239,7 @@ pub fn curvature(l_mm: f64, depth_mm: f64, alpha: f64, dt_plus: f64, dt_minus: f
 /// The bending radius `R = H·L_bottom/(L_bottom − L_top)` (docs/glossary.md) of a part of length
 /// `L` and height `H` heated by `dt_bottom` below and `dt_top` above (mm; infinite without
 /// gradient).
-pub fn seed_radius_mm(l_mm: f64, h_mm: f64, alpha: f64, dt_bottom: f64, dt_top: f64) -> f64 {
+pub fn bending_radius_mm(l_mm: f64, h_mm: f64, alpha: f64, dt_bottom: f64, dt_top: f64) -> f64 {
     let lb = l_mm + alpha * l_mm * dt_bottom;
     let lt = l_mm + alpha * l_mm * dt_top;
     h_mm * lb / (lb - lt)
@@ -475,9 +475,9 @@ mod tests {
     /// of that radius: its sag at s is R − √(R² − s²) = 28.7490 µm at s = 500 mm and 7.1873 µm at
     /// 250 mm, and it bends away from the hotter bottom (upwards, the ends rise).
     #[test]
-    fn gradient_gives_the_seed_radius_and_the_arc_sag() {
+    fn a_gradient_gives_the_bending_radius_and_the_arc_sag() {
         let alpha = Material::STEEL.alpha_per_k;
-        let r = seed_radius_mm(500.0, 100.0, alpha, 3.0, 1.0);
+        let r = bending_radius_mm(500.0, 100.0, alpha, 3.0, 1.0);
         assert!((r - 4_347_976.086_973).abs() < 1e-3, "R = {r}");
         // Per slice the same radius: curvature = 1/R.
         let k = curvature(100.0, 100.0, alpha, 1.0, 3.0);

@@ -205,7 +205,7 @@ fn lag_fraction_and_rate_by_hand() {
 }
 
 #[test]
-fn axis_switching_follows_seed_d() {
+fn axis_switching_follows_the_axis_combination_rule() {
     let (machine, model) = example();
     // Model 0 serves X and Y (101, 102), model 1 X alone (101).
     let models = [
