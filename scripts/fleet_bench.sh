@@ -145,6 +145,8 @@ print(f"  backlog when the machines stopped: {backlog} messages; " + (f"drained 
 print(f"  latency publish -> row (received_at - t, {nlat} rows of the window): p50 {float(p50)*1000:.0f} ms, p99 {float(p99)*1000:.0f} ms, max {float(mx)*1000:.0f} ms")
 print(f"  CPU over the window (% of one core): broker {cpu($a_broker, $b_broker):.1f}, ingester {cpu($a_ingest, $b_ingest):.1f}, "
       f"PostgreSQL {cpu($a_pg, $b_pg):.1f}, load generator {cpu($a_gen, $b_gen):.1f}")
+store_cpu = cpu($a_broker, $b_broker) + cpu($a_ingest, $b_ingest) + cpu($a_pg, $b_pg)
+print(f"  machines' worth per core (broker + ingester + PostgreSQL, {store_cpu:.1f} % of one core): {rate / max(store_cpu, 0.1) * 100:.0f}")
 print(f"  PostgreSQL: {size} bytes for {final} machine-seconds -> {size / max(final, 1) * 86400 / 1e6:.1f} MB per machine-day")
 if ingest_line:
     print(f"  {ingest_line[-1]}")

@@ -62,6 +62,9 @@ bash scripts/fl_thermal_bench.sh --inner-cv rolling
 echo "== live view benchmark: first paint of 24 h of history in Chromium, the view's CPU with a page"
 echo "   streaming at 1 kHz (figures printed; a figure of the host, no bar asserted: docs/benchmarks.md)"
 D=15 STREAMS="0 1" bash scripts/live_view_bench.sh
+echo "== fleet benchmark, short: 50 simulated machines at 1 Hz for 10 s into Mosquitto, fleet ingest"
+echo "   and PostgreSQL 15 (every message stored, none failed, p99 < 2 s; the full run: docs/benchmarks.md)"
+FLEET_BENCH_CHECK=1 bash scripts/fleet_bench.sh 50 10
 echo "== twin population: issue 14's development benchmark at the ci size, its bars asserted"
 echo "   (median reduction >= 85 %, no run made worse, median inner/test within 1.5; the full size"
 echo "   meets them too: docs/fitting.md)"
