@@ -246,6 +246,10 @@ struct PublishArgs {
     /// Sparkplug group id.
     #[arg(long, default_value = "truepos")]
     mqtt_group: String,
+    /// Sparkplug edge node id (default: the machine's name in the log): the one the service
+    /// published under with --mqtt-node.
+    #[arg(long, value_name = "NAME")]
+    mqtt_node: Option<String>,
     /// Give up after this many seconds (what is not acknowledged stays for the next time).
     #[arg(long, default_value_t = 60.0)]
     timeout_s: f64,
@@ -316,6 +320,7 @@ fn publish(a: PublishArgs) -> Result<(), CliError> {
     let mut config = Config::new(broker, a.log);
     config.group = a.mqtt_group;
     config.replay_per_s = a.replay_per_s;
+    config.node = a.mqtt_node;
     let p = Publisher::start(config).map_err(CliError::refused)?;
     let s = p.stop(Duration::from_secs_f64(a.timeout_s));
     eprintln!("{}", describe(&s));

@@ -121,6 +121,10 @@ pub struct RunArgs {
     /// Sparkplug group id of --mqtt.
     #[arg(long, default_value = "truepos")]
     mqtt_group: String,
+    /// Sparkplug edge node id of --mqtt (default: the machine's name in the machine file). Give
+    /// each machine its own when several run one machine file.
+    #[arg(long, value_name = "NAME")]
+    mqtt_node: Option<String>,
 }
 
 /// Longest run in s, a year: bounds `--duration-s` and a replay's length at its speed, so that a
@@ -238,6 +242,7 @@ pub fn run(mut args: RunArgs) -> Result<(), CliError> {
     let mqtt = truepos_fleet::Config::for_service(
         args.mqtt.as_deref(),
         &args.mqtt_group,
+        args.mqtt_node.as_deref(),
         args.log.as_deref(),
     )
     .map_err(CliError::refused)?;

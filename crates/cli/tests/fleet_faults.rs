@@ -8,6 +8,10 @@
 //! - the broker's disk full: Mosquitto's persistence directory is a tmpfs filled to the last
 //!   block before the broker starts (in a mount namespace of its own, `unshare`); the fleet
 //!   flows through it unchanged.
+//!
+//! And the issue's fleet in small: fifty services, each replaying the example machine's run at
+//! 60× real time under its own Sparkplug node id (`--mqtt-node`: they share one machine file),
+//! publish through one broker into the store; each machine's stored seconds equal its own log.
 
 use std::path::Path;
 use std::process::Stdio;
@@ -163,17 +167,7 @@ fn finish(dir: &Path, service: &mut Reaped, ingest: &mut Reaped) -> (String, Str
 /// The store holds every second of the log once, with its cycle count, and every event; the
 /// log's seconds are returned.
 fn check_stored_as_logged(pg: &Postgres, db: &Path, summary: &str) -> Vec<(i64, i64)> {
-    let log = log_seconds(db);
-    let stored = pg.query(
-        "SELECT string_agg((extract(epoch FROM t - first))::bigint::text || ':' || cycles, ',' \
-         ORDER BY t) FROM fleet_seconds, (SELECT min(t) AS first FROM fleet_seconds) f",
-    );
-    let first = log[0].0;
-    let want: Vec<String> = log
-        .iter()
-        .map(|(s, n)| format!("{}:{n}", s - first))
-        .collect();
-    assert_eq!(stored, want.join(","), "{summary}");
+    let log = check_seconds_of(pg, db, "vmc-3axis", summary);
     let c = rusqlite::Connection::open(db).unwrap();
     let events: i64 = c
         .query_row("SELECT count(*) FROM events", [], |r| r.get(0))
@@ -182,6 +176,24 @@ fn check_stored_as_logged(pg: &Postgres, db: &Path, summary: &str) -> Vec<(i64, 
         pg.query("SELECT count(*) FROM fleet_events"),
         events.to_string()
     );
+    log
+}
+
+/// The store holds every second of `node`'s log once, with its cycle count.
+fn check_seconds_of(pg: &Postgres, db: &Path, node: &str, summary: &str) -> Vec<(i64, i64)> {
+    let log = log_seconds(db);
+    let stored = pg.query(&format!(
+        "SELECT string_agg((extract(epoch FROM t - first))::bigint::text || ':' || cycles, ',' \
+         ORDER BY t) FROM fleet_seconds, \
+         (SELECT min(t) AS first FROM fleet_seconds WHERE node_id = '{node}') f \
+         WHERE node_id = '{node}'"
+    ));
+    let first = log[0].0;
+    let want: Vec<String> = log
+        .iter()
+        .map(|(s, n)| format!("{}:{n}", s - first))
+        .collect();
+    assert_eq!(stored, want.join(","), "{node}: {summary}");
     log
 }
 
@@ -220,4 +232,72 @@ fn start_service(dir: &Path, db: &Path, port: u16, seconds: u32) -> Reaped {
             .spawn()
             .unwrap(),
     )
+}
+
+#[test]
+fn fifty_machines_each_stored_as_its_own_log() {
+    const MACHINES: usize = 50;
+    let dir = scratch("fleet-fifty");
+    let port = mosquitto::free_port();
+    let _broker = mosquitto::start(&dir, port);
+    let pg = Postgres::start(&dir);
+    let mut ingest = start_ingest(&dir, &pg, port);
+    let url = format!("mqtt://127.0.0.1:{port}");
+    let started = Instant::now();
+    let mut services: Vec<Reaped> = (0..MACHINES)
+        .map(|i| {
+            Reaped(
+                truepos()
+                    .args(["run", "--source", "replay:examples/vmc3/run.csv@60"])
+                    .args(["--period-ms", "1000"])
+                    .args(["--duration-s", "600", "--log"])
+                    .arg(dir.join(format!("m{i:02}.sqlite")))
+                    .args(["--mqtt", &url, "--mqtt-node", &format!("machine-{i:02}")])
+                    .stdout(Stdio::null())
+                    .stderr(std::fs::File::create(dir.join(format!("m{i:02}.err"))).unwrap())
+                    .spawn()
+                    .unwrap(),
+            )
+        })
+        .collect();
+    for (i, s) in services.iter_mut().enumerate() {
+        let status = s.0.wait().unwrap();
+        let err = std::fs::read_to_string(dir.join(format!("m{i:02}.err"))).unwrap();
+        assert!(status.success(), "machine {i}: {err}");
+        assert!(!err.contains("not caught up"), "machine {i}: {err}");
+    }
+    let ran = started.elapsed();
+    wait_until(90, "the ingester going idle", || {
+        ingest.0.try_wait().unwrap().is_some()
+    });
+    let summary = std::fs::read_to_string(dir.join("ingest.err")).unwrap();
+    let mut seconds = 0;
+    for i in 0..MACHINES {
+        let db = dir.join(format!("m{i:02}.sqlite"));
+        seconds += check_seconds_of(&pg, &db, &format!("machine-{i:02}"), &summary).len();
+    }
+    // The offsets the model applied reached the store as the logs hold them.
+    let z: f64 = pg
+        .query(
+            "SELECT min((stats->'Offsets/Z_offset_um'->>0)::float8) FROM fleet_seconds \
+             WHERE node_id = 'machine-07'",
+        )
+        .parse()
+        .unwrap();
+    let c = rusqlite::Connection::open(dir.join("m07.sqlite")).unwrap();
+    let logged: f64 = c
+        .query_row("SELECT min(Z_offset_um) FROM cycles", [], |r| r.get(0))
+        .unwrap();
+    assert!(
+        logged < -1.0 && (z - logged).abs() < 1e-9,
+        "{z} vs {logged}"
+    );
+    assert_eq!(
+        pg.query("SELECT count(DISTINCT node_id) FROM fleet_nodes WHERE node_id LIKE 'machine-%'"),
+        MACHINES.to_string()
+    );
+    eprintln!(
+        "fifty machines: {seconds} seconds stored as logged, the services ran {:.1} s; {summary}",
+        ran.as_secs_f64()
+    );
 }

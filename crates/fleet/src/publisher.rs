@@ -59,13 +59,14 @@ impl Config {
         }
     }
 
-    /// A service's `--mqtt URL` and `--mqtt-group`, checked before the service starts: `None`
-    /// without a URL; refused for a bad URL or a service without a log (the publisher forwards
-    /// the log). The log's rows of the runs before this one are not sent to a broker that has
-    /// no cursor yet.
+    /// A service's `--mqtt URL`, `--mqtt-group` and `--mqtt-node`, checked before the service
+    /// starts: `None` without a URL; refused for a bad URL or a service without a log (the
+    /// publisher forwards the log). The log's rows of the runs before this one are not sent to a
+    /// broker that has no cursor yet.
     pub fn for_service(
         url: Option<&str>,
         group: &str,
+        node: Option<&str>,
         log: Option<&Path>,
     ) -> Result<Option<Self>, String> {
         let Some(url) = url else { return Ok(None) };
@@ -73,6 +74,7 @@ impl Config {
         let log = log.ok_or("--mqtt forwards the log: give --log FILE as well (docs/fleet.md)")?;
         let mut c = Config::new(broker, log.to_path_buf());
         c.group = group.to_string();
+        c.node = node.map(str::to_string);
         c.start_after = crate::last_rows(log);
         Ok(Some(c))
     }

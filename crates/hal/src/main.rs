@@ -93,6 +93,10 @@ struct RunArgs {
     /// Sparkplug group id of --mqtt.
     #[arg(long, default_value = "truepos")]
     mqtt_group: String,
+    /// Sparkplug edge node id of --mqtt (default: the machine's name in the machine file). Give
+    /// each machine its own when several run one machine file.
+    #[arg(long, value_name = "NAME")]
+    mqtt_node: Option<String>,
 }
 
 /// Histogram bucket edges of the cycle-to-cycle interval, ms.
@@ -155,6 +159,7 @@ fn run(args: RunArgs) -> Result<(), Error> {
     let mqtt = truepos_fleet::Config::for_service(
         args.mqtt.as_deref(),
         &args.mqtt_group,
+        args.mqtt_node.as_deref(),
         args.log.as_deref(),
     )
     .map_err(Error::Refused)?;
