@@ -35,11 +35,11 @@ pub enum Family {
     BedFactor,
     /// Own axis: the summand of a difference that belongs to axis m carries that
     /// axis' position only, ΔT_m·[K_nm0 + K_nmm·g_m]; a difference of no axis stays prior art.
-    /// Needs the owners ([`structure_owned`]).
+    /// Needs the owners ([`Shape::owners`]).
     OwnAxis,
     /// Serial, N axes resting on each other: the summand of axis m's difference carries the
     /// positions of m and of every axis resting on it (`carried_by`, transitively),
-    /// ΔT_m·[K_nm0 + Σ_{j on m} K_nmj·g_j]. Needs the owners ([`structure_owned`]).
+    /// ΔT_m·[K_nm0 + Σ_{j on m} K_nmj·g_j]. Needs the owners ([`Shape::owners`]).
     Serial,
     /// The reference-sensor regression Y_n = Σ_i k_ni·(t_i − t_r) + c_n: no position, only the
     /// machine's differences of a sensor against the reference sensor t_r ([`reference_sensor`]).
