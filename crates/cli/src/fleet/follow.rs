@@ -682,6 +682,18 @@ fn same_file(detail: &str, model: &Path) -> bool {
     }
 }
 
+/// Whether a probe at service time `time_s` was predicted by the model reloaded at `from_s`
+/// (`None`: no reload awaited, every probe counts). The service stamps `model-reloaded` with
+/// the time of the cycle before the reload (the reload runs before the next cycle), so a probe
+/// of that same time carries the previous model's prediction: only probes strictly after it
+/// count. A NaN time is before any reload.
+fn after_reload(time_s: f64, from_s: Option<f64>) -> bool {
+    match from_s {
+        None => true,
+        Some(f) => time_s > f,
+    }
+}
+
 /// Where the model's inputs and the probe's numbers are in the log's probes table.
 struct Layout {
     /// Per machine axis: its name, probed position, measured error, the running model's
@@ -737,8 +749,7 @@ impl Layout {
         let (mut t, mut o) = (Vec::new(), Vec::new());
         let mut out = Vec::new();
         for r in rows {
-            // A NaN time is before any reload.
-            if from_s.is_some_and(|f| r.time_s.is_nan() || r.time_s < f) {
+            if !after_reload(r.time_s, from_s) {
                 continue;
             }
             let temperatures: Vec<f64> = self
@@ -775,5 +786,22 @@ impl Layout {
             }
         }
         out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_probe_at_the_reload_time_is_the_previous_model_s() {
+        // The reload stamped at 12.5 s: the probe of that cycle is the old model's.
+        assert!(!after_reload(12.5, Some(12.5)));
+        assert!(!after_reload(12.0, Some(12.5)));
+        assert!(after_reload(12.6, Some(12.5)));
+        assert!(!after_reload(f64::NAN, Some(12.5)));
+        // No reload awaited: every probe counts.
+        assert!(after_reload(0.0, None));
+        assert!(after_reload(f64::NAN, None));
     }
 }
