@@ -9,6 +9,8 @@
 # and the load generator (% of one core over the window), and PostgreSQL bytes per machine-day.
 #
 #   bash scripts/fleet_bench.sh [MACHINES=1000] [SECONDS=60]
+#   FLEET_BENCH_INFLIGHT=N      Mosquitto's max_inflight_messages (default 20)
+#   FLEET_BENCH_PG_OPTS="-c …"  PostgreSQL settings beyond the defaults
 #   FLEET_BENCH_CHECK=1 bash scripts/fleet_bench.sh 50 10   # fails unless every message was
 #                                                            # stored, kept up, p99 < 2 s
 set -euo pipefail
@@ -62,7 +64,8 @@ mkdir "$dir/pg"
 [ "$(id -u)" = 0 ] && chown postgres:postgres "$dir/pg"
 chmod 755 "$dir"
 as_pg "$PG/initdb" -A trust -U postgres --no-sync -D "$dir/pg" >/dev/null
-as_pg "$PG/pg_ctl" -D "$dir/pg" -o "-p $pgport -k $dir/pg -c listen_addresses=127.0.0.1" -l "$dir/pg/log" -w start >/dev/null
+# FLEET_BENCH_PG_OPTS: more server settings, e.g. "-c default_toast_compression=lz4".
+as_pg "$PG/pg_ctl" -D "$dir/pg" -o "-p $pgport -k $dir/pg -c listen_addresses=127.0.0.1 ${FLEET_BENCH_PG_OPTS:-}" -l "$dir/pg/log" -w start >/dev/null
 postmaster=$(head -1 "$dir/pg/postmaster.pid")
 sql() { psql -h 127.0.0.1 -p "$pgport" -U postgres -Atq -c "$1"; }
 
