@@ -374,14 +374,15 @@ fn static_selection(
     let Some(choices) = best.into_iter().collect::<Option<Vec<_>>>() else {
         return Ok(None);
     };
-    // One model: every target's parts, named by their axis so that they stay apart.
+    // One model: every target's parts, named by their axis so that they stay apart (a part
+    // already named after its axis, as the reference-sensor regression's, keeps its name).
     let mut parts: Vec<Part> = Vec::new();
     for (k, choice) in choices.iter().enumerate() {
         let axis = &machine.axes[data.target_axes[k]].name;
         for p in choice.fitted.model.parts() {
             let mut p = p.clone();
-            if p.name == "thermal" {
-                p.name = format!("thermal-{axis}");
+            if !p.name.ends_with(&format!("-{axis}")) {
+                p.name = format!("{}-{axis}", p.name);
             }
             parts.push(p);
         }

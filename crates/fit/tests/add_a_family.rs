@@ -50,7 +50,7 @@ impl PositionDesign for FirstAxisOnly {
             Vec::new()
         };
         let part = Part {
-            name: "thermal".into(),
+            name: "first-axis".into(),
             enabled: true,
             form: PartForm::PositionDependent,
             summands,
@@ -66,7 +66,7 @@ fn twin_machine() -> Machine {
 }
 
 /// A run of `rows` samples a minute apart with temperatures and positions drawn at random, and
-/// the truth's error of the Z axis as the measured target.
+/// the truth's errors of the X and Z axes as the measured targets.
 fn synthetic(machine: &Machine, truth: &Model, rows: usize) -> (Dataset, MachineData) {
     let mut state = 2024u64;
     let mut draw = move || {
@@ -81,7 +81,7 @@ fn synthetic(machine: &Machine, truth: &Model, rows: usize) -> (Dataset, Machine
         positions: Vec::new(),
         operating: Vec::new(),
     };
-    let mut errors = Vec::new();
+    let mut errors = vec![Vec::new(), Vec::new()];
     for i in 0..rows {
         let temps: Vec<f64> = machine
             .temperatures
@@ -99,7 +99,9 @@ fn synthetic(machine: &Machine, truth: &Model, rows: usize) -> (Dataset, Machine
             positions: &pos,
             operating: &op,
         };
-        errors.push(truth.evaluate(&input).unwrap().error_um()[2]);
+        let e = truth.evaluate(&input).unwrap();
+        errors[0].push(e.error_um()[0]);
+        errors[1].push(e.error_um()[2]);
         run.time_s.push(60.0 * i as f64);
         run.temperatures_c.push(temps);
         run.positions.push(pos);
@@ -108,18 +110,18 @@ fn synthetic(machine: &Machine, truth: &Model, rows: usize) -> (Dataset, Machine
     let ds = Dataset {
         input_names: vec!["t".into()],
         input_kinds: vec![InputKind::Temperature],
-        target_names: vec!["Z_error_um".into()],
+        target_names: vec!["X_error_um".into(), "Z_error_um".into()],
         runs: vec![Run {
             name: "synthetic".into(),
             time_s: run.time_s.clone(),
             inputs: vec![vec![20.0; rows]],
-            targets: vec![errors],
+            targets: errors,
         }],
     };
     let data = MachineData {
         machine: machine.clone(),
         runs: vec![run],
-        target_axes: vec![2],
+        target_axes: vec![0, 2],
         reference: None,
         differences: (0..machine.differences.len()).collect(),
         owners: Vec::new(),
@@ -136,7 +138,7 @@ fn a_family_of_ones_own_is_chosen_where_it_is_the_truth() {
             name: "truth",
             machine: &machine,
             differences: &all,
-            targets: &[2],
+            targets: &[0, 2],
             constant: true,
             owners: &[],
         })
@@ -162,16 +164,18 @@ fn a_family_of_ones_own_is_chosen_where_it_is_the_truth() {
         named.contains(&"prior-art") && named.contains(&"first-axis"),
         "{named:?}"
     );
-    assert!(
-        sel.labels[0].starts_with("first-axis on "),
-        "{:?}",
-        sel.labels
-    );
+    for label in &sel.labels {
+        assert!(label.starts_with("first-axis on "), "{:?}", sel.labels);
+    }
     let Chosen::Position(chosen) = &sel.chosen else {
         panic!("the position form was not chosen: {:?}", sel.labels);
     };
     assert_eq!(chosen.choices[0].family_name, FirstAxisOnly.name());
-    assert!(sel.cv_rmse_um[0] < 0.01, "{:?}", sel.cv_rmse_um);
+    assert!(
+        sel.cv_rmse_um.iter().all(|&r| r < 0.01),
+        "{:?}",
+        sel.cv_rmse_um
+    );
 
     // The chosen model is the control's model: it predicts the truth at a new point.
     let temps: Vec<f64> = machine.temperatures.iter().map(|_| 23.5).collect();
@@ -182,7 +186,10 @@ fn a_family_of_ones_own_is_chosen_where_it_is_the_truth() {
         positions: &pos,
         operating: &op,
     };
-    let want = truth.evaluate(&input).unwrap().error_um()[2];
-    let got = chosen.model.evaluate(&input).unwrap().error_um()[2];
-    assert!((got - want).abs() < 0.05, "{got} vs {want}");
+    let want = truth.evaluate(&input).unwrap();
+    let got = chosen.model.evaluate(&input).unwrap();
+    for a in [0, 2] {
+        let (got, want) = (got.error_um()[a], want.error_um()[a]);
+        assert!((got - want).abs() < 0.05, "axis {a}: {got} vs {want}");
+    }
 }

@@ -218,11 +218,15 @@ fn check_owner(
     let targets = target_columns_count(columns);
     let before_targets = &columns[..columns.len() - targets];
     if !existing.is_empty() && existing == before_targets {
-        // A log of an earlier version: its rows keep no target, later rows have one.
-        for c in &columns[before_targets.len()..] {
-            conn.execute_batch(&format!("ALTER TABLE cycles ADD COLUMN {} REAL", quote(c)))
-                .map_err(err(path))?;
-        }
+        // A log without the target columns: its rows keep none, later rows have one. All
+        // columns are added or none, so a failure leaves the layout as it was.
+        let adds: String = columns[before_targets.len()..]
+            .iter()
+            .map(|c| format!("ALTER TABLE cycles ADD COLUMN {} REAL; ", quote(c)))
+            .collect();
+        let tx = conn.unchecked_transaction().map_err(err(path))?;
+        tx.execute_batch(&adds).map_err(err(path))?;
+        tx.commit().map_err(err(path))?;
         return Ok(());
     }
     if !existing.is_empty() && existing != columns {
