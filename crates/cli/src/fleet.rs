@@ -325,6 +325,10 @@ fn publish(a: PublishArgs) -> Result<(), CliError> {
     let s = p.stop(Duration::from_secs_f64(a.timeout_s));
     eprintln!("{}", describe(&s));
     if s.caught_up {
+    truepos_fleet::sparkplug::check_id("--mqtt-group", &a.mqtt_group).map_err(CliError::refused)?;
+    if let Some(node) = &a.mqtt_node {
+        truepos_fleet::sparkplug::check_id("--mqtt-node", node).map_err(CliError::refused)?;
+    }
         Ok(())
     } else {
         Err(CliError::refused(format!(

@@ -71,6 +71,10 @@ impl Config {
     ) -> Result<Option<Self>, String> {
         let Some(url) = url else { return Ok(None) };
         let broker = BrokerUrl::parse(url)?;
+        sparkplug::check_id("--mqtt-group", group)?;
+        if let Some(node) = node {
+            sparkplug::check_id("--mqtt-node", node)?;
+        }
         let log = log.ok_or("--mqtt forwards the log: give --log FILE as well (docs/fleet.md)")?;
         let mut c = Config::new(broker, log.to_path_buf());
         c.group = group.to_string();
@@ -563,7 +567,7 @@ impl State {
 /// The NBIRTH a service sends: `bdSeq`, `Node Control/Rebirth`, the machine and its models,
 /// then every metric NDATA will carry for the log's `columns`, with its type and alias (values
 /// null until the first data). The alias of a metric is its index here; NDATA follows
-/// [`data_alias`]. Public so that a load generator sends exactly what a service sends.
+/// `data_alias`. Public so that a load generator sends exactly what a service sends.
 pub fn birth_payload(
     bd_seq: u8,
     machine: &str,

@@ -25,6 +25,22 @@ pub fn topic(group: &str, kind: MessageType, node: &str) -> String {
     format!("spBv1.0/{group}/{t}/{node}")
 }
 
+/// An id a person gives (`--mqtt-node`, `--mqtt-group`) checked as it is, rather than changed
+/// behind their back as a machine's name is ([`sanitize_id`]): the store and `fleet follow`
+/// are then given the same id the service publishes under.
+pub fn check_id(what: &str, id: &str) -> Result<(), String> {
+    if id.is_empty()
+        || id
+            .chars()
+            .any(|c| c == '/' || c == '+' || c == '#' || c.is_control())
+    {
+        return Err(format!(
+            "{what} `{id}`: a Sparkplug id may not be empty nor hold `/`, `+`, `#` or a control character"
+        ));
+    }
+    Ok(())
+}
+
 /// An id usable as a Sparkplug group or edge node id: the characters MQTT gives a meaning in
 /// topics (`/`, `+`, `#`) and control characters become `_`; empty becomes `_`.
 pub fn sanitize_id(id: &str) -> String {

@@ -55,8 +55,9 @@ fn a_live_view_beyond_loopback_without_a_token_is_refused_first() {
     assert!(!err.contains("no-such-machine"), "checked first: {err}");
 }
 
-/// `--mqtt` without a log, or with a URL that is no broker, is refused before HAL is touched
-/// (docs/fleet.md): the telemetry is forwarded from the log.
+/// `--mqtt` without a log, with a URL that is no broker or a node id MQTT would read as topic
+/// levels, is refused before HAL is touched (docs/fleet.md): the telemetry is forwarded from the
+/// log.
 #[test]
 fn mqtt_without_a_log_or_with_a_bad_url_is_refused_first() {
     for (extra, says) in [
@@ -64,6 +65,10 @@ fn mqtt_without_a_log_or_with_a_bad_url_is_refused_first() {
         (
             &["--mqtt", "http://broker", "--log", "x.sqlite"][..],
             "mqtt://HOST",
+        ),
+        (
+            &["--mqtt", "mqtt://b", "--mqtt-node", "cell/7", "--log", "x"][..],
+            "--mqtt-node `cell/7`",
         ),
     ] {
         let mut args = vec!["run", "--machine", "no-such-machine.toml", "--model", "k"];
