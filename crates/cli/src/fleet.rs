@@ -317,6 +317,10 @@ fn publish(a: PublishArgs) -> Result<(), CliError> {
         return Err(CliError::refused("--replay-per-s: give at least 0.1"));
     }
     let broker = BrokerUrl::parse(&a.mqtt).map_err(CliError::refused)?;
+    truepos_fleet::sparkplug::check_id("--mqtt-group", &a.mqtt_group).map_err(CliError::refused)?;
+    if let Some(node) = &a.mqtt_node {
+        truepos_fleet::sparkplug::check_id("--mqtt-node", node).map_err(CliError::refused)?;
+    }
     let mut config = Config::new(broker, a.log);
     config.group = a.mqtt_group;
     config.replay_per_s = a.replay_per_s;
@@ -325,10 +329,6 @@ fn publish(a: PublishArgs) -> Result<(), CliError> {
     let s = p.stop(Duration::from_secs_f64(a.timeout_s));
     eprintln!("{}", describe(&s));
     if s.caught_up {
-    truepos_fleet::sparkplug::check_id("--mqtt-group", &a.mqtt_group).map_err(CliError::refused)?;
-    if let Some(node) = &a.mqtt_node {
-        truepos_fleet::sparkplug::check_id("--mqtt-node", node).map_err(CliError::refused)?;
-    }
         Ok(())
     } else {
         Err(CliError::refused(format!(
