@@ -11,6 +11,9 @@
 //!   active again, refused when it has none. [`shadow`] marks a candidate as run in shadow.
 //! - Each change is one transaction holding a lock per machine, and writes a row of
 //!   `fleet_model_changes` (who, when, from, to, why).
+//! - [`activate_if`] and [`rollback_if`] move only when the active version is still the one
+//!   the caller judged (compared under the lock): another, activated in between, is a
+//!   [`ModelError::Conflict`] and nothing changes.
 //!
 //! ```
 //! use truepos_fleet_store::models::State;
@@ -115,6 +118,19 @@ pub enum ModelError {
         machine: String,
         /// The active version.
         version: i32,
+    },
+    /// The active version is not the one the caller expected (someone moved it in between).
+    #[error(
+        "machine `{machine}`: the active version is {} now, not {expected} as judged; nothing changed",
+        active.map_or("none".to_string(), |v| v.to_string())
+    )]
+    Conflict {
+        /// Machine.
+        machine: String,
+        /// The active version the caller judged.
+        expected: i32,
+        /// The active version found.
+        active: Option<i32>,
     },
     /// The same bytes are registered already.
     #[error("machine `{machine}`: this model (sha256 {sha256}) is registered already, as version {version}")]
@@ -403,8 +419,41 @@ pub fn activate(
     version: i32,
     change: &Change<'_>,
 ) -> Result<Option<i32>, ModelError> {
+    activate_if(db, machine, version, None, change)
+}
+
+/// Refuses with [`ModelError::Conflict`] when `expected` is given and the active version is
+/// not it; called under the machine's lock.
+fn check_active(
+    tx: &mut Transaction<'_>,
+    machine: &str,
+    expected: Option<i32>,
+) -> Result<(), ModelError> {
+    if let Some(expected) = expected {
+        let now = active(tx, machine)?.map(|(v, _)| v);
+        if now != Some(expected) {
+            return Err(ModelError::Conflict {
+                machine: machine.to_string(),
+                expected,
+                active: now,
+            });
+        }
+    }
+    Ok(())
+}
+
+/// [`activate`], only while the active version is `expected_active` (when given): compared
+/// under the machine's lock, a [`ModelError::Conflict`] otherwise, nothing changed.
+pub fn activate_if(
+    db: &mut impl GenericClient,
+    machine: &str,
+    version: i32,
+    expected_active: Option<i32>,
+    change: &Change<'_>,
+) -> Result<Option<i32>, ModelError> {
     let mut tx = db.transaction()?;
     lock(&mut tx, machine)?;
+    check_active(&mut tx, machine, expected_active)?;
     let state = state_of(&mut tx, machine, version)?;
     if !matches!(state, State::Candidate | State::Shadow) {
         return Err(ModelError::WrongState {
@@ -453,8 +502,20 @@ pub fn rollback(
     machine: &str,
     change: &Change<'_>,
 ) -> Result<(i32, i32), ModelError> {
+    rollback_if(db, machine, None, change)
+}
+
+/// [`rollback`], only while the active version is `expected_active` (when given): compared
+/// under the machine's lock, a [`ModelError::Conflict`] otherwise, nothing changed.
+pub fn rollback_if(
+    db: &mut impl GenericClient,
+    machine: &str,
+    expected_active: Option<i32>,
+    change: &Change<'_>,
+) -> Result<(i32, i32), ModelError> {
     let mut tx = db.transaction()?;
     lock(&mut tx, machine)?;
+    check_active(&mut tx, machine, expected_active)?;
     let (current, parent) = active(&mut tx, machine)?.ok_or_else(|| ModelError::NoneInState {
         machine: machine.to_string(),
         state: State::Active,

@@ -572,9 +572,21 @@ impl Follower {
                         "fleet follow: better than version {active} in shadow, {f}; rule: below (1 − {margin}) × the active RMS after {} residuals",
                         self.rule.min_probes
                     );
-                    match models::activate(&mut self.db, &m, version, &change(&self.a.by, &reason))
-                    {
+                    // Only while the model it was judged beside is still the active one.
+                    match models::activate_if(
+                        &mut self.db,
+                        &m,
+                        version,
+                        Some(active),
+                        &change(&self.a.by, &reason),
+                    ) {
                         Ok(_) => self.say(&format!("version {version} activated: {f}")),
+                        Err(e @ models::ModelError::Conflict { .. }) => {
+                            // Moved by someone else: the next round writes what is active now
+                            // and judges the shadow beside it.
+                            self.say(&format!("version {version} not activated: {e}"));
+                            return Ok(());
+                        }
                         Err(e) => self.say(&format!("version {version} not activated: {e}")),
                     }
                     self.shadow = None;
@@ -611,7 +623,10 @@ impl Follower {
                 self.rule.min_probes
             );
             self.watch = None;
-            match models::rollback(&mut self.db, &m, &change(&self.a.by, &reason)) {
+            // Only while the model judged is still the active one (a conflict: someone moved it;
+            // the next round writes and watches what is active now).
+            match models::rollback_if(&mut self.db, &m, Some(active), &change(&self.a.by, &reason))
+            {
                 Ok((retired, now)) => {
                     self.say(&format!(
                         "version {retired} rolled back to version {now}: {f}"
