@@ -443,6 +443,29 @@ impl Follower {
             .map(|m| m.version))
     }
 
+    /// The store's version whose SHA-256 is that of `--model`'s bytes on disk: the model the
+    /// service runs. `None` (said once): no file, or bytes the store does not hold.
+    fn running_version(&mut self) -> Result<Option<i32>, CliError> {
+        let Ok(bytes) = std::fs::read(&self.a.model) else {
+            self.note(&format!(
+                "{} cannot be read: no probe is recorded",
+                self.a.model.display()
+            ));
+            return Ok(None);
+        };
+        let sha = models::sha256_hex(&bytes);
+        let all = models::list(&mut self.db, Some(&self.a.machine)).map_err(store_error)?;
+        let found = all.iter().find(|m| m.sha256 == sha).map(|m| m.version);
+        if found.is_none() {
+            self.note(&format!(
+                "{} (sha256 {}) is no model of the store: the service's predictions are not a stored version's, no probe is recorded",
+                self.a.model.display(),
+                &sha[..12]
+            ));
+        }
+        Ok(found)
+    }
+
     /// Says a waiting state once.
     fn note(&mut self, what: &str) {
         if self.said != what {
@@ -491,7 +514,9 @@ impl Follower {
             }
             return Ok(());
         }
-        let Some(active) = self.active_version()? else {
+        // The version the service runs: the store's model whose bytes are the file's (the store's
+        // active one may have been refused by this follower, the file left as it was).
+        let Some(active) = self.running_version()? else {
             return self.advance(last);
         };
         let started = log::read_meta(&self.a.log)?
