@@ -26,7 +26,7 @@ use truepos_fleet_store::models::{self, Change, ModelFile, State, Which};
 use truepos_fleet_store::postgres::Client;
 use truepos_fleet_store::shadow::{self, Rule, ShadowDecision, WatchDecision};
 use truepos_fleet_store::shadow_probes::{self, ShadowProbe};
-use truepos_io::signature::{signature_path, verify_line, TrustedKeys};
+use truepos_io::signature::{public_hex, signature_path, verify_line, TrustedKeys};
 use truepos_model::config::MachineConfig;
 use truepos_model::{CompensationModel, CycleInput};
 use truepos_runtime::log;
@@ -235,6 +235,34 @@ impl Follower {
         Ok(entry.model)
     }
 
+    /// Why a stored model cannot be checked by this follower as it is set up — not a fault of
+    /// the model: signed by a key `--trusted-keys` does not hold at all (another trust list
+    /// may), or stored under a file name whose extension is not `--model`'s (this follower
+    /// would parse it as the wrong format).
+    fn local_refusal(&self, f: &ModelFile) -> Option<String> {
+        let ext = |p: &Path| {
+            p.extension()
+                .map(|e| e.to_string_lossy().to_lowercase())
+                .unwrap_or_default()
+        };
+        let (stored, ours) = (ext(Path::new(&f.file_name)), ext(&self.a.model));
+        if stored != ours {
+            return Some(format!(
+                "stored as `{}`, and {} is a `.{ours}` file: this follower cannot run it (follow it with a --model of its kind)",
+                f.file_name,
+                self.a.model.display()
+            ));
+        }
+        let key = f.signature.split_whitespace().nth(1)?.to_lowercase();
+        if !self.keys.keys.iter().any(|k| public_hex(k) == key) {
+            return Some(format!(
+                "signed by {key}, a key not in {} (this follower's trust list)",
+                self.keys.file.display()
+            ));
+        }
+        None
+    }
+
     /// Writes the store's active model into `--model` when the file is another one.
     fn sync_active(&mut self) -> Result<(), CliError> {
         let active = match models::fetch(&mut self.db, &self.a.machine, Which::State(State::Active))
@@ -380,6 +408,14 @@ impl Follower {
             ));
             return Ok(());
         };
+        if let Some(why) = self.local_refusal(&file) {
+            // This follower's setup, not the model: another follower may take it.
+            self.note(&format!(
+                "version {} not taken: {why}; left a {}",
+                file.version, state
+            ));
+            return Ok(());
+        }
         let model = self.checked(&file).and_then(|m| {
             if m.keeps_state() {
                 Err(
