@@ -116,6 +116,9 @@ struct Follower {
     db: Client,
     /// The log's probes rows read so far (rowid), kept in `LOG.follow-cursor`.
     cursor: i64,
+    /// The run of the log the cursor and the reload belong to: its `started_unix_s` in the
+    /// log's meta (a restarted service appends a new run, its service time from 0 again).
+    run: Option<f64>,
     shadow: Option<Evaluated>,
     watch: Option<Watch>,
     /// The reload of the last file written (`None`: none written; every probe counts).
@@ -143,13 +146,17 @@ pub fn follow(a: FollowArgs) -> Result<(), CliError> {
     let db = connect(&a.store)?;
     // Where the last follower of this log stopped; without one, the log's end: probes already
     // in it came before anything this follower shadows.
-    let (cursor, reload) = load_cursor(&a.log).unwrap_or_else(|| (last_probe_row(&a.log), None));
+    let (cursor, reload, run) =
+        load_cursor(&a.log).unwrap_or_else(|| (last_probe_row(&a.log), None, None));
+    // A cursor file of a follower before runs were kept: the run in the log now.
+    let run = run.or_else(|| run_of(&a.log));
     let mut f = Follower {
         rule,
         machine,
         keys,
         db,
         cursor,
+        run,
         shadow: None,
         watch: None,
         reload,
@@ -184,8 +191,8 @@ fn cursor_path(log: &Path) -> PathBuf {
     PathBuf::from(p)
 }
 
-/// The cursor and the awaited reload an earlier follower of this log left.
-fn load_cursor(log: &Path) -> Option<(i64, Option<Reload>)> {
+/// The cursor, the awaited reload and the run an earlier follower of this log left.
+fn load_cursor(log: &Path) -> Option<(i64, Option<Reload>, Option<f64>)> {
     let text = std::fs::read_to_string(cursor_path(log)).ok()?;
     let v: serde_json::Value = serde_json::from_str(&text).ok()?;
     let row = v["probes_row"].as_i64().filter(|&n| n >= 0)?;
@@ -193,7 +200,57 @@ fn load_cursor(log: &Path) -> Option<(i64, Option<Reload>)> {
         events_before: n as usize,
         at_s: v["reload"]["at_s"].as_f64(),
     });
-    Some((row, reload))
+    Some((row, reload, v["run_started_unix_s"].as_f64()))
+}
+
+/// The run the log's service writes now: its `started_unix_s` (`None`: no log or meta yet).
+fn run_of(log: &Path) -> Option<f64> {
+    if !log.exists() {
+        return None;
+    }
+    log::read_meta(log)
+        .ok()
+        .flatten()
+        .and_then(|m| m["started_unix_s"].as_f64())
+        .filter(|s| s.is_finite())
+}
+
+/// Splits the probes rows after the cursor (`prev_t`: the service time of the cursor's row)
+/// between the run the cursor was in (started at `old_start`) and the newest run (started
+/// at `new_start`), when the service started again in between. A row is the old run's while
+/// the service time does not go back and its clock time (`old_start` + time) is not after the
+/// new run's start; the newest run begins at the last time the service time went back. Rows
+/// of runs between the two (their start is not in the log) are in neither.
+fn split_runs<'r>(
+    rows: &[&'r log::ProbeRow],
+    prev_t: f64,
+    old_start: f64,
+    new_start: f64,
+) -> (Vec<&'r log::ProbeRow>, Vec<&'r log::ProbeRow>) {
+    let mut first_new = rows.len();
+    let mut prev = prev_t;
+    for (i, r) in rows.iter().enumerate() {
+        if r.time_s.is_nan() {
+            continue;
+        }
+        if r.time_s < prev || old_start + r.time_s > new_start {
+            first_new = i;
+            break;
+        }
+        prev = r.time_s;
+    }
+    let mut newest = first_new;
+    let mut prev = f64::NEG_INFINITY;
+    for (i, r) in rows.iter().enumerate().skip(first_new) {
+        if r.time_s.is_nan() {
+            continue;
+        }
+        if r.time_s < prev {
+            newest = i;
+        }
+        prev = r.time_s;
+    }
+    (rows[..first_new].to_vec(), rows[newest..].to_vec())
 }
 
 /// The largest rowid of the log's probes (0 without a log or probes yet).
@@ -510,11 +567,69 @@ impl Follower {
         }
     }
 
+    /// How the probes of the reload state are filtered: `Some(from_s)` (service time after
+    /// which they count, `None`: all), or `None`: not judged (a reload awaited).
+    fn reload_filter(&self) -> Option<Option<f64>> {
+        match &self.reload {
+            None => Some(None),
+            Some(Reload { at_s: Some(t), .. }) => Some(Some(*t)),
+            Some(Reload { at_s: None, .. }) => None,
+        }
+    }
+
+    /// The service started again (a new run in the log, `started`): what the follower kept of
+    /// the old run's service time is dropped. When the file is the store's active model, the
+    /// service loaded it at its start: the run's time 0 is the reload; otherwise every probe
+    /// counts, filed under the version the file is (a write and its reload follow).
+    fn new_run(&mut self, started: f64) -> Result<(), CliError> {
+        let events = log::read_events(&self.a.log).map_or(0, |e| e.len());
+        let on_disk = std::fs::read(&self.a.model)
+            .ok()
+            .map(|b| models::sha256_hex(&b));
+        let active = match models::fetch(&mut self.db, &self.a.machine, Which::State(State::Active))
+        {
+            Ok(f) => Some(f.sha256),
+            Err(models::ModelError::NoneInState { .. }) => None,
+            Err(e) => return Err(store_error(e)),
+        };
+        let runs_active = on_disk.is_some() && on_disk == active;
+        self.run = Some(started);
+        self.reload = runs_active.then_some(Reload {
+            events_before: events,
+            at_s: Some(0.0),
+        });
+        self.say(&format!(
+            "the service started again (a new run in {}): {}",
+            self.a.log.display(),
+            if runs_active {
+                "it loaded the active model at its start"
+            } else {
+                "its file is not the active model"
+            }
+        ));
+        self.save()
+    }
+
     /// Evaluates the probes the log gained with the shadow and the watched parent, and stores
     /// them.
     fn read_probes(&mut self) -> Result<(), CliError> {
         if !self.a.log.exists() {
             return Ok(());
+        }
+        // A new run since the cursor: the old run's rows after the cursor keep its start and
+        // its reload; the new run's get their own.
+        let (old_run, old_from) = (self.run, self.reload_filter());
+        let started = run_of(&self.a.log);
+        let restarted = match (old_run, started) {
+            (Some(r), Some(s)) if r != s => Some(s),
+            (None, Some(s)) => {
+                self.run = Some(s);
+                None
+            }
+            _ => None,
+        };
+        if let Some(s) = restarted {
+            self.new_run(s)?;
         }
         if let Some(r) = &mut self.reload {
             if r.at_s.is_none() {
@@ -555,38 +670,57 @@ impl Follower {
         let Some(active) = self.running_version()? else {
             return self.advance(last);
         };
-        let started = log::read_meta(&self.a.log)?
-            .and_then(|m| m["started_unix_s"].as_f64())
-            .unwrap_or(0.0);
         let layout = Layout::of(&table.columns, &self.machine)
             .map_err(|m| CliError::refused(format!("{}: {m}", self.a.log.display())))?;
-        let from_s = match &self.reload {
-            None => None,
-            Some(Reload { at_s: Some(t), .. }) => Some(*t),
-            Some(Reload { at_s: None, .. }) => {
-                // The service still runs the previous file: its predictions are not the active
-                // model's. These probes are not judged.
-                return self.advance(last);
+        let after: Vec<&log::ProbeRow> =
+            table.rows.iter().filter(|r| r.row > self.cursor).collect();
+        let old_start = old_run.or(started).unwrap_or(0.0);
+        // (rows, the run's start, the reload filter) of each run whose probes are judged; the
+        // predictions before an awaited reload are the previous model's: not judged.
+        let mut runs: Vec<(Vec<&log::ProbeRow>, f64, Option<f64>)> = Vec::new();
+        match restarted {
+            None => {
+                if let Some(from) = old_from {
+                    runs.push((after, old_start, from));
+                }
             }
-        };
-        let rows: Vec<&log::ProbeRow> = table
-            .rows
-            .iter()
-            .filter(|r| r.row > self.cursor && r.accepted)
-            .collect();
+            Some(new_start) => {
+                let prev_t = table
+                    .rows
+                    .iter()
+                    .find(|r| r.row == self.cursor)
+                    .map_or(f64::NEG_INFINITY, |r| r.time_s);
+                let (old, new) = split_runs(&after, prev_t, old_start, new_start);
+                if let Some(from) = old_from {
+                    runs.push((old, old_start, from));
+                }
+                if let Some(from) = self.reload_filter() {
+                    runs.push((new, new_start, from));
+                }
+            }
+        }
+        for (rows, _, _) in &mut runs {
+            rows.retain(|r| r.accepted);
+        }
         if let Some(s) = &mut self.shadow {
-            let since: Vec<&log::ProbeRow> = rows
-                .iter()
-                .filter(|r| r.row > s.from_row)
-                .copied()
-                .collect();
-            let probes = layout.residuals(&since, &mut s.model, started, from_s);
+            let mut probes = Vec::new();
+            for (rows, start, from_s) in &runs {
+                let since: Vec<&log::ProbeRow> = rows
+                    .iter()
+                    .filter(|r| r.row > s.from_row)
+                    .copied()
+                    .collect();
+                probes.extend(layout.residuals(&since, &mut s.model, *start, *from_s));
+            }
             shadow_probes::record(&mut self.db, &self.a.machine, s.version, active, &probes)
                 .map_err(|e| CliError::refused(format!("--db: PostgreSQL: {e}")))?;
         }
         if let Some(w) = &mut self.watch {
             if w.active == active {
-                let probes = layout.residuals(&rows, &mut w.parent.model, started, from_s);
+                let mut probes = Vec::new();
+                for (rows, start, from_s) in &runs {
+                    probes.extend(layout.residuals(rows, &mut w.parent.model, *start, *from_s));
+                }
                 shadow_probes::record(
                     &mut self.db,
                     &self.a.machine,
@@ -612,7 +746,12 @@ impl Follower {
             .reload
             .as_ref()
             .map(|r| serde_json::json!({ "events_before": r.events_before, "at_s": r.at_s }));
-        let text = serde_json::json!({ "probes_row": self.cursor, "reload": reload }).to_string();
+        let text = serde_json::json!({
+            "probes_row": self.cursor,
+            "reload": reload,
+            "run_started_unix_s": self.run,
+        })
+        .to_string();
         crate::write::write_whole(&cursor_path(&self.a.log), text + "\n", &[])
     }
 
@@ -879,5 +1018,40 @@ mod tests {
         // No reload awaited: every probe counts.
         assert!(after_reload(0.0, None));
         assert!(after_reload(f64::NAN, None));
+    }
+
+    fn row(row: i64, time_s: f64) -> log::ProbeRow {
+        log::ProbeRow {
+            row,
+            time_s,
+            accepted: true,
+            reason: String::new(),
+            values: Vec::new(),
+        }
+    }
+
+    fn rows_of(rows: &[&log::ProbeRow]) -> Vec<i64> {
+        rows.iter().map(|r| r.row).collect()
+    }
+
+    #[test]
+    fn rows_after_the_cursor_are_split_between_the_old_run_and_the_newest() {
+        // The cursor at row 2, 100 s into a run started at 1000; rows 3-4 are its tail, the
+        // service started again at 1300: rows 5-6 (time from 0 again).
+        let all = [row(3, 110.0), row(4, 120.0), row(5, 5.0), row(6, 15.0)];
+        let refs: Vec<&log::ProbeRow> = all.iter().collect();
+        let (old, new) = split_runs(&refs, 100.0, 1000.0, 1300.0);
+        assert_eq!((rows_of(&old), rows_of(&new)), (vec![3, 4], vec![5, 6]));
+        // No tail: the new run's first probe later in its run than the cursor's, told by the
+        // clock (1000 + 400 is after 1300).
+        let all = [row(5, 400.0), row(6, 410.0)];
+        let refs: Vec<&log::ProbeRow> = all.iter().collect();
+        let (old, new) = split_runs(&refs, 100.0, 1000.0, 1300.0);
+        assert_eq!((rows_of(&old), rows_of(&new)), (vec![], vec![5, 6]));
+        // Two restarts: the run between (its start unknown) is left out.
+        let all = [row(3, 110.0), row(4, 50.0), row(5, 60.0), row(6, 7.0)];
+        let refs: Vec<&log::ProbeRow> = all.iter().collect();
+        let (old, new) = split_runs(&refs, 100.0, 1000.0, 1300.0);
+        assert_eq!((rows_of(&old), rows_of(&new)), (vec![3], vec![6]));
     }
 }
