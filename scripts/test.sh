@@ -65,6 +65,9 @@ D=15 STREAMS="0 1" bash scripts/live_view_bench.sh
 echo "== fleet benchmark, short: 50 simulated machines at 1 Hz for 10 s into Mosquitto, fleet ingest"
 echo "   and PostgreSQL 15 (every message stored, none failed, p99 < 2 s; the full run: docs/benchmarks.md)"
 FLEET_BENCH_CHECK=1 bash scripts/fleet_bench.sh 50 10
+echo "== a fleet on a laptop: broker, PostgreSQL, fleet ingest and three machines for 15 s; fleet"
+echo "   status must show the three online (docs/fleet.md)"
+DURATION=15 CHECK=1 bash scripts/fleet_laptop.sh
 echo "== twin population: issue 14's development benchmark at the ci size, its bars asserted"
 echo "   (median reduction >= 85 %, no run made worse, median inner/test within 1.5; the full size"
 echo "   meets them too: docs/fitting.md)"
