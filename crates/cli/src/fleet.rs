@@ -295,10 +295,11 @@ fn ingest(a: IngestArgs) -> Result<(), CliError> {
     };
     let s = truepos_fleet_store::ingest::run(&config);
     eprintln!(
-        "ingest: {} messages; {} seconds and {} events written, {} already there; {} skipped{}; {} database failure(s), {} broker connection(s){}",
+        "ingest: {} messages; {} seconds, {} events and {} probe events written, {} already there; {} skipped{}; {} database failure(s), {} broker connection(s){}",
         s.messages,
         s.seconds,
         s.events,
+        s.probes,
         s.duplicates,
         s.skipped,
         s.last_skip.as_deref().map(|w| format!(" (last: {w})")).unwrap_or_default(),

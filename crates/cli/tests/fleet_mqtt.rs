@@ -841,7 +841,7 @@ fn the_fleet_store_holds_each_second_once_through_a_database_outage_and_a_replay
         pg.query(
             "SELECT string_agg(version::text, ',' ORDER BY version) FROM fleet_schema_migrations"
         ),
-        "1,2,3"
+        "1,2,3,4"
     );
     let partitions =
         pg.query("SELECT count(*) FROM pg_inherits WHERE inhparent = 'fleet_seconds'::regclass");

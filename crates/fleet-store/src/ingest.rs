@@ -1,5 +1,5 @@
 //! The ingester: subscribes to `spBv1.0/#` at QoS 1 with a persistent session and writes each
-//! node's births, seconds and events to PostgreSQL, acknowledging a message only once its rows
+//! node's births, seconds, events and probe events to PostgreSQL, acknowledging a message only once its rows
 //! are committed. A row that exists already (the same machine and data time) is left as it is,
 //! so whatever the broker or a publisher sends again is written once. A message that is not
 //! Sparkplug, or NDATA of a node whose birth is unknown, is counted and acknowledged (skipped);
@@ -33,6 +33,11 @@ pub enum Outcome {
         /// New.
         written: bool,
     },
+    /// A probe event's row.
+    Probe {
+        /// New.
+        written: bool,
+    },
     /// Not stored, and why.
     Skipped(String),
 }
@@ -59,6 +64,17 @@ pub enum Row {
         t_ms: i64,
         /// Kind, subject, detail.
         fields: [String; 3],
+        /// Sent from the store after an outage.
+        historical: bool,
+    },
+    /// An accepted probe event.
+    Probe {
+        /// Data time, ms since the epoch.
+        t_ms: i64,
+        /// Its cycle's compensation state.
+        state: Option<String>,
+        /// `{"probe_dz_um": -3.1, "probe_z_mm": -50.0, "t1": 21.3, …}` (null: no value).
+        values: serde_json::Value,
         /// Sent from the store after an outage.
         historical: bool,
     },
@@ -108,6 +124,8 @@ pub fn rows(p: &Payload, names: &HashMap<u64, String>) -> Result<Row, String> {
     let mut stats = serde_json::Map::new();
     let (mut cycles, mut active) = (None, None);
     let mut event: [Option<String>; 3] = Default::default();
+    let mut probe = serde_json::Map::new();
+    let mut probe_state = None;
     let mut t_ms = None;
     let mut historical = false;
     for m in &p.metrics {
@@ -134,6 +152,18 @@ pub fn rows(p: &Payload, names: &HashMap<u64, String>) -> Result<Row, String> {
                     event[i] = Some(s.clone());
                 }
             }
+            "Probe/state" => {
+                if let Value::String(s) = &m.value {
+                    probe_state = Some(storable(s));
+                }
+            }
+            _ if name.starts_with("Probe/") => {
+                let column = &name["Probe/".len()..];
+                probe.insert(
+                    storable(column),
+                    number(&m.value).map_or(serde_json::Value::Null, |x| x.into()),
+                );
+            }
             _ => {
                 let Some((column, stat)) = name.rsplit_once('/') else {
                     continue;
@@ -159,8 +189,18 @@ pub fn rows(p: &Payload, names: &HashMap<u64, String>) -> Result<Row, String> {
             historical,
         });
     }
+    if !probe.is_empty() {
+        return Ok(Row::Probe {
+            t_ms,
+            state: probe_state,
+            values: serde_json::Value::Object(probe),
+            historical,
+        });
+    }
     if cycles.is_none() && stats.is_empty() {
-        return Err("NDATA with neither a second's aggregates nor a whole event".into());
+        return Err(
+            "NDATA with neither a second's aggregates, a whole event nor a probe event".into(),
+        );
     }
     Ok(Row::Second {
         t_ms,
@@ -385,19 +425,34 @@ impl Ingester {
                 )?;
                 Ok(Outcome::Event { written: n == 1 })
             }
+            Row::Probe {
+                t_ms,
+                state,
+                values,
+                historical,
+            } => {
+                self.partitions.ensure(db, "fleet_probes", t_ms)?;
+                let n = db.execute(
+                    "INSERT INTO fleet_probes (group_id, node_id, t, state, \"values\", historical)
+                     VALUES ($1, $2, to_timestamp($3), $4, $5::text::jsonb, $6) ON CONFLICT DO NOTHING",
+                    &[&group, &node, &seconds_f64(t_ms), &state, &values.to_string(), &historical],
+                )?;
+                Ok(Outcome::Probe { written: n == 1 })
+            }
         }
     }
 
     /// Writes many rows with one statement per table (`unnest` of arrays): a batch costs the
-    /// database a few round trips instead of three per message. Returns the seconds and the
-    /// events written; the rest of `rows` were there already.
+    /// database a few round trips instead of three per message. Returns the seconds, the
+    /// events and the probe events written; the rest of `rows` were there already.
     fn write_all(
         &mut self,
         db: &mut impl GenericClient,
         rows: Vec<(String, String, Row)>,
-    ) -> Result<(u64, u64, u64), postgres::Error> {
+    ) -> Result<(u64, u64, u64, u64), postgres::Error> {
         let mut s = SecondColumns::default();
         let mut e = EventColumns::default();
+        let mut p = ProbeColumns::default();
         for (group, node, row) in rows {
             match row {
                 Row::Second {
@@ -430,9 +485,23 @@ impl Ingester {
                     e.detail.push(detail);
                     e.historical.push(historical);
                 }
+                Row::Probe {
+                    t_ms,
+                    state,
+                    values,
+                    historical,
+                } => {
+                    self.partitions.ensure(db, "fleet_probes", t_ms)?;
+                    p.group.push(group);
+                    p.node.push(node);
+                    p.t.push(seconds_f64(t_ms));
+                    p.state.push(state);
+                    p.values.push(values.to_string());
+                    p.historical.push(historical);
+                }
             }
         }
-        let offered = (s.t.len() + e.t.len()) as u64;
+        let offered = (s.t.len() + e.t.len() + p.t.len()) as u64;
         let mut seconds = 0;
         if !s.t.is_empty() {
             seconds = db.execute(
@@ -455,7 +524,18 @@ impl Ingester {
                 &[&e.group, &e.node, &e.t, &e.kind, &e.subject, &e.detail, &e.historical],
             )?;
         }
-        Ok((seconds, events, offered - seconds - events))
+        let mut probes = 0;
+        if !p.t.is_empty() {
+            probes = db.execute(
+                "INSERT INTO fleet_probes (group_id, node_id, t, state, \"values\", historical)
+                 SELECT g, n, to_timestamp(t), st, v::jsonb, h
+                 FROM unnest($1::text[], $2::text[], $3::float8[], $4::text[], $5::text[], $6::bool[])
+                     AS r(g, n, t, st, v, h)
+                 ON CONFLICT DO NOTHING",
+                &[&p.group, &p.node, &p.t, &p.state, &p.values, &p.historical],
+            )?;
+        }
+        Ok((seconds, events, probes, offered - seconds - events - probes))
     }
 }
 
@@ -491,6 +571,17 @@ struct EventColumns {
     historical: Vec<bool>,
 }
 
+/// `fleet_probes` rows as columns.
+#[derive(Default)]
+struct ProbeColumns {
+    group: Vec<String>,
+    node: Vec<String>,
+    t: Vec<f64>,
+    state: Vec<Option<String>>,
+    values: Vec<String>,
+    historical: Vec<bool>,
+}
+
 /// How to ingest.
 #[derive(Debug, Clone)]
 pub struct Config {
@@ -515,6 +606,8 @@ pub struct Summary {
     pub seconds: u64,
     /// Events written.
     pub events: u64,
+    /// Probe events written.
+    pub probes: u64,
     /// Rows that were there already (sent again).
     pub duplicates: u64,
     /// Messages skipped, and the last reason.
@@ -564,6 +657,7 @@ fn store_batch(
     s.messages += batch.messages;
     s.seconds += batch.seconds;
     s.events += batch.events;
+    s.probes += batch.probes;
     s.duplicates += batch.duplicates;
     s.skipped += batch.skipped;
     if batch.last_skip.is_some() {
@@ -624,9 +718,10 @@ fn store_together(
             Prepared::Done(_) => {}
         }
     }
-    let (seconds, events, duplicates) = ingester.write_all(db, rows)?;
+    let (seconds, events, probes, duplicates) = ingester.write_all(db, rows)?;
     batch.seconds = seconds;
     batch.events = events;
+    batch.probes = probes;
     batch.duplicates = duplicates;
     Ok(batch)
 }
@@ -659,9 +754,10 @@ fn store_one_by_one(
         match outcome {
             Outcome::Second { written: true } => batch.seconds += 1,
             Outcome::Event { written: true } => batch.events += 1,
-            Outcome::Second { written: false } | Outcome::Event { written: false } => {
-                batch.duplicates += 1
-            }
+            Outcome::Probe { written: true } => batch.probes += 1,
+            Outcome::Second { written: false }
+            | Outcome::Event { written: false }
+            | Outcome::Probe { written: false } => batch.duplicates += 1,
             Outcome::Skipped(why) => {
                 batch.skipped += 1;
                 batch.last_skip = Some(why);

@@ -11,6 +11,7 @@ pub const MIGRATIONS: &[(i32, &str, &str)] = &[
     (1, "fleet", include_str!("../migrations/0001_fleet.sql")),
     (2, "models", include_str!("../migrations/0002_models.sql")),
     (3, "shadow", include_str!("../migrations/0003_shadow.sql")),
+    (4, "probes", include_str!("../migrations/0004_probes.sql")),
 ];
 
 /// Applies the migrations not applied yet, each in a transaction of its own; returns the

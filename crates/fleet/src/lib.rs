@@ -3,7 +3,8 @@
 //!
 //! [`Publisher`] is a thread beside the service. It reads the log with a read-only connection
 //! after a cursor kept per broker ([`cursor`]), sends one NDATA per second of cycles (min, mean
-//! and max of every input and axis offset) and one per event at MQTT QoS 1, and advances the
+//! and max of every input and axis offset), one per event and one per accepted probe event at
+//! MQTT QoS 1, and advances the
 //! cursor only over what the broker acknowledged. After an outage it replays the rest, marked
 //! historical and bounded in rate. Nothing on the cycle's path touches the network: the only
 //! link between the cycle and this crate is the log file.

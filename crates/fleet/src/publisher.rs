@@ -1,7 +1,7 @@
 //! The publisher thread: forwards the log to a broker as Sparkplug B, store-and-forward.
 //!
 //! Per connection: CONNECT with the NDEATH (next `bdSeq`) as will, NBIRTH (`seq` 0), then one
-//! NDATA per unit of the log after the cursor (`seq` 1, 2, … mod 256), at most [`WINDOW`]
+//! NDATA per unit of the log after the cursor (a second, an event, an accepted probe event) (`seq` 1, 2, … mod 256), at most [`WINDOW`]
 //! unacknowledged. The cursor advances over the acknowledged prefix only; on any error the
 //! connection is dropped, unacknowledged messages are forgotten and read again from the log
 //! after the reconnect, with everything the log held at the reconnect marked historical and
@@ -134,6 +134,12 @@ impl Publisher {
         let meta = reader.meta()?;
         let cursor_path = cursor::path_for(&config.log, &config.broker);
         let cursor = match cursor::load(&cursor_path)? {
+            // A cursor written before probes were forwarded: its probes start where a new
+            // broker's would (the current run's first, for a service).
+            Some(mut c) if c.rows.probes < 0 => {
+                c.rows.probes = config.start_after.probes.max(0);
+                c
+            }
             Some(c) => c,
             None => Cursor {
                 broker: config.broker.to_string(),
@@ -402,11 +408,12 @@ impl State {
 
     /// NBIRTH: every metric NDATA will carry ([`birth_payload`]).
     fn birth(&self) -> Payload {
-        birth_payload(
+        birth_payload_with_probes(
             self.cursor.bd_seq,
             &self.machine,
             &self.models,
             self.reader.columns(),
+            self.reader.probe_columns(),
             now_ms(),
         )
     }
@@ -424,6 +431,7 @@ impl State {
                 let historical = match &u {
                     Unit::Second(x) => x.last_row <= s.historical_upto.cycles,
                     Unit::Event(e) => e.row <= s.historical_upto.events,
+                    Unit::Probe(p) => p.row <= s.historical_upto.probes,
                 };
                 if historical {
                     let now = Instant::now();
@@ -531,6 +539,7 @@ impl State {
                 self.stamp(x.second)
             }
             Unit::Event(e) => self.stamp(e.time_s),
+            Unit::Probe(p) => self.stamp(p.time_s),
         };
         unit_payload(
             u,
@@ -567,12 +576,27 @@ impl State {
 /// The NBIRTH a service sends: `bdSeq`, `Node Control/Rebirth`, the machine and its models,
 /// then every metric NDATA will carry for the log's `columns`, with its type and alias (values
 /// null until the first data). The alias of a metric is its index here; NDATA follows
-/// `data_alias`. Public so that a load generator sends exactly what a service sends.
+/// `data_alias`. Public so that a load generator sends exactly what a service sends. A log
+/// with probe events declares their metrics too: [`birth_payload_with_probes`].
 pub fn birth_payload(
     bd_seq: u8,
     machine: &str,
     models: &str,
     columns: &[String],
+    now_ms: u64,
+) -> Payload {
+    birth_payload_with_probes(bd_seq, machine, models, columns, &[], now_ms)
+}
+
+/// [`birth_payload`] with, after the event's fields, the metrics of a probe event:
+/// `Probe/state` (text) and `Probe/<column>` (double) for each of the log's `probe_columns`
+/// (none: the log has no probe table).
+pub fn birth_payload_with_probes(
+    bd_seq: u8,
+    machine: &str,
+    models: &str,
+    columns: &[String],
+    probe_columns: &[String],
     now_ms: u64,
 ) -> Payload {
     let mut metrics = vec![
@@ -590,6 +614,12 @@ pub fn birth_payload(
     }
     for f in EVENT_FIELDS {
         metrics.push(Metric::new(format!("Event/{f}"), Value::Null(STRING)));
+    }
+    if !probe_columns.is_empty() {
+        metrics.push(Metric::new("Probe/state", Value::Null(STRING)));
+        for c in probe_columns {
+            metrics.push(Metric::new(format!("Probe/{c}"), Value::Null(DOUBLE)));
+        }
     }
     for (i, m) in metrics.iter_mut().enumerate() {
         m.alias = Some(i as u64);
@@ -640,6 +670,15 @@ pub fn unit_payload(
                 push(DataSlot::Event(k), Value::String(v.clone()));
             }
         }
+        Unit::Probe(p) => {
+            push(DataSlot::ProbeState, Value::String(p.state.clone()));
+            for (i, v) in p.values.iter().enumerate() {
+                push(
+                    DataSlot::Probe(i),
+                    v.map_or(Value::Null(DOUBLE), Value::Double),
+                );
+            }
+        }
     }
     Payload {
         timestamp_ms: now_ms,
@@ -662,16 +701,23 @@ enum DataSlot {
     Stat(usize, usize),
     /// Field ([`EVENT_FIELDS`]).
     Event(usize),
+    /// A probe event's state.
+    ProbeState,
+    /// A probe event's column.
+    Probe(usize),
 }
 
 /// The alias NBIRTH gave a metric: its index in the birth (bdSeq, Rebirth, Machine, Models,
-/// then Cycles at 4, Active cycles, the columns' statistics, the event's fields).
+/// then Cycles at 4, Active cycles, the columns' statistics, the event's fields, the probe's
+/// state and columns).
 fn data_alias(slot: DataSlot, columns: usize) -> u64 {
     let i = match slot {
         DataSlot::Cycles => 4,
         DataSlot::Active => 5,
         DataSlot::Stat(c, k) => 6 + 3 * c + k,
         DataSlot::Event(k) => 6 + 3 * columns + k,
+        DataSlot::ProbeState => 6 + 3 * columns + 3,
+        DataSlot::Probe(i) => 6 + 3 * columns + 4 + i,
     };
     i as u64
 }

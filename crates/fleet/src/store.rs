@@ -1,6 +1,7 @@
 //! The service's SQLite log as the store the publisher forwards from: a read-only connection
-//! to the log's own tables (`meta`, `cycles`, `events`), read after a cursor of row ids and
-//! grouped into the units that become messages — one second's aggregates, or one event.
+//! to the log's own tables (`meta`, `cycles`, `events`, `probes`), read after a cursor of row
+//! ids and grouped into the units that become messages — one second's aggregates, one event,
+//! or one accepted probe event.
 
 use std::path::{Path, PathBuf};
 use std::time::Duration;
@@ -15,6 +16,15 @@ pub struct Rows {
     pub cycles: i64,
     /// Last covered rowid of `events` (0: none).
     pub events: i64,
+    /// Last covered rowid of `probes` (0: none; -1: not known, a cursor file written before
+    /// probes were forwarded — the publisher starts such a cursor's probes where a new broker's
+    /// would start).
+    #[serde(default = "unknown_row")]
+    pub probes: i64,
+}
+
+fn unknown_row() -> i64 {
+    -1
 }
 
 /// What the service wrote about itself in the log's `meta` table.
@@ -63,6 +73,20 @@ pub struct Event {
     pub detail: String,
 }
 
+/// One accepted probe event of the log's `probes` table.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Probe {
+    /// Its rowid.
+    pub row: i64,
+    /// Service time, s.
+    pub time_s: f64,
+    /// The compensation state of its cycle.
+    pub state: String,
+    /// Per probe column ([`LogReader::probe_columns`]) its value (`None`: NULL, e.g. an axis
+    /// not measured).
+    pub values: Vec<Option<f64>>,
+}
+
 /// A unit of forwarding: what one NDATA message carries.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Unit {
@@ -70,6 +94,8 @@ pub enum Unit {
     Second(Second),
     /// An event.
     Event(Event),
+    /// An accepted probe event.
+    Probe(Probe),
 }
 
 impl Unit {
@@ -82,6 +108,10 @@ impl Unit {
             },
             Unit::Event(e) => Rows {
                 events: e.row,
+                ..before
+            },
+            Unit::Probe(p) => Rows {
+                probes: p.row,
                 ..before
             },
         }
@@ -101,6 +131,13 @@ pub struct LogReader {
     /// Their indices in `SELECT rowid, *`.
     indices: Vec<usize>,
     state_index: Option<usize>,
+    /// The forwarded columns of `probes`: every numeric column after `state` but the paths'
+    /// model numbers (probe, predicted, positions, temperatures, operating state); empty for a
+    /// log without the table.
+    probe_columns: Vec<String>,
+    /// Their indices in `SELECT rowid, *` of `probes`, and those of `time_s`, `status`, `state`.
+    probe_indices: Vec<usize>,
+    probe_fixed: Option<(usize, usize, usize)>,
 }
 
 fn err(path: &Path) -> impl Fn(rusqlite::Error) -> String + '_ {
@@ -184,13 +221,85 @@ impl LogReader {
                 path.display()
             ));
         }
+        let probe_names: Vec<String> = conn
+            .prepare("SELECT name FROM pragma_table_info('probes')")
+            .and_then(|mut s| {
+                s.query_map([], |r| r.get::<_, String>(0))?
+                    .collect::<Result<Vec<_>, _>>()
+            })
+            .map_err(err(path))?;
+        let (mut probe_columns, mut probe_indices) = (Vec::new(), Vec::new());
+        let (mut time_i, mut status_i, mut pstate_i) = (None, None, None);
+        for (i, n) in probe_names.iter().enumerate() {
+            match n.as_str() {
+                "time_s" => time_i = Some(i + 1),
+                "status" => status_i = Some(i + 1),
+                "state" => pstate_i = Some(i + 1),
+                "reason" => {}
+                _ if n.starts_with("model_path") => {}
+                _ => {
+                    probe_columns.push(n.clone());
+                    probe_indices.push(i + 1);
+                }
+            }
+        }
+        let probe_fixed = match (time_i, status_i, pstate_i) {
+            (Some(t), Some(s), Some(st)) => Some((t, s, st)),
+            _ => {
+                probe_columns.clear();
+                probe_indices.clear();
+                None
+            }
+        };
         Ok(LogReader {
             conn,
             path: path.to_path_buf(),
             columns,
             indices,
             state_index,
+            probe_columns,
+            probe_indices,
+            probe_fixed,
         })
+    }
+
+    /// The forwarded columns of `probes`, in table order (empty: the log has no probe table).
+    pub fn probe_columns(&self) -> &[String] {
+        &self.probe_columns
+    }
+
+    /// Up to `limit` accepted probe events after row `after`, in order (a rejected one is
+    /// never forwarded: it is in the log for the record, and nothing fits or judges on it).
+    pub fn probes(&self, after: i64, limit: usize) -> Result<Vec<Probe>, String> {
+        let Some((ti, si, sti)) = self.probe_fixed else {
+            return Ok(Vec::new());
+        };
+        let mut stmt = self
+            .conn
+            .prepare_cached(
+                "SELECT rowid, * FROM probes WHERE rowid > ?1 AND status = 'accepted' \
+                 ORDER BY rowid LIMIT ?2",
+            )
+            .map_err(err(&self.path))?;
+        let mut rows = stmt
+            .query(rusqlite::params![after, limit as i64])
+            .map_err(err(&self.path))?;
+        let mut out = Vec::new();
+        while let Some(r) = rows.next().map_err(err(&self.path))? {
+            let g = |i: usize| r.get_ref(i).map_err(err(&self.path));
+            debug_assert!(matches!(g(si)?, ValueRef::Text(b"accepted")));
+            let mut values = Vec::with_capacity(self.probe_indices.len());
+            for &i in &self.probe_indices {
+                values.push(real(g(i)?));
+            }
+            out.push(Probe {
+                row: r.get(0).map_err(err(&self.path))?,
+                time_s: real(g(ti)?).unwrap_or(f64::NAN),
+                state: text(g(sti)?),
+                values,
+            });
+        }
+        Ok(out)
     }
 
     /// The aggregated columns of `cycles`, in table order.
@@ -236,6 +345,11 @@ impl LogReader {
         Ok(Rows {
             cycles: last("cycles")?,
             events: last("events")?,
+            probes: if self.probe_fixed.is_some() {
+                last("probes")?
+            } else {
+                0
+            },
         })
     }
 
@@ -346,28 +460,44 @@ impl LogReader {
         rows.collect::<Result<Vec<_>, _>>().map_err(err(&self.path))
     }
 
-    /// Up to `limit` units after `cursor`, seconds and events merged in time order (an event
-    /// goes before the first second that ends after it).
+    /// Up to `limit` units after `cursor`, seconds, events and probe events merged in time
+    /// order (an event or a probe goes before the first second that ends after it; an event
+    /// before a probe of the same time).
     pub fn units(&self, cursor: Rows, limit: usize, finished: bool) -> Result<Vec<Unit>, String> {
         let seconds = self.seconds(cursor.cycles, finished, limit)?;
         let events = self.events(cursor.events, limit)?;
-        let mut out = Vec::with_capacity(limit.min(seconds.len() + events.len()));
-        let (mut s, mut e) = (
+        let probes = self.probes(cursor.probes.max(0), limit)?;
+        let mut out = Vec::with_capacity(limit.min(seconds.len() + events.len() + probes.len()));
+        let (mut s, mut e, mut p) = (
             seconds.into_iter().peekable(),
             events.into_iter().peekable(),
+            probes.into_iter().peekable(),
         );
+        // A time without a value (NaN) goes first rather than never.
+        let key = |t: f64| if t.is_nan() { f64::NEG_INFINITY } else { t };
         while out.len() < limit {
-            let take_event = match (s.peek(), e.peek()) {
-                // An event without a time (NaN) goes first rather than never.
-                (Some(sec), Some(ev)) => ev.time_s < sec.second + 1.0 || ev.time_s.is_nan(),
+            // The earliest of the next event and the next probe (the event on a tie).
+            let loose = match (e.peek(), p.peek()) {
+                (Some(ev), Some(pr)) => Some((
+                    key(ev.time_s) <= key(pr.time_s),
+                    key(ev.time_s).min(key(pr.time_s)),
+                )),
+                (Some(ev), None) => Some((true, key(ev.time_s))),
+                (None, Some(pr)) => Some((false, key(pr.time_s))),
+                (None, None) => None,
+            };
+            let take_loose = match (s.peek(), loose) {
+                (Some(sec), Some((_, t))) => t < sec.second + 1.0,
                 (None, Some(_)) => true,
                 (Some(_), None) => false,
                 (None, None) => break,
             };
-            if take_event {
+            if !take_loose {
+                out.extend(s.next().map(Unit::Second));
+            } else if loose.is_some_and(|(event, _)| event) {
                 out.extend(e.next().map(Unit::Event));
             } else {
-                out.extend(s.next().map(Unit::Second));
+                out.extend(p.next().map(Unit::Probe));
             }
         }
         Ok(out)
