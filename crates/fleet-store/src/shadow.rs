@@ -11,7 +11,8 @@
 //!   one that has not got there by `2 × min_probes` residuals is retired.
 //! - [`judge_rollback`]: after an activation, with at least `min_probes` residuals, the new
 //!   model is rolled back when its RMS residual exceeds `(1 + margin)` × its parent's on the
-//!   same probes.
+//!   same probes, else kept — a decision either way: the watch of the new model ends there
+//!   (`truepos fleet follow` evaluates its parent no further).
 //!
 //! ```
 //! use truepos_fleet_store::shadow::{judge_shadow, Pair, Rule, ShadowDecision};
@@ -141,7 +142,7 @@ pub fn judge_shadow(rule: &Rule, pairs: &[Pair]) -> ShadowDecision {
 pub enum WatchDecision {
     /// Too few residuals yet.
     Wait(Figures),
-    /// Not worse than its parent by the margin: keep it (and keep watching).
+    /// Not worse than its parent by the margin: keep it; the watch ends.
     Keep(Figures),
     /// Worse than its parent by the margin: roll back.
     Rollback(Figures),

@@ -32,6 +32,8 @@ use truepos_model::{CompensationModel, CycleInput};
 use truepos_runtime::log;
 
 use super::{connect, store_error, Store};
+
+mod log_after;
 use crate::error::CliError;
 
 /// Arguments of `truepos fleet follow`.
@@ -102,8 +104,9 @@ struct Watch {
 /// The service's reload of the file this follower wrote last: until it is in the log, the
 /// service's predictions are the previous model's, and no probe is judged.
 struct Reload {
-    /// The log's events before the file was written: the reload is looked for after them.
-    events_before: usize,
+    /// The last event (rowid) read before the reload: it is looked for after it (the events
+    /// before the file was written, then those already read).
+    events_before: i64,
     /// Service time of the `model-reloaded` event of the file: probes from then on count.
     at_s: Option<f64>,
 }
@@ -196,8 +199,8 @@ fn load_cursor(log: &Path) -> Option<(i64, Option<Reload>, Option<f64>)> {
     let text = std::fs::read_to_string(cursor_path(log)).ok()?;
     let v: serde_json::Value = serde_json::from_str(&text).ok()?;
     let row = v["probes_row"].as_i64().filter(|&n| n >= 0)?;
-    let reload = v["reload"]["events_before"].as_u64().map(|n| Reload {
-        events_before: n as usize,
+    let reload = v["reload"]["events_before"].as_i64().map(|n| Reload {
+        events_before: n,
         at_s: v["reload"]["at_s"].as_f64(),
     });
     Some((row, reload, v["run_started_unix_s"].as_f64()))
@@ -255,13 +258,7 @@ fn split_runs<'r>(
 
 /// The largest rowid of the log's probes (0 without a log or probes yet).
 fn last_probe_row(path: &Path) -> i64 {
-    if !path.exists() {
-        return 0;
-    }
-    log::read_probes(path)
-        .ok()
-        .and_then(|t| t.rows.last().map(|r| r.row))
-        .unwrap_or(0)
+    log_after::last_probe_row(path).unwrap_or(0)
 }
 
 impl Follower {
@@ -351,7 +348,7 @@ impl Follower {
             ));
             return Ok(());
         }
-        let events_before = log::read_events(&self.a.log).map_or(0, |e| e.len());
+        let events_before = log_after::last_event_row(&self.a.log).unwrap_or(0);
         let sig = signature_path(&self.a.model);
         let line = format!("{}\n", active.signature.trim());
         // Both synced before either rename, the signature renamed first: a reload that reads
@@ -582,7 +579,7 @@ impl Follower {
     /// service loaded it at its start: the run's time 0 is the reload; otherwise every probe
     /// counts, filed under the version the file is (a write and its reload follow).
     fn new_run(&mut self, started: f64) -> Result<(), CliError> {
-        let events = log::read_events(&self.a.log).map_or(0, |e| e.len());
+        let events = log_after::last_event_row(&self.a.log).unwrap_or(0);
         let on_disk = std::fs::read(&self.a.model)
             .ok()
             .map(|b| models::sha256_hex(&b));
@@ -633,8 +630,9 @@ impl Follower {
         }
         if let Some(r) = &mut self.reload {
             if r.at_s.is_none() {
-                let events = log::read_events(&self.a.log)?;
-                for e in events.iter().skip(r.events_before) {
+                for (row, e) in log_after::events_after(&self.a.log, r.events_before)? {
+                    // Read once: the next round goes on after it.
+                    r.events_before = row;
                     if e.kind == "model-reloaded" && same_file(&e.detail, &self.a.model) {
                         r.at_s = Some(e.time_s);
                         println!(
@@ -654,8 +652,13 @@ impl Follower {
                 }
             }
         }
-        let table = log::read_probes(&self.a.log)?;
+        // Only the rows from the cursor's on (its own for its service time).
+        let table = log_after::probes_from(&self.a.log, self.cursor)?;
         let Some(last) = table.rows.last().map(|r| r.row) else {
+            if self.cursor > 0 {
+                // The cursor's row is gone: a new log in the same place, read from its start.
+                return self.advance(0);
+            }
             return Ok(());
         };
         if last <= self.cursor {
@@ -817,24 +820,33 @@ impl Follower {
         let parent = w.parent.version;
         let pairs = shadow_probes::pairs(&mut self.db, &m, parent, active)
             .map_err(|e| CliError::refused(format!("--db: PostgreSQL: {e}")))?;
-        if let WatchDecision::Rollback(f) = shadow::judge_rollback(&self.rule, &pairs) {
-            let reason = format!(
-                "fleet follow: version {active} worse than its parent {parent} on the probes since its reload, {f}; rule: above (1 + {margin}) × the parent's RMS after {} residuals",
-                self.rule.min_probes
-            );
-            self.watch = None;
-            // Only while the model judged is still the active one (a conflict: someone moved it;
-            // the next round writes and watches what is active now).
-            match models::rollback_if(&mut self.db, &m, Some(active), &change(&self.a.by, &reason))
-            {
-                Ok((retired, now)) => {
-                    self.say(&format!(
-                        "version {retired} rolled back to version {now}: {f}"
-                    ));
-                    self.sync_active()?;
-                }
-                Err(e) => self.say(&format!("rollback of version {active} refused: {e}")),
+        let f = match shadow::judge_rollback(&self.rule, &pairs) {
+            WatchDecision::Wait(_) => return Ok(()),
+            WatchDecision::Keep(f) => {
+                // Decided: the watch ends (its residuals stop being evaluated and stored).
+                self.say(&format!(
+                    "version {active} kept: not worse than its parent {parent} by the margin {margin}, {f}; no longer watched"
+                ));
+                self.watch = None;
+                return Ok(());
             }
+            WatchDecision::Rollback(f) => f,
+        };
+        let reason = format!(
+            "fleet follow: version {active} worse than its parent {parent} on the probes since its reload, {f}; rule: above (1 + {margin}) × the parent's RMS after {} residuals",
+            self.rule.min_probes
+        );
+        self.watch = None;
+        // Only while the model judged is still the active one (a conflict: someone moved it;
+        // the next round writes and watches what is active now).
+        match models::rollback_if(&mut self.db, &m, Some(active), &change(&self.a.by, &reason)) {
+            Ok((retired, now)) => {
+                self.say(&format!(
+                    "version {retired} rolled back to version {now}: {f}"
+                ));
+                self.sync_active()?;
+            }
+            Err(e) => self.say(&format!("rollback of version {active} refused: {e}")),
         }
         Ok(())
     }
