@@ -2,7 +2,8 @@
 //! (forward a log that is already written, e.g. after the service was killed), `truepos
 //! fleet ingest` (the broker into PostgreSQL), `truepos fleet models …`, `activate`,
 //! `rollback` (model generations in the store), `status` (the fleet per machine) and `follow`
-//! (the sidecar that shadows, activates and rolls back a service's models, [`follow`]): options
+//! (the sidecar that shadows, activates and rolls back a service's models, [`follow`]) and
+//! `refit` (a model fitted again from the store, signed, registered, [`refit`]): options
 //! into `truepos_fleet`'s and `truepos_fleet_store`'s values, the summary or table printed.
 
 use std::path::{Path, PathBuf};
@@ -17,6 +18,7 @@ use truepos_io::signature::{signature_path, verify_line, TrustedKeys};
 use crate::error::CliError;
 
 mod follow;
+mod refit;
 
 /// How long `truepos run` forwards what is left after the service stopped, at most; what is not
 /// acknowledged by then stays in the log and goes with the next start.
@@ -76,6 +78,10 @@ enum Command {
     /// candidates on the probe events of its log, activate a better one, roll back a worse one
     /// (docs/fleet.md, "The service follows the store").
     Follow(follow::FollowArgs),
+    /// Fit a machine's model again from its seconds and probe events in the store (the
+    /// defaults of `truepos fit --machine`), refuse it where the fit's checks fail, sign it
+    /// and register it as a candidate (docs/fleet.md, "Refit from the store").
+    Refit(refit::RefitArgs),
 }
 
 #[derive(clap::Subcommand)]
@@ -272,6 +278,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
         Command::Rollback(a) => rollback(a),
         Command::Status(a) => status(a),
         Command::Follow(a) => follow::follow(a),
+        Command::Refit(a) => refit::refit(a),
     }
 }
 
@@ -397,32 +404,48 @@ fn verified_and_admitted(a: &RegisterArgs) -> Result<(String, String), CliError>
         return Err(CliError::refused("--period-ms: give 0.1-10000"));
     }
     let machine = truepos_io::machine_file::load(&a.machine_file)?;
+    let keys = TrustedKeys::load(&a.trusted_keys)?;
+    signed_and_admitted(
+        &a.model,
+        &machine,
+        &keys,
+        a.period_ms,
+        &a.machine,
+        &a.machine_file,
+    )
+}
+
+/// [`verified_and_admitted`] with the machine file and the trust list read: `fleet models
+/// register` and `fleet refit` admit a model through this one door.
+fn signed_and_admitted(
+    model: &Path,
+    machine: &truepos_runtime::MachineConfig,
+    keys: &TrustedKeys,
+    period_ms: f64,
+    node_id: &str,
+    machine_file: &Path,
+) -> Result<(String, String), CliError> {
     let node = truepos_fleet::sparkplug::sanitize_id(&machine.machine.name);
-    if node != a.machine {
+    if node != node_id {
         // A machine type's name is allowed; a service of another machine than the file's
         // that fetched the model would refuse it (the loader binds a model to its machine).
         eprintln!(
-            "note: --machine `{}` is not the node id of {} (`{node}`)",
-            a.machine,
-            a.machine_file.display()
+            "note: --machine `{node_id}` is not the node id of {} (`{node}`)",
+            machine_file.display()
         );
     }
-    let keys = TrustedKeys::load(&a.trusted_keys)?;
-    let text = crate::write::read_text(&a.model, truepos_files::MODEL)?;
-    let entry = truepos_io::compensation::entry_of_text(&a.model, &text, &machine, Some(&keys))?;
-    truepos_runtime::admission::admit(&entry, &machine, a.period_ms / 1000.0).map_err(|why| {
-        CliError::refused(format!(
-            "{}: refused at admission: {why}",
-            a.model.display()
-        ))
+    let text = crate::write::read_text(model, truepos_files::MODEL)?;
+    let entry = truepos_io::compensation::entry_of_text(model, &text, machine, Some(keys))?;
+    truepos_runtime::admission::admit(&entry, machine, period_ms / 1000.0).map_err(|why| {
+        CliError::refused(format!("{}: refused at admission: {why}", model.display()))
     })?;
     // The line read again is checked again against the very bytes verified and loaded.
-    let sig_path = signature_path(&a.model);
+    let sig_path = signature_path(model);
     let line = crate::write::read_text(&sig_path, truepos_files::CONFIG)?;
     verify_line(&line, text.as_bytes(), &keys.keys).map_err(|why| {
         CliError::refused(format!(
             "{}: refused: {}: {why}",
-            a.model.display(),
+            model.display(),
             sig_path.display()
         ))
     })?;
@@ -536,11 +559,8 @@ fn get(a: GetArgs) -> Result<(), CliError> {
         source: Box::new(e),
     })?;
     let model = a.out.join(&f.file_name);
-    let sig = signature_path(&model);
-    let line = format!("{}\n", f.signature);
-    // The model first, then its signature: a service reloading on change waits for both.
-    crate::write::write_whole(&model, &f.bytes, &[])?;
-    crate::write::write_whole(&sig, line, &[])?;
+    // As `fleet follow` writes it: both synced, the signature renamed into place first.
+    let sig = follow::write_signed_model(&model, &f.bytes, &f.signature)?;
     println!(
         "{}: version {} ({}) written, with {}",
         model.display(),

@@ -349,14 +349,7 @@ impl Follower {
             return Ok(());
         }
         let events_before = log_after::last_event_row(&self.a.log).unwrap_or(0);
-        let sig = signature_path(&self.a.model);
-        let line = format!("{}\n", active.signature.trim());
-        // Both synced before either rename, the signature renamed first: a reload that reads
-        // the new model reads its signature after it, never the old one.
-        crate::write::write_all_whole(
-            &[(&sig, line.as_bytes()), (&self.a.model, &active.bytes)],
-            &[],
-        )?;
+        let sig = write_signed_model(&self.a.model, &active.bytes, &active.signature)?;
         self.say(&format!(
             "version {} written to {} (sha256 {}), with {}",
             active.version,
@@ -850,6 +843,23 @@ impl Follower {
         }
         Ok(())
     }
+}
+
+/// Writes a signed model as a service reloading on change should see it: the model and its
+/// signature line (`MODEL.sig`) both written and synced to temporary files, then the signature
+/// renamed into place first and at once the model — a reload reads the model before its
+/// signature, so it never loads new bytes with the old signature accepted (one between the
+/// two renames reads the old model with the new signature: refused, and followed by the good
+/// one). Returns the signature's path. Used by `fleet follow` and `fleet models get`.
+pub(super) fn write_signed_model(
+    model: &Path,
+    bytes: &[u8],
+    signature: &str,
+) -> Result<PathBuf, CliError> {
+    let sig = signature_path(model);
+    let line = format!("{}\n", signature.trim());
+    crate::write::write_all_whole(&[(&sig, line.as_bytes()), (model, bytes)], &[])?;
+    Ok(sig)
 }
 
 /// Runs `--after-write`, bounded: what it did, in words.
