@@ -3,7 +3,7 @@
 //! machine file, [`machine`] fits the position-dependent families too; [`report`] writes the
 //! validation as a report. Both use this module's readers; nothing here is defined twice.
 
-mod machine;
+pub(crate) mod machine;
 mod report;
 
 use std::io::IsTerminal;

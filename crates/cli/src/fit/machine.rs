@@ -83,8 +83,54 @@ fn owners(args: &Args, machine: &Machine) -> Result<Vec<Option<usize>>, CliError
     Ok(owners)
 }
 
+/// What [`fit_and_write`] fitted: the runs as one dataset, the fit's outcome, its warnings, the
+/// machine, and the model file's text when `--model` was given (written there).
+pub(crate) struct MachineFit {
+    pub(crate) ds: Dataset,
+    pub(crate) outcome: MachineOutcome,
+    pub(crate) warnings: Vec<String>,
+    pub(crate) machine: Machine,
+    pub(crate) text: Option<String>,
+}
+
 /// Runs `truepos fit --machine MACHINE.toml`.
-pub fn run(mut args: Args, path: &Path) -> Result<(), CliError> {
+pub fn run(args: Args, path: &Path) -> Result<(), CliError> {
+    let json = args.json;
+    let MachineFit {
+        ds,
+        outcome,
+        warnings,
+        machine,
+        ..
+    } = fit_and_write(args, path)?;
+    let sel = &outcome.selection;
+    if json {
+        let report = serde_json::json!({
+            "machine": machine.name,
+            "runs": ds.runs.iter().map(|r| serde_json::json!({"name": r.name, "samples": r.len()})).collect::<Vec<_>>(),
+            "inputs": ds.input_names,
+            "targets": ds.target_names,
+            "validation": outcome.validation,
+            "selection": {
+                "form": form(&sel.chosen),
+                "chosen": sel.labels,
+                "cv_rmse_um": sel.cv_rmse_um,
+                "candidates": sel.candidates,
+            },
+            "folds": outcome.folds,
+            "warnings": warnings,
+        });
+        println!("{}", serde_json::to_string_pretty(&report)?);
+        return Ok(());
+    }
+    print_screen(&ds, &outcome);
+    Ok(())
+}
+
+/// The work of `truepos fit --machine` up to its output on screen: the runs read, every family
+/// fitted and validated, the model refused when implausible (without `--force`), the model and
+/// the predictions written; the warnings printed. `truepos fleet refit` fits through this too.
+pub(crate) fn fit_and_write(mut args: Args, path: &Path) -> Result<MachineFit, CliError> {
     if !path.exists() && path.extension().is_none() {
         return Err(CliError::refused(format!(
             "--machine {}: expected a machine file (TOML); a model fitted without one names \
@@ -184,10 +230,12 @@ pub fn run(mut args: Args, path: &Path) -> Result<(), CliError> {
             .into_iter()
             .map(|w| w.trim_start_matches("warning: ").to_string()),
     );
+    let mut text = None;
     if let Some(out) = &args.model {
-        let text = model_text(out, &ds, &settings, &machine, &outcome, &data)?;
-        warnings.extend(refused_at_load(out, &text, &config));
-        crate::write::write_whole(out, text, &super::input_files(&args))?;
+        let t = model_text(out, &ds, &settings, &machine, &outcome, &data)?;
+        warnings.extend(refused_at_load(out, &t, &config));
+        crate::write::write_whole(out, &t, &super::input_files(&args))?;
+        text = Some(t);
     }
     if let Some(p) = &args.predictions {
         let csv = predictions_csv_of(&ds, &outcome.predictions, &outcome.held_out, true);
@@ -196,28 +244,13 @@ pub fn run(mut args: Args, path: &Path) -> Result<(), CliError> {
     for w in &warnings {
         eprintln!("warning: {w}");
     }
-    let sel = &outcome.selection;
-    if args.json {
-        let report = serde_json::json!({
-            "machine": machine.name,
-            "runs": ds.runs.iter().map(|r| serde_json::json!({"name": r.name, "samples": r.len()})).collect::<Vec<_>>(),
-            "inputs": ds.input_names,
-            "targets": ds.target_names,
-            "validation": outcome.validation,
-            "selection": {
-                "form": form(&sel.chosen),
-                "chosen": sel.labels,
-                "cv_rmse_um": sel.cv_rmse_um,
-                "candidates": sel.candidates,
-            },
-            "folds": outcome.folds,
-            "warnings": warnings,
-        });
-        println!("{}", serde_json::to_string_pretty(&report)?);
-        return Ok(());
-    }
-    print_screen(&ds, &outcome);
-    Ok(())
+    Ok(MachineFit {
+        ds,
+        outcome,
+        warnings,
+        machine,
+        text,
+    })
 }
 
 /// The axes on which the model written predicts, on its own training rows, more than the
@@ -248,14 +281,14 @@ fn beyond_envelope(
     out
 }
 
-fn form(chosen: &Chosen) -> &'static str {
+pub(crate) fn form(chosen: &Chosen) -> &'static str {
     match chosen {
         Chosen::Filtered(_) => "dynamic",
         Chosen::Position(_) => "position-dependent",
     }
 }
 
-fn print_screen(ds: &Dataset, outcome: &MachineOutcome) {
+pub(crate) fn print_screen(ds: &Dataset, outcome: &MachineOutcome) {
     let v = &outcome.validation;
     let sel = &outcome.selection;
     println!("validation: {}", v.protocol_text);
