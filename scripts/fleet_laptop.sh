@@ -8,7 +8,8 @@
 #
 #   bash scripts/fleet_laptop.sh                       # until Ctrl-C
 #   DURATION=20 CHECK=1 bash scripts/fleet_laptop.sh   # stops after 20 s; fails unless the
-#                                                      # status shows three machines online
+#                                                      # status shows three machines online,
+#                                                      # also on its page in headless Chromium
 set -euo pipefail
 cd "$(dirname "$0")/.."
 MOSQUITTO=$(command -v mosquitto || echo /usr/sbin/mosquitto)
@@ -80,6 +81,18 @@ if online != ["vmc-1", "vmc-2", "vmc-3"]:
     sys.exit(f"fleet_laptop: expected vmc-1, vmc-2, vmc-3 online, got {online}")
 print("fleet_laptop: three machines online")
 PY
+    # The same status as a page, in a real browser: three rows drawn from /api/fleet.
+    webport=$(free_port)
+    "$truepos" fleet status --db "$db" --http "127.0.0.1:$webport" --duration-s 120 2>"$dir/view.err" &
+    pids+=("$!")
+    for _ in $(seq 100); do (echo >/dev/tcp/127.0.0.1/$webport) 2>/dev/null && break; sleep 0.1; done
+    chrome=(timeout 60 /usr/bin/chromium --headless --no-sandbox --disable-gpu --no-first-run
+      --hide-scrollbars --virtual-time-budget=3000 --user-data-dir="$dir/chromium")
+    rows=$("${chrome[@]}" --dump-dom "http://127.0.0.1:$webport/" 2>/dev/null | grep -o 'data-machine="vmc-[0-9]"' | sort -u | wc -l)
+    [ "$rows" = 3 ] || { echo "fleet_laptop: the fleet page drew $rows machines, not 3" >&2; exit 1; }
+    mkdir -p target
+    "${chrome[@]}" --window-size=1100,400 --screenshot="$PWD/target/fleet_view.png" "http://127.0.0.1:$webport/" >/dev/null 2>&1
+    echo "fleet_laptop: the fleet page in Chromium shows the three machines (target/fleet_view.png)"
   fi
 else
   wait

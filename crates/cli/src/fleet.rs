@@ -19,6 +19,7 @@ use crate::error::CliError;
 
 mod follow;
 mod refit;
+mod view;
 
 /// How long `truepos run` forwards what is left after the service stopped, at most; what is not
 /// acknowledged by then stays in the log and goes with the next start.
@@ -219,6 +220,17 @@ struct StatusArgs {
     /// JSON instead of the table.
     #[arg(long)]
     json: bool,
+    /// Serve the status as a page that reads it again every 5 s (and as JSON, `/api/fleet`) on
+    /// ADDR until Ctrl-C: `127.0.0.1:8090`, or a port alone for loopback; beyond loopback a
+    /// token is needed, as for the live view (docs/live_view.md).
+    #[arg(long, value_name = "ADDR")]
+    http: Option<String>,
+    /// The page's token: the first line of FILE (at least 16 characters).
+    #[arg(long, value_name = "FILE")]
+    http_token_file: Option<PathBuf>,
+    /// With --http, stop after this many seconds.
+    #[arg(long)]
+    duration_s: Option<f64>,
 }
 
 #[derive(clap::Args)]
@@ -676,7 +688,14 @@ fn status_row(s: &MachineStatus) -> String {
 }
 
 fn status(a: StatusArgs) -> Result<(), CliError> {
+    let http = truepos_live::host::HttpArgs::check(a.http.as_deref(), a.http_token_file.as_deref())
+        .map_err(CliError::refused)?;
     let mut db = connect(&a.store)?;
+    if let Some(http) = http {
+        drop(db);
+        let duration = seconds("--duration-s", a.duration_s)?;
+        return view::serve(&a.store.db, http, duration);
+    }
     let all = truepos_fleet_store::status::fleet(&mut db)
         .map_err(|e| CliError::refused(format!("--db: PostgreSQL: {e}")))?;
     if a.json {

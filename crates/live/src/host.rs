@@ -19,8 +19,8 @@ const LOG_HEALTH_EVERY: Duration = Duration::from_secs(1);
 /// The checked `--http` options.
 #[derive(Debug)]
 pub struct HttpArgs {
-    addr: SocketAddr,
-    token: Option<String>,
+    pub(crate) addr: SocketAddr,
+    pub(crate) token: Option<String>,
 }
 
 /// `ADDR` as `host:port`, or a port alone (then loopback, 127.0.0.1).

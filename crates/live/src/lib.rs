@@ -30,6 +30,7 @@
 
 pub mod access;
 pub mod api;
+pub mod fleet;
 pub mod host;
 pub mod http;
 pub mod info;
@@ -58,7 +59,7 @@ pub const PAGE: &str = include_str!("page.html");
 /// Stack of each of the server's threads (accepting, one per connection, sampler): small, since
 /// the LinuxCNC component locks its memory (`mlockall` with `MCL_FUTURE`), every thread's stack
 /// included; with at most [`http::MAX_CONNECTIONS`] connections, 13 MiB at most in all.
-const STACK_BYTES: usize = 512 * 1024;
+pub(crate) const STACK_BYTES: usize = 512 * 1024;
 /// Buckets of a history unless asked otherwise, and the most asked.
 const BUCKETS: usize = 1500;
 const MAX_BUCKETS: usize = 20_000;
@@ -237,7 +238,7 @@ fn gzip(body: &[u8]) -> Option<Vec<u8>> {
     e.finish().ok()
 }
 
-fn respond(rq: Request, status: u16, content_type: &str, body: String) {
+pub(crate) fn respond(rq: Request, status: u16, content_type: &str, body: String) {
     let zipped = (body.len() >= GZIP_FROM && takes_gzip(&rq))
         .then(|| gzip(body.as_bytes()))
         .flatten();
@@ -256,19 +257,15 @@ fn respond(rq: Request, status: u16, content_type: &str, body: String) {
     }
 }
 
-fn respond_json(rq: Request, status: u16, v: &Value) {
+pub(crate) fn respond_json(rq: Request, status: u16, v: &Value) {
     respond(rq, status, "application/json; charset=utf-8", v.to_string());
 }
 
-fn handle(rq: Request, s: &Shared) {
-    let url = rq.url().to_string();
-    let path = url.split('?').next().unwrap_or("");
-    let query_token = access::query_param(&url, "token");
-    if !access::allowed(
-        s.token.as_deref(),
-        rq.header("Authorization"),
-        query_token.as_deref(),
-    ) {
+/// The request if it may be answered: it carries the token (when one is set) and reads
+/// (`GET`, `HEAD`); else it is answered 401 or 405 here and `None` comes back.
+pub(crate) fn gate(rq: Request, token: Option<&str>) -> Option<Request> {
+    let query_token = access::query_param(rq.url(), "token");
+    if !access::allowed(token, rq.header("Authorization"), query_token.as_deref()) {
         rq.respond(
             401,
             &[
@@ -277,7 +274,7 @@ fn handle(rq: Request, s: &Shared) {
             ],
             b"a token is required: header `Authorization: Bearer TOKEN` or `?token=TOKEN`\n",
         );
-        return;
+        return None;
     }
     if rq.method() != "GET" && rq.method() != "HEAD" {
         respond(
@@ -286,8 +283,17 @@ fn handle(rq: Request, s: &Shared) {
             "text/plain; charset=utf-8",
             "read-only: GET only\n".into(),
         );
-        return;
+        return None;
     }
+    Some(rq)
+}
+
+fn handle(rq: Request, s: &Shared) {
+    let url = rq.url().to_string();
+    let path = url.split('?').next().unwrap_or("");
+    let Some(rq) = gate(rq, s.token.as_deref()) else {
+        return;
+    };
     match path {
         "/" | "/index.html" => respond(rq, 200, "text/html; charset=utf-8", PAGE.to_string()),
         "/api/info" => respond_json(rq, 200, &json!(s.info)),
