@@ -14,6 +14,8 @@
 //! hand while the follower runs, is written, reloaded, judged on the probes after the reload
 //! and rolled back. With no follower running, H is shadowed and retired by `fleet follow
 //! --once` run again and again, each run going on from the cursor the last left.
+//!
+//! Beside it: a candidate signed by a key the follower's trust list lacks is left a candidate.
 
 #[path = "support/postgres.rs"]
 mod postgres_cluster;
@@ -669,4 +671,58 @@ fn the_follower_refuses_a_tampered_model_activates_a_better_one_and_rolls_back_a
         "took {:?}",
         started.elapsed()
     );
+}
+
+/// A follower whose trust list lacks the key a candidate was signed with (another site's
+/// follower may hold it) is set up wrong, not the model: the candidate stays a candidate.
+#[test]
+fn a_candidate_signed_by_a_key_the_follower_does_not_trust_is_left_a_candidate() {
+    let dir = scratch("fleet-follow-local");
+    let pg = Postgres::start(&dir);
+    let key = dir.join("builder.key");
+    let other = dir.join("other.key");
+    ok(run_words(&["sign", "--new-key"], &[("", &key)]));
+    ok(run_words(&["sign", "--new-key"], &[("", &other)]));
+    // The store's door trusts both keys; the follower only the builder's.
+    let both = dir.join("both.pub");
+    let text = std::fs::read_to_string(dir.join("builder.key.pub")).unwrap()
+        + &std::fs::read_to_string(dir.join("other.key.pub")).unwrap();
+    std::fs::write(&both, text).unwrap();
+    let f = Fixture {
+        trusted: both,
+        machine_file: repo("examples/vmc3/machine.toml"),
+        key,
+        pg,
+    };
+    let spindle = "k_um_per_k = 3.1";
+    let a = signed_model(&dir, &f.key, "a", spindle, spindle);
+    let x = signed_model(&dir, &other, "x", spindle, "k_um_per_k = 3.2");
+    f.register(&a);
+    f.fleet(&["activate", "--machine", MACHINE, "--version", "1"], &[]);
+    f.register(&x);
+    let model = dir.join("service.toml");
+    std::fs::copy(&a, &model).unwrap();
+    std::fs::copy(
+        a.with_file_name("model.toml.sig"),
+        dir.join("service.toml.sig"),
+    )
+    .unwrap();
+    for _ in 0..2 {
+        let out = f.fleet(
+            &["follow", "--machine", MACHINE, "--once"],
+            &[
+                ("--machine-file", &f.machine_file),
+                ("--log", &dir.join("none.sqlite")),
+                ("--model", &model),
+                ("--trusted-keys", &dir.join("builder.key.pub")),
+            ],
+        );
+        assert!(
+            out.contains("version 2 not taken: signed by") && out.contains("left a candidate"),
+            "{out}"
+        );
+    }
+    assert_eq!(f.state(2), "candidate");
+    // Registered, nothing since.
+    assert_eq!(f.history(2).len(), 1, "{:?}", f.history(2));
 }
