@@ -8,16 +8,21 @@
 //!    rollback, by hand or by this follower), the active model is fetched, checked (SHA-256,
 //!    signature under `--trusted-keys`, loaded for the machine) and written with its `.sig`
 //!    (the signature renamed into place first, both synced before either rename);
-//! 2. a candidate is fetched and checked the same way: refused, it is retired with the reason;
-//!    else it becomes the shadow;
-//! 3. the accepted probe events the log gained are evaluated with the shadow (and, after an
-//!    activation, with the new model's parent) and stored (`fleet_shadow_probes`) — after a
-//!    file written, only those from the service's `model-reloaded` event on;
-//! 4. the rules of `truepos_fleet_store::shadow` decide: activate or retire the shadow, roll
-//!    the new model back.
+//! 2. a candidate is fetched and checked the same way: refused, it is retired with the reason
+//!    (unless the refusal is this follower's setup: a key its trust list lacks, another file
+//!    extension — then it stays a candidate); else it becomes the shadow;
+//! 3. the accepted probe events the log gained (only the rows after the cursor are read) are
+//!    evaluated with the shadow (and, after an activation, with the new model's parent until
+//!    it is kept or rolled back) and stored (`fleet_shadow_probes`) under the version whose
+//!    bytes the file holds — after a file written, only those after the service's
+//!    `model-reloaded` event;
+//! 4. the rules of `truepos_fleet_store::shadow` decide: activate or retire the shadow, keep
+//!    or roll back the new model — a move only while the store's active model is still the
+//!    one judged.
 //!
-//! The cursor in the log's probes and the awaited reload live in `LOG.follow-cursor`, so a
-//! follower restarted, or run `--once` from a timer, goes on where the last one stopped.
+//! The cursor in the log's probes, the awaited reload and the run of the log they belong to
+//! live in `LOG.follow-cursor`, so a follower restarted, or run `--once` from a timer, goes on
+//! where the last one stopped.
 
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
@@ -94,7 +99,7 @@ struct Evaluated {
     from_row: i64,
 }
 
-/// A model activated while following, judged against its parent.
+/// A model activated while following, judged against its parent until kept or rolled back.
 struct Watch {
     /// The active version watched.
     active: i32,
