@@ -726,3 +726,182 @@ fn a_candidate_signed_by_a_key_the_follower_does_not_trust_is_left_a_candidate()
     // Registered, nothing since.
     assert_eq!(f.history(2).len(), 1, "{:?}", f.history(2));
 }
+
+/// A service's log with a probes table as `truepos run` writes it (the example machine's
+/// columns), its rows taken from the example run: a Z probe measured 1 µm off what it logged.
+struct HandLog {
+    conn: rusqlite::Connection,
+    run: Vec<Vec<String>>,
+    header: Vec<String>,
+}
+
+impl HandLog {
+    fn create(path: &Path) -> Self {
+        let text = std::fs::read_to_string(repo("examples/vmc3/run.csv")).unwrap();
+        let mut lines = text.lines();
+        let header: Vec<String> = lines.next().unwrap().split(',').map(String::from).collect();
+        let run = lines
+            .map(|l| l.split(',').map(String::from).collect())
+            .collect();
+        let conn = rusqlite::Connection::open(path).unwrap();
+        let machine = truepos_io::machine_file::load(&repo("examples/vmc3/machine.toml")).unwrap();
+        let m = &machine.machine;
+        let mut cols: Vec<String> = ["time_s", "status", "reason", "state"]
+            .map(String::from)
+            .to_vec();
+        for a in &m.axes {
+            cols.extend(truepos_runtime::log::probe_axis_columns(&a.name));
+        }
+        cols.extend(m.axes.iter().map(|a| format!("{}_mm", a.name)));
+        cols.extend(m.temperatures.iter().map(|t| t.id.clone()));
+        cols.extend(m.operating.iter().map(|o| o.id.clone()));
+        let defs: Vec<String> = cols.iter().map(|c| format!("\"{c}\"")).collect();
+        conn.execute_batch(&format!(
+            "CREATE TABLE meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
+             CREATE TABLE events (time_s REAL NOT NULL, kind TEXT NOT NULL,
+                 subject TEXT NOT NULL, detail TEXT NOT NULL);
+             CREATE TABLE probes ({});",
+            defs.join(", ")
+        ))
+        .unwrap();
+        HandLog { conn, run, header }
+    }
+
+    /// The service (re)started at `unix_s`.
+    fn start(&self, unix_s: f64) {
+        self.conn
+            .execute(
+                "INSERT OR REPLACE INTO meta (key, value) VALUES ('service', ?1)",
+                [serde_json::json!({ "started_unix_s": unix_s }).to_string()],
+            )
+            .unwrap();
+    }
+
+    /// A probe at service time `time_s` with the inputs of the example run's row `row`.
+    fn probe(&self, time_s: f64, row: usize) {
+        let v = |name: &str| -> f64 {
+            let i = self.header.iter().position(|h| h == name).unwrap();
+            self.run[row][i].parse().unwrap()
+        };
+        let mut names = vec!["time_s", "status", "reason", "state"];
+        let mut values: Vec<rusqlite::types::Value> = vec![
+            time_s.into(),
+            "accepted".to_string().into(),
+            String::new().into(),
+            "compensating".to_string().into(),
+        ];
+        let (x, y, z) = (v("X_mm"), v("Y_mm"), v("Z_mm"));
+        for (n, val) in [
+            ("probe_x_mm", x),
+            ("probe_y_mm", y),
+            ("probe_z_mm", z),
+            ("probe_dz_um", 11.0),
+            ("predicted_dz_um", 10.0),
+        ] {
+            names.push(n);
+            values.push(val.into());
+        }
+        let inputs: Vec<String> = self
+            .header
+            .iter()
+            .filter(|h| *h != "time_s")
+            .cloned()
+            .collect();
+        for h in &inputs {
+            names.push(h);
+            values.push(v(h).into());
+        }
+        let quoted: Vec<String> = names.iter().map(|n| format!("\"{n}\"")).collect();
+        self.conn
+            .execute(
+                &format!(
+                    "INSERT INTO probes ({}) VALUES ({})",
+                    quoted.join(", "),
+                    vec!["?"; names.len()].join(", ")
+                ),
+                rusqlite::params_from_iter(values),
+            )
+            .unwrap();
+    }
+}
+
+/// A service started again appends a new run to its log, its service time from 0: the
+/// follower stamps each probe with the start of its own run, and the reload time it kept from
+/// the old run does not hold the new run's probes back (the file is the active model: the
+/// new run loaded it at its start).
+#[test]
+fn a_new_run_in_the_log_is_judged_from_its_own_start() {
+    let dir = scratch("fleet-follow-runs");
+    let pg = Postgres::start(&dir);
+    let key = dir.join("builder.key");
+    ok(run_words(&["sign", "--new-key"], &[("", &key)]));
+    let f = Fixture {
+        trusted: dir.join("builder.key.pub"),
+        machine_file: repo("examples/vmc3/machine.toml"),
+        key,
+        pg,
+    };
+    let spindle = "k_um_per_k = 3.1";
+    let a = signed_model(&dir, &f.key, "a", spindle, spindle);
+    let b = signed_model(&dir, &f.key, "b", spindle, "k_um_per_k = 3.3");
+    f.register(&a);
+    f.fleet(&["activate", "--machine", MACHINE, "--version", "1"], &[]);
+    f.register(&b);
+    let model = dir.join("service.toml");
+    std::fs::copy(&a, &model).unwrap();
+    std::fs::copy(
+        a.with_file_name("model.toml.sig"),
+        dir.join("service.toml.sig"),
+    )
+    .unwrap();
+    let log_path = dir.join("service.sqlite");
+    let log = HandLog::create(&log_path);
+    log.start(1_000_000.0);
+    for (i, t) in [10.0, 20.0, 30.0].into_iter().enumerate() {
+        log.probe(t, i + 1);
+    }
+    let once = || {
+        f.fleet(
+            &["follow", "--machine", MACHINE, "--once"],
+            &[
+                ("--machine-file", &f.machine_file),
+                ("--log", &log_path),
+                ("--model", &model),
+                ("--trusted-keys", &f.trusted),
+            ],
+        )
+    };
+    // B shadowed, the cursor at the log's end (row 3).
+    let out = once();
+    assert!(out.contains("version 2 in shadow"), "{out}");
+    let cursor_file = dir.join("service.sqlite.follow-cursor");
+    let mut cursor: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&cursor_file).unwrap()).unwrap();
+    assert_eq!(cursor["run_started_unix_s"], 1_000_000.0, "{cursor}");
+    // The old run's reload at its 45 s (as if the follower had written a file then).
+    cursor["reload"] = serde_json::json!({ "events_before": 0, "at_s": 45.0 });
+    std::fs::write(&cursor_file, cursor.to_string()).unwrap();
+    // The old run's tail (rows 4, 5), then the service started again 100 s later (rows 6, 7).
+    log.probe(40.0, 4);
+    log.probe(50.0, 5);
+    log.start(1_000_100.0);
+    log.probe(5.0, 6);
+    log.probe(15.0, 7);
+    let out = once();
+    assert!(out.contains("the service started again"), "{out}");
+    // Row 4 (before the old reload) is left out; row 5 carries the old run's start, 6 and 7
+    // the new run's.
+    let stored = f.pg.query(
+        "SELECT log_row || ' ' || round(extract(epoch FROM t))::bigint FROM fleet_shadow_probes \
+         WHERE version = 2 ORDER BY log_row",
+    );
+    assert_eq!(
+        stored.lines().collect::<Vec<_>>(),
+        ["5 1000050", "6 1000105", "7 1000115"],
+        "{out}"
+    );
+    let cursor: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&cursor_file).unwrap()).unwrap();
+    assert_eq!(cursor["run_started_unix_s"], 1_000_100.0, "{cursor}");
+    assert_eq!(cursor["probes_row"], 7, "{cursor}");
+}

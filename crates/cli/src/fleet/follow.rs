@@ -155,8 +155,9 @@ pub fn follow(a: FollowArgs) -> Result<(), CliError> {
     let db = connect(&a.store)?;
     // Where the last follower of this log stopped; without one, the log's end: probes already
     // in it came before anything this follower shadows.
-    let (cursor, reload, run) =
-        load_cursor(&a.log).unwrap_or_else(|| (last_probe_row(&a.log), None, None));
+    let loaded = load_cursor(&a.log);
+    let fresh = loaded.is_none();
+    let (cursor, reload, run) = loaded.unwrap_or_else(|| (last_probe_row(&a.log), None, None));
     // A cursor file of a follower before runs were kept: the run in the log now.
     let run = run.or_else(|| run_of(&a.log));
     let mut f = Follower {
@@ -173,6 +174,11 @@ pub fn follow(a: FollowArgs) -> Result<(), CliError> {
         said: String::new(),
         a,
     };
+    if fresh && f.a.log.exists() {
+        // Kept at once: a `--once` run from a timer that reads nothing new leaves the next one
+        // this log's end, not the end of the log as it will be then.
+        f.save()?;
+    }
     loop {
         if let Err(e) = f.round() {
             if f.a.once {
