@@ -15,7 +15,8 @@ bash scripts/install_prometheus.sh    # promtool (Debian `prometheus`), to check
 echo "== unit, integration and doc tests of every crate"
 # Among them the fleet's, against Mosquitto and PostgreSQL 15 started on loopback by the tests:
 # crates/cli/tests/fleet_mqtt.rs (telemetry, store), fleet_models.rs (models, fleet status) and
-# fleet_follow.rs (a service's models shadowed, activated and rolled back by fleet follow).
+# fleet_follow.rs (a service's models shadowed, activated and rolled back by fleet follow),
+# fleet_refit.rs (probe events into the store, a model refitted from it, signed, registered).
 cargo test --workspace
 
 echo "== fault campaign: 10 000 random fault schedules, the output invariant checked every cycle (release)"
