@@ -6,7 +6,7 @@
 //! A refit of the first minutes (too few probes) is refused with nothing registered; a refit of
 //! everything registers a signed candidate whose parent is the active model, whose provenance
 //! names the store, machine, range, rows and probes and whose validation is the fit's; `fleet
-//! models get --trusted-keys` accepts it.
+//! models get --trusted-keys` accepts it, and `fleet follow --once` makes it the shadow.
 
 #[path = "support/mosquitto.rs"]
 mod mosquitto;
@@ -352,10 +352,42 @@ fn a_machine_refitted_from_the_store_becomes_a_signed_candidate() {
         "--trusted-keys",
         &trusted,
     ]));
-    assert!(got.join("model.json").is_file() && got.join("model.json.sig").is_file());
+    // Stored as the active model's kind (TOML), so a follower of a TOML model file takes it.
+    assert!(got.join("model.toml").is_file() && got.join("model.toml.sig").is_file());
     assert_eq!(
-        std::fs::read(got.join("model.json")).unwrap(),
-        std::fs::read(out.join("model.json")).unwrap()
+        std::fs::read(got.join("model.toml")).unwrap(),
+        std::fs::read(out.join("model.toml")).unwrap()
+    );
+    // `fleet follow` shadows it like any candidate (one round beside the service's log and
+    // model file, which holds the active version 1).
+    let service = dir.join("service");
+    std::fs::create_dir_all(&service).unwrap();
+    std::fs::copy(&active, service.join("model.toml")).unwrap();
+    std::fs::copy(
+        active_dir.join("model.toml.sig"),
+        service.join("model.toml.sig"),
+    )
+    .unwrap();
+    ok(truepos(&[
+        "fleet",
+        "follow",
+        "--db",
+        &pg.url(),
+        "--machine",
+        MACHINE,
+        "--machine-file",
+        machine_file,
+        "--log",
+        log.to_str().unwrap(),
+        "--model",
+        service.join("model.toml").to_str().unwrap(),
+        "--trusted-keys",
+        &trusted,
+        "--once",
+    ]));
+    assert_eq!(
+        pg.query("SELECT state FROM fleet_models WHERE machine = 'vmc-3axis' AND version = 2"),
+        "shadow"
     );
     eprintln!(
         "refit: {} probe events logged and stored, {seconds} seconds; run {run_s:.1} s; \

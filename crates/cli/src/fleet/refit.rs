@@ -43,7 +43,8 @@ pub struct RefitArgs {
     /// Only data before this time.
     #[arg(long, value_name = "TIME")]
     until: Option<String>,
-    /// Where the run (`run.csv`), the model (`model.json`) and its signature are written.
+    /// Where the run (`run.csv`), the model (`model.toml` when the machine's active model is
+    /// TOML, else `model.json`) and its signature are written.
     #[arg(long, value_name = "DIR", default_value = "refit")]
     out: PathBuf,
     /// Refuse with fewer accepted probe events than this in the range (1–1000000).
@@ -265,7 +266,22 @@ pub fn refit(a: RefitArgs) -> Result<(), CliError> {
     std::fs::create_dir_all(&a.out)
         .map_err(|e| CliError::refused(format!("--out {}: {e}", a.out.display())))?;
     let csv_path = a.out.join("run.csv");
-    let model_path = a.out.join("model.json");
+    // The model file's kind follows the active model's, so that the `fleet follow` that runs
+    // it (whose --model has that extension) takes the candidate: `model.toml` beside a TOML
+    // model (a fit that chooses the dynamic form, JSON only, is then refused naming why),
+    // else `model.json`, which holds either form.
+    let active_name: Option<String> = db
+        .query_opt(
+            "SELECT file_name FROM fleet_models WHERE machine = $1 AND state = 'active'",
+            &[&a.machine],
+        )
+        .map_err(|e| CliError::refused(format!("--db: PostgreSQL: {e}")))?
+        .map(|r| r.get(0));
+    let file_name = match active_name.as_deref().map(|n| n.to_ascii_lowercase()) {
+        Some(n) if n.ends_with(".toml") => "model.toml",
+        _ => "model.json",
+    };
+    let model_path = a.out.join(file_name);
     crate::write::write_whole(&csv_path, run.csv(), &[])?;
     let first = *run.rows.keys().next().expect("seconds exist");
     let last = *run.rows.keys().last().expect("seconds exist");
@@ -380,7 +396,7 @@ pub fn refit(a: RefitArgs) -> Result<(), CliError> {
         &mut db,
         &NewModel {
             machine: &a.machine,
-            file_name: "model.json",
+            file_name,
             bytes: text.as_bytes(),
             signature: &line,
             public_key: &public_key,
