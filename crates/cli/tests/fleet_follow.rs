@@ -214,6 +214,14 @@ fn reload_events(log: &Path) -> Vec<(f64, String, String)> {
         .collect()
 }
 
+/// The reloads that loaded.
+fn reloaded(log: &Path) -> usize {
+    reload_events(log)
+        .iter()
+        .filter(|e| e.1 == "model-reloaded")
+        .count()
+}
+
 #[test]
 fn the_follower_refuses_a_tampered_model_activates_a_better_one_and_rolls_back_a_worse_one() {
     let started = Instant::now();
@@ -430,7 +438,7 @@ fn the_follower_refuses_a_tampered_model_activates_a_better_one_and_rolls_back_a
     // and exits (its watch gone with it); the follower started next finds D in the file,
     // judges it against its parent B on the probes from then on, and rolls back.
     drop(follower);
-    let reloads_before = reload_events(&log).len();
+    let reloads_before = reloaded(&log);
     f.register(&d);
     f.fleet(
         &[
@@ -486,7 +494,7 @@ fn the_follower_refuses_a_tampered_model_activates_a_better_one_and_rolls_back_a
     );
     let deadline = Instant::now() + Duration::from_secs(20);
     while std::fs::read(&model).unwrap() != std::fs::read(&b).unwrap()
-        || reload_events(&log).len() < reloads_before + 2
+        || reloaded(&log) < reloads_before + 2
     {
         assert!(
             Instant::now() < deadline,
@@ -507,9 +515,20 @@ fn the_follower_refuses_a_tampered_model_activates_a_better_one_and_rolls_back_a
         v[0], v[1], v[2]
     );
     assert!(v[0] >= 4.0 && v[1] > 1.1 * v[2], "{figures}");
-    // Every reload loaded: the signature was always there for the model it came with.
+    // Every reload loaded, but one that fell between the two renames (the old model read with
+    // the new signature: refused, the running model stays), and that one followed by a good
+    // one: never new bytes under an old signature.
     let events = reload_events(&log);
-    assert!(events.iter().all(|e| e.1 == "model-reloaded"), "{events:?}");
+    for (i, e) in events.iter().enumerate() {
+        if e.1 != "model-reloaded" {
+            assert!(
+                e.2.contains("the signature does not match the file")
+                    && events[i + 1..].iter().any(|n| n.1 == "model-reloaded"),
+                "{events:?}"
+            );
+        }
+    }
+    assert_eq!(events.last().map(|e| e.1.as_str()), Some("model-reloaded"));
     // E, a little worse than B, shadowed and retired after twice the minimum.
     f.register(&e);
     f.wait_state(5, "retired", 40, &said);
@@ -904,4 +923,85 @@ fn a_new_run_in_the_log_is_judged_from_its_own_start() {
         serde_json::from_str(&std::fs::read_to_string(&cursor_file).unwrap()).unwrap();
     assert_eq!(cursor["run_started_unix_s"], 1_000_100.0, "{cursor}");
     assert_eq!(cursor["probes_row"], 7, "{cursor}");
+}
+
+/// The store's active model refused by the follower (its bytes changed in the store) is not
+/// written: the service runs the file it has, and the residuals are filed under that file's
+/// version; a file the store does not hold at all files nothing.
+#[test]
+fn residuals_are_filed_under_the_version_the_file_holds() {
+    let dir = scratch("fleet-follow-running");
+    let pg = Postgres::start(&dir);
+    let key = dir.join("builder.key");
+    ok(run_words(&["sign", "--new-key"], &[("", &key)]));
+    let f = Fixture {
+        trusted: dir.join("builder.key.pub"),
+        machine_file: repo("examples/vmc3/machine.toml"),
+        key,
+        pg,
+    };
+    let spindle = "k_um_per_k = 3.1";
+    let a = signed_model(&dir, &f.key, "a", spindle, spindle);
+    let b = signed_model(&dir, &f.key, "b", spindle, "k_um_per_k = 3.3");
+    let c = signed_model(&dir, &f.key, "c", spindle, "k_um_per_k = 3.5");
+    f.register(&a);
+    f.fleet(&["activate", "--machine", MACHINE, "--version", "1"], &[]);
+    f.register(&b);
+    f.register(&c);
+    f.fleet(&["activate", "--machine", MACHINE, "--version", "3"], &[]);
+    f.pg.query(
+        "UPDATE fleet_models SET model = model || '\\x230a'::bytea, \
+         sha256 = encode(sha256(model || '\\x230a'::bytea), 'hex') \
+         WHERE machine = 'vmc-3axis' AND version = 3 RETURNING version",
+    );
+    let model = dir.join("service.toml");
+    std::fs::copy(&a, &model).unwrap();
+    std::fs::copy(
+        a.with_file_name("model.toml.sig"),
+        dir.join("service.toml.sig"),
+    )
+    .unwrap();
+    let log_path = dir.join("service.sqlite");
+    let log = HandLog::create(&log_path);
+    log.start(1_000_000.0);
+    log.probe(10.0, 1);
+    let once = || {
+        f.fleet(
+            &["follow", "--machine", MACHINE, "--once"],
+            &[
+                ("--machine-file", &f.machine_file),
+                ("--log", &log_path),
+                ("--model", &model),
+                ("--trusted-keys", &f.trusted),
+            ],
+        )
+    };
+    let out = once();
+    assert!(
+        out.contains("active version 3 refused") && out.contains("version 2 in shadow"),
+        "{out}"
+    );
+    log.probe(20.0, 2);
+    log.probe(30.0, 3);
+    let out = once();
+    let filed = |f: &Fixture| {
+        f.pg.query(
+            "SELECT log_row || ' ' || active_version FROM fleet_shadow_probes \
+             WHERE version = 2 ORDER BY log_row",
+        )
+    };
+    assert_eq!(
+        filed(&f).lines().collect::<Vec<_>>(),
+        ["2 1", "3 1"],
+        "{out}"
+    );
+    // Bytes the store does not hold: nothing filed, said.
+    let mut text = std::fs::read_to_string(&a).unwrap();
+    text.push_str("# changed by hand\n");
+    std::fs::write(&model, text).unwrap();
+    log.probe(40.0, 4);
+    let out = once();
+    assert!(out.contains("is no model of the store"), "{out}");
+    assert_eq!(filed(&f).lines().count(), 2, "{out}");
+    assert_eq!(f.state(3), "active");
 }
