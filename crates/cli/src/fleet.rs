@@ -442,7 +442,8 @@ fn signed_and_admitted(
         // A machine type's name is allowed; a service of another machine than the file's
         // that fetched the model would refuse it (the loader binds a model to its machine).
         eprintln!(
-            "note: --machine `{node_id}` is not the node id of {} (`{node}`)",
+            "note: --machine `{node_id}` is not the node id of {} (`{node}`): right for a \
+             service started with --mqtt-node `{node_id}`",
             machine_file.display()
         );
     }

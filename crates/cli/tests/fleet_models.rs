@@ -11,34 +11,14 @@ mod postgres_cluster;
 mod support;
 
 use std::path::{Path, PathBuf};
-use std::process::Stdio;
 use std::time::{Duration, Instant};
 
 use postgres_cluster::Postgres;
-use support::{command, repo, scratch};
+use support::{repo, scratch};
 
-/// Runs the binary with a deadline: (success, stdout, stderr).
+/// Runs the binary with a deadline of 60 s: (success, stdout, stderr).
 fn truepos(args: &[&std::ffi::OsStr]) -> (bool, String, String) {
-    let mut child = command()
-        .args(args)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let start = Instant::now();
-    while child.try_wait().unwrap().is_none() {
-        if start.elapsed() > Duration::from_secs(60) {
-            let _ = child.kill();
-            panic!("truepos {args:?} ran longer than 60 s");
-        }
-        std::thread::sleep(Duration::from_millis(20));
-    }
-    let out = child.wait_with_output().unwrap();
-    (
-        out.status.success(),
-        String::from_utf8_lossy(&out.stdout).to_string(),
-        String::from_utf8_lossy(&out.stderr).to_string(),
-    )
+    support::run_within(args, Duration::from_secs(60))
 }
 
 fn os(words: &[&str]) -> Vec<std::ffi::OsString> {

@@ -27,26 +27,7 @@ const MACHINE: &str = "vmc-3axis";
 
 /// Runs the binary with a deadline of 120 s: (success, stdout, stderr).
 fn truepos(args: &[&str]) -> (bool, String, String) {
-    let mut child = command()
-        .args(args)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let start = Instant::now();
-    while child.try_wait().unwrap().is_none() {
-        if start.elapsed() > Duration::from_secs(120) {
-            let _ = child.kill();
-            panic!("truepos {args:?} ran longer than 120 s");
-        }
-        std::thread::sleep(Duration::from_millis(20));
-    }
-    let out = child.wait_with_output().unwrap();
-    (
-        out.status.success(),
-        String::from_utf8_lossy(&out.stdout).to_string(),
-        String::from_utf8_lossy(&out.stderr).to_string(),
-    )
+    support::run_within(args, Duration::from_secs(120))
 }
 
 fn ok(r: (bool, String, String)) -> String {

@@ -30,16 +30,20 @@ use std::time::{Duration, Instant};
 use truepos_fleet_store::models::{self, Change, ModelFile, State, Which};
 use truepos_fleet_store::postgres::Client;
 use truepos_fleet_store::shadow::{self, Rule, ShadowDecision, WatchDecision};
-use truepos_fleet_store::shadow_probes::{self, ShadowProbe};
+use truepos_fleet_store::shadow_probes;
 use truepos_io::signature::{public_hex, signature_path, verify_line, TrustedKeys};
 use truepos_model::config::MachineConfig;
-use truepos_model::{CompensationModel, CycleInput};
+use truepos_model::CompensationModel;
 use truepos_runtime::log;
 
 use super::{connect, store_error, Store};
 
+mod after_write;
+mod layout;
 mod log_after;
 use crate::error::CliError;
+use after_write::after_write;
+use layout::Layout;
 
 /// Arguments of `truepos fleet follow`.
 #[derive(clap::Args)]
@@ -874,52 +878,6 @@ pub(super) fn write_signed_model(
     Ok(sig)
 }
 
-/// Runs `--after-write`, bounded: what it did, in words. The command runs in a process group
-/// of its own, killed whole when it overruns (not only `sh`: what it started too).
-fn after_write(cmd: &str, model: &Path, version: i32) -> String {
-    after_write_within(cmd, model, version, Duration::from_secs(30))
-}
-
-fn after_write_within(cmd: &str, model: &Path, version: i32, limit: Duration) -> String {
-    use std::os::unix::process::CommandExt;
-    let child = std::process::Command::new("sh")
-        .process_group(0)
-        .arg("-c")
-        .arg(cmd)
-        .env("TRUEPOS_MODEL", model)
-        .env("TRUEPOS_MODEL_VERSION", version.to_string())
-        .stdin(std::process::Stdio::null())
-        .spawn();
-    let mut child = match child {
-        Ok(c) => c,
-        Err(e) => return format!("--after-write: cannot start `sh`: {e}"),
-    };
-    let start = Instant::now();
-    loop {
-        match child.try_wait() {
-            Ok(Some(status)) if status.success() => return "--after-write: done".into(),
-            Ok(Some(status)) => return format!("--after-write: failed ({status})"),
-            Ok(None) if start.elapsed() > limit => {
-                // The group's id is `sh`'s pid (`process_group(0)`).
-                let group = format!("-{}", child.id());
-                let _ = std::process::Command::new("kill")
-                    .args(["-KILL", "--", &group])
-                    .stdout(std::process::Stdio::null())
-                    .stderr(std::process::Stdio::null())
-                    .status();
-                let _ = child.kill();
-                let _ = child.wait();
-                return format!(
-                    "--after-write: still running after {} s, killed with its process group",
-                    limit.as_secs_f64()
-                );
-            }
-            Ok(None) => std::thread::sleep(Duration::from_millis(20)),
-            Err(e) => return format!("--after-write: {e}"),
-        }
-    }
-}
-
 /// The follower's move, for the store's history.
 fn change<'a>(by: &'a str, reason: &'a str) -> Change<'a> {
     Change {
@@ -944,161 +902,9 @@ fn same_file(detail: &str, model: &Path) -> bool {
     }
 }
 
-/// Whether a probe at service time `time_s` was predicted by the model reloaded at `from_s`
-/// (`None`: no reload awaited, every probe counts). The service stamps `model-reloaded` with
-/// the time of the cycle before the reload (the reload runs before the next cycle), so a probe
-/// of that same time carries the previous model's prediction: only probes strictly after it
-/// count. A NaN time is before any reload.
-fn after_reload(time_s: f64, from_s: Option<f64>) -> bool {
-    match from_s {
-        None => true,
-        Some(f) => time_s > f,
-    }
-}
-
-/// Where the model's inputs and the probe's numbers are in the log's probes table.
-struct Layout {
-    /// Per machine axis: its name, probed position, measured error, the running model's
-    /// prediction.
-    axes: Vec<(String, usize, usize, usize)>,
-    temperatures: Vec<usize>,
-    operating: Vec<usize>,
-}
-
-impl Layout {
-    fn of(columns: &[String], machine: &MachineConfig) -> Result<Self, String> {
-        let col = |name: &str| -> Result<usize, String> {
-            columns.iter().position(|c| c == name).ok_or_else(|| {
-                format!(
-                    "the probes table has no column `{name}`; it has: {}",
-                    columns.join(", ")
-                )
-            })
-        };
-        let m = &machine.machine;
-        let mut axes = Vec::new();
-        for a in &m.axes {
-            let [pos, dev, pred] = log::probe_axis_columns(&a.name);
-            axes.push((a.name.clone(), col(&pos)?, col(&dev)?, col(&pred)?));
-        }
-        Ok(Layout {
-            axes,
-            temperatures: m
-                .temperatures
-                .iter()
-                .map(|t| col(&t.id))
-                .collect::<Result<_, _>>()?,
-            operating: m
-                .operating
-                .iter()
-                .map(|o| col(&o.id))
-                .collect::<Result<_, _>>()?,
-        })
-    }
-
-    /// The residuals of `model` at each row's inputs (the probed positions, the cycle's
-    /// temperatures and operating state), per measured axis with the running model's
-    /// prediction; rows before `from_s` (service time) are left out. The model is evaluated
-    /// as the service evaluates it (its training envelope applied).
-    fn residuals(
-        &self,
-        rows: &[&log::ProbeRow],
-        model: &mut CompensationModel,
-        started_unix_s: f64,
-        from_s: Option<f64>,
-    ) -> Vec<ShadowProbe> {
-        let nan = |v: Option<f64>| v.unwrap_or(f64::NAN);
-        let (mut t, mut o) = (Vec::new(), Vec::new());
-        let mut out = Vec::new();
-        for r in rows {
-            if !after_reload(r.time_s, from_s) {
-                continue;
-            }
-            let temperatures: Vec<f64> = self
-                .temperatures
-                .iter()
-                .map(|&c| nan(r.values[c]))
-                .collect();
-            let operating: Vec<f64> = self.operating.iter().map(|&c| nan(r.values[c])).collect();
-            let positions: Vec<f64> = self.axes.iter().map(|a| nan(r.values[a.1])).collect();
-            let input = CycleInput {
-                temperatures_c: &temperatures,
-                positions: &positions,
-                operating: &operating,
-            };
-            let Ok((error_um, _)) = model.step_guarded(0.0, &input, (&mut t, &mut o)) else {
-                continue;
-            };
-            for (i, (name, _, dev, pred)) in self.axes.iter().enumerate() {
-                let (Some(measured), Some(active)) = (r.values[*dev], r.values[*pred]) else {
-                    continue;
-                };
-                let shadow = error_um.get(i).copied().unwrap_or(f64::NAN);
-                if !(measured.is_finite() && active.is_finite() && shadow.is_finite()) {
-                    continue;
-                }
-                out.push(ShadowProbe {
-                    t_unix_s: started_unix_s + r.time_s,
-                    axis: name.clone(),
-                    measured_um: measured,
-                    active_um: active,
-                    shadow_um: shadow,
-                    log_row: r.row,
-                });
-            }
-        }
-        out
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn a_probe_at_the_reload_time_is_the_previous_model_s() {
-        // The reload stamped at 12.5 s: the probe of that cycle is the old model's.
-        assert!(!after_reload(12.5, Some(12.5)));
-        assert!(!after_reload(12.0, Some(12.5)));
-        assert!(after_reload(12.6, Some(12.5)));
-        assert!(!after_reload(f64::NAN, Some(12.5)));
-        // No reload awaited: every probe counts.
-        assert!(after_reload(0.0, None));
-        assert!(after_reload(f64::NAN, None));
-    }
-
-    #[test]
-    fn an_after_write_that_overruns_is_killed_with_what_it_started() {
-        let dir = std::env::temp_dir().join(format!("truepos-after-write-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let pid_file = dir.join("sleeper.pid");
-        // `sh` starts a sleeper in the background and waits on it: the limit kills both.
-        let cmd = format!("sleep 30 & echo $! > {}; wait", pid_file.display());
-        let said = after_write_within(&cmd, &dir, 3, Duration::from_millis(300));
-        assert!(said.contains("killed with its process group"), "{said}");
-        let pid = std::fs::read_to_string(&pid_file).unwrap();
-        let pid = pid.trim();
-        // The sleeper is gone, or a zombie no one reaped yet (killed; its parent `sh` is dead).
-        let mut gone = false;
-        for _ in 0..100 {
-            let status = std::fs::read_to_string(format!("/proc/{pid}/status")).unwrap_or_default();
-            let alive = status
-                .lines()
-                .find(|l| l.starts_with("State:"))
-                .is_some_and(|l| !l.contains('Z'));
-            if !alive {
-                gone = true;
-                break;
-            }
-            std::thread::sleep(Duration::from_millis(20));
-        }
-        assert!(gone, "the sleeper {pid} still runs");
-        assert_eq!(
-            after_write_within("exit 0", &dir, 3, Duration::from_secs(5)),
-            "--after-write: done"
-        );
-        let _ = std::fs::remove_dir_all(&dir);
-    }
 
     fn row(row: i64, time_s: f64) -> log::ProbeRow {
         log::ProbeRow {

@@ -244,43 +244,11 @@ pub fn refit(a: RefitArgs) -> Result<(), CliError> {
     let config = truepos_io::machine_file::load(&a.machine_file)?;
     let key = SecretKey::load(&a.key)?;
     let mut db = connect(&a.store)?;
-    let run = build(&mut db, &a, &config.machine)?;
-    let range = format!(
-        "{} to {}",
-        a.since.as_deref().unwrap_or("the first"),
-        a.until.as_deref().unwrap_or("the last")
-    );
-    if run.seconds == 0 {
-        return Err(CliError::refused(format!(
-            "{}: the store holds no second of this machine from {range}; nothing registered",
-            a.machine
-        )));
-    }
-    if run.probes < a.min_probes {
-        return Err(CliError::refused(format!(
-            "{}: {} accepted probe event(s) with a measured error in the store from {range}, \
-             fewer than --min-probes {}: too few to fit and validate a model; nothing registered",
-            a.machine, run.probes, a.min_probes
-        )));
-    }
+    let run = stored_run(&mut db, &a, &config.machine)?;
     std::fs::create_dir_all(&a.out)
         .map_err(|e| CliError::refused(format!("--out {}: {e}", a.out.display())))?;
     let csv_path = a.out.join("run.csv");
-    // The model file's kind follows the active model's, so that the `fleet follow` that runs
-    // it (whose --model has that extension) takes the candidate: `model.toml` beside a TOML
-    // model (a fit that chooses the dynamic form, JSON only, is then refused naming why),
-    // else `model.json`, which holds either form.
-    let active_name: Option<String> = db
-        .query_opt(
-            "SELECT file_name FROM fleet_models WHERE machine = $1 AND state = 'active'",
-            &[&a.machine],
-        )
-        .map_err(|e| CliError::refused(format!("--db: PostgreSQL: {e}")))?
-        .map(|r| r.get(0));
-    let file_name = match active_name.as_deref().map(|n| n.to_ascii_lowercase()) {
-        Some(n) if n.ends_with(".toml") => "model.toml",
-        _ => "model.json",
-    };
+    let file_name = candidate_name(&mut db, &a.machine)?;
     let model_path = a.out.join(file_name);
     crate::write::write_whole(&csv_path, run.csv(), &[])?;
     let first = *run.rows.keys().next().expect("seconds exist");
@@ -303,52 +271,7 @@ pub fn refit(a: RefitArgs) -> Result<(), CliError> {
         },
         csv_path.display()
     );
-    // The fit as `truepos fit --run RUN --machine FILE --model OUT --axis T=A` runs it: every
-    // other setting its default.
-    let mut words: Vec<std::ffi::OsString> = vec![
-        "fit".into(),
-        "--run".into(),
-        csv_path.clone().into(),
-        "--machine".into(),
-        a.machine_file.clone().into(),
-        "--model".into(),
-        model_path.clone().into(),
-    ];
-    for (column, axis) in &run.targets {
-        words.push("--axis".into());
-        words.push(format!("{column}={axis}").into());
-    }
-    let args = FitCommand::try_parse_from(&words)
-        .map_err(|e| CliError::refused(format!("the fit's options: {e}")))?
-        .fit;
-    let fitted = crate::fit::machine::fit_and_write(args, &a.machine_file)
-        .map_err(|e| CliError::refused(format!("refused by the fit: {e}; nothing registered")))?;
-    crate::fit::machine::print_screen(&fitted.ds, &fitted.outcome);
-    // Worse than no compensation on the rows it never saw: not a candidate.
-    let worse: Vec<String> = fitted
-        .outcome
-        .validation
-        .metrics
-        .iter()
-        .filter(|m| {
-            // NaN counts as worse.
-            m.rmse_um.partial_cmp(&m.uncompensated_rmse_um) != Some(std::cmp::Ordering::Less)
-        })
-        .map(|m| {
-            format!(
-                "{}: {:.2} µm out of fold against {:.2} µm uncompensated",
-                m.target, m.rmse_um, m.uncompensated_rmse_um
-            )
-        })
-        .collect();
-    if !worse.is_empty() {
-        return Err(CliError::refused(format!(
-            "{}: the refitted model is no better than no compensation out of fold ({}); \
-             nothing registered",
-            a.machine,
-            worse.join("; ")
-        )));
-    }
+    let fitted = fit_run(&a, &run, &csv_path, &model_path)?;
     let text = fitted
         .text
         .ok_or_else(|| CliError::refused("the fit wrote no model"))?;
@@ -420,6 +343,114 @@ pub fn refit(a: RefitArgs) -> Result<(), CliError> {
         m.sha256
     );
     Ok(())
+}
+
+/// The machine's run from the store, refused when it has no second or too few probe events.
+fn stored_run(
+    db: &mut truepos_fleet_store::postgres::Client,
+    a: &RefitArgs,
+    machine: &truepos_model::Machine,
+) -> Result<StoreRun, CliError> {
+    let run = build(db, a, machine)?;
+    let range = format!(
+        "{} to {}",
+        a.since.as_deref().unwrap_or("the first"),
+        a.until.as_deref().unwrap_or("the last")
+    );
+    if run.seconds == 0 {
+        return Err(CliError::refused(format!(
+            "{}: the store holds no second of this machine from {range}; nothing registered",
+            a.machine
+        )));
+    }
+    if run.probes < a.min_probes {
+        return Err(CliError::refused(format!(
+            "{}: {} accepted probe event(s) with a measured error in the store from {range}, \
+             fewer than --min-probes {}: too few to fit and validate a model; nothing registered",
+            a.machine, run.probes, a.min_probes
+        )));
+    }
+    Ok(run)
+}
+
+/// The candidate's file name: its kind follows the active model's.
+fn candidate_name(
+    db: &mut truepos_fleet_store::postgres::Client,
+    machine: &str,
+) -> Result<&'static str, CliError> {
+    // The model file's kind follows the active model's, so that the `fleet follow` that runs
+    // it (whose --model has that extension) takes the candidate: `model.toml` beside a TOML
+    // model (a fit that chooses the dynamic form, JSON only, is then refused naming why),
+    // else `model.json`, which holds either form.
+    let active_name: Option<String> = db
+        .query_opt(
+            "SELECT file_name FROM fleet_models WHERE machine = $1 AND state = 'active'",
+            &[&machine],
+        )
+        .map_err(|e| CliError::refused(format!("--db: PostgreSQL: {e}")))?
+        .map(|r| r.get(0));
+    let file_name = match active_name.as_deref().map(|n| n.to_ascii_lowercase()) {
+        Some(n) if n.ends_with(".toml") => "model.toml",
+        _ => "model.json",
+    };
+    Ok(file_name)
+}
+
+/// The fit of the stored run with `truepos fit`'s defaults, refused when any target is no
+/// better than no compensation out of fold.
+fn fit_run(
+    a: &RefitArgs,
+    run: &StoreRun,
+    csv_path: &std::path::Path,
+    model_path: &std::path::Path,
+) -> Result<crate::fit::machine::MachineFit, CliError> {
+    // The fit as `truepos fit --run RUN --machine FILE --model OUT --axis T=A` runs it: every
+    // other setting its default.
+    let mut words: Vec<std::ffi::OsString> = vec![
+        "fit".into(),
+        "--run".into(),
+        csv_path.to_path_buf().into(),
+        "--machine".into(),
+        a.machine_file.clone().into(),
+        "--model".into(),
+        model_path.to_path_buf().into(),
+    ];
+    for (column, axis) in &run.targets {
+        words.push("--axis".into());
+        words.push(format!("{column}={axis}").into());
+    }
+    let args = FitCommand::try_parse_from(&words)
+        .map_err(|e| CliError::refused(format!("the fit's options: {e}")))?
+        .fit;
+    let fitted = crate::fit::machine::fit_and_write(args, &a.machine_file)
+        .map_err(|e| CliError::refused(format!("refused by the fit: {e}; nothing registered")))?;
+    crate::fit::machine::print_screen(&fitted.ds, &fitted.outcome);
+    // Worse than no compensation on the rows it never saw: not a candidate.
+    let worse: Vec<String> = fitted
+        .outcome
+        .validation
+        .metrics
+        .iter()
+        .filter(|m| {
+            // NaN counts as worse.
+            m.rmse_um.partial_cmp(&m.uncompensated_rmse_um) != Some(std::cmp::Ordering::Less)
+        })
+        .map(|m| {
+            format!(
+                "{}: {:.2} µm out of fold against {:.2} µm uncompensated",
+                m.target, m.rmse_um, m.uncompensated_rmse_um
+            )
+        })
+        .collect();
+    if !worse.is_empty() {
+        return Err(CliError::refused(format!(
+            "{}: the refitted model is no better than no compensation out of fold ({}); \
+             nothing registered",
+            a.machine,
+            worse.join("; ")
+        )));
+    }
+    Ok(fitted)
 }
 
 #[cfg(test)]
