@@ -10,73 +10,18 @@
 
 use std::collections::{BTreeMap, HashMap};
 use std::io::{BufRead, BufReader};
-use std::net::TcpListener;
-use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
+use std::path::Path;
+use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
+#[path = "support/mosquitto.rs"]
+mod mosquitto;
+#[path = "support/postgres.rs"]
+mod postgres_cluster;
 mod support;
+use mosquitto::{free_port, start as start_broker, Reaped};
+use postgres_cluster::{run_ok, Postgres};
 use support::{command as truepos, repo, scratch};
-
-/// Kills and reaps a child when dropped, so a failing assertion leaves nothing running.
-struct Reaped(Child);
-
-impl Drop for Reaped {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
-}
-
-fn mosquitto() -> PathBuf {
-    for p in ["/usr/sbin/mosquitto", "/usr/bin/mosquitto"] {
-        if Path::new(p).exists() {
-            return p.into();
-        }
-    }
-    panic!("mosquitto is missing: run scripts/install_system_deps.sh (Debian package mosquitto)");
-}
-
-fn free_port() -> u16 {
-    TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port()
-}
-
-/// Starts Mosquitto on `port` with its persistence file in `dir` (saved every second, so the
-/// listener's session and subscription survive a SIGKILL), waiting until it listens.
-fn start_broker(dir: &Path, port: u16) -> Reaped {
-    let conf = dir.join("mosquitto.conf");
-    std::fs::write(
-        &conf,
-        format!(
-            "listener {port} 127.0.0.1\nallow_anonymous true\npersistence true\n\
-             persistence_location {}/\nautosave_interval 1\n\
-             # As root Mosquitto would switch to its own user, who cannot write the scratch dir.\nuser root\n",
-            dir.display()
-        ),
-    )
-    .unwrap();
-    let child = Command::new(mosquitto())
-        .arg("-c")
-        .arg(&conf)
-        .stdout(Stdio::null())
-        .stderr(std::fs::File::create(dir.join("mosquitto.log")).unwrap())
-        .spawn()
-        .unwrap();
-    let b = Reaped(child);
-    let deadline = Instant::now() + Duration::from_secs(10);
-    while std::net::TcpStream::connect(("127.0.0.1", port)).is_err() {
-        assert!(
-            Instant::now() < deadline,
-            "mosquitto did not listen on {port} within 10 s"
-        );
-        std::thread::sleep(Duration::from_millis(50));
-    }
-    b
-}
 
 fn start_listener(port: u16, out: &Path) -> Reaped {
     let python = repo(".venv/bin/python");
@@ -507,130 +452,6 @@ fn check_kept_compensating(db: &Path) {
     }
     let inactive = rows.iter().filter(|r| r.1 != "active").count();
     assert!(inactive < 10, "{inactive} cycles without compensation");
-}
-
-/// PostgreSQL 15 (Debian `postgresql`, installed by scripts/install_system_deps.sh), a cluster
-/// of its own in the scratch directory on a free loopback port, stopped when dropped.
-struct Postgres {
-    data: PathBuf,
-    port: u16,
-}
-
-fn pg_bin(name: &str) -> PathBuf {
-    let p = PathBuf::from("/usr/lib/postgresql/15/bin").join(name);
-    assert!(
-        p.exists(),
-        "{} is missing: run scripts/install_system_deps.sh (Debian package postgresql)",
-        p.display()
-    );
-    p
-}
-
-/// PostgreSQL refuses to run as root: as root, its commands run as the `postgres` user.
-fn as_postgres(program: &Path) -> Command {
-    let root = Command::new("id")
-        .arg("-u")
-        .output()
-        .is_ok_and(|o| o.stdout.starts_with(b"0\n"));
-    if root {
-        let mut c = Command::new("runuser");
-        c.args(["-u", "postgres", "--"]).arg(program);
-        c
-    } else {
-        Command::new(program)
-    }
-}
-
-fn run_ok(c: &mut Command, what: &str) {
-    let out = c.output().unwrap();
-    assert!(
-        out.status.success(),
-        "{what}: {}{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-}
-
-impl Postgres {
-    fn start(dir: &Path) -> Self {
-        let data = dir.join("pg");
-        std::fs::create_dir_all(&data).unwrap();
-        run_ok(
-            Command::new("chown")
-                .args(["-R", "postgres:postgres"])
-                .arg(&data),
-            "chown",
-        );
-        let mut init = as_postgres(&pg_bin("initdb"));
-        init.args(["-A", "trust", "-U", "postgres", "--no-sync", "-D"])
-            .arg(&data);
-        run_ok(&mut init, "initdb");
-        let pg = Postgres {
-            data,
-            port: free_port(),
-        };
-        pg.pg_ctl_start();
-        pg
-    }
-
-    fn pg_ctl_start(&self) {
-        let mut c = as_postgres(&pg_bin("pg_ctl"));
-        c.arg("-D").arg(&self.data).arg("-o").arg(format!(
-            "-p {} -k {} -c listen_addresses=127.0.0.1 -c fsync=off",
-            self.port,
-            self.data.display()
-        ));
-        c.arg("-l").arg(self.data.join("log")).args(["-w", "start"]);
-        run_ok(&mut c, "pg_ctl start");
-    }
-
-    fn stop(&self) {
-        let mut c = as_postgres(&pg_bin("pg_ctl"));
-        c.arg("-D")
-            .arg(&self.data)
-            .args(["-m", "fast", "-w", "stop"]);
-        run_ok(&mut c, "pg_ctl stop");
-    }
-
-    fn url(&self) -> String {
-        format!("postgres://postgres@127.0.0.1:{}/postgres", self.port)
-    }
-
-    fn query(&self, sql: &str) -> String {
-        let out = Command::new("psql")
-            .args([
-                "-h",
-                "127.0.0.1",
-                "-U",
-                "postgres",
-                "-d",
-                "postgres",
-                "-At",
-                "-F",
-                ",",
-            ])
-            .args(["-p", &self.port.to_string(), "-c", sql])
-            .output()
-            .unwrap();
-        assert!(
-            out.status.success(),
-            "{sql}: {}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        String::from_utf8(out.stdout).unwrap().trim().to_string()
-    }
-}
-
-impl Drop for Postgres {
-    fn drop(&mut self) {
-        let mut c = as_postgres(&pg_bin("pg_ctl"));
-        c.arg("-D")
-            .arg(&self.data)
-            .args(["-m", "immediate", "stop"]);
-        let _ = c.output();
-        // A cluster is ~40 MB: not left behind in the scratch directory.
-        let _ = std::fs::remove_dir_all(&self.data);
-    }
 }
 
 /// A birth of node `poison`, then two events the database cannot take as sent, as (message

@@ -4,10 +4,6 @@
 //! the database refuses (here: a CHECK constraint the test adds) undoes only its own message,
 //! and a message sent twice — in a later batch or twice in one — is written once.
 
-use std::net::TcpListener;
-use std::path::{Path, PathBuf};
-use std::process::Command;
-
 use truepos_fleet::publisher::{birth_payload, unit_payload};
 use truepos_fleet::sparkplug::{topic, MessageType};
 use truepos_fleet::store::{Event, Second, Unit};
@@ -15,106 +11,23 @@ use truepos_fleet_store::ingest::Ingester;
 use truepos_fleet_store::postgres::{Client, NoTls};
 use truepos_fleet_store::schema;
 
-fn pg_bin(name: &str) -> PathBuf {
-    let p = PathBuf::from("/usr/lib/postgresql/15/bin").join(name);
-    assert!(
-        p.exists(),
-        "{} is missing: run scripts/install_system_deps.sh (Debian package postgresql)",
-        p.display()
-    );
-    p
-}
+/// A PostgreSQL 15 cluster of the test's own on a free loopback port (the CLI's tests' harness).
+#[path = "../../cli/tests/support/postgres.rs"]
+mod postgres_cluster;
+use postgres_cluster::Postgres;
 
-/// PostgreSQL refuses to run as root: as root, its commands run as the `postgres` user.
-fn as_postgres(program: &Path) -> Command {
-    let root = Command::new("id")
-        .arg("-u")
-        .output()
-        .is_ok_and(|o| o.stdout.starts_with(b"0\n"));
-    if root {
-        let mut c = Command::new("runuser");
-        c.args(["-u", "postgres", "--"]).arg(program);
-        c
-    } else {
-        Command::new(program)
-    }
-}
-
-fn run_ok(c: &mut Command, what: &str) {
-    let out = c.output().unwrap();
-    assert!(
-        out.status.success(),
-        "{what}: {}{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-}
-
-/// A cluster of its own, stopped and removed when dropped.
-struct Postgres {
-    dir: PathBuf,
-    port: u16,
-}
-
-impl Postgres {
-    fn start() -> Self {
-        let dir =
-            std::env::temp_dir().join(format!("truepos-fleet-batches-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
-        let root = Command::new("id")
-            .arg("-u")
-            .output()
-            .is_ok_and(|o| o.stdout.starts_with(b"0\n"));
-        if root {
-            run_ok(
-                Command::new("chown").args(["postgres:postgres"]).arg(&dir),
-                "chown",
-            );
-        }
-        run_ok(
-            as_postgres(&pg_bin("initdb"))
-                .args(["-A", "trust", "-U", "postgres", "--no-sync", "-D"])
-                .arg(&dir),
-            "initdb",
-        );
-        let port = TcpListener::bind("127.0.0.1:0")
-            .unwrap()
-            .local_addr()
-            .unwrap()
-            .port();
-        run_ok(
-            as_postgres(&pg_bin("pg_ctl"))
-                .arg("-D")
-                .arg(&dir)
-                .arg("-o")
-                .arg(format!(
-                    "-p {port} -k {} -c listen_addresses=127.0.0.1 -c fsync=off",
-                    dir.display()
-                ))
-                .arg("-l")
-                .arg(dir.join("log"))
-                .args(["-w", "start"]),
-            "pg_ctl start",
-        );
-        Postgres { dir, port }
-    }
-
-    fn connect(&self) -> Client {
-        let url = format!("postgres://postgres@127.0.0.1:{}/postgres", self.port);
-        Client::connect(&url, NoTls).unwrap()
-    }
-}
-
-impl Drop for Postgres {
-    fn drop(&mut self) {
-        let _ = as_postgres(&pg_bin("pg_ctl"))
-            .arg("-D")
-            .arg(&self.dir)
-            .args(["-m", "immediate", "stop"])
-            .output();
-        let _ = std::fs::remove_dir_all(&self.dir);
-    }
+/// The cluster in a scratch directory of this test, and a connection to it.
+fn start_postgres() -> (Postgres, Client) {
+    let dir = std::env::temp_dir().join(format!(
+        "truepos-fleet-{}-{}",
+        "batches",
+        std::process::id()
+    ));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let pg = Postgres::start(&dir);
+    let db = Client::connect(&pg.url(), NoTls).unwrap();
+    (pg, db)
 }
 
 const T0_MS: u64 = 1_764_000_000_000;
@@ -170,8 +83,7 @@ fn count(db: &mut Client, sql: &str) -> i64 {
 
 #[test]
 fn a_batch_is_written_together_and_a_refused_row_undoes_only_its_own_message() {
-    let pg = Postgres::start();
-    let mut db = pg.connect();
+    let (_pg, mut db) = start_postgres();
     schema::migrate(&mut db).unwrap();
     // A value the database refuses (SQLSTATE 23514, check violation): 13 cycles.
     db.batch_execute(

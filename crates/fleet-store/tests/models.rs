@@ -3,113 +3,24 @@
 //! active version is the one the caller judged — one activated in between is a conflict and
 //! nothing changes.
 
-use std::net::TcpListener;
-use std::path::{Path, PathBuf};
-use std::process::Command;
-
 use truepos_fleet_store::models::{self, Change, ModelError, NewModel, State};
 use truepos_fleet_store::postgres::{Client, NoTls};
 use truepos_fleet_store::schema;
 
-fn pg_bin(name: &str) -> PathBuf {
-    let p = PathBuf::from("/usr/lib/postgresql/15/bin").join(name);
-    assert!(
-        p.exists(),
-        "{} is missing: run scripts/install_system_deps.sh (Debian package postgresql)",
-        p.display()
-    );
-    p
-}
+/// A PostgreSQL 15 cluster of the test's own on a free loopback port (the CLI's tests' harness).
+#[path = "../../cli/tests/support/postgres.rs"]
+mod postgres_cluster;
+use postgres_cluster::Postgres;
 
-/// PostgreSQL refuses to run as root: as root, its commands run as the `postgres` user.
-fn as_postgres(program: &Path) -> Command {
-    let root = Command::new("id")
-        .arg("-u")
-        .output()
-        .is_ok_and(|o| o.stdout.starts_with(b"0\n"));
-    if root {
-        let mut c = Command::new("runuser");
-        c.args(["-u", "postgres", "--"]).arg(program);
-        c
-    } else {
-        Command::new(program)
-    }
-}
-
-fn run_ok(c: &mut Command, what: &str) {
-    let out = c.output().unwrap();
-    assert!(
-        out.status.success(),
-        "{what}: {}{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-}
-
-/// A cluster of its own, stopped and removed when dropped.
-struct Postgres {
-    dir: PathBuf,
-    port: u16,
-}
-
-impl Postgres {
-    fn start() -> Self {
-        let dir = std::env::temp_dir().join(format!("truepos-fleet-models-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
-        let root = Command::new("id")
-            .arg("-u")
-            .output()
-            .is_ok_and(|o| o.stdout.starts_with(b"0\n"));
-        if root {
-            run_ok(
-                Command::new("chown").args(["postgres:postgres"]).arg(&dir),
-                "chown",
-            );
-        }
-        run_ok(
-            as_postgres(&pg_bin("initdb"))
-                .args(["-A", "trust", "-U", "postgres", "--no-sync", "-D"])
-                .arg(&dir),
-            "initdb",
-        );
-        let port = TcpListener::bind("127.0.0.1:0")
-            .unwrap()
-            .local_addr()
-            .unwrap()
-            .port();
-        run_ok(
-            as_postgres(&pg_bin("pg_ctl"))
-                .arg("-D")
-                .arg(&dir)
-                .arg("-o")
-                .arg(format!(
-                    "-p {port} -k {} -c listen_addresses=127.0.0.1 -c fsync=off",
-                    dir.display()
-                ))
-                .arg("-l")
-                .arg(dir.join("log"))
-                .args(["-w", "start"]),
-            "pg_ctl start",
-        );
-        Postgres { dir, port }
-    }
-
-    fn connect(&self) -> Client {
-        let url = format!("postgres://postgres@127.0.0.1:{}/postgres", self.port);
-        Client::connect(&url, NoTls).unwrap()
-    }
-}
-
-impl Drop for Postgres {
-    fn drop(&mut self) {
-        let _ = as_postgres(&pg_bin("pg_ctl"))
-            .arg("-D")
-            .arg(&self.dir)
-            .args(["-m", "immediate", "stop"])
-            .output();
-        let _ = std::fs::remove_dir_all(&self.dir);
-    }
+/// The cluster in a scratch directory of this test, and a connection to it.
+fn start_postgres() -> (Postgres, Client) {
+    let dir =
+        std::env::temp_dir().join(format!("truepos-fleet-{}-{}", "models", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let pg = Postgres::start(&dir);
+    let db = Client::connect(&pg.url(), NoTls).unwrap();
+    (pg, db)
 }
 
 const BY: Change<'static> = Change {
@@ -140,8 +51,7 @@ fn active(db: &mut Client) -> Option<i32> {
 
 #[test]
 fn a_move_judged_on_another_active_model_is_refused_and_changes_nothing() {
-    let pg = Postgres::start();
-    let mut db = pg.connect();
+    let (_pg, mut db) = start_postgres();
     schema::migrate(&mut db).unwrap();
     let a = register(&mut db, "a");
     models::activate(&mut db, "vmc", a, &BY).unwrap();

@@ -32,13 +32,16 @@ fn pg_bin(name: &str) -> PathBuf {
     p
 }
 
-/// PostgreSQL refuses to run as root: as root, its commands run as the `postgres` user.
-fn as_postgres(program: &Path) -> Command {
-    let root = Command::new("id")
+fn is_root() -> bool {
+    Command::new("id")
         .arg("-u")
         .output()
-        .is_ok_and(|o| o.stdout.starts_with(b"0\n"));
-    if root {
+        .is_ok_and(|o| o.stdout.starts_with(b"0\n"))
+}
+
+/// PostgreSQL refuses to run as root: as root, its commands run as the `postgres` user.
+fn as_postgres(program: &Path) -> Command {
+    if is_root() {
         let mut c = Command::new("runuser");
         c.args(["-u", "postgres", "--"]).arg(program);
         c
@@ -47,7 +50,7 @@ fn as_postgres(program: &Path) -> Command {
     }
 }
 
-fn run_ok(c: &mut Command, what: &str) {
+pub fn run_ok(c: &mut Command, what: &str) {
     let out = c.output().unwrap();
     assert!(
         out.status.success(),
@@ -62,12 +65,14 @@ impl Postgres {
     pub fn start(dir: &Path) -> Self {
         let data = dir.join("pg");
         std::fs::create_dir_all(&data).unwrap();
-        run_ok(
-            Command::new("chown")
-                .args(["-R", "postgres:postgres"])
-                .arg(&data),
-            "chown",
-        );
+        if is_root() {
+            run_ok(
+                Command::new("chown")
+                    .args(["-R", "postgres:postgres"])
+                    .arg(&data),
+                "chown",
+            );
+        }
         let mut init = as_postgres(&pg_bin("initdb"));
         init.args(["-A", "trust", "-U", "postgres", "--no-sync", "-D"])
             .arg(&data);
@@ -76,17 +81,32 @@ impl Postgres {
             data,
             port: free_port(),
         };
+        pg.pg_ctl_start();
+        pg
+    }
+
+    /// Starts the cluster (again, after [`Postgres::stop`]); pg_ctl waits until it accepts
+    /// connections, at most 60 s.
+    pub fn pg_ctl_start(&self) {
         let mut c = as_postgres(&pg_bin("pg_ctl"));
-        c.arg("-D").arg(&pg.data).arg("-o").arg(format!(
+        c.arg("-D").arg(&self.data).arg("-o").arg(format!(
             "-p {} -k {} -c listen_addresses=127.0.0.1 -c fsync=off",
-            pg.port,
-            pg.data.display()
+            self.port,
+            self.data.display()
         ));
         c.arg("-l")
-            .arg(pg.data.join("log"))
+            .arg(self.data.join("log"))
             .args(["-w", "-t", "60", "start"]);
         run_ok(&mut c, "pg_ctl start");
-        pg
+    }
+
+    /// Stops the cluster (a fast shutdown), keeping its data.
+    pub fn stop(&self) {
+        let mut c = as_postgres(&pg_bin("pg_ctl"));
+        c.arg("-D")
+            .arg(&self.data)
+            .args(["-m", "fast", "-w", "stop"]);
+        run_ok(&mut c, "pg_ctl stop");
     }
 
     /// The URL `--db` takes.
