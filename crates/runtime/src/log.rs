@@ -34,7 +34,9 @@ mod probes;
 mod read;
 
 pub use history::{last_rows, read_events_after, read_history, Bucket, History, Rows};
-pub use probes::{axis_columns as probe_axis_columns, read_probes, ProbeRow, ProbeTable};
+pub use probes::{
+    axis_columns as probe_axis_columns, read_probes, read_probes_from, ProbeRow, ProbeTable,
+};
 use read::open_read;
 pub use read::{integrity_check, read_cycles, read_events, read_meta, CycleTable, LoggedEvent};
 

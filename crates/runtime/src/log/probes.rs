@@ -136,6 +136,12 @@ pub struct ProbeRow {
 /// Reads the `probes` table of a log (also while the service writes it). A log written before
 /// probes were logged has none: an empty table.
 pub fn read_probes(path: &Path) -> Result<ProbeTable, LogError> {
+    read_probes_from(path, 0)
+}
+
+/// [`read_probes`] from rowid `from` on (that row included): what a reader that keeps a
+/// cursor (`truepos fleet follow`) reads each round, rather than the whole table.
+pub fn read_probes_from(path: &Path, from: i64) -> Result<ProbeTable, LogError> {
     let conn = open_read(path)?;
     let exists: i64 = conn
         .query_row(
@@ -151,7 +157,7 @@ pub fn read_probes(path: &Path) -> Result<ProbeTable, LogError> {
         });
     }
     let mut st = conn
-        .prepare("SELECT rowid, * FROM probes ORDER BY rowid")
+        .prepare("SELECT rowid, * FROM probes WHERE rowid >= ?1 ORDER BY rowid")
         .map_err(err(path))?;
     let names: Vec<String> = st.column_names().iter().map(|s| s.to_string()).collect();
     // rowid, time_s, status, reason, state, then the numbers.
@@ -169,7 +175,7 @@ pub fn read_probes(path: &Path) -> Result<ProbeTable, LogError> {
     }
     let width = names.len();
     let rows = st
-        .query_map([], |r| {
+        .query_map([from], |r| {
             let number = |i: usize| -> rusqlite::Result<Option<f64>> {
                 Ok(match r.get::<_, Value>(i)? {
                     Value::Real(f) => Some(f),

@@ -4,9 +4,8 @@
 
 use std::path::Path;
 
-use rusqlite::types::Value;
 use rusqlite::{Connection, OpenFlags};
-use truepos_runtime::log::{LoggedEvent, ProbeRow, ProbeTable};
+use truepos_runtime::log::{self, LoggedEvent, ProbeTable};
 
 use crate::error::CliError;
 
@@ -83,58 +82,9 @@ pub fn last_event_row(path: &Path) -> Result<i64, CliError> {
     last_row(path, "events")
 }
 
-/// The log's probes rows from rowid `from` on (that row included), in the layout of
-/// `truepos_runtime::log::read_probes`.
+/// The log's probes rows from rowid `from` on (that row included): the runtime's reader.
 pub fn probes_from(path: &Path, from: i64) -> Result<ProbeTable, CliError> {
-    let c = open(path)?;
-    if !has_table(&c, path, "probes")? {
-        return Ok(ProbeTable {
-            columns: Vec::new(),
-            rows: Vec::new(),
-        });
-    }
-    let mut st = c
-        .prepare("SELECT rowid, * FROM probes WHERE rowid >= ?1 ORDER BY rowid")
-        .map_err(failed(path))?;
-    let names: Vec<String> = st.column_names().iter().map(|s| s.to_string()).collect();
-    // rowid, time_s, status, reason, state, then the numbers.
-    const FIRST_NUMBER: usize = 5;
-    if names.get(1..FIRST_NUMBER)
-        != Some(&["time_s", "status", "reason", "state"].map(String::from)[..])
-    {
-        return Err(CliError::refused(format!(
-            "{}: the probes table has the columns [{}]; expected time_s, status, reason, state first",
-            path.display(),
-            names[1..].join(", ")
-        )));
-    }
-    let width = names.len();
-    let rows = st
-        .query_map([from], |r| {
-            let number = |i: usize| -> rusqlite::Result<Option<f64>> {
-                Ok(match r.get::<_, Value>(i)? {
-                    Value::Real(f) => Some(f),
-                    Value::Integer(n) => Some(n as f64),
-                    _ => None,
-                })
-            };
-            Ok(ProbeRow {
-                row: r.get(0)?,
-                time_s: number(1)?.unwrap_or(f64::NAN),
-                accepted: r.get::<_, Option<String>>(2)?.as_deref() == Some("accepted"),
-                reason: r.get::<_, Option<String>>(3)?.unwrap_or_default(),
-                values: (FIRST_NUMBER..width)
-                    .map(number)
-                    .collect::<rusqlite::Result<_>>()?,
-            })
-        })
-        .map_err(failed(path))?
-        .collect::<Result<Vec<_>, _>>()
-        .map_err(failed(path))?;
-    Ok(ProbeTable {
-        columns: names[FIRST_NUMBER..].to_vec(),
-        rows,
-    })
+    log::read_probes_from(path, from).map_err(CliError::from)
 }
 
 /// The log's events after rowid `after`, oldest first, each with its rowid.
