@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 pub enum CliError {
     /// An input file (machine, model, run table, kinematics table …) is not what it must be.
     #[error(transparent)]
-    Input(#[from] truepos_io::InputError),
+    Input(#[from] truepos_files::InputError),
     /// A source's configuration (Modbus, SHDR) or its start.
     #[error(transparent)]
     SourceConfig(#[from] truepos_runtime::sources::ConfigError),

@@ -16,8 +16,8 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use crate::error::CliError;
+use truepos_files::InputError;
 use truepos_io::kinematics_file::{self, KinematicsFile};
-use truepos_io::InputError;
 use truepos_kinematics::{Chain, Directions, Geometry, KinError, Pose, Row};
 use truepos_model::AxisKind;
 

@@ -33,9 +33,12 @@
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
+mod input_error;
 pub mod read;
 pub mod toml_place;
 pub mod write;
+
+pub use input_error::InputError;
 
 use std::fmt;
 use std::path::{Path, PathBuf};

@@ -6,11 +6,11 @@ use std::convert::Infallible;
 use std::fmt;
 use std::str::FromStr;
 
+use truepos_files::InputError;
 pub use truepos_io::dynamic_model_file::InputKind;
 pub use truepos_io::run::Time;
 use truepos_io::run::{glob_match, RunTable};
 use truepos_io::units::Role;
-use truepos_io::InputError;
 
 /// The largest |target| a run may hold, µm: 1 m. No machine errs by that much, so a value beyond
 /// it is a wrong unit or a corrupt cell, and one such value is enough to wreck a fit (a 1e300

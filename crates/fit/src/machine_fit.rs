@@ -11,9 +11,9 @@
 //! axis' summands never touch another axis' coefficients, so the choices are independent and one
 //! [`Model`] holds them all). The form is chosen by the pooled inner-CV RMSE over the targets.
 
+use truepos_files::InputError;
 use truepos_io::run::RunTable;
 use truepos_io::units::{find_channel, Role};
-use truepos_io::InputError;
 use truepos_model::{CycleInput, LagSource, Machine, Model, Part, RecordedRun, Reference};
 
 use crate::dataset::Dataset;

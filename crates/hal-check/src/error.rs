@@ -1,7 +1,7 @@
 //! The errors of `truepos-hal-check`: what it prints after `truepos-hal-check: error:` before
 //! it exits non-zero (a judged run that fails is a verdict, not an error).
 
-use truepos_io::InputError;
+use truepos_files::InputError;
 use truepos_runtime::log::LogError;
 
 use crate::check::SampleError;

@@ -1,7 +1,7 @@
 //! Why the component could not start, or did not stop cleanly: what `truepos-hal` prints after
 //! `truepos-hal: error:` before it exits non-zero.
 
-use truepos_io::InputError;
+use truepos_files::InputError;
 use truepos_runtime::log::LogError;
 
 use crate::ffi::HalError;

@@ -13,9 +13,10 @@ use truepos_model::config::{index_of, ModelEntry};
 use truepos_model::{CompensationModel, Machine};
 
 use crate::dynamic_model_file;
-use crate::error::{read_text, InputError};
+use crate::error::read_text;
 use crate::model_file;
 use crate::signature::TrustedKeys;
+use truepos_files::InputError;
 
 /// A model file bound to a machine.
 #[derive(Debug, Clone)]

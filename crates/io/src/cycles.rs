@@ -5,11 +5,11 @@ use std::path::Path;
 
 use truepos_model::{LagFilters, LagSource, Machine, RecordedRun};
 
-use crate::error::InputError;
 use crate::run::{Shape, Time};
 use crate::table::{Number, Table, Value};
 use crate::timestamp;
 use crate::units::{self, Role, Unit};
+use truepos_files::InputError;
 
 /// The cycles of a run, in the machine's channel order: the recorded run and, for messages
 /// about the file, the line of each row.

@@ -28,7 +28,8 @@ use truepos_model::{
 };
 
 use crate::envelope_file::EnvelopeEntry;
-use crate::error::{json_key_offset, parse_json, read_text, InputError};
+use crate::error::{json_key_offset, parse_json, read_text};
+use truepos_files::InputError;
 
 /// A problem at a key of the file (`outputs[0].coefficients`): the key and what was expected.
 type Problem = (String, String);

@@ -126,7 +126,7 @@ mod tests {
         Path::new(env!("CARGO_MANIFEST_DIR")).join("../..").join(p)
     }
 
-    fn with_envelope(section: &str) -> Result<truepos_model::Model, crate::InputError> {
+    fn with_envelope(section: &str) -> Result<truepos_model::Model, truepos_files::InputError> {
         let machine = crate::machine_file::load(&repo("examples/vmc3/machine.toml"))
             .unwrap()
             .machine;

@@ -1,95 +1,16 @@
 //! The one error type of every parser: it names the file, the line and column, the key and what
 //! was expected, so that a person can fix the file without reading code.
 
-use std::fmt;
-use std::ops::Range;
-use std::path::{Path, PathBuf};
-
-/// Bad input: a file that cannot be read or does not say what it must.
-#[derive(Debug, Clone, PartialEq)]
-pub struct InputError {
-    /// The file.
-    pub file: PathBuf,
-    /// 1-based line and column, where the problem has a place in the file.
-    pub position: Option<(usize, usize)>,
-    /// The key (`axis[1].travel`) or column the problem is about, if any.
-    pub key: Option<String>,
-    /// What is wrong and what was expected.
-    pub message: String,
-}
-
-impl InputError {
-    /// An error about the file as a whole (cannot be read, empty, …).
-    pub fn file(file: &Path, message: impl Into<String>) -> Self {
-        Self {
-            file: file.to_path_buf(),
-            position: None,
-            key: None,
-            message: message.into(),
-        }
-    }
-
-    /// An error at a byte span of the file's text.
-    pub fn at_span(
-        file: &Path,
-        text: &str,
-        span: Range<usize>,
-        key: impl Into<String>,
-        message: impl Into<String>,
-    ) -> Self {
-        Self {
-            file: file.to_path_buf(),
-            position: Some(line_column(text, span.start)),
-            key: Some(key.into()).filter(|k: &String| !k.is_empty()),
-            message: message.into(),
-        }
-    }
-
-    /// An error at a known line and column.
-    pub fn at(
-        file: &Path,
-        line: usize,
-        column: usize,
-        key: impl Into<String>,
-        message: impl Into<String>,
-    ) -> Self {
-        Self {
-            file: file.to_path_buf(),
-            position: Some((line, column)),
-            key: Some(key.into()).filter(|k: &String| !k.is_empty()),
-            message: message.into(),
-        }
-    }
-}
-
-impl fmt::Display for InputError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "{}", self.file.display())?;
-        if let Some((line, column)) = self.position {
-            write!(f, ":{line}:{column}")?;
-        }
-        if let Some(key) = &self.key {
-            write!(f, ": `{key}`")?;
-        }
-        write!(f, ": {}", self.message)
-    }
-}
-
-impl std::error::Error for InputError {}
+use std::path::Path;
 
 pub use truepos_files::line_column;
+use truepos_files::InputError;
 
 /// Reads a whole text file of one kind through the one door ([`truepos_files::read`]: a
 /// regular file only, within the kind's size limit, opened without blocking), naming it in the
 /// error.
 pub fn read_text(path: &Path, limit: truepos_files::Limit) -> Result<String, InputError> {
     truepos_files::read::read_text(path, limit).map_err(InputError::from)
-}
-
-impl From<truepos_files::FileError> for InputError {
-    fn from(e: truepos_files::FileError) -> Self {
-        InputError::file(&e.path, e.message)
-    }
 }
 
 /// Deserialises TOML text, turning syntax and type errors into an [`InputError`] that names the

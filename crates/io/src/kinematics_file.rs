@@ -29,7 +29,8 @@ use truepos_kinematics::{Chain, Dof, ErrorTable, ErrorUnit, KinAxis, Row};
 use truepos_model::{AxisKind, Machine};
 
 use crate::comp_table::{parse_csv, parse_linuxcnc, parse_siemens, select_siemens, LinuxCncType};
-use crate::error::{read_text, InputError};
+use crate::error::read_text;
+use truepos_files::InputError;
 
 /// A loaded kinematics table.
 #[derive(Debug, Clone)]

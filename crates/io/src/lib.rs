@@ -39,5 +39,3 @@ pub mod signature;
 pub mod table;
 pub mod timestamp;
 pub mod units;
-
-pub use error::InputError;

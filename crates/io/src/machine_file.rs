@@ -19,7 +19,8 @@ use truepos_model::{
     TemperatureChannel, TemperatureDifference, MAX_AXES,
 };
 
-use crate::error::{parse_toml, read_text, InputError};
+use crate::error::{parse_toml, read_text};
+use truepos_files::InputError;
 
 #[derive(Debug, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]

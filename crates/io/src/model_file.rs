@@ -47,7 +47,8 @@ use truepos_model::{
 };
 
 use crate::envelope_file::EnvelopeEntry;
-use crate::error::{parse_toml, read_text, InputError};
+use crate::error::{parse_toml, read_text};
+use truepos_files::InputError;
 
 /// The `format` every model file carries, of either form.
 pub const FORMAT: &str = "truepos-model";

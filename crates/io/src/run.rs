@@ -21,10 +21,10 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::error::InputError;
 use crate::table::{self, CsvOptions, Delimiter, Number};
 use crate::timestamp;
 use crate::units::{self, Role};
+use truepos_files::InputError;
 
 /// One run as a table of named columns, read by [`crate::table`].
 #[derive(Debug, Clone, PartialEq)]

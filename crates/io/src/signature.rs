@@ -27,7 +27,8 @@ use std::path::{Path, PathBuf};
 
 use ed25519_dalek::{Signature, Signer, SigningKey, Verifier, VerifyingKey};
 
-use crate::error::{read_text, InputError};
+use crate::error::read_text;
+use truepos_files::InputError;
 
 /// A public key, as the trust list and the signature line write it.
 pub type PublicKey = VerifyingKey;

@@ -28,7 +28,7 @@
 use std::io::Read;
 use std::path::{Path, PathBuf};
 
-use crate::error::InputError;
+use truepos_files::InputError;
 
 mod workbook;
 pub use workbook::{is_workbook, read_workbook};

@@ -9,12 +9,12 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use crate::error::CliError;
+use truepos_files::InputError;
 use truepos_io::comp_table::{
     parse_com, parse_csv, parse_fanuc, parse_isg, parse_linuxcnc, parse_siemens, read_heidenhain,
     select_siemens, write_csv, write_siemens, FanucGrid, FanucPitch, HeidenhainCma, HeidenhainCom,
     IsgSsfk, LinuxCncComp, LinuxCncType, SiemensKind, SiemensTable,
 };
-use truepos_io::InputError;
 use truepos_kinematics::table::{CompTable, Direction, Interpolation, Wrap};
 
 /// Formats a table is read from.

@@ -6,10 +6,10 @@
 
 use std::path::Path;
 
+use truepos_files::InputError;
 use truepos_fit::reidentify::ProbeEvent;
 use truepos_io::cycles::{self, Positions};
 use truepos_io::table::{self, Number, Table};
-use truepos_io::InputError;
 use truepos_model::Machine;
 use truepos_runtime::probe::{MAX_PROBE_DEVIATION_UM, PROBE_TRAVEL_MARGIN_MM};
 

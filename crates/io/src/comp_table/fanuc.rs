@@ -30,7 +30,7 @@ use std::path::Path;
 use truepos_kinematics::table::{CompTable, Direction, Interpolation, Wrap};
 
 use super::ExportError;
-use crate::error::InputError;
+use truepos_files::InputError;
 
 /// The pitch error parameters of one axis.
 #[derive(Debug, Clone, Copy, PartialEq)]

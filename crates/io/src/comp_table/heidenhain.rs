@@ -29,7 +29,7 @@ use std::path::Path;
 use truepos_kinematics::table::{CompTable, Interpolation, Wrap};
 
 use super::{ExportError, Origin};
-use crate::error::InputError;
+use truepos_files::InputError;
 
 /// A `.COM` compensation-value table exactly as written: values in mm at `AXISPOS` (mm, or
 /// degrees of a rotary axis), one column per compensated axis.

@@ -7,7 +7,7 @@ use std::path::Path;
 use truepos_kinematics::table::{CompTable, Interpolation, TableError, Wrap};
 
 use super::{fields, parse_number, ExportError, Origin};
-use crate::error::InputError;
+use truepos_files::InputError;
 
 /// Most rows LinuxCNC accepts in a compensation file.
 pub const LINUXCNC_MAX_ROWS: usize = 256;

@@ -35,7 +35,7 @@ use std::path::{Path, PathBuf};
 
 use truepos_kinematics::table::{CompTable, Interpolation, TableError, Wrap};
 
-use crate::error::InputError;
+use truepos_files::InputError;
 
 mod fanuc;
 mod heidenhain;

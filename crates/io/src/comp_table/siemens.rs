@@ -9,7 +9,7 @@ use std::path::Path;
 use truepos_kinematics::table::{CompTable, Interpolation, Wrap};
 
 use super::{ExportError, Origin};
-use crate::error::InputError;
+use truepos_files::InputError;
 
 /// Which Siemens compensation a table belongs to.
 #[derive(Debug, Clone, PartialEq, Eq, PartialOrd, Ord)]

@@ -9,7 +9,7 @@ use calamine::{open_workbook_auto_from_rs, Data, Reader};
 use super::Table;
 #[cfg(feature = "xlsx")]
 use super::Value;
-use crate::error::InputError;
+use truepos_files::InputError;
 
 /// Reads a workbook (`.xlsx`, `.xlsm`, `.xlsb`, `.xls`, `.ods` through calamine): every
 /// non-empty sheet (or only `sheet`) is one table; the first non-empty row of a sheet holds the
