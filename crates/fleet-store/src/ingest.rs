@@ -380,7 +380,8 @@ impl Ingester {
         })
     }
 
-    /// Writes one row (a message alone: the path that undoes a refused message by itself).
+    /// Writes one row (a message alone: the path that undoes a refused message by itself), with
+    /// the same statements as a batch.
     fn write(
         &mut self,
         db: &mut impl GenericClient,
@@ -388,58 +389,13 @@ impl Ingester {
         node: &str,
         row: Row,
     ) -> Result<Outcome, postgres::Error> {
-        match row {
-            Row::Second {
-                t_ms,
-                cycles,
-                active,
-                stats,
-                historical,
-            } => {
-                self.partitions.ensure(db, "fleet_seconds", t_ms)?;
-                let n = db.execute(
-                    "INSERT INTO fleet_seconds (group_id, node_id, t, cycles, active_cycles, stats, historical)
-                     VALUES ($1, $2, to_timestamp($3), $4, $5, $6::text::jsonb, $7) ON CONFLICT DO NOTHING",
-                    &[
-                        &group,
-                        &node,
-                        &seconds_f64(t_ms),
-                        &cycles.map(|c| c as i32),
-                        &active.map(|c| c as i32),
-                        &stats.to_string(),
-                        &historical,
-                    ],
-                )?;
-                Ok(Outcome::Second { written: n == 1 })
-            }
-            Row::Event {
-                t_ms,
-                fields,
-                historical,
-            } => {
-                self.partitions.ensure(db, "fleet_events", t_ms)?;
-                let n = db.execute(
-                    "INSERT INTO fleet_events (group_id, node_id, t, kind, subject, detail, historical)
-                     VALUES ($1, $2, to_timestamp($3), $4, $5, $6, $7) ON CONFLICT DO NOTHING",
-                    &[&group, &node, &seconds_f64(t_ms), &fields[0], &fields[1], &fields[2], &historical],
-                )?;
-                Ok(Outcome::Event { written: n == 1 })
-            }
-            Row::Probe {
-                t_ms,
-                state,
-                values,
-                historical,
-            } => {
-                self.partitions.ensure(db, "fleet_probes", t_ms)?;
-                let n = db.execute(
-                    "INSERT INTO fleet_probes (group_id, node_id, t, state, \"values\", historical)
-                     VALUES ($1, $2, to_timestamp($3), $4, $5::text::jsonb, $6) ON CONFLICT DO NOTHING",
-                    &[&group, &node, &seconds_f64(t_ms), &state, &values.to_string(), &historical],
-                )?;
-                Ok(Outcome::Probe { written: n == 1 })
-            }
-        }
+        let outcome: fn(bool) -> Outcome = match row {
+            Row::Second { .. } => |written| Outcome::Second { written },
+            Row::Event { .. } => |written| Outcome::Event { written },
+            Row::Probe { .. } => |written| Outcome::Probe { written },
+        };
+        let (_, _, _, duplicates) = self.write_all(db, vec![(group.into(), node.into(), row)])?;
+        Ok(outcome(duplicates == 0))
     }
 
     /// Writes many rows with one statement per table (`unnest` of arrays): a batch costs the
