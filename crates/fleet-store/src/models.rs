@@ -328,6 +328,26 @@ fn state_of(tx: &mut Transaction<'_>, machine: &str, version: i32) -> Result<Sta
     Ok(State::parse(row.get(0)).unwrap_or(State::Retired))
 }
 
+/// The version's state, refused with `rule` unless it is one of `allowed`.
+fn state_among(
+    tx: &mut Transaction<'_>,
+    machine: &str,
+    version: i32,
+    allowed: &[State],
+    rule: &'static str,
+) -> Result<State, ModelError> {
+    let state = state_of(tx, machine, version)?;
+    if !allowed.contains(&state) {
+        return Err(ModelError::WrongState {
+            machine: machine.to_string(),
+            version,
+            state,
+            rule,
+        });
+    }
+    Ok(state)
+}
+
 /// Moves one version to `to` and writes its history row.
 fn set_state(
     tx: &mut Transaction<'_>,
@@ -454,15 +474,13 @@ pub fn activate_if(
     let mut tx = db.transaction()?;
     lock(&mut tx, machine)?;
     check_active(&mut tx, machine, expected_active)?;
-    let state = state_of(&mut tx, machine, version)?;
-    if !matches!(state, State::Candidate | State::Shadow) {
-        return Err(ModelError::WrongState {
-            machine: machine.to_string(),
-            version,
-            state,
-            rule: "only a candidate or a shadow model can be activated (a retired one comes back by `fleet rollback`, or registered again)",
-        });
-    }
+    let state = state_among(
+        &mut tx,
+        machine,
+        version,
+        &[State::Candidate, State::Shadow],
+        "only a candidate or a shadow model can be activated (a retired one comes back by `fleet rollback`, or registered again)",
+    )?;
     let old = active(&mut tx, machine)?.map(|(v, _)| v);
     if let Some(old) = old {
         let why = format!("replaced by version {version}: {}", change.reason);
@@ -557,27 +575,14 @@ pub fn shadow(
     version: i32,
     change: &Change<'_>,
 ) -> Result<(), ModelError> {
-    let mut tx = db.transaction()?;
-    lock(&mut tx, machine)?;
-    let state = state_of(&mut tx, machine, version)?;
-    if state != State::Candidate {
-        return Err(ModelError::WrongState {
-            machine: machine.to_string(),
-            version,
-            state,
-            rule: "only a candidate can go into shadow",
-        });
-    }
-    set_state(
-        &mut tx,
-        machine,
-        version,
-        Some(state),
+    move_one(
+        db,
+        (machine, version),
+        &[State::Candidate],
         State::Shadow,
+        "only a candidate can go into shadow",
         change,
-    )?;
-    tx.commit()?;
-    Ok(())
+    )
 }
 
 /// Retires a candidate or shadow model that will not run (refused by a service, or not better
@@ -588,25 +593,30 @@ pub fn retire(
     version: i32,
     change: &Change<'_>,
 ) -> Result<(), ModelError> {
+    move_one(
+        db,
+        (machine, version),
+        &[State::Candidate, State::Shadow],
+        State::Retired,
+        "only a candidate or a shadow model is retired this way (an active one by `fleet rollback` or by activating another)",
+        change,
+    )
+}
+
+/// Moves one version, under the machine's lock, from one of `allowed` to `to`; refused with
+/// `rule`, changing nothing, from any other state.
+fn move_one(
+    db: &mut impl GenericClient,
+    (machine, version): (&str, i32),
+    allowed: &[State],
+    to: State,
+    rule: &'static str,
+    change: &Change<'_>,
+) -> Result<(), ModelError> {
     let mut tx = db.transaction()?;
     lock(&mut tx, machine)?;
-    let state = state_of(&mut tx, machine, version)?;
-    if !matches!(state, State::Candidate | State::Shadow) {
-        return Err(ModelError::WrongState {
-            machine: machine.to_string(),
-            version,
-            state,
-            rule: "only a candidate or a shadow model is retired this way (an active one by `fleet rollback` or by activating another)",
-        });
-    }
-    set_state(
-        &mut tx,
-        machine,
-        version,
-        Some(state),
-        State::Retired,
-        change,
-    )?;
+    let state = state_among(&mut tx, machine, version, allowed, rule)?;
+    set_state(&mut tx, machine, version, Some(state), to, change)?;
     tx.commit()?;
     Ok(())
 }
