@@ -8,11 +8,14 @@
 //! - [`projection`]: K0/tanβ/P0 per axis (Siemens SD43900/43910/43920, Beckhoff/ISG's linear
 //!   temperature compensation) or a constant per axis, fitted along each axis' travel with the
 //!   other axes where they are, with the error along the travel and per other axis;
-//! - [`siemens`]: the part program setting the three setting data, and its reader;
-//! - [`heidenhain`]: PLC module 9231 offsets and `TEMPCOMP` formulas over PLC words;
-//! - [`isg`]: Beckhoff/ISG axis parameter list entries P-AXIS-00271…00274, and their reader;
-//! - [`fanuc`]: the line as custom macro variables (FOCAS `cnc_wrmacro` arguments and a macro
-//!   program), and the program's reader.
+//! - one module per control, its one home: what sets its values from a projection, and its
+//!   compensation-table files read and written —
+//!   [`siemens`] (the part program setting the three setting data; `$AA_ENC_COMP`/`$AN_CEC`
+//!   tables), [`heidenhain`] (PLC module 9231 offsets, `TEMPCOMP` formulas; `.COM`/`.CMA`
+//!   tables), [`isg`] (axis parameters P-AXIS-00271…00274; `kw.ssfk.*` lists), [`fanuc`] (the
+//!   line as custom macro variables; pitch error compensation tapes) and [`linuxcnc`] (its
+//!   `COMP_FILE`s; the rest of LinuxCNC is the `truepos-hal` component);
+//! - [`table`]: what the tables share, and truepos' own CSV form of a table.
 //!
 //! Sign: a model predicts the error (actual − nominal); every value here is the compensation,
 //! its negative, which the control adds to the set-point.
@@ -45,8 +48,10 @@
 pub mod fanuc;
 pub mod heidenhain;
 pub mod isg;
+pub mod linuxcnc;
 pub mod projection;
 pub mod siemens;
+pub mod table;
 
 /// Why a projection or a control file failed.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]

@@ -28,8 +28,10 @@ use truepos_kinematics::table::{CompTable, Interpolation, Wrap};
 use truepos_kinematics::{Chain, Dof, ErrorTable, ErrorUnit, KinAxis, Row};
 use truepos_model::{AxisKind, Machine};
 
-use crate::comp_table::{parse_csv, parse_linuxcnc, parse_siemens, select_siemens, LinuxCncType};
 use crate::error::read_text;
+use truepos_controls::linuxcnc::{parse_linuxcnc, LinuxCncType};
+use truepos_controls::siemens::{parse_siemens, select_siemens};
+use truepos_controls::table::parse_csv;
 use truepos_files::InputError;
 
 /// A loaded kinematics table.

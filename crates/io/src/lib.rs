@@ -24,7 +24,6 @@
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
-pub mod comp_table;
 pub mod compensation;
 pub mod cycles;
 pub mod dynamic_model_file;

@@ -9,12 +9,15 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use crate::error::CliError;
-use truepos_files::InputError;
-use truepos_io::comp_table::{
-    parse_com, parse_csv, parse_fanuc, parse_isg, parse_linuxcnc, parse_siemens, read_heidenhain,
-    select_siemens, write_csv, write_siemens, FanucGrid, FanucPitch, HeidenhainCma, HeidenhainCom,
-    IsgSsfk, LinuxCncComp, LinuxCncType, SiemensKind, SiemensTable,
+use truepos_controls::fanuc::{parse_fanuc, FanucGrid, FanucPitch};
+use truepos_controls::heidenhain::{parse_com, read_heidenhain, HeidenhainCma, HeidenhainCom};
+use truepos_controls::isg::{parse_isg, IsgSsfk};
+use truepos_controls::linuxcnc::{parse_linuxcnc, LinuxCncComp, LinuxCncType};
+use truepos_controls::siemens::{
+    parse_siemens, select_siemens, write_siemens, SiemensKind, SiemensTable,
 };
+use truepos_controls::table::{parse_csv, write_csv};
+use truepos_files::InputError;
 use truepos_kinematics::table::{CompTable, Direction, Interpolation, Wrap};
 
 /// Formats a table is read from.

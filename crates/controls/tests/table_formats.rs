@@ -4,7 +4,9 @@
 use std::path::Path;
 
 use proptest::prelude::*;
-use truepos_io::comp_table::*;
+use truepos_controls::linuxcnc::*;
+use truepos_controls::siemens::*;
+use truepos_controls::table::*;
 use truepos_kinematics::table::{CompTable, Direction, Interpolation, Wrap};
 
 fn p() -> &'static Path {

@@ -6,7 +6,7 @@
 use std::path::Path;
 
 use proptest::prelude::*;
-use truepos_io::comp_table::{parse_fanuc, FanucGrid, FanucPitch};
+use truepos_controls::fanuc::{parse_fanuc, FanucGrid, FanucPitch};
 use truepos_kinematics::table::{CompTable, Direction, Interpolation, Wrap};
 
 fn p() -> &'static Path {

@@ -8,7 +8,7 @@ use std::path::Path;
 
 use truepos_kinematics::table::{CompTable, Interpolation, Wrap};
 
-use super::{ExportError, Origin};
+use crate::table::{ExportError, Origin};
 use truepos_files::InputError;
 
 /// Which Siemens compensation a table belongs to.

@@ -6,7 +6,7 @@ use std::path::Path;
 
 use truepos_kinematics::table::{CompTable, Interpolation, TableError, Wrap};
 
-use super::{fields, parse_number, ExportError, Origin};
+use crate::table::{fields, parse_number, ExportError, Origin};
 use truepos_files::InputError;
 
 /// Most rows LinuxCNC accepts in a compensation file.

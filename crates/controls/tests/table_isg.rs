@@ -6,7 +6,7 @@
 use std::path::Path;
 
 use proptest::prelude::*;
-use truepos_io::comp_table::{parse_isg, IsgSsfk};
+use truepos_controls::isg::{parse_isg, IsgSsfk};
 use truepos_kinematics::table::{CompTable, Direction, Interpolation, Wrap};
 
 fn p() -> &'static Path {

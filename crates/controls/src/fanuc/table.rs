@@ -29,7 +29,7 @@ use std::path::Path;
 
 use truepos_kinematics::table::{CompTable, Direction, Interpolation, Wrap};
 
-use super::ExportError;
+use crate::table::ExportError;
 use truepos_files::InputError;
 
 /// The pitch error parameters of one axis.

@@ -20,7 +20,7 @@ use std::path::Path;
 
 use truepos_kinematics::table::{CompTable, Interpolation, Wrap};
 
-use super::{ExportError, Origin};
+use crate::table::{ExportError, Origin};
 use truepos_files::InputError;
 
 /// A leadscrew error compensation list exactly as written (positions and values in 0.1 µm).

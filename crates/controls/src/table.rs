@@ -1,13 +1,14 @@
-//! Compensation table files: truepos' plain CSV form, LinuxCNC `COMP_FILE`s and Siemens
-//! SINUMERIK INI part programs (leadscrew/encoder `$AA_ENC_COMP[…]`, sag/cross `$AN_CEC[…]`).
+//! What every control's compensation table shares, and truepos' own CSV form of a table.
 //!
-//! Each controller format is first read into a struct that holds exactly what the file says
-//! ([`LinuxCncComp`], [`SiemensTable`]), so that a file written by truepos reads back
-//! identically (floats are written in Rust's shortest round-trip form). Conversions to and from
-//! [`CompTable`] state their units and signs.
+//! Each control's table file is read, in its control's module, into a struct that holds exactly
+//! what the file says ([`crate::linuxcnc::LinuxCncComp`], [`crate::siemens::SiemensTable`],
+//! [`crate::heidenhain::HeidenhainCom`], [`crate::isg::IsgSsfk`], [`crate::fanuc::FanucPitch`]),
+//! so that a file written by truepos reads back identically (floats are written in Rust's
+//! shortest round-trip form). Conversions to and from [`CompTable`] state their units and signs;
+//! [`Origin`] keeps each support point's line, so a point that does not make a table is named.
 //!
 //! * **CSV** (truepos): `#` comments, a header `position,value` or `position,forward,reverse`,
-//!   then one support point per line.
+//!   then one support point per line ([`parse_csv`], [`write_csv`]).
 //! * **LinuxCNC** (`[JOINT_n] COMP_FILE`, `COMP_FILE_TYPE`): lines of three numbers
 //!   `nominal forward reverse`, at most 256 rows, nominal strictly increasing. Type 0 holds the
 //!   actual positions reached when moving forward / in reverse, type 1 the trims
@@ -20,15 +21,14 @@
 //!   and `M02` lines are accepted. Values are in mm; support points are equidistant.
 //!   One Siemens table holds one value column: `$AA_ENC_COMP` has no direction of travel, so
 //!   a directional (forward/reverse) table is refused there, and goes out as two CEC tables
-//!   with `_DIRECTION` 1 and −1 ([`SiemensTable::directional_pair`], read back with
-//!   [`SiemensTable::pair_to_table`]).
+//!   with `_DIRECTION` 1 and −1.
 //! * **HEIDENHAIN** (TNC nonlinear axis error compensation): a `.COM` table (`NR`, `AXISPOS`,
 //!   one column per compensated axis, mm) selected for a reading axis by the active line of a
-//!   `.CMA` assignment table ([`HeidenhainCom`], [`HeidenhainCma`], [`read_heidenhain`]).
+//!   `.CMA` assignment table.
 //! * **ISG** (Beckhoff TwinCAT CNC) leadscrew error compensation lists `kw.ssfk.*` (0.1 µm,
-//!   unilateral or bilateral, equidistant or with set-points) ([`IsgSsfk`]).
+//!   unilateral or bilateral, equidistant or with set-points).
 //! * **FANUC** pitch error compensation: parameters 3620–3624 and incremental point values
-//!   in detection units × magnification, in the parameter tape format ([`FanucPitch`]).
+//!   in detection units × magnification, in the parameter tape format.
 
 use std::fmt::{self, Write as _};
 use std::path::{Path, PathBuf};
@@ -37,19 +37,7 @@ use truepos_kinematics::table::{CompTable, Interpolation, TableError, Wrap};
 
 use truepos_files::InputError;
 
-mod fanuc;
-mod heidenhain;
-mod isg;
-mod linuxcnc;
-mod siemens;
-
-pub use fanuc::{parse_fanuc, FanucAxis, FanucGrid, FanucLoss, FanucPitch};
-pub use heidenhain::{
-    parse_cma, parse_com, read_heidenhain, CmaLine, HeidenhainCma, HeidenhainCom,
-};
-pub use isg::{parse_isg, IsgSsfk};
-pub use linuxcnc::{parse_linuxcnc, LinuxCncComp, LinuxCncType, LINUXCNC_MAX_ROWS};
-pub use siemens::{parse_siemens, select_siemens, write_siemens, SiemensKind, SiemensTable};
+use crate::linuxcnc::LINUXCNC_MAX_ROWS;
 
 /// Where a controller's table was read from: its file and the line of each support point, so
 /// that turning it into a [`CompTable`] names the line of a support point that does not make
@@ -71,7 +59,7 @@ impl PartialEq for Origin {
 }
 
 impl Origin {
-    fn read(file: &Path, lines: Vec<usize>) -> Self {
+    pub(crate) fn read(file: &Path, lines: Vec<usize>) -> Self {
         Self {
             file: Some(file.to_path_buf()),
             lines,
@@ -86,7 +74,7 @@ impl Origin {
     }
 
     /// An error about the table as a whole (at its first support point) and `key`.
-    fn error(&self, key: &str, message: impl Into<String>) -> InputError {
+    pub(crate) fn error(&self, key: &str, message: impl Into<String>) -> InputError {
         InputError {
             file: self.file().to_path_buf(),
             position: self.lines.first().map(|&l| (l, 1)),
@@ -96,7 +84,7 @@ impl Origin {
     }
 
     /// The error of support points that do not make a table, at the line of the one it names.
-    fn table_error(&self, key: &str, e: TableError) -> InputError {
+    pub(crate) fn table_error(&self, key: &str, e: TableError) -> InputError {
         let mut error = table_error(self.file(), &self.lines, key, e);
         error.key = Some(key.to_string()).filter(|k| !k.is_empty());
         error
@@ -170,7 +158,7 @@ impl fmt::Display for ExportError {
 
 impl std::error::Error for ExportError {}
 
-fn parse_number(
+pub(crate) fn parse_number(
     path: &Path,
     line: usize,
     column: usize,
@@ -190,7 +178,7 @@ fn parse_number(
 }
 
 /// Splits a line into fields with their 1-based columns, on `sep` (or whitespace if `None`).
-fn fields(line: &str, sep: Option<char>) -> Vec<(usize, &str)> {
+pub(crate) fn fields(line: &str, sep: Option<char>) -> Vec<(usize, &str)> {
     let mut out = Vec::new();
     match sep {
         Some(c) => {
@@ -218,7 +206,7 @@ fn fields(line: &str, sep: Option<char>) -> Vec<(usize, &str)> {
 
 /// A table the support points at `lines` do not make, at the line of the one `e` names (the
 /// last one for an error of the whole span), about `key`; about the file if it names none.
-fn table_error(path: &Path, lines: &[usize], key: &str, e: TableError) -> InputError {
+pub(crate) fn table_error(path: &Path, lines: &[usize], key: &str, e: TableError) -> InputError {
     use TableError as E;
     let line = match e {
         E::NonFinite { index } | E::NotIncreasing { index } => lines.get(index).copied(),

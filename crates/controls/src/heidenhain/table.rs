@@ -28,7 +28,7 @@ use std::path::Path;
 
 use truepos_kinematics::table::{CompTable, Interpolation, Wrap};
 
-use super::{ExportError, Origin};
+use crate::table::{ExportError, Origin};
 use truepos_files::InputError;
 
 /// A `.COM` compensation-value table exactly as written: values in mm at `AXISPOS` (mm, or
@@ -608,19 +608,20 @@ pub fn read_heidenhain(
     wrap: Wrap,
     interpolation: Interpolation,
 ) -> Result<CompTable, InputError> {
-    let cma_text = crate::error::read_text(cma_path, truepos_files::TABLE)?;
+    let cma_text = truepos_files::read::read_text(cma_path, truepos_files::TABLE)?;
     let cma = parse_cma(cma_path, &cma_text)?;
     let (entry, line) = cma.active_for(cma_path, axis)?;
     let file = entry.rsplit(['\\', '/', ':']).next().unwrap_or(entry);
     let com_path = cma_path.with_file_name(file);
-    let com_text = crate::error::read_text(&com_path, truepos_files::TABLE).map_err(|e| {
-        InputError::at(
-            cma_path,
-            line,
-            1,
-            axis,
-            format!("the active line's table {entry}: {e}"),
-        )
-    })?;
+    let com_text =
+        truepos_files::read::read_text(&com_path, truepos_files::TABLE).map_err(|e| {
+            InputError::at(
+                cma_path,
+                line,
+                1,
+                axis,
+                format!("the active line's table {entry}: {e}"),
+            )
+        })?;
     parse_com(&com_path, &com_text)?.to_table(output, wrap, interpolation)
 }

@@ -6,7 +6,9 @@
 use std::path::Path;
 
 use proptest::prelude::*;
-use truepos_io::comp_table::{parse_cma, parse_com, read_heidenhain, HeidenhainCma, HeidenhainCom};
+use truepos_controls::heidenhain::{
+    parse_cma, parse_com, read_heidenhain, HeidenhainCma, HeidenhainCom,
+};
 use truepos_kinematics::table::{CompTable, Direction, Interpolation, Wrap};
 
 fn p() -> &'static Path {
