@@ -201,6 +201,17 @@ mod tests {
         std::iter::from_fn(|| q.pop()).map(|e| e.kind).collect()
     }
 
+    /// One rate clamp of axis 0, then its release.
+    fn one_rate_clamp() -> Vec<EventKind> {
+        vec![
+            EventKind::Clamped {
+                axis: 0,
+                rate: true,
+            },
+            EventKind::ClampReleased { axis: 0 },
+        ]
+    }
+
     #[test]
     fn rate_and_magnitude_are_clamped() {
         let (q, mut e) = one_axis();
@@ -215,17 +226,7 @@ mod tests {
         // Back inside: released.
         assert!(!e.apply(&[90.0], 101.0, &mut out, &q));
         assert_eq!(out[0], 90.0);
-        let kinds = drain(&q);
-        assert_eq!(
-            kinds,
-            vec![
-                EventKind::Clamped {
-                    axis: 0,
-                    rate: true
-                },
-                EventKind::ClampReleased { axis: 0 }
-            ]
-        );
+        assert_eq!(drain(&q), one_rate_clamp());
     }
 
     #[test]
@@ -283,17 +284,7 @@ mod tests {
             let target = if k < 2000 && k % 2 == 1 { 1.0 } else { 0.0 };
             e.apply(&[target], k as f64 * 0.001, &mut out, &q);
         }
-        let kinds = drain(&q);
-        assert_eq!(
-            kinds,
-            vec![
-                EventKind::Clamped {
-                    axis: 0,
-                    rate: true
-                },
-                EventKind::ClampReleased { axis: 0 }
-            ]
-        );
+        assert_eq!(drain(&q), one_rate_clamp());
     }
 
     #[test]
