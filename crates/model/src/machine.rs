@@ -263,6 +263,15 @@ impl Machine {
         if self.axes.len() > MAX_AXES {
             return Err(MachineError::TooManyAxes(self.axes.len()));
         }
+        self.check_names()?;
+        self.check_axes()?;
+        self.check_temperatures()?;
+        self.check_differences()?;
+        self.check_operating()
+    }
+
+    /// Every name is unique within its list, since files and tables refer to channels by name.
+    fn check_names(&self) -> Result<(), MachineError> {
         let lists: [(&'static str, alloc::vec::Vec<&str>); 4] = [
             ("axis", self.axes.iter().map(|a| a.name.as_str()).collect()),
             (
@@ -286,6 +295,12 @@ impl Machine {
                 });
             }
         }
+        Ok(())
+    }
+
+    /// Every axis has a finite, non-empty travel and rests on an existing axis, and following
+    /// carried_by from any axis reaches the base (a loop would make the chain endless).
+    fn check_axes(&self) -> Result<(), MachineError> {
         for axis in &self.axes {
             if !(axis.travel_min.is_finite()
                 && axis.travel_max.is_finite()
@@ -315,6 +330,11 @@ impl Machine {
                 at = self.axes[i].carried_by;
             }
         }
+        Ok(())
+    }
+
+    /// Every temperature channel has a finite, non-empty valid range and a sound lag filter.
+    fn check_temperatures(&self) -> Result<(), MachineError> {
         for t in &self.temperatures {
             if !(t.valid_min_c.is_finite()
                 && t.valid_max_c.is_finite()
@@ -324,46 +344,56 @@ impl Machine {
                     sensor: t.id.clone(),
                 });
             }
-            if let Some(lag) = t.lag {
-                let source = match lag.source {
-                    crate::lag::LagSource::Temperature(i) => match self.temperatures.get(i) {
-                        None => Err("its source refers to nothing"),
-                        Some(s) if s.lag.is_some() => {
-                            Err("its source is itself lagged; expected a measured sensor")
-                        }
-                        _ => Ok(()),
-                    },
-                    crate::lag::LagSource::Operating {
-                        channel,
-                        gain_k_per_unit,
-                        power,
-                    } => {
-                        if channel >= self.operating.len() {
-                            Err("its operating channel refers to nothing")
-                        } else if !(gain_k_per_unit.is_finite() && gain_k_per_unit != 0.0) {
-                            Err("the gain must be a finite, non-zero number of K per unit")
-                        } else if !matches!(power, 1 | 2) {
-                            Err("the power must be 1 or 2")
-                        } else {
-                            Ok(())
-                        }
-                    }
-                };
-                let reason = match source {
-                    Err(reason) => Some(reason),
-                    Ok(()) if !(lag.tau_s.is_finite() && lag.tau_s > 0.0) => {
-                        Some("the time constant must be a positive, finite number of seconds")
-                    }
-                    Ok(()) => None,
-                };
-                if let Some(reason) = reason {
-                    return Err(MachineError::BadLag {
-                        sensor: t.id.clone(),
-                        reason,
-                    });
-                }
+            if let Some(reason) = t.lag.and_then(|lag| self.lag_problem(&lag)) {
+                return Err(MachineError::BadLag {
+                    sensor: t.id.clone(),
+                    reason,
+                });
             }
         }
+        Ok(())
+    }
+
+    /// What is wrong with a lagged channel's filter, if anything: its source must be a
+    /// measured sensor (not another lagged channel) or an operating channel with a finite,
+    /// non-zero gain and a power of 1 or 2, and its time constant positive and finite.
+    fn lag_problem(&self, lag: &crate::lag::Lag) -> Option<&'static str> {
+        let source = match lag.source {
+            crate::lag::LagSource::Temperature(i) => match self.temperatures.get(i) {
+                None => Err("its source refers to nothing"),
+                Some(s) if s.lag.is_some() => {
+                    Err("its source is itself lagged; expected a measured sensor")
+                }
+                _ => Ok(()),
+            },
+            crate::lag::LagSource::Operating {
+                channel,
+                gain_k_per_unit,
+                power,
+            } => {
+                if channel >= self.operating.len() {
+                    Err("its operating channel refers to nothing")
+                } else if !(gain_k_per_unit.is_finite() && gain_k_per_unit != 0.0) {
+                    Err("the gain must be a finite, non-zero number of K per unit")
+                } else if !matches!(power, 1 | 2) {
+                    Err("the power must be 1 or 2")
+                } else {
+                    Ok(())
+                }
+            }
+        };
+        match source {
+            Err(reason) => Some(reason),
+            Ok(()) if !(lag.tau_s.is_finite() && lag.tau_s > 0.0) => {
+                Some("the time constant must be a positive, finite number of seconds")
+            }
+            Ok(()) => None,
+        }
+    }
+
+    /// Every difference refers to existing sensors, never to itself, and a fixed reference
+    /// is a finite temperature.
+    fn check_differences(&self) -> Result<(), MachineError> {
         for d in &self.differences {
             if d.plus >= self.temperatures.len() {
                 return Err(MachineError::BadIndex {
@@ -391,6 +421,11 @@ impl Machine {
                 _ => {}
             }
         }
+        Ok(())
+    }
+
+    /// Every operating channel tied to an axis names an existing one.
+    fn check_operating(&self) -> Result<(), MachineError> {
         for o in &self.operating {
             if o.axis.is_some_and(|a| a >= self.axes.len()) {
                 return Err(MachineError::BadIndex {
