@@ -221,41 +221,9 @@ impl Chain {
         // The table of the previous error row (see `ErrRef::relocate`).
         let mut last: Option<&ErrorTable> = None;
         for (i, row) in rows.iter().enumerate() {
-            let bad = |what: &str| ChainError::BadValue {
-                what: alloc::format!("row {i}: {what}"),
-            };
             let step = match *row {
-                Row::Fixed { dof, value } => {
-                    if !value.is_finite() {
-                        return Err(bad("value"));
-                    }
-                    if dof.is_rotation() {
-                        let (s, c) = sincos(value * DEG);
-                        Step::Rotate {
-                            k: dof.coordinate(),
-                            c,
-                            s,
-                        }
-                    } else {
-                        Step::Translate {
-                            k: dof.coordinate(),
-                            v: value,
-                        }
-                    }
-                }
-                Row::Tool { dof, sign, offset } => {
-                    if dof.is_rotation() {
-                        return Err(ChainError::ToolNotTranslation { row: i });
-                    }
-                    if !(offset.is_finite() && (sign == 1.0 || sign == -1.0)) {
-                        return Err(bad("tool offset or sign"));
-                    }
-                    Step::Tool {
-                        k: dof.coordinate(),
-                        sign,
-                        offset,
-                    }
-                }
+                Row::Fixed { dof, value } => fixed_step(i, dof, value)?,
+                Row::Tool { dof, sign, offset } => tool_step(i, dof, sign, offset)?,
                 Row::Error { dof, offset, table } => error_step(
                     i,
                     dof,
@@ -266,27 +234,9 @@ impl Chain {
                     &mut cubics,
                 )?,
                 Row::Axis { dof, axis, sign } => {
-                    let a = axes.get(axis).ok_or(ChainError::BadReference { row: i })?;
-                    if (a.kind == AxisKind::Rotary) != dof.is_rotation() {
-                        return Err(ChainError::KindMismatch { row: i });
-                    }
-                    if !(sign == 1.0 || sign == -1.0) {
-                        return Err(bad("sign"));
-                    }
+                    let step = axis_step(i, dof, axis, sign, &axes)?;
                     uses[axis] += 1;
-                    if dof.is_rotation() {
-                        Step::AxisRotate {
-                            k: dof.coordinate(),
-                            axis,
-                            sign,
-                        }
-                    } else {
-                        Step::AxisTranslate {
-                            k: dof.coordinate(),
-                            axis,
-                            sign,
-                        }
-                    }
+                    step
                 }
             };
             steps.push(step);
@@ -307,16 +257,7 @@ impl Chain {
         } else {
             (steps, Vec::new(), Vec::new())
         };
-        let mut periodic = 0u16;
-        for (j, a) in axes.iter().enumerate() {
-            let wraps = tables
-                .iter()
-                .filter(|t| t.axis == j)
-                .all(|t| t.table.wrap() == Wrap::Rotary);
-            if a.kind == AxisKind::Rotary && wraps {
-                periodic |= 1 << j;
-            }
-        }
+        let periodic = periodic_axes(&axes, &tables);
         let mut chain = Self {
             axes,
             tables,
@@ -396,6 +337,96 @@ impl Chain {
             .filter(|a| a.kind == AxisKind::Rotary)
             .count()
     }
+}
+
+/// The step of a fixed row: a constant rotation (its sine and cosine found once here) or
+/// translation.
+fn fixed_step(i: usize, dof: Dof, value: f64) -> Result<Step, ChainError> {
+    if !value.is_finite() {
+        return Err(ChainError::BadValue {
+            what: alloc::format!("row {i}: value"),
+        });
+    }
+    Ok(if dof.is_rotation() {
+        let (s, c) = sincos(value * DEG);
+        Step::Rotate {
+            k: dof.coordinate(),
+            c,
+            s,
+        }
+    } else {
+        Step::Translate {
+            k: dof.coordinate(),
+            v: value,
+        }
+    })
+}
+
+/// The step of the tool row: a translation by sign · tool length + offset, so that the
+/// active tool's length enters the chain at this row.
+fn tool_step(i: usize, dof: Dof, sign: f64, offset: f64) -> Result<Step, ChainError> {
+    if dof.is_rotation() {
+        return Err(ChainError::ToolNotTranslation { row: i });
+    }
+    if !(offset.is_finite() && (sign == 1.0 || sign == -1.0)) {
+        return Err(ChainError::BadValue {
+            what: alloc::format!("row {i}: tool offset or sign"),
+        });
+    }
+    Ok(Step::Tool {
+        k: dof.coordinate(),
+        sign,
+        offset,
+    })
+}
+
+/// The step of an axis row: the axis' set-point as a rotation or translation, which must
+/// match the axis' kind.
+fn axis_step(
+    i: usize,
+    dof: Dof,
+    axis: usize,
+    sign: f64,
+    axes: &[KinAxis],
+) -> Result<Step, ChainError> {
+    let a = axes.get(axis).ok_or(ChainError::BadReference { row: i })?;
+    if (a.kind == AxisKind::Rotary) != dof.is_rotation() {
+        return Err(ChainError::KindMismatch { row: i });
+    }
+    if !(sign == 1.0 || sign == -1.0) {
+        return Err(ChainError::BadValue {
+            what: alloc::format!("row {i}: sign"),
+        });
+    }
+    Ok(if dof.is_rotation() {
+        Step::AxisRotate {
+            k: dof.coordinate(),
+            axis,
+            sign,
+        }
+    } else {
+        Step::AxisTranslate {
+            k: dof.coordinate(),
+            axis,
+            sign,
+        }
+    })
+}
+
+/// The rotary axes (bit j for axis j) whose every table repeats every 360°, so whole turns
+/// of them change nothing; found once here rather than per inverse transform.
+fn periodic_axes(axes: &[KinAxis], tables: &[ErrorTable]) -> u16 {
+    let mut periodic = 0u16;
+    for (j, a) in axes.iter().enumerate() {
+        let wraps = tables
+            .iter()
+            .filter(|t| t.axis == j)
+            .all(|t| t.table.wrap() == Wrap::Rotary);
+        if a.kind == AxisKind::Rotary && wraps {
+            periodic |= 1 << j;
+        }
+    }
+    periodic
 }
 
 /// The step of error row `i` (see [`Row::Error`]): a fixed step for a constant table, else a

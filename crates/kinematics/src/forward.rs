@@ -130,6 +130,56 @@ fn err_rotate<const JAC: bool, const ACTUAL: bool, const DIR_JAC: bool, const OM
     }
 }
 
+/// A fixed rotation (k, cos, sin) of the pose, turning the derivatives found so far; no axis
+/// moves it, so it adds no derivative of its own.
+#[inline(always)]
+fn fixed_rotate<const JAC: bool, const DIR_JAC: bool, const OMEGA: bool>(
+    x: &mut Pd,
+    tangents: Option<&mut Tangents>,
+    omega: Option<&mut AngularVelocity>,
+    active: u32,
+    (k, c, s): (usize, f64, f64),
+) {
+    x.rotate(k, c, s);
+    if JAC {
+        if let Some(t) = tangents {
+            turn::<DIR_JAC, OMEGA>(t, omega, active, k, c, s);
+        }
+    }
+}
+
+/// The rotation (k, cos, sin) of a rotary axis turning by `sign` · its set-point: it turns the
+/// derivatives found so far, then adds its own, e_k × the TCP (and × the tool direction with
+/// `DIR_JAC`) and, with `OMEGA`, its angular velocity about e_k.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn axis_rotate<const JAC: bool, const DIR_JAC: bool, const OMEGA: bool>(
+    x: &mut Pd,
+    tangents: Option<&mut Tangents>,
+    mut omega: Option<&mut AngularVelocity>,
+    active: &mut u32,
+    (k, c, s): (usize, f64, f64),
+    axis: usize,
+    sign: f64,
+) {
+    x.rotate(k, c, s);
+    if JAC {
+        if let Some(t) = tangents {
+            turn::<DIR_JAC, OMEGA>(t, omega.as_deref_mut(), *active, k, c, s);
+            add_cross(&mut t.dp[axis], k, &x.p(), sign);
+            if DIR_JAC {
+                add_cross(&mut t.dd[axis], k, &x.d(), sign);
+            }
+            if OMEGA {
+                if let Some(w) = omega {
+                    w[axis][k] += sign;
+                }
+            }
+            *active |= turns_bit::<OMEGA>() << axis;
+        }
+    }
+}
+
 /// Zeroes the derivatives (with `JAC`) and the angular velocities (with `OMEGA`) of the first
 /// `n` axes, the ones a walk adds to.
 #[inline(always)]
@@ -518,19 +568,9 @@ impl Chain {
                     }
                 }
                 Step::ErrTranslate { k, e } => {
-                    if ACTUAL {
-                        let (v, slope) = self.error_value::<JAC>(&e, &mut at, q, dirs);
-                        x.translate(k, v);
-                        if JAC {
-                            if let Some(t) = tangents.as_deref_mut() {
-                                let axis = usize::from(e.axis);
-                                t.dp[axis][k] += slope * e.per_unit;
-                                active |= 1 << axis;
-                            }
-                        }
-                    } else {
-                        x.translate(k, e.offset);
-                    }
+                    let state = (&mut x, &mut active, &mut at);
+                    let t = tangents.as_deref_mut();
+                    self.err_translate::<JAC, ACTUAL>(k, &e, q, dirs, state, t);
                 }
                 Step::ConstErrTranslate { k, v, nominal } => {
                     x.translate(k, if ACTUAL { v } else { nominal });
@@ -547,40 +587,19 @@ impl Chain {
                     } else {
                         (nominal_c, nominal_s)
                     };
-                    x.rotate(k, c, s);
-                    if JAC {
-                        if let Some(t) = tangents.as_deref_mut() {
-                            // A constant table has no slope: only turn the tangents.
-                            turn::<DIR_JAC, OMEGA>(t, omega.as_deref_mut(), active, k, c, s);
-                        }
-                    }
+                    // A constant table has no slope: only turn the tangents.
+                    let (t, w) = (tangents.as_deref_mut(), omega.as_deref_mut());
+                    fixed_rotate::<JAC, DIR_JAC, OMEGA>(&mut x, t, w, active, (k, c, s));
                 }
                 Step::Rotate { k, c, s } => {
-                    x.rotate(k, c, s);
-                    if JAC {
-                        if let Some(t) = tangents.as_deref_mut() {
-                            turn::<DIR_JAC, OMEGA>(t, omega.as_deref_mut(), active, k, c, s);
-                        }
-                    }
+                    let (t, w) = (tangents.as_deref_mut(), omega.as_deref_mut());
+                    fixed_rotate::<JAC, DIR_JAC, OMEGA>(&mut x, t, w, active, (k, c, s));
                 }
                 Step::AxisRotate { k, axis, sign } => {
                     let (s, c) = sincos(sign * q[axis] * DEG);
-                    x.rotate(k, c, s);
-                    if JAC {
-                        if let Some(t) = tangents.as_deref_mut() {
-                            turn::<DIR_JAC, OMEGA>(t, omega.as_deref_mut(), active, k, c, s);
-                            add_cross(&mut t.dp[axis], k, &x.p(), sign);
-                            if DIR_JAC {
-                                add_cross(&mut t.dd[axis], k, &x.d(), sign);
-                            }
-                            if OMEGA {
-                                if let Some(w) = omega.as_deref_mut() {
-                                    w[axis][k] += sign;
-                                }
-                            }
-                            active |= turns_bit::<OMEGA>() << axis;
-                        }
-                    }
+                    let (t, w) = (tangents.as_deref_mut(), omega.as_deref_mut());
+                    let turn = (k, c, s);
+                    axis_rotate::<JAC, DIR_JAC, OMEGA>(&mut x, t, w, &mut active, turn, axis, sign);
                 }
                 Step::ErrRotate { k, e } => {
                     let (angle, slope) = if ACTUAL {
@@ -602,23 +621,65 @@ impl Chain {
                 }
                 Step::Slide { .. } if !SLIDES => {}
                 Step::Slide { index } => {
-                    let Some(sl) = self.slides.get(index) else {
-                        continue;
-                    };
                     let state = (&mut x, &mut active, &mut at);
                     let (t, w) = (tangents.as_deref_mut(), omega.as_deref_mut());
-                    // Full slides (the six errors of ISO 230-1) without a test per slot.
-                    if sl.present == 0x3f {
-                        self.slide::<JAC, ACTUAL, DIR_JAC, OMEGA, true>(sl, q, dirs, state, t, w);
-                    } else {
-                        self.slide::<JAC, ACTUAL, DIR_JAC, OMEGA, false>(sl, q, dirs, state, t, w);
-                    }
+                    self.slide_step::<JAC, ACTUAL, DIR_JAC, OMEGA>(index, q, dirs, state, t, w);
                 }
             }
         }
         Pose {
             position: x.p(),
             direction: x.d(),
+        }
+    }
+
+    /// An error translation along k: the error row's value (`ACTUAL`) or its nominal offset,
+    /// and with `JAC` its slope as the derivative of the TCP by the row's axis.
+    #[inline(always)]
+    fn err_translate<const JAC: bool, const ACTUAL: bool>(
+        &self,
+        k: usize,
+        e: &ErrRef,
+        q: &[f64],
+        dirs: Directions,
+        (x, active, at): (&mut Pd, &mut u32, &mut Location),
+        tangents: Option<&mut Tangents>,
+    ) {
+        if ACTUAL {
+            let (v, slope) = self.error_value::<JAC>(e, at, q, dirs);
+            x.translate(k, v);
+            if JAC {
+                if let Some(t) = tangents {
+                    let axis = usize::from(e.axis);
+                    t.dp[axis][k] += slope * e.per_unit;
+                    *active |= 1 << axis;
+                }
+            }
+        } else {
+            x.translate(k, e.offset);
+        }
+    }
+
+    /// Slide `index` applied to the pose and the derivatives; full slides (the six errors of
+    /// ISO 230-1) take a copy of `slide` without a test per slot.
+    #[allow(clippy::type_complexity)]
+    #[inline(always)]
+    fn slide_step<const JAC: bool, const ACTUAL: bool, const DIR_JAC: bool, const OMEGA: bool>(
+        &self,
+        index: usize,
+        q: &[f64],
+        dirs: Directions,
+        state: (&mut Pd, &mut u32, &mut Location),
+        t: Option<&mut Tangents>,
+        w: Option<&mut AngularVelocity>,
+    ) {
+        let Some(sl) = self.slides.get(index) else {
+            return;
+        };
+        if sl.present == 0x3f {
+            self.slide::<JAC, ACTUAL, DIR_JAC, OMEGA, true>(sl, q, dirs, state, t, w);
+        } else {
+            self.slide::<JAC, ACTUAL, DIR_JAC, OMEGA, false>(sl, q, dirs, state, t, w);
         }
     }
 
