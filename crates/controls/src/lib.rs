@@ -68,16 +68,8 @@ pub enum ControlError {
     /// The model has something the control's form cannot carry.
     #[error("{0}")]
     Form(String),
-    /// A control file that does not read.
-    #[error("{file}:{line}:{column}: {message}")]
-    Syntax {
-        /// The file.
-        file: String,
-        /// 1-based line.
-        line: usize,
-        /// 1-based column.
-        column: usize,
-        /// What was expected.
-        message: String,
-    },
+    /// A control file that does not read, named at file:line:column like every file truepos
+    /// reads.
+    #[error("{0}")]
+    Syntax(#[from] truepos_files::InputError),
 }

@@ -4,8 +4,10 @@
 //! one's format). The values come from the one projection every control shares; the control's
 //! own code is its units, its range and its file — written and read back.
 
+use std::path::Path;
 use truepos_controls::projection::{project, AxisProjection, Form};
 use truepos_controls::ControlError;
+use truepos_files::InputError;
 use truepos_model::{Axis, AxisKind, Carriage, Machine};
 
 /// What the made-up control accepts per value: ±99 999 in its unit.
@@ -50,11 +52,8 @@ fn write(lines: &[Line]) -> String {
 
 /// The file read back, every mistake named at file:line:column.
 fn read(file: &str, text: &str) -> Result<Vec<Line>, ControlError> {
-    let syntax = |line: usize, column: usize, message: &str| ControlError::Syntax {
-        file: file.into(),
-        line,
-        column,
-        message: message.into(),
+    let syntax = |line: usize, column: usize, message: &str| {
+        ControlError::Syntax(InputError::at(Path::new(file), line, column, "", message))
     };
     let mut out = Vec::new();
     for (i, row) in text.lines().enumerate() {

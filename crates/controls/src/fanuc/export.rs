@@ -14,6 +14,8 @@
 
 use crate::projection::AxisProjection;
 use crate::ControlError;
+use std::path::Path;
+use truepos_files::InputError;
 
 /// Decimal places of every value in `cnc_wrmacro` (`dec_val`): 0.001 µm, 0.001 µm/m,
 /// 0.001 mm.
@@ -139,11 +141,8 @@ pub fn write_macro_program(
 /// parentheses and `M99`/`M30` allowed): the variables in order. Anything else is an error at
 /// its line and column.
 pub fn read_macro_program(file: &str, text: &str) -> Result<Vec<(u32, f64)>, ControlError> {
-    let err = |line: usize, column: usize, message: String| ControlError::Syntax {
-        file: file.to_string(),
-        line,
-        column,
-        message,
+    let err = |line: usize, column: usize, message: String| {
+        ControlError::Syntax(InputError::at(Path::new(file), line, column, "", message))
     };
     let mut vars: Vec<(u32, f64)> = Vec::new();
     let (mut percent, mut ended) = (0, false);

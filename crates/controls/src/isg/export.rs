@@ -14,6 +14,8 @@
 
 use crate::projection::AxisProjection;
 use crate::ControlError;
+use std::path::Path;
+use truepos_files::InputError;
 
 /// One axis' temperature compensation parameters as the list states them.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -105,11 +107,8 @@ pub fn write_parameters(axes: &[(IsgTempComp, &AxisProjection, f64)], header: &[
 /// error at its line and column.
 pub fn read_parameters(file: &str, text: &str) -> Result<Vec<IsgTempComp>, ControlError> {
     let mut out: Vec<(IsgTempComp, [bool; 4], usize)> = Vec::new();
-    let err = |line: usize, column: usize, message: String| ControlError::Syntax {
-        file: file.to_string(),
-        line,
-        column,
-        message,
+    let err = |line: usize, column: usize, message: String| {
+        ControlError::Syntax(InputError::at(Path::new(file), line, column, "", message))
     };
     for (i, raw) in text.lines().enumerate() {
         let n = i + 1;

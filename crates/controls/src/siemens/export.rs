@@ -11,6 +11,8 @@
 
 use crate::projection::{AxisProjection, LinearForm};
 use crate::ControlError;
+use std::path::Path;
+use truepos_files::InputError;
 
 /// Setting data names, in the order written.
 const ABS: &str = "$SA_TEMP_COMP_ABS_VALUE";
@@ -60,11 +62,8 @@ pub fn read_program(file: &str, text: &str) -> Result<Vec<AxisSetting>, ControlE
     let mut axes: Vec<AxisSetting> = Vec::new();
     let mut ended = false;
     for (i, raw) in text.lines().enumerate() {
-        let at = |col: usize, what: String| ControlError::Syntax {
-            file: file.to_string(),
-            line: i + 1,
-            column: col + 1,
-            message: what,
+        let at = |col: usize, what: String| {
+            ControlError::Syntax(InputError::at(Path::new(file), i + 1, col + 1, "", what))
         };
         let code = raw.split(';').next().unwrap_or("");
         let trimmed = code.trim();
