@@ -446,22 +446,7 @@ impl Twin {
         let amb0 = sc.ambient.at(0.0, sc.start_hour);
         let mut temps = vec![sc.initial_c.unwrap_or(amb0); n];
         let mut coolant_c = amb0;
-        let mut sensors = Sensing {
-            states: self
-                .sensors
-                .iter()
-                .map(|s| SensorState::new(s.tau_s, h, spot(&s.spot, &temps, amb0, coolant_c)))
-                .collect(),
-            faults: self
-                .sensors
-                .iter()
-                .map(|s| sc.faults.iter().filter(|f| f.sensor == s.id).collect())
-                .collect(),
-            noise: Noise {
-                sigma_c: sc.sensor_noise_c,
-                resolution_c: sc.sensor_resolution_c,
-            },
-        };
+        let mut sensors = self.sensing(sc, h, &temps, amb0, coolant_c);
         let centre = |a: usize| (self.travel_mm[a][0] + self.travel_mm[a][1]) / 2.0;
         let mut axes = [0, 1, 2].map(|a| AxisState {
             pos: centre(a),
@@ -511,26 +496,7 @@ impl Twin {
                 }
             }
             let phase = &sc.phases[phase_idx];
-            let before = axes.map(|a| a.pos);
-            // Probing cycle or the phase's own operation.
-            let (probing_now, mut touched) =
-                probes.begin(sc.probing.as_ref(), phase.probe, t, before);
-            if probing_now {
-                let p = sc.probing.as_ref().expect("probing is configured");
-                touched = self.probe_step(p, &mut probes.state, &mut axes, h, t);
-                let stop = p.stop_spindle;
-                op.spindle_rpm = if stop { 0.0 } else { phase.spindle_rpm };
-                op.coolant_on = false;
-            } else {
-                self.phase_step(phase, &mut axes, h, &mut rng);
-                op.spindle_rpm = phase.spindle_rpm;
-                op.coolant_on = phase.coolant;
-            }
-            op.servo_on = phase.servo_on;
-            for a in 0..3 {
-                op.speed_mm_min[a] = (axes[a].pos - before[a]).abs() / h * 60.0;
-                op.position_mm[a] = 0.5 * (axes[a].pos + before[a]);
-            }
+            let touched = self.operate(sc, phase, &mut probes, &mut axes, &mut op, h, t, &mut rng);
             // Heat, network, coolant, sensors.
             let amb_end = self.advance_heat(
                 sc,
@@ -546,17 +512,11 @@ impl Twin {
             let sample = (k + 1) % sample_every == 0;
             if sample || touched.is_some() {
                 let readings = sensors.read_all(&mut rng, t_end);
-                let probe_reading = touched.map(|pos| {
-                    let noise_um = sc.probing.as_ref().map_or(0.0, |p| p.noise_um);
-                    let e = self.error_um(&temps, pos);
-                    ProbeReading {
-                        position_mm: pos,
-                        measured_um: e.map(|v| v + noise_um * normal(&mut rng)),
-                        cycle: probes.cycle_of_touch,
-                    }
+                let probe = touched.map(|pos| {
+                    self.probe_reading(sc, &temps, pos, probes.cycle_of_touch, &mut rng)
                 });
                 let row = Row {
-                    probe: probe_reading,
+                    probe,
                     ..self.row(t_end, &temps, &op, phase_idx, readings, amb_end)
                 };
                 run.push(row, &temps);
@@ -575,6 +535,90 @@ impl Twin {
         }
         progress(1.0);
         Ok(run)
+    }
+
+    /// The sensors at the start of a run: each sensor's lag settled on its spot's initial
+    /// temperature, with the scenario's faults for that sensor and its noise.
+    fn sensing<'s>(
+        &self,
+        sc: &'s Scenario,
+        h: f64,
+        temps: &[f64],
+        amb0: f64,
+        coolant_c: f64,
+    ) -> Sensing<'s> {
+        Sensing {
+            states: self
+                .sensors
+                .iter()
+                .map(|s| SensorState::new(s.tau_s, h, spot(&s.spot, temps, amb0, coolant_c)))
+                .collect(),
+            faults: self
+                .sensors
+                .iter()
+                .map(|s| sc.faults.iter().filter(|f| f.sensor == s.id).collect())
+                .collect(),
+            noise: Noise {
+                sigma_c: sc.sensor_noise_c,
+                resolution_c: sc.sensor_resolution_c,
+            },
+        }
+    }
+
+    /// Moves the axes through one step, either in a probing cycle (which pre-empts the
+    /// phase when it is due) or in the phase's own operation, and sets what the heat sources
+    /// see in `op`: spindle, coolant, servo, each axis's speed and its mean position over the
+    /// step. Returns the position a probe touched in this step, if any.
+    #[allow(clippy::too_many_arguments)]
+    fn operate(
+        &self,
+        sc: &Scenario,
+        phase: &Phase,
+        probes: &mut ProbeClock,
+        axes: &mut [AxisState; 3],
+        op: &mut Operating,
+        h: f64,
+        t: f64,
+        rng: &mut fastrand::Rng,
+    ) -> Option<[f64; 3]> {
+        let before = axes.map(|a| a.pos);
+        let (probing_now, mut touched) = probes.begin(sc.probing.as_ref(), phase.probe, t, before);
+        if probing_now {
+            let p = sc.probing.as_ref().expect("probing is configured");
+            touched = self.probe_step(p, &mut probes.state, axes, h, t);
+            let stop = p.stop_spindle;
+            op.spindle_rpm = if stop { 0.0 } else { phase.spindle_rpm };
+            op.coolant_on = false;
+        } else {
+            self.phase_step(phase, axes, h, rng);
+            op.spindle_rpm = phase.spindle_rpm;
+            op.coolant_on = phase.coolant;
+        }
+        op.servo_on = phase.servo_on;
+        for a in 0..3 {
+            op.speed_mm_min[a] = (axes[a].pos - before[a]).abs() / h * 60.0;
+            op.position_mm[a] = 0.5 * (axes[a].pos + before[a]);
+        }
+        touched
+    }
+
+    /// What the probe reports at `pos`: the true error there plus the probe's noise, drawn
+    /// from `rng` after the sensors' draws of the same row (the order keeps runs repeatable).
+    fn probe_reading(
+        &self,
+        sc: &Scenario,
+        temps: &[f64],
+        pos: [f64; 3],
+        cycle: usize,
+        rng: &mut fastrand::Rng,
+    ) -> ProbeReading {
+        let noise_um = sc.probing.as_ref().map_or(0.0, |p| p.noise_um);
+        let e = self.error_um(temps, pos);
+        ProbeReading {
+            position_mm: pos,
+            measured_um: e.map(|v| v + noise_um * normal(rng)),
+            cycle,
+        }
     }
 
     /// A sampled row (without a probe reading) at `t`: the operation, the readings, the true
