@@ -25,6 +25,35 @@
 //!
 //! **Access.** Loopback by default; any other bind address needs a token, checked on every
 //! request ([`access`]).
+//!
+//! ```
+//! use std::io::{Read, Write};
+//! use std::sync::Arc;
+//! use truepos_live::{Info, LiveServer, LiveSetup};
+//! use truepos_runtime::live::{Board, Layout};
+//!
+//! let layout = Layout { axes: 1, temperatures: 1, operating: 0, paths: 1, sources: 1, sinks: 1, models: 1 };
+//! let info = Info {
+//!     machine: "lathe".into(), axes: vec![], temperatures: vec![], operating: vec![], paths: 1,
+//!     models: vec!["built-in".into()], sources: vec!["replay".into()], sinks: vec!["csv".into()],
+//!     log: false, version: "0",
+//! };
+//! let setup = |addr: &str| LiveSetup {
+//!     addr: addr.parse().unwrap(), token: None, board: Arc::new(Board::new(layout)),
+//!     info: info.clone(), log: None, probes_after: 0, model_files: vec![None],
+//! };
+//! // Beyond this machine only with a token.
+//! assert!(LiveServer::start(setup("0.0.0.0:0")).is_err());
+//! // On loopback, any free port: the static part as JSON.
+//! let server = LiveServer::start(setup("127.0.0.1:0")).unwrap();
+//! let mut tcp = std::net::TcpStream::connect(server.addr()).unwrap();
+//! tcp.write_all(b"GET /api/info HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n").unwrap();
+//! let mut answer = String::new();
+//! tcp.read_to_string(&mut answer).unwrap();
+//! assert!(answer.starts_with("HTTP/1.1 200"), "{answer}");
+//! assert!(answer.contains(r#""machine":"lathe""#), "{answer}");
+//! server.stop();
+//! ```
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
