@@ -12,6 +12,24 @@
 //! - [`Error`]: what stops either before a verdict or a figure.
 //! - [`timing`]: the service on the component's pacing, replaying a run, with the host's steal
 //!   time sampled beside it.
+//!
+//! What LinuxCNC's `sampler` must record for a one-axis machine and the component `truepos`:
+//! the columns' pins come from the component's own pin names, so the judge reads what it wrote.
+//!
+//! ```
+//! use truepos_hal_check::check::record::{motion_columns, sampler_cfg};
+//! use truepos_model::{Axis, AxisKind, Carriage, Machine};
+//! let x = Axis {
+//!     name: "X".into(), kind: AxisKind::Linear, travel_min: 0.0, travel_max: 500.0,
+//!     carried_by: None, carriage: Carriage::Cantilever,
+//! };
+//! let machine = Machine {
+//!     name: "m".into(), axes: vec![x], temperatures: vec![], differences: vec![], operating: vec![],
+//! };
+//! let columns = motion_columns(&machine, "truepos");
+//! assert_eq!(sampler_cfg(&columns).len(), columns.len());
+//! assert!(columns.iter().any(|c| c.pin.starts_with("truepos.")), "{columns:?}");
+//! ```
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
