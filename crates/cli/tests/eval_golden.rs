@@ -1,9 +1,9 @@
-//! `truepos eval` reproduces seed A's golden cases from files, end to end through the binary.
+//! `truepos eval` reproduces document A's golden cases from files, end to end through the binary.
 
 mod support;
 use support::run as truepos;
 
-/// The cross-slide example: embodiment 6 on X, seed C's form on Z (see the model file).
+/// The cross-slide example: embodiment 6 on X, document C's form on Z (see the model file).
 ///   ΔA_X = ΔT_bed·[2 + 4·KFA_Z − 2·r_X]·KFA_Z,  ΔA_Z = 1.5·(T_spindle − T_ambient)
 ///   row 1: ΔT = 3, KFA = 0.5, r = 0.5 → 3·3·0.5 = 4.5;      Z: 1.5·6 = 9
 ///   row 2: Z in the middle, KFA = 0 → 0;                     Z: 9
@@ -112,7 +112,7 @@ fn eval_reports_a_model_for_another_machine() {
 }
 
 #[test]
-fn update_period_reproduces_seed_a_timing_argument() {
+fn update_period_reproduces_the_timing_argument() {
     let (ok, stdout, stderr) = truepos(&[
         "update-period",
         "--feed-m-min",

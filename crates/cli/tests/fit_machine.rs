@@ -1,6 +1,6 @@
 //! `truepos fit --machine`: every family from the command line. Through the CLI alone — `sim`,
 //! `fit`, `eval` — a model fitted on one twin day reaches the demo's figures on another day; the
-//! selection saw the dynamic and the seed A/C families, and the screen and `--json` agree.
+//! selection saw the dynamic, position-dependent and reference-sensor families, and the screen and `--json` agree.
 
 use std::path::Path;
 
@@ -107,7 +107,7 @@ fn a_model_fitted_through_the_cli_reaches_the_demo_figures_on_another_day() {
         }
         assert_eq!(v["selection"]["form"], "position-dependent", "{v}");
 
-        // The one door loads it: a seed A/C model that reads the axis positions.
+        // The one door loads it: a position-dependent model that reads the axis positions.
         let machine = truepos_io::machine_file::load(&repo("examples/twin/machine.toml"))
             .unwrap()
             .machine;

@@ -270,7 +270,7 @@ fn fit_report_has_a_row_per_held_out_run_and_marks_a_run_made_worse() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
-/// Seed A's cross-slide example is position-dependent (the bed factor of Z): its report maps
+/// Document A's cross-slide example is position-dependent (the bed factor of Z): its report maps
 /// the predicted error over the X–Z travel.
 #[test]
 fn report_of_a_position_dependent_model_maps_the_working_volume() {

@@ -718,7 +718,7 @@ mod tests {
     /// model's intercept puts the start value back): the fit recovers k, and the reference's rise
     /// carries −(2 + 0.5) = −2.5.
     #[test]
-    fn seed_c_regresses_against_the_reference_sensor() {
+    fn the_reference_sensor_regression_recovers_its_coefficients() {
         let n = 600;
         let (mut t, mut a, mut b, mut r, mut y) = (vec![], vec![], vec![], vec![], vec![]);
         for i in 0..n {

@@ -852,7 +852,7 @@ mod tests {
     }
 
     #[test]
-    fn seed_b_rows_read_as_written() {
+    fn a_head_ac_file_reads_as_written() {
         let k = load(&examples().join("head-ac/kinematics.ktab"), None).unwrap();
         assert_eq!(k.name, "head-ac");
         assert_eq!(k.tool_length_mm, 100.0);

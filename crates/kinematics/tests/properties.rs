@@ -195,7 +195,7 @@ fn exactly_at_the_pole_the_outer_axis_keeps_its_value() {
 
 #[test]
 fn head_ac_hand_computed_pose() {
-    // Seed B's head, nominal, tool 100 mm, all axes 0 except A = 90°, C = 90°:
+    // Document B's head, nominal, tool 100 mm, all axes 0 except A = 90°, C = 90°:
     // tip frame → pivot: (0, 0, −250); R_x(90°): (0, 250, 0); + (0.02, −0.015, 0) →
     // (0.02, 249.985, 0); R_z(90°): (x, y) → (−y, x) = (−249.985, 0.02, 0); + (0, 0, 400) →
     // TCP (−249.985, 0.02, 400).

@@ -1,4 +1,4 @@
-//! Seed A's "other parts": the per-axis thermal compensation superimposes on the set-points the
+//! Document A's "other parts": the per-axis thermal compensation superimposes on the set-points the
 //! kinematics returns.
 
 mod machines;

@@ -281,7 +281,7 @@ fn an_implausible_position_is_a_position_fault() {
 }
 
 /// With two models for the same axis combination, a fault on a sensor only the first reads
-/// makes the service substitute the second, bumplessly (seed C + seed D).
+/// makes the service substitute the second, bumplessly (documents C and D).
 #[test]
 fn a_bad_sensor_substitutes_a_model_without_it() {
     let machine = vmc();
@@ -337,7 +337,7 @@ fn a_bad_sensor_substitutes_a_model_without_it() {
     );
 }
 
-/// Seed D in the service: when the control switches an axis to a combination no model serves,
+/// Document D in the service: when the control switches an axis to a combination no model serves,
 /// the user is told (no-model event) and the output blends to zero; switching back selects the
 /// model again.
 #[test]
@@ -385,7 +385,7 @@ fn axis_switch_reselects_and_reports_no_model() {
     }));
 }
 
-/// Seed D with a model for the new combination: Z leaves path 1, the X-Y model takes over, and
+/// Document D with a model for the new combination: Z leaves path 1, the X-Y model takes over, and
 /// Z, now in no path, blends to zero over the blend time (well inside the envelope's rate, no
 /// clamp); back in the path, the X-Y-Z model blends in again.
 #[test]

@@ -838,7 +838,7 @@ mod tests {
     /// d = 300 mm moves the tool by +c·500·300 = 34.499 µm along +x: towards the longer face's end,
     /// i.e. the axis tilts away from the warm side.
     #[test]
-    fn embodiment_2_tilt_sign_on_a_generic_chain() {
+    fn a_bent_slide_tilts_the_axis_resting_on_it_away_from_its_warm_side() {
         let mut s1 = Beam {
             name: "s1".into(),
             e_len: [1.0, 0.0, 0.0],
@@ -881,7 +881,7 @@ mod tests {
     /// c = 2α/(400·(1 + 2α)) = 5.24989e-8 /mm (α = 10.5e-6): 16.2747 µm. (The head carriages sit
     /// at column station 890 + Z; the tool tip is 520 mm below them.)
     #[test]
-    fn embodiment_2_on_the_column_tilts_z_towards_the_rear() {
+    fn a_warm_column_front_tilts_z_towards_the_rear() {
         let twin = Twin::reference();
         let mut temps = vec![20.0; twin.node_count()];
         for seg in 0..twin.column.segments {

@@ -201,7 +201,7 @@ fn energy_is_conserved_on_the_reference_network_without_convection() {
     );
 }
 
-/// Seed C's early-minutes problem: the spindle heats at once, the sensor in its bore (τ = 90 s)
+/// Document C's early-minutes problem: the spindle heats at once, the sensor in its bore (τ = 90 s)
 /// shows the housing's rise late.
 #[test]
 fn sensors_lag_the_metal_in_the_first_minutes() {

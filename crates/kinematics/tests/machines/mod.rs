@@ -84,7 +84,7 @@ fn axis(dof: Dof, axis: usize, sign: f64) -> Row {
     Row::Axis { dof, axis, sign }
 }
 
-/// Seed B's head: A swivels in a fork that rotates about C; the head rides on Z, Y, X.
+/// Document B's head: A swivels in a fork that rotates about C; the head rides on Z, Y, X.
 /// Axes: X Y Z A C. Pole: A = 0.
 pub fn head_ac() -> Chain {
     let axes = vec![

@@ -1,4 +1,4 @@
-//! Golden tests: every worked case of seed A (ES 2 430 543 / CN 102198609) and seed C's two
+//! Golden tests: every worked case of document A (ES 2 430 543 / CN 102198609) and document C's two
 //! regression equations, with the numbers computed by hand in the comments.
 //!
 //! Conventions of these tests: axis n is `A{n}` (index n−1), travel [0, L_n], r_n = p_n / L_n;
@@ -293,7 +293,7 @@ fn prior_art_position_independent() {
     }
 }
 
-/// Seed C (MCV 1000 SPEED): three spindle-head sensors t1…t3 against the column reference tr:
+/// Document C (MCV 1000 SPEED): three spindle-head sensors t1…t3 against the column reference tr:
 ///   Y = −0.4378·(t1−tr) + 1.2762·(t2−tr) + 23.3865·(t3−tr)
 ///   Z = −4.281·(t1−tr)  + 10.437·(t2−tr) + 12.3149·(t3−tr)      [µm]
 /// With tr = 22, t1 = 25, t2 = 24, t3 = 23 °C the differences are 3, 2, 1 K:
@@ -402,7 +402,7 @@ fn compensation_is_minus_error() {
     assert!(c.compensation_um(0).is_sign_positive());
 }
 
-/// Seed A's timing argument: 100 m/min, 4 ms, 500 mm.
+/// Document A's timing argument: 100 m/min, 4 ms, 500 mm.
 ///   100 m/min = 100 000 mm / 60 000 ms = 1.6667 mm/ms → 6.667 mm in 4 ms
 ///   6.667 / 500 = 0.01333 → 1.3 % (ratio and bed factor);
 ///   ratio squared at r = 1: 2·0.01333 − 0.01333² = 0.02649 → 2.6 %.
