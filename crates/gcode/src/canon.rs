@@ -307,43 +307,12 @@ impl fmt::Display for CanonLine {
 
 /// The command from column `p`: `NAME(ARGS)` to the end of the line.
 fn parse_command(line: &str, p: usize) -> Result<Canon, ParseError> {
-    let rest = &line[p..];
-    let open = rest
-        .find('(')
-        .ok_or_else(|| err(p, "expected a command `NAME(…)`"))?;
-    let name = &rest[..open];
-    if !name.starts_with(|c: char| c.is_ascii_uppercase())
-        || !name
-            .bytes()
-            .all(|c| c.is_ascii_uppercase() || c.is_ascii_digit() || c == b'_')
-    {
-        return Err(err(
-            p,
-            "expected a command name of capitals, digits and `_`",
-        ));
-    }
-    if !rest.ends_with(')') || rest.len() < open + 2 {
-        return Err(err(line.len(), "expected `)` at the end of the line"));
-    }
-    let args = &rest[open + 1..rest.len() - 1];
-    let at = p + open + 1;
-    let a = Args { text: args, at };
+    let (name, a) = split_command(line, p)?;
     Ok(match name {
         "STRAIGHT_TRAVERSE" => Canon::StraightTraverse(a.numbers6()?),
         "STRAIGHT_FEED" => Canon::StraightFeed(a.numbers6()?),
         "STRAIGHT_PROBE" => Canon::StraightProbe(a.numbers6()?),
-        "ARC_FEED" => {
-            let v = a.list(9)?;
-            Canon::ArcFeed(Arc {
-                first_end: a.number(v[0])?,
-                second_end: a.number(v[1])?,
-                first_axis: a.number(v[2])?,
-                second_axis: a.number(v[3])?,
-                rotation: a.integer(v[4])?,
-                axis_end: a.number(v[5])?,
-                abc: [a.number(v[6])?, a.number(v[7])?, a.number(v[8])?],
-            })
-        }
+        "ARC_FEED" => Canon::ArcFeed(a.arc()?),
         "SET_FEED_RATE" => Canon::SetFeedRate(a.number(a.list(1)?[0])?),
         "START_SPEED_FEED_SYNC" => {
             let v = a.list(2)?;
@@ -366,17 +335,7 @@ fn parse_command(line: &str, p: usize) -> Result<Canon, ParseError> {
         "USE_LENGTH_UNITS" => {
             Canon::UseLengthUnits(a.keyword(&[Units::Mm, Units::Inches, Units::Cm], |u| u.name())?)
         }
-        "SET_G5X_OFFSET" => {
-            let v = a.list(7)?;
-            let mut offset = [0.0; 6];
-            for (o, s) in offset.iter_mut().zip(&v[1..]) {
-                *o = a.number(s)?;
-            }
-            Canon::SetG5xOffset {
-                index: a.integer(v[0])?,
-                offset,
-            }
-        }
+        "SET_G5X_OFFSET" => a.g5x_offset()?,
         "SET_G92_OFFSET" => Canon::SetG92Offset(a.numbers6()?),
         "SET_XY_ROTATION" => Canon::SetXyRotation(a.number(a.list(1)?[0])?),
         "SELECT_PLANE" => Canon::SelectPlane(a.keyword(
@@ -391,31 +350,7 @@ fn parse_command(line: &str, p: usize) -> Result<Canon, ParseError> {
             |p| p.name(),
         )?),
         "USE_TOOL_LENGTH_OFFSET" => Canon::UseToolLengthOffset(a.tool_offset()?),
-        "SET_MOTION_CONTROL_MODE" => {
-            let v: Vec<&str> = args.split(',').map(str::trim).collect();
-            if v.len() > 2 {
-                return Err(err(
-                    at,
-                    format!("expected 1 or 2 argument(s), got {}", v.len()),
-                ));
-            }
-            let mode = Args {
-                text: v[0],
-                at: a.at_of(v[0]),
-            }
-            .keyword(
-                &[
-                    PathMode::ExactStop,
-                    PathMode::ExactPath,
-                    PathMode::Continuous,
-                ],
-                |m| m.name(),
-            )?;
-            Canon::SetMotionControlMode {
-                mode,
-                tolerance: v.get(1).map(|t| a.number(t)).transpose()?,
-            }
-        }
+        "SET_MOTION_CONTROL_MODE" => a.motion_control_mode()?,
         "SET_SPINDLE_SPEED" => {
             let v = a.list(2)?;
             Canon::SetSpindleSpeed {
@@ -434,19 +369,34 @@ fn parse_command(line: &str, p: usize) -> Result<Canon, ParseError> {
         "SELECT_TOOL" => Canon::SelectTool(a.integer(a.list(1)?[0])?),
         "CHANGE_TOOL" => Canon::ChangeTool(a.integer(a.list(1)?[0])?),
         "CHANGE_TOOL_NUMBER" => Canon::ChangeToolNumber(a.integer(a.list(1)?[0])?),
-        _ => match PLAIN.iter().find(|(_, n)| *n == name) {
-            Some((plain, _)) => {
-                if !args.is_empty() {
-                    return Err(err(at, format!("{name} takes no arguments")));
-                }
-                Canon::Plain(*plain)
-            }
-            None => Canon::Other {
-                name: name.to_string(),
-                args: args.to_string(),
-            },
-        },
+        _ => a.plain_or_other(name)?,
     })
+}
+
+/// The name and the arguments of `NAME(ARGS)` from column `p`, the name checked as rs274
+/// writes one (capitals, digits, `_`) so that a garbled line is refused, not passed on.
+fn split_command(line: &str, p: usize) -> Result<(&str, Args<'_>), ParseError> {
+    let rest = &line[p..];
+    let open = rest
+        .find('(')
+        .ok_or_else(|| err(p, "expected a command `NAME(…)`"))?;
+    let name = &rest[..open];
+    if !name.starts_with(|c: char| c.is_ascii_uppercase())
+        || !name
+            .bytes()
+            .all(|c| c.is_ascii_uppercase() || c.is_ascii_digit() || c == b'_')
+    {
+        return Err(err(
+            p,
+            "expected a command name of capitals, digits and `_`",
+        ));
+    }
+    if !rest.ends_with(')') || rest.len() < open + 2 {
+        return Err(err(line.len(), "expected `)` at the end of the line"));
+    }
+    let args = &rest[open + 1..rest.len() - 1];
+    let at = p + open + 1;
+    Ok((name, Args { text: args, at }))
 }
 
 /// The argument text of a command and its column in the line.
@@ -527,6 +477,77 @@ impl<'a> Args<'a> {
                 self.at,
                 format!("expected one of {}, got `{t}`", names.join(", ")),
             )
+        })
+    }
+
+    /// `ARC_FEED`'s nine arguments (see [`Arc`]).
+    fn arc(&self) -> Result<Arc, ParseError> {
+        let v = self.list(9)?;
+        Ok(Arc {
+            first_end: self.number(v[0])?,
+            second_end: self.number(v[1])?,
+            first_axis: self.number(v[2])?,
+            second_axis: self.number(v[3])?,
+            rotation: self.integer(v[4])?,
+            axis_end: self.number(v[5])?,
+            abc: [self.number(v[6])?, self.number(v[7])?, self.number(v[8])?],
+        })
+    }
+
+    /// `SET_G5X_OFFSET`: the coordinate system's index, then its six offsets.
+    fn g5x_offset(&self) -> Result<Canon, ParseError> {
+        let v = self.list(7)?;
+        let mut offset = [0.0; 6];
+        for (o, s) in offset.iter_mut().zip(&v[1..]) {
+            *o = self.number(s)?;
+        }
+        Ok(Canon::SetG5xOffset {
+            index: self.integer(v[0])?,
+            offset,
+        })
+    }
+
+    /// `SET_MOTION_CONTROL_MODE`: the path mode and, when given, its tolerance.
+    fn motion_control_mode(&self) -> Result<Canon, ParseError> {
+        let v: Vec<&str> = self.text.split(',').map(str::trim).collect();
+        if v.len() > 2 {
+            return Err(err(
+                self.at,
+                format!("expected 1 or 2 argument(s), got {}", v.len()),
+            ));
+        }
+        let mode = Args {
+            text: v[0],
+            at: self.at_of(v[0]),
+        }
+        .keyword(
+            &[
+                PathMode::ExactStop,
+                PathMode::ExactPath,
+                PathMode::Continuous,
+            ],
+            |m| m.name(),
+        )?;
+        Ok(Canon::SetMotionControlMode {
+            mode,
+            tolerance: v.get(1).map(|t| self.number(t)).transpose()?,
+        })
+    }
+
+    /// A command without arguments named in [`Plain`], or any other command kept as its name
+    /// and argument text.
+    fn plain_or_other(&self, name: &str) -> Result<Canon, ParseError> {
+        Ok(match PLAIN.iter().find(|(_, n)| *n == name) {
+            Some((plain, _)) => {
+                if !self.text.is_empty() {
+                    return Err(err(self.at, format!("{name} takes no arguments")));
+                }
+                Canon::Plain(*plain)
+            }
+            None => Canon::Other {
+                name: name.to_string(),
+                args: self.text.to_string(),
+            },
         })
     }
 
