@@ -152,31 +152,14 @@ struct LoopStats {
 }
 
 fn run(args: RunArgs) -> Result<(), Error> {
-    // Before HAL is touched: a live view beyond loopback without a token is refused here.
-    let http = HttpArgs::check(args.http.as_deref(), args.http_token_file.as_deref())
-        .map_err(Error::Refused)?;
-    // Before HAL is touched, as the live view's address.
-    let mqtt = truepos_fleet::Config::for_service(
-        args.mqtt.as_deref(),
-        &args.mqtt_group,
-        args.mqtt_node.as_deref(),
-        args.log.as_deref(),
-    )
-    .map_err(Error::Refused)?;
-    let machine = truepos_io::machine_file::load(&args.machine)?;
-    // Before HAL is touched: a channel id that is no pin name is the machine file's mistake.
-    pins::check_names(&machine.machine)?;
-    // A model without an axis-combination index in its file serves path 1's axes.
-    let trusted = args
-        .trusted_keys
-        .as_deref()
-        .map(TrustedKeys::load)
-        .transpose()?;
-    let entries = load_set_trusted(&args.models, &machine, trusted.as_ref())?;
     let period_s = args.period_ms / 1000.0;
-    // Before HAL is touched, so that `loadusr -W` sees the refusal and no pins appear; the host
-    // admits again at start and at every reload.
-    admission::admit_set(&entries, &machine, period_s).map_err(Error::Refused)?;
+    let Checked {
+        http,
+        mqtt,
+        machine,
+        trusted,
+        entries,
+    } = check_before_hal(&args, period_s)?;
 
     let stop = Arc::new(AtomicBool::new(false));
     signal_hook::flag::register(signal_hook::consts::SIGTERM, Arc::clone(&stop))
@@ -268,6 +251,57 @@ fn run(args: RunArgs) -> Result<(), Error> {
         result?;
     }
 
+    report_stats(&args, &s, stopped.service.events().dropped())
+}
+
+/// What `run` reads and checks before HAL is touched, so that `loadusr -W` sees a refusal and
+/// no pins appear.
+struct Checked {
+    http: Option<HttpArgs>,
+    mqtt: Option<truepos_fleet::Config>,
+    machine: MachineConfig,
+    trusted: Option<TrustedKeys>,
+    entries: Vec<truepos_runtime::model_set::ModelEntry>,
+}
+
+/// Checks the live view's and the fleet's addresses, reads the machine file and the models
+/// (with their signatures if keys are trusted) and admits the models at this period; the host
+/// admits again at start and at every reload.
+fn check_before_hal(args: &RunArgs, period_s: f64) -> Result<Checked, Error> {
+    // A live view beyond loopback without a token is refused here.
+    let http = HttpArgs::check(args.http.as_deref(), args.http_token_file.as_deref())
+        .map_err(Error::Refused)?;
+    // As the live view's address.
+    let mqtt = truepos_fleet::Config::for_service(
+        args.mqtt.as_deref(),
+        &args.mqtt_group,
+        args.mqtt_node.as_deref(),
+        args.log.as_deref(),
+    )
+    .map_err(Error::Refused)?;
+    let machine = truepos_io::machine_file::load(&args.machine)?;
+    // A channel id that is no pin name is the machine file's mistake.
+    pins::check_names(&machine.machine)?;
+    // A model without an axis-combination index in its file serves path 1's axes.
+    let trusted = args
+        .trusted_keys
+        .as_deref()
+        .map(TrustedKeys::load)
+        .transpose()?;
+    let entries = load_set_trusted(&args.models, &machine, trusted.as_ref())?;
+    admission::admit_set(&entries, &machine, period_s).map_err(Error::Refused)?;
+    Ok(Checked {
+        http,
+        mqtt,
+        machine,
+        trusted,
+        entries,
+    })
+}
+
+/// The cycle loop's figures on stopping, as JSON on standard error and, with `--stats`, in a
+/// file (the LinuxCNC end-to-end script reads it).
+fn report_stats(args: &RunArgs, s: &LoopStats, events_dropped: u64) -> Result<(), Error> {
     let late = s.histogram[EDGES_MS.iter().position(|&e| e == 2.0).unwrap_or(0) + 1..]
         .iter()
         .sum::<u64>();
@@ -283,7 +317,7 @@ fn run(args: RunArgs) -> Result<(), Error> {
         "max_interval_ms": s.max_interval_ms,
         "max_work_us": s.max_work_us,
         "cpu_percent_of_one_core": s.cpu_percent,
-        "events_dropped": stopped.service.events().dropped(),
+        "events_dropped": events_dropped,
     });
     eprintln!("truepos-hal: stopped after {} cycles: {stats}", s.cycles);
     if let Some(p) = &args.stats {
