@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Python virtual environment for the network tests: pymodbus's Modbus TCP server, which
-# crates/runtime/tests/modbus_*.rs start on loopback (scripts/modbus_server.py), and asyncua's
+# crates/protocols/tests/modbus_*.rs start on loopback (scripts/modbus_server.py), and asyncua's
 # OPC UA server, the simulated control crates/cli/tests/opcua.rs starts (scripts/opcua_control.py),
 # and pysparkplug (with paho-mqtt), the Sparkplug B host crates/cli/tests/fleet_mqtt.rs decodes
 # the fleet telemetry with (scripts/sparkplug_listen.py).

@@ -23,7 +23,7 @@ echo "== fault campaign: 10 000 random fault schedules, the output invariant che
 PROPTEST_CASES=10000 cargo test --release -p truepos-runtime --test fault_campaign
 
 echo "== network-source fuzzing, 1.1 million inputs (release)"
-cargo test --release -p truepos-runtime --test fuzz_network
+cargo test --release -p truepos-protocols --test fuzz_network
 
 echo "== kinematics side by side with Orocos KDL"
 bash scripts/kdl_check.sh

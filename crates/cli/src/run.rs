@@ -15,12 +15,13 @@ use truepos_io::signature::TrustedKeys;
 use truepos_io::{cycles, machine_file};
 use truepos_live::host::{HttpArgs, Live};
 use truepos_model::RecordedRun;
+use truepos_protocols::modbus::{ModbusConfig, ModbusSource};
+use truepos_protocols::opcua::{OpcUaSink, OpcUaSource, SinkConfig, SourceConfig};
+use truepos_protocols::shdr::{ShdrConfig, ShdrSource};
 use truepos_runtime::host::{ModelLoader, ReloadSetup};
 use truepos_runtime::log;
 use truepos_runtime::probe::ProbeReplay;
 use truepos_runtime::replay::{state_name, CsvSink, ReplaySource};
-use truepos_runtime::sources::modbus::{ModbusConfig, ModbusSource};
-use truepos_runtime::sources::shdr::{ShdrConfig, ShdrSource};
 use truepos_runtime::{PathState, Running, Service, ServiceConfig, ServiceHost, Sink, Source};
 
 /// The files `truepos run` reads (machine, models, replayed runs and configurations, the
@@ -466,8 +467,8 @@ fn open_sources(
             }
             "opcua" => {
                 let (cfg, identity, targets) =
-                    truepos_opcua::SourceConfig::load(std::path::Path::new(what), m)?;
-                Box::new(truepos_opcua::OpcUaSource::start(
+                    SourceConfig::load(std::path::Path::new(what), m)?;
+                Box::new(OpcUaSource::start(
                     &cfg, identity, targets, epoch,
                 )?)
             }
@@ -496,13 +497,12 @@ fn open_sinks(
     let mut sinks: Vec<Box<dyn Sink>> = Vec::new();
     for spec in &args.sinks {
         if let Some(file) = spec.strip_prefix("opcua:") {
-            let (cfg, identity, axes) =
-                truepos_opcua::SinkConfig::load(std::path::Path::new(file), m)?;
+            let (cfg, identity, axes) = SinkConfig::load(std::path::Path::new(file), m)?;
             let model = match entries {
                 [one] => one.model.as_static().cloned(),
                 _ => None,
             };
-            let sink = truepos_opcua::OpcUaSink::start(&cfg, identity, &axes, machine, model)?;
+            let sink = OpcUaSink::start(&cfg, identity, &axes, machine, model)?;
             sinks.push(Box::new(sink));
             continue;
         }

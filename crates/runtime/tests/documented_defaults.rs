@@ -1,6 +1,6 @@
 //! The defaults the documentation states are the defaults the code applies: every
-//! `(default N …)` of the source configurations in docs/network_sources.md and of the sensor
-//! checks in docs/formats.md is compared with what an empty setting gives.
+//! `(default N …)` of the sensor checks in docs/formats.md is compared with what an empty
+//! setting gives (the sources' defaults: `truepos-protocols`' test of the same name).
 
 use std::path::{Path, PathBuf};
 
@@ -8,8 +8,6 @@ use truepos_runtime::config::{
     DEFAULT_MAX_AGE_S, DEFAULT_MAX_RATE_K_PER_MIN, DEFAULT_NOISE_K, DEFAULT_RECOVER_AFTER_S,
     DEFAULT_STUCK_AFTER_S,
 };
-use truepos_runtime::sources::modbus::ModbusConfig;
-use truepos_runtime::sources::shdr::ShdrConfig;
 
 fn doc(name: &str) -> String {
     let path: PathBuf = Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -38,37 +36,6 @@ fn documented(text: &str, section: &str, key: &str) -> f64 {
         .filter(|c| *c != ' ')
         .collect();
     number.parse().unwrap_or_else(|e| panic!("`{line}`: {e}"))
-}
-
-#[test]
-fn shdr_defaults_are_as_documented() {
-    let text = doc("network_sources.md");
-    let c = ShdrConfig::from_toml(
-        "address = \"127.0.0.1:7878\"\n[[channel]]\ndata_item = \"T\"\ntemperature = \"ambient\"\n",
-    )
-    .unwrap();
-    let s = "### MTConnect SHDR";
-    for (key, value) in [
-        ("connect_timeout_ms", c.connect_timeout_ms),
-        ("ping_ms", c.ping_ms),
-        ("first_pong_timeout_ms", c.first_pong_timeout_ms),
-        ("line_timeout_ms", c.line_timeout_ms),
-        ("data_timeout_ms", c.data_timeout_ms),
-    ] {
-        assert_eq!(documented(&text, s, key), value as f64, "{key}");
-    }
-}
-
-#[test]
-fn modbus_defaults_are_as_documented() {
-    let text = doc("network_sources.md");
-    let c = ModbusConfig::from_toml(
-        "address = \"127.0.0.1:5020\"\n[[channel]]\ntemperature = \"ambient\"\nregister = 1\nencoding = \"int16-x0.1\"\n",
-    )
-    .unwrap();
-    let s = "### Modbus TCP";
-    assert_eq!(documented(&text, s, "poll_ms"), c.poll_ms as f64);
-    assert_eq!(documented(&text, s, "timeout_ms"), c.timeout_ms as f64);
 }
 
 #[test]

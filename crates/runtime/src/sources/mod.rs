@@ -1,7 +1,8 @@
-//! Network sources — MTConnect SHDR ([`shdr`]) and Modbus TCP ([`modbus`]) — and what they
-//! share: reconnection with exponential backoff, the state of a link as the cycle and the status
-//! line see it, the mapping of a received value onto a machine channel of the frame, and the
-//! checks of their configurations.
+//! What every network source shares, whatever its protocol (the protocols themselves — Modbus
+//! TCP, MTConnect SHDR, OPC UA — are the crate `truepos-protocols`): the host of a source fed by
+//! a thread of its own ([`PolledSource`]), reconnection with exponential backoff, the state of a
+//! link as the cycle and the status line see it, the mapping of a received value onto a machine
+//! channel of the frame, and the checks of their configurations.
 //!
 //! A network source runs its own thread. When its connection is lost the thread stops publishing,
 //! so the stamps of the channels it feeds stop advancing: the service's validation then sees
@@ -16,11 +17,10 @@ mod polled;
 mod target;
 mod thread;
 
-pub mod modbus;
-pub mod shdr;
-
 pub use backoff::{Backoff, BackoffConfig};
-pub use config::{check_source_config, load_toml_file, resolve_address, ConfigError};
+pub use config::{
+    check_source_config, from_toml_text, load_toml_file, resolve_address, ConfigError,
+};
 pub use link::{
     LinkEvent, LinkEventKind, LinkSnapshot, LinkStatus, OutageReporter, MAX_EVENT_MESSAGE_BYTES,
     MAX_PENDING_EVENTS,

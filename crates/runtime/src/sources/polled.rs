@@ -1,5 +1,5 @@
-//! The host of a source whose values a thread of its own reads from the network (SHDR and
-//! Modbus here, OPC UA in `truepos-opcua`): it starts the thread, hands the cycle the latest
+//! The host of a source whose values a thread of its own reads from the network (SHDR,
+//! Modbus and OPC UA, in `truepos-protocols`): it starts the thread, hands the cycle the latest
 //! values with their stamps (atomics only, no allocation, no lock), reports an outage once, and
 //! stops the thread when it is dropped. What differs between protocols is only the thread's body.
 

@@ -19,10 +19,10 @@ use truepos_runtime::sources::{
 };
 use truepos_runtime::{CompensationState, Frame, LinkError, MachineConfig, Output, Sink};
 
-use crate::client::{connect, describe, node_id, Open};
-use crate::config::{Identity, SinkConfig, ValueType};
-use crate::form::{self, AxisLimits, Ends, Snapshot, Written};
-use crate::latest::Latest;
+use super::client::{connect, describe, node_id, Open};
+use super::config::{Identity, SinkConfig, ValueType};
+use super::form::{self, AxisLimits, Ends, Snapshot, Written};
+use super::latest::Latest;
 
 /// Round trips and outcomes of the sink's writes.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -96,7 +96,7 @@ impl OpcUaSink {
     pub fn start(
         config: &SinkConfig,
         identity: Identity,
-        axes: &[(usize, crate::config::AxisNodes)],
+        axes: &[(usize, super::config::AxisNodes)],
         machine: &MachineConfig,
         model: Option<Model>,
     ) -> Result<Self, ConfigError> {

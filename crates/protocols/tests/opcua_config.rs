@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 
 use proptest::prelude::*;
 use truepos_model::Machine;
-use truepos_opcua::{Identity, SinkConfig, SourceConfig};
+use truepos_protocols::opcua::{Identity, SinkConfig, SourceConfig};
 
 fn repo(p: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../..").join(p)

@@ -3,10 +3,10 @@
 use serde::Deserialize;
 use truepos_model::Machine;
 
-use crate::sources::config::{from_toml_text, load_toml_file};
-use crate::sources::{
+use truepos_runtime::sources::{
     check_source_config, check_unique_targets, BackoffConfig, ConfigError, Target,
 };
+use truepos_runtime::sources::{from_toml_text, load_toml_file};
 
 /// One SHDR data item feeding one machine channel (configuration, TOML). Give exactly one of
 /// `temperature`, `axis` or `operating`.

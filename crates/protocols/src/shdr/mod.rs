@@ -14,13 +14,13 @@
 //! panic (property-tested with a million inputs, `tests/fuzz_network.rs`).
 //!
 //! [`ShdrSource::start`] runs the client on its own thread, hosted by a
-//! [`PolledSource`](crate::sources::PolledSource), the [`Source`] the cycle reads. The stamp of a
+//! [`PolledSource`](truepos_runtime::sources::PolledSource), the [`Source`] the cycle reads. The stamp of a
 //! value is the last time the adapter confirmed it: when it arrived, or later when a data line or
 //! a `PONG` arrived on the same connection — a `PONG` only while the adapter also delivers data
 //! (an adapter only re-sends changed values, so a live connection confirms the unchanged ones).
 //! When the connection is lost — the socket closes, or no `PONG` comes within the announced
 //! interval after a `PING` — the stamps stop advancing and the client reconnects with backoff
-//! ([`crate::sources`]).
+//! ([`truepos_runtime::sources`]).
 //!
 //! Limits: data items are read as `id|value` pairs, so CONDITION (six fields), MESSAGE and
 //! time-series items must be on lines of their own (as adapters usually send them); a line whose
@@ -28,7 +28,7 @@
 //! skipped. The adapter's timestamp is not used: values are stamped on the service clock when
 //! they arrive.
 //!
-//! [`Source`]: crate::Source
+//! [`Source`]: truepos_runtime::Source
 
 mod config;
 mod parse;

@@ -12,7 +12,7 @@ use truepos_model::Machine;
 
 use super::config::ShdrConfig;
 use super::parse::{parse_line, LineBuffer, ShdrLine, ShdrValue};
-use crate::sources::{
+use truepos_runtime::sources::{
     resolve_address, seconds_since, sleep_unless_stopped, Backoff, ConfigError, Link, LinkStatus,
     PolledSource, STOP_LIMIT,
 };

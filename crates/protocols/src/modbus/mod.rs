@@ -25,9 +25,9 @@
 //! lacks registers in between). A value is stamped with the service time of the answer that carried it; an
 //! exception answer leaves the channels of that request unstamped (reported as bad data, the
 //! connection stays); a timeout or a malformed answer ends the connection, and the thread
-//! reconnects with backoff ([`crate::sources`]) while the stamps stand still.
+//! reconnects with backoff ([`truepos_runtime::sources`]) while the stamps stand still.
 //!
-//! [`Source`]: crate::Source
+//! [`Source`]: truepos_runtime::Source
 
 mod client;
 mod codec;

@@ -2,17 +2,17 @@
 //! decoding (answers and register encodings).
 //!
 //! In release builds the properties below run 1,100,000 cases in total (`.ci/run` runs
-//! `cargo test --release -p truepos-runtime --test fuzz_network`); the normal (debug) suite runs
+//! `cargo test --release -p truepos-protocols --test fuzz_network`); the normal (debug) suite runs
 //! a hundredth of that. `TRUEPOS_FUZZ_SCALE` overrides the divisor (1 = full count).
 
 use proptest::prelude::*;
 use proptest::test_runner::Config;
 
-use truepos_runtime::sources::modbus::{
+use truepos_protocols::modbus::{
     decode, parse_header, parse_response_adu, Encoding, ModbusError, ReadRequest, RegisterKind,
     WordOrder, MBAP_HEADER_BYTES,
 };
-use truepos_runtime::sources::shdr::{parse_line, LineBuffer, ShdrLine, ShdrValue};
+use truepos_protocols::shdr::{parse_line, LineBuffer, ShdrLine, ShdrValue};
 
 /// Cases for a property that runs `full` cases in a release build.
 fn cases(full: u32) -> Config {

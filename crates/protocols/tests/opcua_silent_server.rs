@@ -7,7 +7,7 @@ use std::net::TcpListener;
 use std::path::Path;
 use std::time::{Duration, Instant};
 
-use truepos_opcua::{OpcUaSink, SinkConfig};
+use truepos_protocols::opcua::{OpcUaSink, SinkConfig};
 use truepos_runtime::{Frame, LinkError, Output, Sink};
 
 #[test]

@@ -10,7 +10,7 @@ use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use truepos_runtime::sources::shdr::{ShdrChannelConfig, ShdrConfig, ShdrSource};
+use truepos_protocols::shdr::{ShdrChannelConfig, ShdrConfig, ShdrSource};
 use truepos_runtime::sources::{BackoffConfig, LinkEventKind, PolledSource};
 use truepos_runtime::{Frame, LinkError, Source, NEVER};
 

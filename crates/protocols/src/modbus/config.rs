@@ -5,10 +5,10 @@ use truepos_model::Machine;
 
 use super::codec::{Encoding, RegisterKind, WordOrder};
 use super::plan::RegisterSpan;
-use crate::sources::config::{from_toml_text, load_toml_file};
-use crate::sources::{
+use truepos_runtime::sources::{
     check_source_config, check_unique_targets, BackoffConfig, ConfigError, Target,
 };
+use truepos_runtime::sources::{from_toml_text, load_toml_file};
 
 /// How the configured register numbers count.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]

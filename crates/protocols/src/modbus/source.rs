@@ -11,11 +11,11 @@ use super::client::ModbusClient;
 use super::codec::{decode, DecodeError, Encoding, ModbusError, WordOrder};
 use super::config::ModbusConfig;
 use super::plan::{plan_reads, split_blocks, ReadBlock};
-use crate::io_traits::SharedChannels;
-use crate::sources::{
+use truepos_runtime::sources::{
     resolve_address, seconds_since, sleep_unless_stopped, Backoff, BackoffConfig, ConfigError,
     LinkStatus, PolledSource, STOP_LIMIT,
 };
+use truepos_runtime::SharedChannels;
 
 /// A Modbus TCP source: [`ModbusSource::start`] gives its polling thread to a [`PolledSource`],
 /// the cycle's view of the values it publishes.

@@ -1,8 +1,8 @@
-//! # truepos-opcua — truepos beside a control that takes values over OPC UA
+//! OPC UA: truepos beside a control that takes values over OPC UA.
 //!
 //! SINUMERIK and TwinCAT accept writes over their OPC UA servers, and both carry a linear
 //! temperature compensation per axis, ΔK = K0 + tanβ·(P − P0) (SINUMERIK SD43900/43910/43920;
-//! see `truepos_controls::projection`). This crate is truepos's OPC UA client (the pure-Rust
+//! see `truepos_controls::projection`). This module is truepos's OPC UA client (the pure-Rust
 //! `async-opcua` stack, client only):
 //!
 //! - [`sink::OpcUaSink`] (`truepos run --sink opcua:MAPPING.toml`): every period (default
@@ -19,7 +19,6 @@
 //!
 //! Neither touches the network on the cycle: each runs a thread of its own with a
 //! current-thread tokio runtime; the cycle hands over and takes values through atomics.
-#![forbid(unsafe_code)]
 
 pub mod client;
 pub mod config;

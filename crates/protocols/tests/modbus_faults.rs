@@ -10,7 +10,7 @@ use std::sync::Arc;
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use truepos_runtime::sources::modbus::{
+use truepos_protocols::modbus::{
     Addressing, Encoding, ModbusChannelConfig, ModbusClient, ModbusConfig, ModbusError,
     ModbusSource, RegisterKind, WordOrder,
 };

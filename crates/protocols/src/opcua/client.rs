@@ -10,7 +10,7 @@ use opcua::crypto::SecurityPolicy;
 use opcua::types::{EndpointDescription, MessageSecurityMode, NodeId, StatusCode};
 use tokio::task::JoinHandle;
 
-use crate::config::{Connection, Identity, Mode, Policy};
+use super::config::{Connection, Identity, Mode, Policy};
 
 /// An open session and the task that drives it (ends when the connection is lost).
 pub struct Open {

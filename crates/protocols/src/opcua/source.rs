@@ -17,8 +17,8 @@ use truepos_runtime::sources::{
 };
 use truepos_runtime::SharedChannels;
 
-use crate::client::{connect, describe, node_id};
-use crate::config::{Identity, SourceConfig};
+use super::client::{connect, describe, node_id};
+use super::config::{Identity, SourceConfig};
 
 /// The OPC UA source: [`OpcUaSource::start`] gives its reading thread to a [`PolledSource`], the
 /// cycle's view of the values it publishes.
@@ -160,7 +160,7 @@ impl Reader {
     async fn read_loop(
         &self,
         session: &opcua::client::Session,
-        open: &crate::client::Open,
+        open: &super::client::Open,
     ) -> (Option<String>, bool) {
         let conn = &self.config.connection;
         let mut delivered = false;

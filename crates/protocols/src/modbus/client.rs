@@ -10,7 +10,7 @@ use super::codec::{
     parse_header, parse_read_response, ModbusError, ReadRequest, RegisterKind, MAX_MBAP_LENGTH,
     MBAP_HEADER_BYTES,
 };
-use crate::sources::read_exact_until;
+use truepos_runtime::sources::read_exact_until;
 
 /// A Modbus TCP client connection (one request at a time).
 #[derive(Debug)]

@@ -15,12 +15,12 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use truepos_io::{machine_file, model_file};
-use truepos_runtime::events::EventKind;
-use truepos_runtime::model_set::ModelEntry;
-use truepos_runtime::sources::modbus::{
+use truepos_protocols::modbus::{
     Addressing, Encoding, ModbusChannelConfig, ModbusConfig, ModbusSource, RegisterKind, WordOrder,
 };
-use truepos_runtime::sources::shdr::{ShdrChannelConfig, ShdrConfig, ShdrSource};
+use truepos_protocols::shdr::{ShdrChannelConfig, ShdrConfig, ShdrSource};
+use truepos_runtime::events::EventKind;
+use truepos_runtime::model_set::ModelEntry;
 use truepos_runtime::sources::BackoffConfig;
 use truepos_runtime::*;
 

@@ -105,7 +105,7 @@ impl std::error::Error for ShdrError {}
 /// Reads one SHDR line (with or without its line end). Pure; never panics.
 ///
 /// ```
-/// use truepos_runtime::sources::shdr::{parse_line, ShdrLine, ShdrValue};
+/// use truepos_protocols::shdr::{parse_line, ShdrLine, ShdrValue};
 /// let line = parse_line("2024-05-01T10:00:00.000Z|Xact|125.5|Tspindle|UNAVAILABLE\r\n").unwrap();
 /// let ShdrLine::Data { items, .. } = line else { panic!() };
 /// assert_eq!(items[0].value, ShdrValue::Number(125.5));

@@ -4,7 +4,7 @@
 use std::path::Path;
 use std::time::{Duration, Instant};
 
-use truepos_opcua::{OpcUaSink, OpcUaSource, SinkConfig, SourceConfig};
+use truepos_protocols::opcua::{OpcUaSink, OpcUaSource, SinkConfig, SourceConfig};
 use truepos_runtime::{Frame, LinkError, Output, Sink, Source};
 
 const CONN: &str = "endpoint = \"opc.tcp://127.0.0.1:1\"\nsecurity_policy = \"None\"\nsecurity_mode = \"None\"\nanonymous = true\ntimeout_ms = 200\n";

@@ -7,7 +7,7 @@ use std::net::{SocketAddr, TcpListener, TcpStream};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-use truepos_runtime::sources::modbus::{
+use truepos_protocols::modbus::{
     decode, Addressing, Encoding, ModbusChannelConfig, ModbusClient, ModbusConfig, ModbusError,
     ModbusSource, RegisterKind, WordOrder,
 };
