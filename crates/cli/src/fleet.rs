@@ -474,15 +474,36 @@ fn register(a: RegisterArgs) -> Result<(), CliError> {
         .and_then(|n| n.to_str())
         .ok_or_else(|| CliError::refused(format!("{}: not a file name", a.model.display())))?;
     let public_key = line.split_whitespace().nth(1).unwrap_or_default();
-    let (by, reason) = a.why.words("models register");
     let mut db = connect(&a.store)?;
-    let m = models::register(
+    let m = register_candidate(
         &mut db,
+        (&a.machine, file_name),
+        (&text, &line, public_key),
+        (provenance, validation),
+        (&a.why, "models register"),
+    )?;
+    println!("{}: registered as {}", m.machine, as_candidate(&m));
+    Ok(())
+}
+
+/// Registers a signed, admitted model's text as a candidate of the machine (`fleet models
+/// register`, `fleet refit`): `signed` is the text, its signature line and the public key it
+/// verifies with, `figures` its provenance and validation tables.
+fn register_candidate(
+    db: &mut Client,
+    (machine, file_name): (&str, &str),
+    (text, line, public_key): (&str, &str, &str),
+    (provenance, validation): (serde_json::Value, serde_json::Value),
+    (why, command): (&Why, &str),
+) -> Result<Model, CliError> {
+    let (by, reason) = why.words(command);
+    models::register(
+        db,
         &NewModel {
-            machine: &a.machine,
+            machine,
             file_name,
             bytes: text.as_bytes(),
-            signature: &line,
+            signature: line,
             public_key,
             provenance,
             validation,
@@ -492,17 +513,20 @@ fn register(a: RegisterArgs) -> Result<(), CliError> {
             reason: &reason,
         },
     )
-    .map_err(store_error)?;
-    println!(
-        "{}: registered as version {} (candidate{}), sha256 {}",
-        m.machine,
+    .map_err(store_error)
+}
+
+/// "version 3 (candidate, parent 2), sha256 …": a registered model, as the register commands
+/// print it.
+fn as_candidate(m: &Model) -> String {
+    format!(
+        "version {} (candidate{}), sha256 {}",
         m.version,
         m.parent
             .map(|p| format!(", parent {p}"))
             .unwrap_or_default(),
         m.sha256
-    );
-    Ok(())
+    )
 }
 
 fn model_row(m: &Model) -> String {

@@ -16,10 +16,9 @@ use std::collections::BTreeMap;
 use std::path::PathBuf;
 
 use clap::Parser;
-use truepos_fleet_store::models::{self, Change, NewModel};
 use truepos_io::signature::{public_hex, signature_line, signature_path, SecretKey, TrustedKeys};
 
-use super::{connect, figures, store_error, Store, Why};
+use super::{connect, figures, Store, Why};
 use crate::error::CliError;
 
 /// Arguments of `truepos fleet refit`.
@@ -313,34 +312,19 @@ pub fn refit(a: RefitArgs) -> Result<(), CliError> {
         "probes": run.probes,
         "targets": run.targets.iter().map(|(c, _)| c.clone()).collect::<Vec<_>>(),
     });
-    let (by, reason) = a.why.words("refit");
     let public_key = public_hex(&key.public());
-    let m = models::register(
+    let m = super::register_candidate(
         &mut db,
-        &NewModel {
-            machine: &a.machine,
-            file_name,
-            bytes: text.as_bytes(),
-            signature: &line,
-            public_key: &public_key,
-            provenance,
-            validation,
-        },
-        &Change {
-            by: by.as_deref(),
-            reason: &reason,
-        },
-    )
-    .map_err(store_error)?;
+        (&a.machine, file_name),
+        (&text, &line, &public_key),
+        (provenance, validation),
+        (&a.why, "refit"),
+    )?;
     println!(
-        "{}: refitted on {} probe events and registered as version {} (candidate{}), sha256 {}",
+        "{}: refitted on {} probe events and registered as {}",
         m.machine,
         run.probes,
-        m.version,
-        m.parent
-            .map(|p| format!(", parent {p}"))
-            .unwrap_or_default(),
-        m.sha256
+        super::as_candidate(&m)
     );
     Ok(())
 }
