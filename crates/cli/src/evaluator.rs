@@ -3,10 +3,54 @@
 //! columns the model needs, stepping the model through the rows in order with the time between
 //! them (as the control steps it every cycle), and naming channels in errors.
 
+use std::path::PathBuf;
+
 use crate::error::CliError;
 use crate::shape::ShapeArgs;
-use truepos_io::{compensation, cycles};
+use truepos_io::{compensation, cycles, machine_file};
+use truepos_model::config::MachineConfig;
 use truepos_model::{CompensationModel, CycleInput, Machine, MAX_AXES};
+
+/// A model on a recorded run, as `truepos export` and `truepos report` name them (flattened
+/// into their arguments).
+#[derive(clap::Args)]
+pub struct ModelOnRun {
+    /// Machine description (TOML).
+    #[arg(long)]
+    pub machine: PathBuf,
+    /// Model file: a position-dependent thermal model or a reference-sensor regression
+    /// (TOML/JSON), or a fitted dynamic model (JSON).
+    #[arg(long)]
+    pub model: PathBuf,
+    /// Run CSV (or workbook) with the model's inputs (for `report`, and the measured errors; a
+    /// dynamic model's filters run through it).
+    #[arg(long)]
+    pub run: PathBuf,
+    /// The time column: seconds or ISO 8601 date-times. Default: `time_s` if there is one,
+    /// else the row number.
+    #[arg(long, conflicts_with = "sample_period")]
+    pub time: Option<String>,
+    #[command(flatten)]
+    pub shape: ShapeArgs,
+}
+
+/// A run file's runs, each with its name.
+pub type Runs = Vec<(String, cycles::Cycles)>;
+
+impl ModelOnRun {
+    /// The machine's configuration, the model bound to it and the run file's runs.
+    pub fn load(&self) -> Result<(MachineConfig, Evaluator, Runs), CliError> {
+        let config = machine_file::load(&self.machine)?;
+        let model = Evaluator::load(&self.model, &config.machine)?;
+        let runs = model.load_runs(
+            &self.run,
+            &config.machine,
+            &self.shape,
+            self.time.as_deref(),
+        )?;
+        Ok((config, model, runs))
+    }
+}
 
 /// A model and the time of its last good step on a run.
 pub struct Evaluator {
@@ -63,7 +107,7 @@ impl Evaluator {
         machine: &Machine,
         shape: &ShapeArgs,
         time: Option<&str>,
-    ) -> Result<Vec<(String, cycles::Cycles)>, CliError> {
+    ) -> Result<Runs, CliError> {
         let options = cycles::Options {
             positions: self.positions(),
             shape: shape.shape(),

@@ -9,12 +9,11 @@ use truepos_controls::isg::{write_parameters, IsgTempComp};
 use truepos_controls::projection::{project, AxisProjection, Form};
 use truepos_controls::siemens::write_program;
 use truepos_io::cycles::Cycles;
-use truepos_io::machine_file;
 use truepos_model::{AxisKind, CycleInput, Machine, Model};
 use truepos_runtime::config::AxisConfig;
 
 use crate::error::CliError;
-use crate::evaluator::Evaluator;
+use crate::evaluator::{Evaluator, ModelOnRun};
 
 /// The control forms `export` writes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -41,22 +40,8 @@ pub struct Args {
     /// The control form.
     #[arg(long, value_enum)]
     to: To,
-    /// Machine description (TOML).
-    #[arg(long)]
-    machine: PathBuf,
-    /// Model file (a position-dependent or reference-sensor model, TOML/JSON, or a fitted
-    /// dynamic model).
-    #[arg(long)]
-    model: PathBuf,
-    /// Run CSV with the inputs up to the moment exported (a dynamic model's filters run through it).
-    #[arg(long)]
-    run: PathBuf,
-    /// The time column: seconds or ISO 8601 date-times. Default: `time_s` if there is one,
-    /// else the row number.
-    #[arg(long, conflicts_with = "sample_period")]
-    time: Option<String>,
     #[command(flatten)]
-    shape: crate::shape::ShapeArgs,
+    on: ModelOnRun,
     /// The moment, s of the run's time (the first row at or after it); default: the last row.
     #[arg(long, value_parser = truepos_io::limits::finite_in(-1e10, 1e10))]
     at_s: Option<f64>,
@@ -249,23 +234,21 @@ fn positions_now(machine: &Machine, run: &Cycles, k: usize) -> Vec<f64> {
 /// The files `truepos export` reads, which its output may not be.
 fn inputs(args: &Args) -> [(&'static str, &Path); 3] {
     [
-        ("--machine", &args.machine),
-        ("--model", &args.model),
-        ("--run", &args.run),
+        ("--machine", &args.on.machine),
+        ("--model", &args.on.model),
+        ("--run", &args.on.run),
     ]
 }
 
 pub fn run(args: Args) -> Result<(), CliError> {
     crate::write::check(&args.out, &inputs(&args))?;
-    let config = machine_file::load(&args.machine)?;
+    let (config, mut model, mut runs) = args.on.load()?;
     let machine = config.machine;
-    let mut model = Evaluator::load(&args.model, &machine)?;
-    let mut runs = model.load_runs(&args.run, &machine, &args.shape, args.time.as_deref())?;
     if runs.len() != 1 {
         let names: Vec<&str> = runs.iter().map(|r| r.0.as_str()).collect();
         return Err(CliError::refused(format!(
             "{}: export takes one run; the file holds {}: {}",
-            args.run.display(),
+            args.on.run.display(),
             runs.len(),
             names.join(", ")
         )));
@@ -280,13 +263,13 @@ pub fn run(args: Args) -> Result<(), CliError> {
         format!(
             "truepos export: model `{}` ({}) on machine `{}`",
             model.name(),
-            args.model.display(),
+            args.on.model.display(),
             machine.name
         ),
         format!(
             "at t = {} s of {} (row {}); {}",
             cycles.run.time_s[k],
-            args.run.display(),
+            args.on.run.display(),
             k + 1,
             match args.to {
                 To::Isg => "the error line (actual − nominal), 0.1 µm and µm/m",

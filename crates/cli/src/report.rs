@@ -6,12 +6,10 @@
 
 use std::path::PathBuf;
 
-use truepos_io::machine_file;
 use truepos_model::CompensationModel;
 
 use crate::error::CliError;
-use crate::evaluator::Evaluator;
-use crate::shape::ShapeArgs;
+use crate::evaluator::{Evaluator, ModelOnRun};
 use truepos_report::{channel_metrics, write_report, Channel, ReportData};
 
 pub(crate) mod coefficients;
@@ -20,22 +18,8 @@ mod runs;
 /// Arguments of `truepos report`.
 #[derive(clap::Args)]
 pub struct Args {
-    /// Machine description (TOML).
-    #[arg(long)]
-    machine: PathBuf,
-    /// Model file: a position-dependent thermal model or a reference-sensor regression
-    /// (TOML/JSON), or a fitted dynamic model (JSON).
-    #[arg(long)]
-    model: PathBuf,
-    /// Run CSV (or workbook) with the inputs and the measured errors.
-    #[arg(long)]
-    run: PathBuf,
-    /// The time column: seconds or ISO 8601 date-times. Default: `time_s` if there is one,
-    /// else the row number.
-    #[arg(long, conflicts_with = "sample_period")]
-    time: Option<String>,
     #[command(flatten)]
-    shape: ShapeArgs,
+    on: ModelOnRun,
     /// The run to report when the file holds several (`--run-column`, workbook sheets): its
     /// name. Default: the only run.
     #[arg(long)]
@@ -83,13 +67,13 @@ fn relative_to_first(values: &mut [f64]) {
 /// that the drift plots read the shop's clock; `None` for seconds, row numbers or a period.
 fn clock_start(args: &Args, table: &truepos_io::run::RunTable) -> Option<f64> {
     let period = matches!(
-        args.shape.time(None),
+        args.on.shape.time(None),
         Some(truepos_io::run::Time::Period(_))
     );
     if period || table.table.is_empty() {
         return None;
     }
-    let name = args.time.as_deref().unwrap_or("time_s");
+    let name = args.on.time.as_deref().unwrap_or("time_s");
     let col = table.columns.iter().position(|h| h == name)?;
     let ns = match table.table.row(0).cell(col)?.value {
         truepos_io::table::Value::Text(text) => match &table.time_format {
@@ -115,7 +99,7 @@ struct Measured {
 /// their measured-error columns by name (in µm, NaN where a row has no measurement), read by
 /// io's one run reader with the file's shape.
 fn read_measured(args: &Args, names: &[String]) -> Result<Vec<Measured>, CliError> {
-    let tables = truepos_io::run::read_shaped(&args.run, None, &args.shape.shape())?;
+    let tables = truepos_io::run::read_shaped(&args.on.run, None, &args.on.shape.shape())?;
     let listed = || {
         tables
             .iter()
@@ -127,7 +111,7 @@ fn read_measured(args: &Args, names: &[String]) -> Result<Vec<Measured>, CliErro
         Some(name) => vec![tables.iter().find(|t| t.name() == *name).ok_or_else(|| {
             CliError::refused(format!(
                 "--select-run `{name}`: no such run in {}; the runs are: {}",
-                args.run.display(),
+                args.on.run.display(),
                 listed()
             ))
         })?],
@@ -135,7 +119,7 @@ fn read_measured(args: &Args, names: &[String]) -> Result<Vec<Measured>, CliErro
         None => {
             return Err(CliError::refused(format!(
                 "{} holds {} runs; choose one with --select-run: {}",
-                args.run.display(),
+                args.on.run.display(),
                 tables.len(),
                 listed()
             )))
@@ -150,7 +134,7 @@ fn read_measured(args: &Args, names: &[String]) -> Result<Vec<Measured>, CliErro
                     let c = table.table.column(n).ok_or_else(|| {
                         CliError::refused(format!(
                             "{}:{}:1: `{n}`: missing column; the header has: {}",
-                            args.run.display(),
+                            args.on.run.display(),
                             table.table.header_line,
                             table.columns.join(", ")
                         ))
@@ -220,7 +204,7 @@ fn protocol(
     failed: usize,
     cycles: usize,
 ) -> Vec<(String, String)> {
-    let sha = truepos_files::read::read(&args.model, truepos_files::MODEL).map_or_else(
+    let sha = truepos_files::read::read(&args.on.model, truepos_files::MODEL).map_or_else(
         |e| format!("cannot be read again: {e}"),
         |b| truepos_io::model_file::sha256_hex(&b),
     );
@@ -233,11 +217,11 @@ fn protocol(
         ("machine".to_string(), machine.to_string()),
         (
             "model".to_string(),
-            format!("`{model}`, file {} (sha256 {sha})", args.model.display()),
+            format!("`{model}`, file {} (sha256 {sha})", args.on.model.display()),
         ),
         (
             "run".to_string(),
-            format!("{run_name}, file {}", args.run.display()),
+            format!("{run_name}, file {}", args.on.run.display()),
         ),
         (
             "made".to_string(),
@@ -298,9 +282,8 @@ fn conclusions(channels: &[Channel], range: std::ops::Range<usize>) -> Vec<(Stri
 
 /// Runs `truepos report`.
 pub fn run(args: Args) -> Result<(), CliError> {
-    let machine = machine_file::load(&args.machine)?.machine;
-    let mut model = Evaluator::load(&args.model, &machine)?;
-    let mut runs = model.load_runs(&args.run, &machine, &args.shape, args.time.as_deref())?;
+    let (config, mut model, mut runs) = args.on.load()?;
+    let machine = config.machine;
     let mut pairs = Vec::new();
     for spec in &args.measured {
         let (axis, column) = spec.split_once('=').ok_or_else(|| {
