@@ -231,16 +231,20 @@ mod tests {
         );
     }
 
-    #[test]
-    fn a_model_that_moves_the_training_prediction_too_far_is_refused() {
-        let machine = machine();
-        let part = |k0: f64| truepos_model::Part {
+    /// A model part that is a constant error of `k0` µm on the first axis.
+    fn part(k0: f64) -> truepos_model::Part {
+        truepos_model::Part {
             name: "structure".into(),
             enabled: true,
             form: truepos_model::PartForm::Regression,
             summands: vec![],
             constants_um: vec![(0, k0)],
-        };
+        }
+    }
+
+    #[test]
+    fn a_model_that_moves_the_training_prediction_too_far_is_refused() {
+        let machine = machine();
         let mut old = Model::new("old", &machine, vec![part(40.0)]).unwrap();
         old.set_envelope(Some(TrainingEnvelope {
             temperatures: vec![],
@@ -266,13 +270,6 @@ mod tests {
     #[test]
     fn a_model_beyond_the_envelope_where_the_probes_were_is_refused() {
         let machine = machine();
-        let part = |k0: f64| truepos_model::Part {
-            name: "structure".into(),
-            enabled: true,
-            form: truepos_model::PartForm::Regression,
-            summands: vec![],
-            constants_um: vec![(0, k0)],
-        };
         let ok = Model::new("ok", &machine, vec![part(40.0)]).unwrap();
         let wild = Model::new("wild", &machine, vec![part(-500.0)]).unwrap();
         assert!(check_model(&ok, &[event(0.0)], &machine, &axes(100.0)).is_ok());
