@@ -3,7 +3,7 @@
 //! error tables, put it there are the compensated point (`inverse_near`, the programmed
 //! position choosing the rotary branch and turn, as `kin inv` does).
 
-use truepos_kinematics::{Chain, Directions, Geometry, KinError};
+use truepos_kinematics::{Chain, Directions, Geometry, KinAxis, KinError};
 use truepos_model::AxisKind;
 
 use crate::canon::Pos6;
@@ -76,17 +76,7 @@ impl<'a> Compensator<'a> {
             .collect();
         let full = vec![0.0; slot.len() + pass.len()];
         let n = chain.axes().len();
-        let nominal = chain
-            .axes()
-            .iter()
-            .map(|a| {
-                if a.travel_min <= 0.0 && a.travel_max >= 0.0 {
-                    0.0
-                } else {
-                    0.5 * (a.travel_min + a.travel_max)
-                }
-            })
-            .collect();
+        let nominal = chain.axes().iter().map(KinAxis::start_position).collect();
         Ok(Compensator {
             chain,
             geometry,

@@ -130,6 +130,18 @@ pub struct KinAxis {
     pub travel_max: f64,
 }
 
+impl KinAxis {
+    /// Where the axis starts when no earlier set-point is known: 0 if that is within its
+    /// travel, else mid-travel.
+    pub fn start_position(&self) -> f64 {
+        if self.travel_min <= 0.0 && self.travel_max >= 0.0 {
+            0.0
+        } else {
+            0.5 * (self.travel_min + self.travel_max)
+        }
+    }
+}
+
 /// An axis-specific compensation table referenced by error rows.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ErrorTable {
