@@ -33,7 +33,9 @@ mod history;
 mod probes;
 mod read;
 
-pub use history::{last_rows, read_events_after, read_history, Bucket, History, Rows};
+pub use history::{
+    last_rows, read_all_events_after, read_events_after, read_history, Bucket, History, Rows,
+};
 pub use probes::{
     axis_columns as probe_axis_columns, read_probes, read_probes_from, ProbeRow, ProbeTable,
 };

@@ -4,7 +4,9 @@
 
 use std::path::Path;
 
-use super::read::{open_read, LoggedEvent};
+use rusqlite::Connection;
+
+use super::read::{has_table, open_read, LoggedEvent};
 use super::{err, quote, LogError};
 
 /// The cycles of a window, min/max per bucket.
@@ -45,6 +47,8 @@ pub struct Rows {
     pub cycles: i64,
     /// Last rowid of `events` (0: none).
     pub events: i64,
+    /// Last rowid of `probes` (0: none, or a log without probes).
+    pub probes: i64,
 }
 
 /// The last rows of a log now (zeros for a log not created yet).
@@ -63,6 +67,7 @@ pub fn last_rows(path: &Path) -> Rows {
     Rows {
         cycles: last("cycles"),
         events: last("events"),
+        probes: last("probes"),
     }
 }
 
@@ -161,7 +166,27 @@ pub fn read_events_after(
     after: i64,
     limit: usize,
 ) -> Result<Vec<(i64, LoggedEvent)>, LogError> {
+    let limit = i64::try_from(limit).unwrap_or(i64::MAX);
+    events_after(&open_read(path)?, path, after, limit)
+}
+
+/// Every event logged after row `after`, oldest first, each with its row: what a reader that
+/// keeps a cursor (`truepos fleet follow`) reads each round. A file without an `events` table
+/// has none (where [`read_events_after`] fails).
+pub fn read_all_events_after(path: &Path, after: i64) -> Result<Vec<(i64, LoggedEvent)>, LogError> {
     let conn = open_read(path)?;
+    if !has_table(&conn, path, "events")? {
+        return Ok(Vec::new());
+    }
+    events_after(&conn, path, after, i64::MAX)
+}
+
+fn events_after(
+    conn: &Connection,
+    path: &Path,
+    after: i64,
+    limit: i64,
+) -> Result<Vec<(i64, LoggedEvent)>, LogError> {
     let mut st = conn
         .prepare(
             "SELECT rowid, time_s, kind, subject, detail FROM events WHERE rowid > ?1 \
@@ -169,7 +194,7 @@ pub fn read_events_after(
         )
         .map_err(err(path))?;
     let rows = st
-        .query_map(rusqlite::params![after, limit as i64], |r| {
+        .query_map(rusqlite::params![after, limit], |r| {
             Ok((
                 r.get::<_, i64>(0)?,
                 LoggedEvent {

@@ -6,6 +6,7 @@ use std::path::Path;
 
 use rusqlite::types::Value;
 
+use super::read::has_table;
 use super::{err, open_read, quote, real, LogError};
 use crate::config::MachineConfig;
 use crate::probe::ProbeRecord;
@@ -143,14 +144,7 @@ pub fn read_probes(path: &Path) -> Result<ProbeTable, LogError> {
 /// cursor (`truepos fleet follow`) reads each round, rather than the whole table.
 pub fn read_probes_from(path: &Path, from: i64) -> Result<ProbeTable, LogError> {
     let conn = open_read(path)?;
-    let exists: i64 = conn
-        .query_row(
-            "SELECT count(*) FROM sqlite_master WHERE type = 'table' AND name = 'probes'",
-            [],
-            |r| r.get(0),
-        )
-        .map_err(err(path))?;
-    if exists == 0 {
+    if !has_table(&conn, path, "probes")? {
         return Ok(ProbeTable {
             columns: Vec::new(),
             rows: Vec::new(),

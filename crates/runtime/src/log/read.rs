@@ -48,6 +48,17 @@ pub(crate) fn open_read(path: &Path) -> Result<Connection, LogError> {
     }
 }
 
+/// Whether the log has a table of that name (one written before a table was logged has not).
+pub(crate) fn has_table(c: &Connection, path: &Path, name: &str) -> Result<bool, LogError> {
+    c.query_row(
+        "SELECT count(*) FROM sqlite_master WHERE type = 'table' AND name = ?1",
+        [name],
+        |r| r.get::<_, i64>(0),
+    )
+    .map(|n| n > 0)
+    .map_err(err(path))
+}
+
 /// A first read, so that a database that cannot be read fails here (SQLite opens lazily).
 fn probe(c: &Connection) -> rusqlite::Result<()> {
     c.query_row("SELECT count(*) FROM sqlite_master", [], |_| Ok(()))
