@@ -52,6 +52,7 @@
 //! ```
 #![forbid(unsafe_code)]
 
+mod channel;
 pub mod modbus;
 pub mod opcua;
 pub mod shdr;

@@ -5,6 +5,7 @@ use truepos_model::Machine;
 
 use super::codec::{Encoding, RegisterKind, WordOrder};
 use super::plan::RegisterSpan;
+use crate::channel::channel_config;
 use truepos_runtime::sources::{
     check_source_config, check_unique_targets, BackoffConfig, ConfigError, Target,
 };
@@ -22,20 +23,11 @@ pub enum Addressing {
     OneBased,
 }
 
+channel_config! {
 /// One Modbus register feeding one machine channel (configuration, TOML). Give exactly one of
 /// `temperature`, `axis` or `operating`.
-#[derive(Debug, Clone, PartialEq, Deserialize)]
-#[serde(deny_unknown_fields)]
 pub struct ModbusChannelConfig {
-    /// Machine temperature channel id (°C).
-    #[serde(default)]
-    pub temperature: Option<String>,
-    /// Machine axis name.
-    #[serde(default)]
-    pub axis: Option<String>,
-    /// Machine operating channel id.
-    #[serde(default)]
-    pub operating: Option<String>,
+    ..feeds,
     /// Unit identifier (default 1).
     #[serde(default = "default_unit")]
     pub unit: u8,
@@ -49,6 +41,7 @@ pub struct ModbusChannelConfig {
     /// For `float32`: `high-first` (default) or `low-first`.
     #[serde(default)]
     pub word_order: WordOrder,
+}
 }
 
 fn default_unit() -> u8 {
@@ -128,13 +121,7 @@ impl ModbusConfig {
         let mut targets = Vec::with_capacity(self.channels.len());
         let mut spans = Vec::with_capacity(self.channels.len());
         for (c, key) in self.channels.iter().zip(&keys) {
-            targets.push(Target::resolve(
-                machine,
-                key,
-                c.temperature.as_deref(),
-                c.axis.as_deref(),
-                c.operating.as_deref(),
-            )?);
+            targets.push(c.target(machine, key)?);
             let n = c.encoding.registers();
             let address = match self.addressing {
                 Addressing::ZeroBased => Some(c.register),

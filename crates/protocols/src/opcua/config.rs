@@ -5,6 +5,8 @@
 use std::path::{Path, PathBuf};
 
 use serde::Deserialize;
+
+use crate::channel::channel_config;
 use truepos_model::{AxisKind, Machine};
 use truepos_runtime::sources::{
     check_unique_targets, load_toml_file, BackoffConfig, ConfigError, Target,
@@ -214,20 +216,11 @@ fn default_rate_hz() -> f64 {
     10.0
 }
 
+channel_config! {
 /// One node feeding one machine channel (configuration, TOML). Give exactly one of
 /// `temperature`, `axis` or `operating`.
-#[derive(Debug, Clone, PartialEq, Deserialize)]
-#[serde(deny_unknown_fields)]
 pub struct ChannelNode {
-    /// Machine temperature channel id (°C).
-    #[serde(default)]
-    pub temperature: Option<String>,
-    /// Machine axis name (mm or degrees).
-    #[serde(default)]
-    pub axis: Option<String>,
-    /// Machine operating channel id.
-    #[serde(default)]
-    pub operating: Option<String>,
+    ..feeds,
     /// The node, e.g. `ns=2;s=/Channel/MachineAxis/actToolBasePos[u1,1]`.
     pub node: String,
     /// value = raw × scale + offset (defaults 1 and 0).
@@ -236,6 +229,7 @@ pub struct ChannelNode {
     /// See `scale`.
     #[serde(default)]
     pub offset: f64,
+}
 }
 
 fn one() -> f64 {
@@ -429,13 +423,7 @@ impl SourceConfig {
         let mut keys = Vec::new();
         for (i, c) in self.channel.iter().enumerate() {
             let key = format!("channel[{}]", i + 1);
-            targets.push(Target::resolve(
-                machine,
-                &key,
-                c.temperature.as_deref(),
-                c.axis.as_deref(),
-                c.operating.as_deref(),
-            )?);
+            targets.push(c.target(machine, &key)?);
             check_node(&c.node, &format!("{key}.node"))?;
             for (k, v) in [("scale", c.scale), ("offset", c.offset)] {
                 if !v.is_finite() || (k == "scale" && v == 0.0) {

@@ -3,27 +3,21 @@
 use serde::Deserialize;
 use truepos_model::Machine;
 
+use crate::channel::channel_config;
+
 use truepos_runtime::sources::{
     check_source_config, check_unique_targets, BackoffConfig, ConfigError, Target,
 };
 use truepos_runtime::sources::{from_toml_text, load_toml_file};
 
+channel_config! {
 /// One SHDR data item feeding one machine channel (configuration, TOML). Give exactly one of
 /// `temperature`, `axis` or `operating`.
-#[derive(Debug, Clone, PartialEq, Deserialize)]
-#[serde(deny_unknown_fields)]
 pub struct ShdrChannelConfig {
     /// The adapter's dataItemId (e.g. `Xact`, `Tspindle`).
     pub data_item: String,
-    /// Machine temperature channel id (°C).
-    #[serde(default)]
-    pub temperature: Option<String>,
-    /// Machine axis name (position in mm or degrees).
-    #[serde(default)]
-    pub axis: Option<String>,
-    /// Machine operating channel id.
-    #[serde(default)]
-    pub operating: Option<String>,
+    ..feeds,
+}
 }
 
 /// An MTConnect SHDR source (configuration, TOML).
@@ -122,13 +116,7 @@ impl ShdrConfig {
                     format!("expected a dataItemId without `|`, found `{}`", c.data_item),
                 ));
             }
-            targets.push(Target::resolve(
-                machine,
-                key,
-                c.temperature.as_deref(),
-                c.axis.as_deref(),
-                c.operating.as_deref(),
-            )?);
+            targets.push(c.target(machine, key)?);
         }
         check_unique_targets(&targets, &keys)?;
         Ok(targets)
