@@ -104,17 +104,8 @@ pub fn run(mut args: Args) -> Result<(), CliError> {
     let io_err = |e: csv::Error| CliError::file(&args.out, Some("cannot write"))(e);
     let n_axes = model.axis_count();
     if let Some(w) = writer.as_mut() {
-        let mut header = Vec::new();
-        if named {
-            header.push("run".to_string());
-        }
-        header.push("time_s".to_string());
-        for a in &machine.axes[..n_axes] {
-            header.push(format!("{}_error_um", a.name));
-            header.push(format!("{}_comp_um", a.name));
-        }
-        header.push("status".into());
-        w.write_record(&header).map_err(io_err)?;
+        w.write_record(header(named, &machine.axes[..n_axes]))
+            .map_err(io_err)?;
     }
 
     let mut summary: Vec<AxisSummary> = machine.axes[..n_axes]
@@ -148,68 +139,111 @@ pub fn run(mut args: Args) -> Result<(), CliError> {
     }
 
     let rows: usize = runs.iter().map(|(_, c)| c.run.time_s.len()).sum();
+    let evaluated = (failed, first_failure, per_run);
     if args.json {
-        let axes: Vec<serde_json::Value> = summary
-            .iter()
-            .map(|s| {
-                let finite = |v: f64| if v.is_finite() { Some(v) } else { None };
-                serde_json::json!({
-                    "axis": s.name,
-                    "min_error_um": finite(s.min_um),
-                    "max_error_um": finite(s.max_um),
-                    "max_abs_error_um": s.max_abs_um,
-                })
-            })
-            .collect();
-        let v = serde_json::json!({
-            "machine": machine.name,
-            "model": model.name(),
-            "run": args.run.display().to_string(),
-            "cycles": rows,
-            "failed_cycles": failed,
-            "first_failure": first_failure,
-            "rows_beyond_training": model.rows_beyond(),
-            "axes": axes,
-            "runs": per_run,
-        });
-        println!("{v}");
+        print_json(&args, &machine, &model, rows, &summary, evaluated);
     } else {
-        eprintln!(
-            "{} cycles of {} evaluated with model `{}` ({} failed)",
-            rows,
-            args.run.display(),
-            model.name(),
-            failed
-        );
-        if named {
-            for r in &per_run {
-                eprintln!(
-                    "  run {}: {} cycles ({} failed)",
-                    r["name"].as_str().unwrap_or(""),
-                    r["cycles"],
-                    r["failed_cycles"]
-                );
-            }
-        }
-        for s in &summary {
-            if s.min_um.is_finite() {
-                eprintln!(
-                    "  {:>4}: predicted error {:+9.3} … {:+9.3} µm",
-                    s.name, s.min_um, s.max_um
-                );
-            }
-        }
-        if let Some(f) = &first_failure {
-            eprintln!("  first failed cycle: {f}");
-        }
-        if model.rows_beyond() > 0 {
+        print_summary(&args, &model, rows, &summary, evaluated, named);
+    }
+    Ok(())
+}
+
+/// The CSV's header: the run's name when rows must say it, the time, and per axis the
+/// predicted error and the compensation that cancels it, then the cycle's status.
+fn header(named: bool, axes: &[truepos_model::Axis]) -> Vec<String> {
+    let mut header = Vec::new();
+    if named {
+        header.push("run".to_string());
+    }
+    header.push("time_s".to_string());
+    for a in axes {
+        header.push(format!("{}_error_um", a.name));
+        header.push(format!("{}_comp_um", a.name));
+    }
+    header.push("status".into());
+    header
+}
+
+/// The summary as one JSON object on standard output, for scripts: per axis the range of
+/// the predicted error (null where no cycle was evaluated), and per run its cycles.
+fn print_json(
+    args: &Args,
+    machine: &truepos_model::Machine,
+    model: &Evaluator,
+    rows: usize,
+    summary: &[AxisSummary],
+    (failed, first_failure, per_run): Evaluated,
+) {
+    let axes: Vec<serde_json::Value> = summary
+        .iter()
+        .map(|s| {
+            let finite = |v: f64| if v.is_finite() { Some(v) } else { None };
+            serde_json::json!({
+                "axis": s.name,
+                "min_error_um": finite(s.min_um),
+                "max_error_um": finite(s.max_um),
+                "max_abs_error_um": s.max_abs_um,
+            })
+        })
+        .collect();
+    let v = serde_json::json!({
+        "machine": machine.name,
+        "model": model.name(),
+        "run": args.run.display().to_string(),
+        "cycles": rows,
+        "failed_cycles": failed,
+        "first_failure": first_failure,
+        "rows_beyond_training": model.rows_beyond(),
+        "axes": axes,
+        "runs": per_run,
+    });
+    println!("{v}");
+}
+
+/// The summary for a person, on standard error so that it does not mix with the CSV on
+/// standard output.
+fn print_summary(
+    args: &Args,
+    model: &Evaluator,
+    rows: usize,
+    summary: &[AxisSummary],
+    (failed, first_failure, per_run): Evaluated,
+    named: bool,
+) {
+    eprintln!(
+        "{} cycles of {} evaluated with model `{}` ({} failed)",
+        rows,
+        args.run.display(),
+        model.name(),
+        failed
+    );
+    if named {
+        for r in &per_run {
             eprintln!(
-                "  {} cycles with an input beyond the model's training range (widened): clamped, the output capped at 1.5 × the largest in training, as on the machine",
-                model.rows_beyond()
+                "  run {}: {} cycles ({} failed)",
+                r["name"].as_str().unwrap_or(""),
+                r["cycles"],
+                r["failed_cycles"]
             );
         }
     }
-    Ok(())
+    for s in summary {
+        if s.min_um.is_finite() {
+            eprintln!(
+                "  {:>4}: predicted error {:+9.3} … {:+9.3} µm",
+                s.name, s.min_um, s.max_um
+            );
+        }
+    }
+    if let Some(f) = &first_failure {
+        eprintln!("  first failed cycle: {f}");
+    }
+    if model.rows_beyond() > 0 {
+        eprintln!(
+            "  {} cycles with an input beyond the model's training range (widened): clamped, the output capped at 1.5 × the largest in training, as on the machine",
+            model.rows_beyond()
+        );
+    }
 }
 
 /// What evaluating the runs found: failed cycles, the first failure, and per run its name,

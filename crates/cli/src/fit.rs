@@ -299,17 +299,8 @@ pub fn run(args: Args) -> Result<(), CliError> {
     })
     // Validation refuses in a sentence of its own (too few rows, a split it cannot make).
     .map_err(CliError::Refused)?;
-    let Outcome {
-        validation,
-        trained,
-        ..
-    } = &outcome;
-    let mut warnings = validation.warnings.clone();
-    warnings.extend(late_first_measurements(&ds));
-    if let Err(bad) = plausible(&ds, &outcome) {
-        warnings.extend(forced(&args, &bad)?);
-    }
-    warnings.extend(beyond_training(validation.held_out_rows_beyond_training));
+    let validation = &outcome.validation;
+    let warnings = fit_warnings(&args, &ds, &outcome)?;
     let report = serde_json::json!({
         "held_out_rows_beyond_training": validation.held_out_rows_beyond_training,
         "runs": ds.runs.iter().map(|r| serde_json::json!({"name": r.name, "samples": r.len(), "measured": r.measured_rows()})).collect::<Vec<_>>(),
@@ -318,25 +309,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
         "validation": validation,
         "warnings": warnings,
     });
-    if let Some(path) = &args.model {
-        let created_by = format!("truepos fit {}", env!("CARGO_PKG_VERSION"));
-        let file = model_file(
-            &ds,
-            &settings,
-            &outcome,
-            &args.machine_name,
-            &args.axes,
-            &created_by,
-        )
-        .map_err(CliError::context("--axis: "))?;
-        crate::write::write_whole(path, file.to_json() + "\n", &input_files(&args))?;
-    }
-    if let Some(path) = &args.predictions {
-        crate::write::write_whole(path, predictions_csv(&ds, &outcome), &input_files(&args))?;
-    }
-    if let Some(dir) = &args.report {
-        report::write(dir, &ds, &outcome, &warnings)?;
-    }
+    write_outputs(&args, &ds, &settings, &outcome, &warnings)?;
     for w in &warnings {
         eprintln!("warning: {w}");
     }
@@ -344,6 +317,64 @@ pub fn run(args: Args) -> Result<(), CliError> {
         println!("{}", serde_json::to_string_pretty(&report)?);
         return Ok(());
     }
+    print_validation(&ds, &outcome);
+    Ok(())
+}
+
+/// The warnings a fit prints and records: the validation's own, runs measured late, an
+/// implausible model the user forced through, and held-out rows beyond the training range.
+/// Refuses an implausible model unless forced.
+fn fit_warnings(args: &Args, ds: &Dataset, outcome: &Outcome) -> Result<Vec<String>, CliError> {
+    let validation = &outcome.validation;
+    let mut warnings = validation.warnings.clone();
+    warnings.extend(late_first_measurements(ds));
+    if let Err(bad) = plausible(ds, outcome) {
+        warnings.extend(forced(args, &bad)?);
+    }
+    warnings.extend(beyond_training(validation.held_out_rows_beyond_training));
+    Ok(warnings)
+}
+
+/// Writes what the command line asked for: the model file, the held-out predictions, the
+/// report directory; each file whole or not at all.
+fn write_outputs(
+    args: &Args,
+    ds: &Dataset,
+    settings: &Settings,
+    outcome: &Outcome,
+    warnings: &[String],
+) -> Result<(), CliError> {
+    if let Some(path) = &args.model {
+        let created_by = format!("truepos fit {}", env!("CARGO_PKG_VERSION"));
+        let file = model_file(
+            ds,
+            settings,
+            outcome,
+            &args.machine_name,
+            &args.axes,
+            &created_by,
+        )
+        .map_err(CliError::context("--axis: "))?;
+        crate::write::write_whole(path, file.to_json() + "\n", &input_files(args))?;
+    }
+    if let Some(path) = &args.predictions {
+        crate::write::write_whole(path, predictions_csv(ds, outcome), &input_files(args))?;
+    }
+    if let Some(dir) = &args.report {
+        report::write(dir, ds, outcome, warnings)?;
+    }
+    Ok(())
+}
+
+/// The validation for a person: per target the held-out figures beside what the inner
+/// cross-validation chose, the baseline, how far the test error strays from the inner
+/// estimate, the sensors used, and per run when there are several.
+fn print_validation(ds: &Dataset, outcome: &Outcome) {
+    let Outcome {
+        validation,
+        trained,
+        ..
+    } = outcome;
     println!("validation: {}", validation.protocol_text);
     println!(
         "{:<12} {:>10} {:>10} {:>10} {:>10} {:>9}  chosen (inner CV on the training part)",
@@ -407,7 +438,6 @@ pub fn run(args: Args) -> Result<(), CliError> {
     if ds.runs.len() > 1 {
         print_per_run(validation);
     }
-    Ok(())
 }
 
 /// The figures of each run's held-out rows, one line per run and target: a pooled figure can
