@@ -94,6 +94,91 @@ fn snapshot(args: &StatusArgs) -> Result<Snapshot, CliError> {
     };
     let (sensors, models) = (list("sensors"), list("models"));
     let last = rows.last();
+    let LastCycle {
+        state,
+        time_s,
+        offsets,
+        positions,
+        temperatures,
+        operating,
+        path_models,
+    } = last_cycle(&names, last, &sensors, &models);
+    let sensor_faults = sensor_faults(&events, &sensors, &temperatures);
+    let links = link_faults(&events);
+    let why = if state.is_empty() || state == "active" {
+        Vec::new()
+    } else {
+        reasons(&events, &positions, &sensor_faults, &links, &clock)
+    };
+    let extrapolating = extrapolating(&events);
+    let text = render(&Parts {
+        machine: meta["machine"].as_str().unwrap_or("?"),
+        log: &args.log,
+        logged: last.is_some(),
+        time_s,
+        state: &state,
+        why: &why,
+        extrapolating: &extrapolating,
+        path_models: &path_models,
+        rows: [
+            ("offsets", &offsets, 2, true),
+            ("positions", &positions, 3, false),
+            ("temperatures", &temperatures, 2, false),
+            ("operating", &operating, 1, false),
+        ],
+        sensor_faults: &sensor_faults,
+        links: &links,
+        events: &events,
+        clock: &clock,
+    });
+    let named = |v: &[Value]| -> serde_json::Map<String, serde_json::Value> {
+        v.iter()
+            .map(|x| (x.name.clone(), finite(x.value)))
+            .collect()
+    };
+    let last_cycle = cycle_map(&names, last);
+    let json = serde_json::json!({
+        "last_cycle": last_cycle,
+        "machine": meta["machine"],
+        "time_s": finite(time_s),
+        "clock_utc": last.map(|_| clock(time_s)),
+        "state": state,
+        "why": why,
+        "extrapolating": extrapolating,
+        "models": path_models.iter().map(|(p, m)| serde_json::json!({"path": p, "model": m})).collect::<Vec<_>>(),
+        "offsets_um": named(&offsets),
+        "positions": named(&positions),
+        "temperatures_c": named(&temperatures),
+        "operating": named(&operating),
+        "events": events.len(),
+        "bad_sensors": sensor_faults.iter().map(|(s, d)| serde_json::json!({"sensor": s, "reason": d})).collect::<Vec<_>>(),
+        "failing": links.iter().map(|(s, d)| serde_json::json!({"what": s, "reason": d})).collect::<Vec<_>>(),
+        "recent_events": events.iter().rev().take(5).collect::<Vec<_>>(),
+    });
+    Ok(Snapshot { text, json })
+}
+
+/// The last cycle's columns by what they are: the offsets, the axes' positions, the logged
+/// sensors' temperatures, the operating channels (every other column) and per path the model
+/// in effect; with the service state and time. A missing cycle gives NaN values.
+struct LastCycle {
+    state: String,
+    time_s: f64,
+    offsets: Vec<Value>,
+    positions: Vec<Value>,
+    temperatures: Vec<Value>,
+    operating: Vec<Value>,
+    path_models: Vec<(String, String)>,
+}
+
+/// Sorts the last cycle's columns (`names`, the cells `last`) into a [`LastCycle`]; `sensors`
+/// tells temperatures from operating channels and `models` names the models by index.
+fn last_cycle(
+    names: &[String],
+    last: Option<&Vec<String>>,
+    sensors: &[String],
+    models: &[String],
+) -> LastCycle {
     let cell = |name: &str| -> Option<&String> {
         let c = names.iter().position(|n| n == name)?;
         last.map(|r| &r[c])
@@ -155,60 +240,15 @@ fn snapshot(args: &StatusArgs) -> Result<Snapshot, CliError> {
         })
         .collect();
     let state = cell("state").cloned().unwrap_or_default();
-    let sensor_faults = sensor_faults(&events, &sensors, &temperatures);
-    let links = link_faults(&events);
-    let why = if state.is_empty() || state == "active" {
-        Vec::new()
-    } else {
-        reasons(&events, &positions, &sensor_faults, &links, &clock)
-    };
-    let extrapolating = extrapolating(&events);
-    let time_s = number("time_s");
-    let text = render(&Parts {
-        machine: meta["machine"].as_str().unwrap_or("?"),
-        log: &args.log,
-        logged: last.is_some(),
-        time_s,
-        state: &state,
-        why: &why,
-        extrapolating: &extrapolating,
-        path_models: &path_models,
-        rows: [
-            ("offsets", &offsets, 2, true),
-            ("positions", &positions, 3, false),
-            ("temperatures", &temperatures, 2, false),
-            ("operating", &operating, 1, false),
-        ],
-        sensor_faults: &sensor_faults,
-        links: &links,
-        events: &events,
-        clock: &clock,
-    });
-    let named = |v: &[Value]| -> serde_json::Map<String, serde_json::Value> {
-        v.iter()
-            .map(|x| (x.name.clone(), finite(x.value)))
-            .collect()
-    };
-    let last_cycle = cycle_map(&names, last);
-    let json = serde_json::json!({
-        "last_cycle": last_cycle,
-        "machine": meta["machine"],
-        "time_s": finite(time_s),
-        "clock_utc": last.map(|_| clock(time_s)),
-        "state": state,
-        "why": why,
-        "extrapolating": extrapolating,
-        "models": path_models.iter().map(|(p, m)| serde_json::json!({"path": p, "model": m})).collect::<Vec<_>>(),
-        "offsets_um": named(&offsets),
-        "positions": named(&positions),
-        "temperatures_c": named(&temperatures),
-        "operating": named(&operating),
-        "events": events.len(),
-        "bad_sensors": sensor_faults.iter().map(|(s, d)| serde_json::json!({"sensor": s, "reason": d})).collect::<Vec<_>>(),
-        "failing": links.iter().map(|(s, d)| serde_json::json!({"what": s, "reason": d})).collect::<Vec<_>>(),
-        "recent_events": events.iter().rev().take(5).collect::<Vec<_>>(),
-    });
-    Ok(Snapshot { text, json })
+    LastCycle {
+        state,
+        time_s: number("time_s"),
+        offsets,
+        positions,
+        temperatures,
+        operating,
+        path_models,
+    }
 }
 
 /// What the text for a person is made of.
