@@ -394,7 +394,16 @@ fn sensor_families(o: &mut String, s: &Snapshot, info: &Info) {
     );
 }
 
+/// The families of what the service is linked to: its sources, sinks, model set and log.
 fn link_families(o: &mut String, s: &Snapshot, info: &Info) {
+    source_families(o, s, info);
+    sink_families(o, s, info);
+    model_families(o, s, info);
+    queue_families(o, s);
+}
+
+/// Per source: whether it delivers, and for how long it has not.
+fn source_families(o: &mut String, s: &Snapshot, info: &Info) {
     let sources: Vec<(String, f64)> = info
         .sources
         .iter()
@@ -426,6 +435,10 @@ fn link_families(o: &mut String, s: &Snapshot, info: &Info) {
         "Service time since a source last delivered (0 while it delivers, +Inf: not since start).",
         &ages,
     );
+}
+
+/// Per sink: whether it fails now, and how many cycles' output it has not taken.
+fn sink_families(o: &mut String, s: &Snapshot, info: &Info) {
     let sinks = |f: &dyn Fn(usize) -> f64| -> Vec<(String, f64)> {
         info.sinks
             .iter()
@@ -448,6 +461,10 @@ fn link_families(o: &mut String, s: &Snapshot, info: &Info) {
         "Cycles whose output a sink did not take.",
         &sinks(&|i| sink(i).1 as f64),
     );
+}
+
+/// Per model of the set its generation (reloads), and per path the model it compensates with.
+fn model_families(o: &mut String, s: &Snapshot, info: &Info) {
     let models: Vec<(String, f64)> = info
         .models
         .iter()
@@ -487,6 +504,10 @@ fn link_families(o: &mut String, s: &Snapshot, info: &Info) {
         "Index of the model a path compensates with (0 first of the set), -1 for none.",
         &paths,
     );
+}
+
+/// What the cycle could not queue for the log, and the logger's own state when there is one.
+fn queue_families(o: &mut String, s: &Snapshot) {
     let dropped = [
         ("records", s.records_dropped),
         ("events", s.events_dropped),
