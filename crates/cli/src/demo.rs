@@ -386,11 +386,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
     );
     let volume = volume(&twin, &machine, &test, &posdep.model.model, results.stride);
     let html = report(&args, &machine, &test, &posdep, &results, volume)?;
-    if args.json {
-        print_json(&args, &machine, &results, &prior, &posdep, &html);
-    } else {
-        print_table(&args, &machine, &results, &prior, &posdep, &html);
-    }
+    print(&args, &machine, &results, &prior, &posdep, &html);
     Ok(())
 }
 
@@ -546,7 +542,9 @@ fn report(
     Ok(write_report(&args.out.join("report"), &data)?)
 }
 
-fn print_json(
+/// The figures of the test day, the choices and where the files are: JSON with `--json`, else
+/// a table.
+fn print(
     args: &Args,
     machine: &Machine,
     r: &Results,
@@ -554,24 +552,17 @@ fn print_json(
     posdep: &Selected,
     html: &Path,
 ) {
-    let v = serde_json::json!({
-        "train": args.train, "test": args.test,
-        "uncompensated": r.none,
-        "prior_art": { "chosen": prior.chosen(machine), "figures": r.prior, "volume_reduction": r.reduction(&r.prior) },
-        "position_dependent": { "chosen": posdep.chosen(machine), "figures": r.posdep, "volume_reduction": r.reduction(&r.posdep) },
-        "report": html.display().to_string(),
-    });
-    println!("{v}");
-}
-
-fn print_table(
-    args: &Args,
-    machine: &Machine,
-    r: &Results,
-    prior: &Selected,
-    posdep: &Selected,
-    html: &Path,
-) {
+    if args.json {
+        let v = serde_json::json!({
+            "train": args.train, "test": args.test,
+            "uncompensated": r.none,
+            "prior_art": { "chosen": prior.chosen(machine), "figures": r.prior, "volume_reduction": r.reduction(&r.prior) },
+            "position_dependent": { "chosen": posdep.chosen(machine), "figures": r.posdep, "volume_reduction": r.reduction(&r.posdep) },
+            "report": html.display().to_string(),
+        });
+        println!("{v}");
+        return;
+    }
     println!(
         "test day `{}` (never seen by the fit), errors of the tool relative to the workpiece:",
         args.test
