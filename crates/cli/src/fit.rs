@@ -15,7 +15,7 @@ use truepos_fit::dataset::{Columns, Dataset, Patterns};
 use truepos_fit::export::{model_file, plausible, predictions_csv, TargetAxis};
 use truepos_fit::family::Families;
 use truepos_fit::settings::{InnerCv, Ridges, Rule, Selection, Settings};
-use truepos_fit::validate::{fit, Outcome, Split, Validation};
+use truepos_fit::validate::{fit, Metrics, Outcome, Split, Validation};
 use truepos_io::limits::int_in;
 use truepos_io::run::{read_shaped, RunTable, Time};
 
@@ -366,6 +366,28 @@ fn write_outputs(
     Ok(())
 }
 
+/// The protocol and the head of the table [`print_held_out`] writes the rows of.
+pub(crate) fn print_held_out_head(protocol_text: &str) {
+    println!("validation: {protocol_text}");
+    println!(
+        "{:<12} {:>10} {:>10} {:>10} {:>10} {:>9}  chosen (inner CV on the training part)",
+        "target", "uncomp µm", "RMSE µm", "max|e| µm", "p-p µm", "reduction"
+    );
+}
+
+/// One target's held-out figures and what the inner cross-validation chose for it.
+pub(crate) fn print_held_out(m: &Metrics, chosen: &str) {
+    println!(
+        "{:<12} {:>10.2} {:>10.2} {:>10.2} {:>10.2} {:>8.1}%  {chosen}",
+        m.target,
+        m.uncompensated_rmse_um,
+        m.rmse_um,
+        m.max_abs_um,
+        m.peak_to_peak_um,
+        m.rmse_reduction_percent,
+    );
+}
+
 /// The validation for a person: per target the held-out figures beside what the inner
 /// cross-validation chose, the baseline, how far the test error strays from the inner
 /// estimate, the sensors used, and per run when there are several.
@@ -375,25 +397,14 @@ fn print_validation(ds: &Dataset, outcome: &Outcome) {
         trained,
         ..
     } = outcome;
-    println!("validation: {}", validation.protocol_text);
-    println!(
-        "{:<12} {:>10} {:>10} {:>10} {:>10} {:>9}  chosen (inner CV on the training part)",
-        "target", "uncomp µm", "RMSE µm", "max|e| µm", "p-p µm", "reduction"
-    );
+    print_held_out_head(&validation.protocol_text);
     for (m, c) in validation.metrics.iter().zip(&trained.choices) {
         let baseline = c
             .baseline_cv_rmse_um
             .map_or(String::new(), |b| format!(", baseline CV {b:.2} µm"));
-        println!(
-            "{:<12} {:>10.2} {:>10.2} {:>10.2} {:>10.2} {:>8.1}%  {} (CV {:.2} µm{baseline})",
-            m.target,
-            m.uncompensated_rmse_um,
-            m.rmse_um,
-            m.max_abs_um,
-            m.peak_to_peak_um,
-            m.rmse_reduction_percent,
-            c.describe(),
-            c.cv_rmse_um
+        print_held_out(
+            m,
+            &format!("{} (CV {:.2} µm{baseline})", c.describe(), c.cv_rmse_um),
         );
     }
     for c in &trained.choices {

@@ -291,22 +291,11 @@ pub(crate) fn form(chosen: &Chosen) -> &'static str {
 pub(crate) fn print_screen(ds: &Dataset, outcome: &MachineOutcome) {
     let v = &outcome.validation;
     let sel = &outcome.selection;
-    println!("validation: {}", v.protocol_text);
-    println!(
-        "{:<12} {:>10} {:>10} {:>10} {:>10} {:>9}  chosen (inner CV on the training part)",
-        "target", "uncomp µm", "RMSE µm", "max|e| µm", "p-p µm", "reduction"
-    );
+    super::print_held_out_head(&v.protocol_text);
     for (k, m) in v.metrics.iter().enumerate() {
-        println!(
-            "{:<12} {:>10.2} {:>10.2} {:>10.2} {:>10.2} {:>8.1}%  {} (CV {:.2} µm)",
-            m.target,
-            m.uncompensated_rmse_um,
-            m.rmse_um,
-            m.max_abs_um,
-            m.peak_to_peak_um,
-            m.rmse_reduction_percent,
-            sel.labels[k],
-            sel.cv_rmse_um[k]
+        super::print_held_out(
+            m,
+            &format!("{} (CV {:.2} µm)", sel.labels[k], sel.cv_rmse_um[k]),
         );
     }
     println!(
