@@ -11,7 +11,7 @@ use super::record::Sample;
 use super::replay::Replay;
 use super::report::CheckReport;
 use super::targets::{expected_model, position_span_um};
-use super::CheckConfig;
+use super::{CheckConfig, Recorded};
 
 /// A change of a model input (K) between two servo cycles above which the cycle says nothing
 /// about the lag of the position-dependent terms (the twin drifts by far less per millisecond).
@@ -51,15 +51,15 @@ struct Walk {
 
 /// Walks the cycles and fills in the report's comparison with the model, the gaps, the
 /// switches, the rates and the joints.
-pub(super) fn compare_cycles(
-    machine: &Machine,
-    models: &[ModelEntry],
-    replay: &Replay,
-    limits: &[AxisConfig],
-    samples: &[Sample],
-    config: &CheckConfig,
-    report: &mut CheckReport,
-) {
+pub(super) fn compare_cycles(recorded: Recorded<'_>, report: &mut CheckReport) {
+    let Recorded {
+        machine,
+        models,
+        replay,
+        limits,
+        samples,
+        config,
+    } = recorded;
     let axes = machine.axes.len();
     let judge = Judge {
         machine,

@@ -9,7 +9,7 @@ use super::record::Sample;
 use super::replay::{servo_intervals_s, Replay};
 use super::report::CheckReport;
 use super::targets::targets_um;
-use super::CheckConfig;
+use super::{CheckConfig, Recorded};
 
 /// The output invariant (ARCHITECTURE.md) judged on the offsets LinuxCNC applied.
 #[derive(Debug, Clone, PartialEq, Default)]
@@ -62,18 +62,26 @@ pub fn output_invariant(
     config: &CheckConfig,
 ) -> InvariantReport {
     let replay = Replay::new(machine, models, samples, config.period_s);
-    output_invariant_with(machine, models, &replay, limits, samples, config)
+    output_invariant_with(Recorded {
+        machine,
+        models,
+        replay: &replay,
+        limits,
+        samples,
+        config,
+    })
 }
 
 /// [`output_invariant`] on the models' values already replayed.
-pub(super) fn output_invariant_with(
-    machine: &Machine,
-    models: &[ModelEntry],
-    replay: &Replay,
-    limits: &[AxisConfig],
-    samples: &[Sample],
-    config: &CheckConfig,
-) -> InvariantReport {
+pub(super) fn output_invariant_with(recorded: Recorded<'_>) -> InvariantReport {
+    let Recorded {
+        machine,
+        models,
+        replay,
+        limits,
+        samples,
+        config,
+    } = recorded;
     let axes = machine.axes.len();
     let count = RESOLUTION_UM;
     let intervals = servo_intervals_s(samples, config.period_s);

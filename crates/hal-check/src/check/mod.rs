@@ -104,6 +104,18 @@ impl Default for CheckConfig {
     }
 }
 
+/// What a check reads: the machine and its models, their values replayed over the recording,
+/// the axes' limits, the recorded cycles and the tolerances.
+#[derive(Clone, Copy)]
+struct Recorded<'a> {
+    machine: &'a Machine,
+    models: &'a [ModelEntry],
+    replay: &'a Replay,
+    limits: &'a [AxisConfig],
+    samples: &'a [Sample],
+    config: &'a CheckConfig,
+}
+
 /// Compares what LinuxCNC applied with the models the axis-combination rule selects (see
 /// [`expected_model`]) and the envelope.
 pub fn check(
@@ -141,17 +153,16 @@ pub fn check(
         failures: Vec::new(),
     };
     let replay = Replay::new(machine, models, samples, config.period_s);
-    report.invariant =
-        invariant::output_invariant_with(machine, models, &replay, limits, samples, config);
-    compare::compare_cycles(
+    let recorded = Recorded {
         machine,
         models,
-        &replay,
+        replay: &replay,
         limits,
         samples,
         config,
-        &mut report,
-    );
+    };
+    report.invariant = invariant::output_invariant_with(recorded);
+    compare::compare_cycles(recorded, &mut report);
     judge(machine, limits, config, &mut report);
     let keeps_state = models.iter().any(|m| m.model.keeps_state());
     if keeps_state && samples.first().is_some_and(|s| !s.active()) {
