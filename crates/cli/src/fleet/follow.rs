@@ -234,6 +234,10 @@ fn run_of(log: &Path) -> Option<f64> {
         .filter(|s| s.is_finite())
 }
 
+/// The probe rows of a run whose probes are judged, the run's start and its reload filter; the
+/// predictions before an awaited reload are the previous model's and are not judged.
+type Judged<'r> = (Vec<&'r log::ProbeRow>, f64, Option<f64>);
+
 /// Splits the probes rows after the cursor (`prev_t`: the service time of the cursor's row)
 /// between the run the cursor was in (started at `old_start`) and the newest run (started
 /// at `new_start`), when the service started again in between. A row is the old run's while
@@ -637,30 +641,7 @@ impl Follower {
         if let Some(s) = restarted {
             self.new_run(s)?;
         }
-        if let Some(r) = &mut self.reload {
-            if r.at_s.is_none() {
-                for (row, e) in log_after::events_after(&self.a.log, r.events_before)? {
-                    // Read once: the next round goes on after it.
-                    r.events_before = row;
-                    if e.kind == "model-reloaded" && same_file(&e.detail, &self.a.model) {
-                        r.at_s = Some(e.time_s);
-                        println!(
-                            "{}: the service reloaded {} at its {:.1} s",
-                            self.a.machine, e.detail, e.time_s
-                        );
-                        break;
-                    }
-                    if e.kind == "model-reload-failed"
-                        && e.detail.contains(&file_name(&self.a.model))
-                    {
-                        println!(
-                            "{}: the service's reload failed: {}",
-                            self.a.machine, e.detail
-                        );
-                    }
-                }
-            }
-        }
+        self.await_reload()?;
         // Only the rows from the cursor's on (its own for its service time).
         let table = log_after::probes_from(&self.a.log, self.cursor)?;
         let Some(last) = table.rows.last().map(|r| r.row) else {
@@ -687,9 +668,7 @@ impl Follower {
         let after: Vec<&log::ProbeRow> =
             table.rows.iter().filter(|r| r.row > self.cursor).collect();
         let old_start = old_run.or(started).unwrap_or(0.0);
-        // (rows, the run's start, the reload filter) of each run whose probes are judged; the
-        // predictions before an awaited reload are the previous model's: not judged.
-        let mut runs: Vec<(Vec<&log::ProbeRow>, f64, Option<f64>)> = Vec::new();
+        let mut runs: Vec<Judged<'_>> = Vec::new();
         match restarted {
             None => {
                 if let Some(from) = old_from {
@@ -714,9 +693,21 @@ impl Follower {
         for (rows, _, _) in &mut runs {
             rows.retain(|r| r.accepted);
         }
+        self.record_probes(&layout, &runs, active)?;
+        self.advance(last)
+    }
+
+    /// Stores the residuals of the judged runs' probes: the shadow's since it began, and the
+    /// watched parent's while the model it watches is still the one running.
+    fn record_probes(
+        &mut self,
+        layout: &Layout,
+        runs: &[Judged<'_>],
+        active: i32,
+    ) -> Result<(), CliError> {
         if let Some(s) = &mut self.shadow {
             let mut probes = Vec::new();
-            for (rows, start, from_s) in &runs {
+            for (rows, start, from_s) in runs {
                 let since: Vec<&log::ProbeRow> = rows
                     .iter()
                     .filter(|r| r.row > s.from_row)
@@ -730,7 +721,7 @@ impl Follower {
         if let Some(w) = &mut self.watch {
             if w.active == active {
                 let mut probes = Vec::new();
-                for (rows, start, from_s) in &runs {
+                for (rows, start, from_s) in runs {
                     probes.extend(layout.residuals(rows, &mut w.parent.model, *start, *from_s));
                 }
                 shadow_probes::record(
@@ -743,7 +734,38 @@ impl Follower {
                 .map_err(|e| CliError::refused(format!("--db: PostgreSQL: {e}")))?;
             }
         }
-        self.advance(last)
+        Ok(())
+    }
+
+    /// While a reload is awaited, looks through the events logged since the last look for the
+    /// service reloading the followed file (from then on its probes are the new model's) or
+    /// failing to, and says which.
+    fn await_reload(&mut self) -> Result<(), CliError> {
+        if let Some(r) = &mut self.reload {
+            if r.at_s.is_none() {
+                for (row, e) in log_after::events_after(&self.a.log, r.events_before)? {
+                    // Read once: the next round goes on after it.
+                    r.events_before = row;
+                    if e.kind == "model-reloaded" && same_file(&e.detail, &self.a.model) {
+                        r.at_s = Some(e.time_s);
+                        println!(
+                            "{}: the service reloaded {} at its {:.1} s",
+                            self.a.machine, e.detail, e.time_s
+                        );
+                        break;
+                    }
+                    if e.kind == "model-reload-failed"
+                        && e.detail.contains(&file_name(&self.a.model))
+                    {
+                        println!(
+                            "{}: the service's reload failed: {}",
+                            self.a.machine, e.detail
+                        );
+                    }
+                }
+            }
+        }
+        Ok(())
     }
 
     /// Moves the cursor and keeps it beside the log.
