@@ -226,6 +226,110 @@ pub struct Model {
     envelope: Option<TrainingEnvelope>,
 }
 
+/// The parts flattened for the cycle: every summand with its range of position terms, the
+/// constants, and the machine's differences the model reads in the order of first use (the
+/// summands' local difference indices).
+#[derive(Default)]
+struct Compiled {
+    used_differences: Vec<usize>,
+    summands: Vec<CompiledSummand>,
+    terms: Vec<(usize, f64)>,
+    constants: Vec<(usize, usize, f64)>,
+}
+
+impl Compiled {
+    /// Checks part `pi`'s axes, differences and coefficients against the machine and appends
+    /// its summands, position terms and constants.
+    fn add_part(
+        &mut self,
+        pi: usize,
+        part: &Part,
+        machine: &Machine,
+        axis_count: usize,
+    ) -> Result<(), ModelError> {
+        let bad_axis = |axis: usize| ModelError::UnknownAxis {
+            part: part.name.clone(),
+            axis,
+        };
+        let non_finite = || ModelError::NonFiniteCoefficient {
+            part: part.name.clone(),
+        };
+        for s in &part.summands {
+            if s.axis >= axis_count {
+                return Err(bad_axis(s.axis));
+            }
+            if s.difference >= machine.differences.len() {
+                return Err(ModelError::UnknownDifference {
+                    part: part.name.clone(),
+                    difference: s.difference,
+                });
+            }
+            if let Some(b) = s.bed_multiplier {
+                if b >= axis_count {
+                    return Err(bad_axis(b));
+                }
+            }
+            if !s.k0_um_per_k.is_finite() {
+                return Err(non_finite());
+            }
+            let local = match self
+                .used_differences
+                .iter()
+                .position(|&d| d == s.difference)
+            {
+                Some(l) => l,
+                None => {
+                    self.used_differences.push(s.difference);
+                    self.used_differences.len() - 1
+                }
+            };
+            let terms_start = self.terms.len();
+            for t in &s.position_terms {
+                if t.axis >= axis_count {
+                    return Err(bad_axis(t.axis));
+                }
+                if !t.k_um_per_k.is_finite() {
+                    return Err(non_finite());
+                }
+                self.terms.push((g_index(t.axis, t.factor), t.k_um_per_k));
+            }
+            self.summands.push(CompiledSummand {
+                part: pi,
+                axis: s.axis,
+                local_difference: local,
+                k0: s.k0_um_per_k,
+                terms_start,
+                terms_end: self.terms.len(),
+                bed_multiplier: s.bed_multiplier,
+            });
+        }
+        for &(axis, value) in &part.constants_um {
+            if axis >= axis_count {
+                return Err(bad_axis(axis));
+            }
+            if !value.is_finite() {
+                return Err(non_finite());
+            }
+            self.constants.push((pi, axis, value));
+        }
+        Ok(())
+    }
+}
+
+/// The temperature channels the differences read, sorted and unique.
+fn used_sensors(difference_inputs: &[DifferenceInput]) -> Vec<usize> {
+    let mut used_sensors: Vec<usize> = Vec::new();
+    for d in difference_inputs {
+        used_sensors.push(d.plus);
+        if let Reference::Sensor(s) = d.minus {
+            used_sensors.push(s);
+        }
+    }
+    used_sensors.sort_unstable();
+    used_sensors.dedup();
+    used_sensors
+}
+
 impl Model {
     /// Binds parts to a machine, checking every index and coefficient.
     pub fn new(
@@ -234,76 +338,19 @@ impl Model {
         parts: Vec<Part>,
     ) -> Result<Self, ModelError> {
         let axis_count = machine.axes.len().min(MAX_AXES);
-        let mut used_differences: Vec<usize> = Vec::new();
-        let mut summands = Vec::new();
-        let mut terms = Vec::new();
-        let mut constants = Vec::new();
+        let mut compiled = Compiled::default();
         for (pi, part) in parts.iter().enumerate() {
             if parts[..pi].iter().any(|p| p.name == part.name) {
                 return Err(ModelError::DuplicatePart(part.name.clone()));
             }
-            let bad_axis = |axis: usize| ModelError::UnknownAxis {
-                part: part.name.clone(),
-                axis,
-            };
-            let non_finite = || ModelError::NonFiniteCoefficient {
-                part: part.name.clone(),
-            };
-            for s in &part.summands {
-                if s.axis >= axis_count {
-                    return Err(bad_axis(s.axis));
-                }
-                if s.difference >= machine.differences.len() {
-                    return Err(ModelError::UnknownDifference {
-                        part: part.name.clone(),
-                        difference: s.difference,
-                    });
-                }
-                if let Some(b) = s.bed_multiplier {
-                    if b >= axis_count {
-                        return Err(bad_axis(b));
-                    }
-                }
-                if !s.k0_um_per_k.is_finite() {
-                    return Err(non_finite());
-                }
-                let local = match used_differences.iter().position(|&d| d == s.difference) {
-                    Some(l) => l,
-                    None => {
-                        used_differences.push(s.difference);
-                        used_differences.len() - 1
-                    }
-                };
-                let terms_start = terms.len();
-                for t in &s.position_terms {
-                    if t.axis >= axis_count {
-                        return Err(bad_axis(t.axis));
-                    }
-                    if !t.k_um_per_k.is_finite() {
-                        return Err(non_finite());
-                    }
-                    terms.push((g_index(t.axis, t.factor), t.k_um_per_k));
-                }
-                summands.push(CompiledSummand {
-                    part: pi,
-                    axis: s.axis,
-                    local_difference: local,
-                    k0: s.k0_um_per_k,
-                    terms_start,
-                    terms_end: terms.len(),
-                    bed_multiplier: s.bed_multiplier,
-                });
-            }
-            for &(axis, value) in &part.constants_um {
-                if axis >= axis_count {
-                    return Err(bad_axis(axis));
-                }
-                if !value.is_finite() {
-                    return Err(non_finite());
-                }
-                constants.push((pi, axis, value));
-            }
+            compiled.add_part(pi, part, machine, axis_count)?;
         }
+        let Compiled {
+            used_differences,
+            summands,
+            terms,
+            constants,
+        } = compiled;
         if used_differences.len() > MAX_MODEL_DIFFERENCES {
             return Err(ModelError::TooManyDifferences(used_differences.len()));
         }
@@ -314,15 +361,7 @@ impl Model {
                 minus: machine.differences[d].minus,
             })
             .collect();
-        let mut used_sensors: Vec<usize> = Vec::new();
-        for d in &difference_inputs {
-            used_sensors.push(d.plus);
-            if let Reference::Sensor(s) = d.minus {
-                used_sensors.push(s);
-            }
-        }
-        used_sensors.sort_unstable();
-        used_sensors.dedup();
+        let used_sensors = used_sensors(&difference_inputs);
         Ok(Self {
             name: name.into(),
             machine: machine.name.clone(),
