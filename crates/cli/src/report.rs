@@ -284,19 +284,7 @@ fn conclusions(channels: &[Channel], range: std::ops::Range<usize>) -> Vec<(Stri
 pub fn run(args: Args) -> Result<(), CliError> {
     let (config, mut model, mut runs) = args.on.load()?;
     let machine = config.machine;
-    let mut pairs = Vec::new();
-    for spec in &args.measured {
-        let (axis, column) = spec.split_once('=').ok_or_else(|| {
-            CliError::refused(format!("--measured `{spec}`: expected AXIS=COLUMN"))
-        })?;
-        let a = machine.axis_index(axis).ok_or_else(|| {
-            CliError::refused(format!(
-                "--measured `{spec}`: machine `{}` has no axis `{axis}`",
-                machine.name
-            ))
-        })?;
-        pairs.push((a, column.to_string()));
-    }
+    let pairs = measured_axes(&args, &machine)?;
     let columns: Vec<String> = pairs.iter().map(|p| p.1.clone()).collect();
     let relative = !args.absolute && model.model().as_dynamic().is_some();
     let mut measured = vec![Vec::new(); pairs.len()];
@@ -338,18 +326,7 @@ pub fn run(args: Args) -> Result<(), CliError> {
             .position(|&x| x >= t)
             .unwrap_or(run.run.time_s.len())
     });
-    let temperatures = machine
-        .temperatures
-        .iter()
-        .enumerate()
-        .filter(|(i, _)| run.run.temperatures_c.iter().any(|row| row[*i].is_finite()))
-        .map(|(i, t)| {
-            (
-                t.id.clone(),
-                run.run.temperatures_c.iter().map(|r| r[i]).collect(),
-            )
-        })
-        .collect();
+    let temperatures = logged_temperatures(&machine, &run.run.temperatures_c);
     let run_name = match run_names.as_slice() {
         [one] => one.clone(),
         all => format!("{} runs ({})", all.len(), all.join(", ")),
@@ -388,7 +365,54 @@ pub fn run(args: Args) -> Result<(), CliError> {
         .iter()
         .map(|c| (c.name.clone(), channel_metrics(c, range.clone())))
         .collect();
-    if args.json {
+    print_metrics(args.json, &html, &metrics);
+    Ok(())
+}
+
+/// `--measured`'s AXIS=COLUMN pairs as (axis index, column), each axis one of the machine's.
+fn measured_axes(
+    args: &Args,
+    machine: &truepos_model::Machine,
+) -> Result<Vec<(usize, String)>, CliError> {
+    let mut pairs = Vec::new();
+    for spec in &args.measured {
+        let (axis, column) = spec.split_once('=').ok_or_else(|| {
+            CliError::refused(format!("--measured `{spec}`: expected AXIS=COLUMN"))
+        })?;
+        let a = machine.axis_index(axis).ok_or_else(|| {
+            CliError::refused(format!(
+                "--measured `{spec}`: machine `{}` has no axis `{axis}`",
+                machine.name
+            ))
+        })?;
+        pairs.push((a, column.to_string()));
+    }
+    Ok(pairs)
+}
+
+/// Each temperature channel with a value somewhere in the run, by its id: a channel the run
+/// never logged would only be an empty line in the plot.
+fn logged_temperatures(
+    machine: &truepos_model::Machine,
+    temperatures_c: &[Vec<f64>],
+) -> Vec<(String, Vec<f64>)> {
+    machine
+        .temperatures
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| temperatures_c.iter().any(|row| row[*i].is_finite()))
+        .map(|(i, t)| (t.id.clone(), temperatures_c.iter().map(|r| r[i]).collect()))
+        .collect()
+}
+
+/// Where the report is and each channel's figures of merit: as JSON on standard output with
+/// `--json`, else for a person on standard error.
+fn print_metrics(
+    json: bool,
+    html: &std::path::Path,
+    metrics: &[(String, truepos_report::Metrics)],
+) {
+    if json {
         let v = serde_json::json!({
             "report": html.display().to_string(),
             "channels": metrics.iter().map(|(n, m)| serde_json::json!({"channel": n, "metrics": m})).collect::<Vec<_>>(),
@@ -396,12 +420,11 @@ pub fn run(args: Args) -> Result<(), CliError> {
         println!("{v}");
     } else {
         eprintln!("report written to {}", html.display());
-        for (n, m) in &metrics {
+        for (n, m) in metrics {
             eprintln!(
                 "  {n}: RMSE {:.2} µm (uncompensated {:.2} µm), max {:.2} µm",
                 m.rmse_um, m.uncompensated_rmse_um, m.max_abs_um
             );
         }
     }
-    Ok(())
 }
