@@ -3,12 +3,9 @@
 //! that say when the component and the servo thread were not in step, the offset rate over a
 //! window, and how LinuxCNC's joints followed the commands.
 
-use truepos_model::{Machine, Model};
-use truepos_runtime::model_set::ModelEntry;
-use truepos_runtime::AxisConfig;
+use truepos_model::Model;
 
 use super::record::Sample;
-use super::replay::Replay;
 use super::report::CheckReport;
 use super::targets::{expected_model, position_span_um};
 use super::{CheckConfig, Recorded};
@@ -21,12 +18,7 @@ const AFTER_STEP_CYCLES: usize = 20;
 
 /// What the cycles are judged against.
 struct Judge<'a> {
-    machine: &'a Machine,
-    models: &'a [ModelEntry],
-    /// What every model gave on every recorded cycle.
-    replay: &'a Replay,
-    limits: &'a [AxisConfig],
-    config: &'a CheckConfig,
+    recorded: &'a Recorded<'a>,
     /// Operating values: the recording has none, so the model reads zeros.
     operating: Vec<f64>,
 }
@@ -51,22 +43,11 @@ struct Walk {
 
 /// Walks the cycles and fills in the report's comparison with the model, the gaps, the
 /// switches, the rates and the joints.
-pub(super) fn compare_cycles(recorded: Recorded<'_>, report: &mut CheckReport) {
-    let Recorded {
-        machine,
-        models,
-        replay,
-        limits,
-        samples,
-        config,
-    } = recorded;
+pub(super) fn compare_cycles(recorded: &Recorded<'_>, report: &mut CheckReport) {
+    let (machine, samples, config) = (recorded.machine, recorded.samples, recorded.config);
     let axes = machine.axes.len();
     let judge = Judge {
-        machine,
-        models,
-        replay,
-        limits,
-        config,
+        recorded,
         operating: vec![0.0; machine.operating.len()],
     };
     let settle = (config.settle_s / config.period_s).round() as usize;
@@ -172,8 +153,13 @@ impl Walk {
         prev: Option<&Sample>,
         moving: bool,
     ) {
-        let axes = judge.machine.axes.len();
-        let expected = expected_model(judge.models, judge.limits, &s.axis_paths, s.select);
+        let axes = judge.recorded.machine.axes.len();
+        let expected = expected_model(
+            judge.recorded.models,
+            judge.recorded.limits,
+            &s.axis_paths,
+            s.select,
+        );
         if expected.and_then(|i| i32::try_from(i).ok()) != Some(s.model) {
             report.wrong_model_cycles += 1;
         }
@@ -186,22 +172,22 @@ impl Walk {
                 .max_parked_offset_um
                 .max(s.applied_mm[a].abs() * 1000.0);
         }
-        let Some(error_um) = judge.replay.error_um(i, k) else {
+        let Some(error_um) = judge.recorded.replay.error_um(i, k) else {
             return;
         };
         report.compared += 1;
-        let Some(model) = judge.models[i].model.as_static() else {
+        let Some(model) = judge.recorded.models[i].model.as_static() else {
             self.compare_dynamic(judge, report, i, (k, s));
             return;
         };
-        let span = position_span_um(model, judge.machine, s, &judge.operating);
+        let span = position_span_um(model, judge.recorded.machine, s, &judge.operating);
         let temperature_step = self.temperature_step(model, prev, s);
         let in_step = !(moving && (self.gap > 2 || self.after_gap > 0)) && !temperature_step;
         report.in_step_moving_cycles += usize::from(moving && in_step);
         for (a, &span_a) in span.iter().enumerate().filter(|(a, _)| in_path(*a)) {
             let diff = s.applied_mm[a] * 1000.0 - (0.0 - error_um[a]);
             self.add_diff(report, diff);
-            if span_a >= judge.config.min_span_um && !temperature_step {
+            if span_a >= judge.recorded.config.min_span_um && !temperature_step {
                 let fraction = diff.abs() / span_a;
                 report.max_lag_fraction_all = report.max_lag_fraction_all.max(fraction);
                 if in_step {
@@ -230,16 +216,20 @@ impl Walk {
         (k, s): (usize, &Sample),
     ) {
         report.dynamic_compared += 1;
-        let window = judge.config.invariant_window_cycles + self.sent_still.min(1000);
+        let window = judge.recorded.config.invariant_window_cycles + self.sent_still.min(1000);
         for a in (0..s.applied_mm.len()).filter(|&a| s.axis_paths.get(a) == Some(&1)) {
             let v = s.applied_mm[a] * 1000.0;
             let (lo, hi) = (k.saturating_sub(window)..=k)
-                .filter_map(|j| judge.replay.error_um(i, j))
+                .filter_map(|j| judge.recorded.replay.error_um(i, j))
                 .map(|e| 0.0 - e[a])
                 .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), c| {
                     (lo.min(c), hi.max(c))
                 });
-            let now = judge.replay.error_um(i, k).map_or(f64::NAN, |e| 0.0 - e[a]);
+            let now = judge
+                .recorded
+                .replay
+                .error_um(i, k)
+                .map_or(f64::NAN, |e| 0.0 - e[a]);
             self.add_diff(report, v - now);
             let excess = (lo - v).max(v - hi).max(0.0);
             report.max_dynamic_excess_um = report.max_dynamic_excess_um.max(excess);

@@ -6,7 +6,7 @@ use truepos_runtime::model_set::ModelEntry;
 use truepos_runtime::AxisConfig;
 
 use super::record::Sample;
-use super::replay::{servo_intervals_s, Replay};
+use super::replay::servo_intervals_s;
 use super::report::CheckReport;
 use super::targets::targets_um;
 use super::{CheckConfig, Recorded};
@@ -61,19 +61,11 @@ pub fn output_invariant(
     samples: &[Sample],
     config: &CheckConfig,
 ) -> InvariantReport {
-    let replay = Replay::new(machine, models, samples, config.period_s);
-    output_invariant_with(Recorded {
-        machine,
-        models,
-        replay: &replay,
-        limits,
-        samples,
-        config,
-    })
+    output_invariant_with(&Recorded::new(machine, models, limits, samples, config))
 }
 
 /// [`output_invariant`] on the models' values already replayed.
-pub(super) fn output_invariant_with(recorded: Recorded<'_>) -> InvariantReport {
+pub(super) fn output_invariant_with(recorded: &Recorded<'_>) -> InvariantReport {
     let Recorded {
         machine,
         models,

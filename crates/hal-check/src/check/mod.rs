@@ -106,14 +106,34 @@ impl Default for CheckConfig {
 
 /// What a check reads: the machine and its models, their values replayed over the recording,
 /// the axes' limits, the recorded cycles and the tolerances.
-#[derive(Clone, Copy)]
 struct Recorded<'a> {
     machine: &'a Machine,
     models: &'a [ModelEntry],
-    replay: &'a Replay,
+    /// What every model gave on every recorded cycle.
+    replay: Replay,
     limits: &'a [AxisConfig],
     samples: &'a [Sample],
     config: &'a CheckConfig,
+}
+
+impl<'a> Recorded<'a> {
+    /// The models replayed over the recorded cycles at the check's period.
+    fn new(
+        machine: &'a Machine,
+        models: &'a [ModelEntry],
+        limits: &'a [AxisConfig],
+        samples: &'a [Sample],
+        config: &'a CheckConfig,
+    ) -> Self {
+        Self {
+            replay: Replay::new(machine, models, samples, config.period_s),
+            machine,
+            models,
+            limits,
+            samples,
+            config,
+        }
+    }
 }
 
 /// Compares what LinuxCNC applied with the models the axis-combination rule selects (see
@@ -152,17 +172,9 @@ pub fn check(
         invariant: InvariantReport::default(),
         failures: Vec::new(),
     };
-    let replay = Replay::new(machine, models, samples, config.period_s);
-    let recorded = Recorded {
-        machine,
-        models,
-        replay: &replay,
-        limits,
-        samples,
-        config,
-    };
-    report.invariant = invariant::output_invariant_with(recorded);
-    compare::compare_cycles(recorded, &mut report);
+    let recorded = Recorded::new(machine, models, limits, samples, config);
+    report.invariant = invariant::output_invariant_with(&recorded);
+    compare::compare_cycles(&recorded, &mut report);
     judge(machine, limits, config, &mut report);
     let keeps_state = models.iter().any(|m| m.model.keeps_state());
     if keeps_state && samples.first().is_some_and(|s| !s.active()) {
