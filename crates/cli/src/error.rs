@@ -8,12 +8,10 @@ use std::path::{Path, PathBuf};
 /// Why a subcommand failed.
 #[derive(Debug, thiserror::Error)]
 pub enum CliError {
-    /// An input file (machine, model, run table, kinematics table …) is not what it must be.
+    /// An input file (machine, model, run table, kinematics table, a source's or sink's
+    /// configuration …) is not what it must be.
     #[error(transparent)]
     Input(#[from] truepos_files::InputError),
-    /// A source's configuration (Modbus, SHDR) or its start.
-    #[error(transparent)]
-    SourceConfig(#[from] truepos_runtime::sources::ConfigError),
     /// The service's log could not be opened or read.
     #[error(transparent)]
     Log(#[from] truepos_runtime::log::LogError),

@@ -168,14 +168,14 @@ fn a_source_configurations_mistake_names_its_file_line_column_and_key() {
         "address = \"127.0.0.1:5020\"\npoll_ms = 0\n\n{channel}"
     ));
     assert!(
-        err.starts_with(":2:1: modbus.poll_ms: expected a time of at least 1 ms"),
+        err.starts_with(":2:1: `modbus.poll_ms`: expected a time of at least 1 ms"),
         "{err}"
     );
     let err = refused(&format!(
         "address = \"127.0.0.1:5020\"\n\n{channel}\n[[channel]]\nregister = 2\nencoding = \"int16-x0.1\"\ntemperature = \"no_such_sensor\"\n"
     ));
     assert!(
-        err.starts_with(":11:1: modbus.channel[2].temperature:"),
+        err.starts_with(":11:1: `modbus.channel[2].temperature`:"),
         "{err}"
     );
 }

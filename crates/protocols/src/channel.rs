@@ -39,7 +39,7 @@ macro_rules! channel_config {
                 &self,
                 machine: &truepos_model::Machine,
                 key: &str,
-            ) -> Result<truepos_runtime::sources::Target, truepos_runtime::sources::ConfigError> {
+            ) -> Result<truepos_runtime::sources::Target, truepos_files::InputError> {
                 truepos_runtime::sources::Target::resolve(
                     machine,
                     key,

@@ -250,7 +250,7 @@ fn configuration_errors_name_the_key_and_the_expectation() {
     let mut c = config("127.0.0.1:502".parse().unwrap(), Encoding::Float32);
     c.addressing = Addressing::OneBased;
     let e = c.resolve(&m).unwrap_err();
-    assert_eq!(e.key, "modbus.channel[1].register");
+    assert_eq!(e.key.as_deref(), Some("modbus.channel[1].register"));
     assert_eq!(
         e.message,
         "expected a register number from 1 to 65535 (1-based addressing, 2 register(s)), found 0"
@@ -264,9 +264,12 @@ fn configuration_errors_name_the_key_and_the_expectation() {
     assert_eq!(targets.len(), 1);
     assert_eq!(spans, [(1, RegisterKind::Input, 65534, 2)]);
     c.poll_ms = 0;
-    assert_eq!(c.resolve(&m).unwrap_err().key, "modbus.poll_ms");
+    assert_eq!(
+        c.resolve(&m).unwrap_err().key.as_deref(),
+        Some("modbus.poll_ms")
+    );
     let e = ModbusConfig::load(Path::new("/nonexistent/modbus.toml")).unwrap_err();
-    assert_eq!(e.file, "/nonexistent/modbus.toml");
+    assert_eq!(e.file, Path::new("/nonexistent/modbus.toml"));
     assert!(
         e.message
             .starts_with("cannot read the Modbus source configuration"),

@@ -47,17 +47,17 @@ fn the_examples_load() {
 #[test]
 fn mistakes_name_the_key_and_the_expectation() {
     let cases = [
-        (format!("{CONN}rate_hz = 50\n{AXIS}"), "rate_hz: expected 0.1–10 writes per second, found 50"),
-        (format!("{CONN}timeout_ms = 60000\n{AXIS}"), "timeout_ms: expected at most 5000 ms for a sink"),
-        (CONN.replace("opc.tcp://127.0.0.1:4840", "http://x"), "endpoint: expected opc.tcp://host:port"),
-        (format!("{}{AXIS}", CONN.replace("user = \"u\"\npassword = \"p\"\n", "")), "user: expected `user` with `password` or `password_env` (anonymous sessions only with `anonymous = true`)"),
-        (format!("{CONN}anonymous = true\n{AXIS}"), "anonymous: expected either a user and password or `anonymous = true`, not both"),
-        (format!("{CONN}security_policy = \"None\"\n{AXIS}"), "security_mode: expected `None` with policy None"),
-        (format!("{CONN}{}", AXIS.replace("\"X\"", "\"Q\"")), "axis[1].axis: expected an axis of machine `vmc-3axis` (X, Y, Z), found `Q`"),
-        (format!("{CONN}{}", AXIS.replace("ns=2;s=", "ns=x;s=")), "axis[1].k0: expected a node id"),
-        (format!("{CONN}{}", AXIS.replace("5.0", "0.0")), "axis[1].max_rate_um_per_s: expected a rate above 0"),
-        (format!("{CONN}{AXIS}{AXIS}"), "axis[2].axis: axis `X` is mapped twice"),
-        (CONN.to_string(), "axis: expected at least one [[axis]]"),
+        (format!("{CONN}rate_hz = 50\n{AXIS}"), "`rate_hz`: expected 0.1–10 writes per second, found 50"),
+        (format!("{CONN}timeout_ms = 60000\n{AXIS}"), "`timeout_ms`: expected at most 5000 ms for a sink"),
+        (CONN.replace("opc.tcp://127.0.0.1:4840", "http://x"), "`endpoint`: expected opc.tcp://host:port"),
+        (format!("{}{AXIS}", CONN.replace("user = \"u\"\npassword = \"p\"\n", "")), "`user`: expected `user` with `password` or `password_env` (anonymous sessions only with `anonymous = true`)"),
+        (format!("{CONN}anonymous = true\n{AXIS}"), "`anonymous`: expected either a user and password or `anonymous = true`, not both"),
+        (format!("{CONN}security_policy = \"None\"\n{AXIS}"), "`security_mode`: expected `None` with policy None"),
+        (format!("{CONN}{}", AXIS.replace("\"X\"", "\"Q\"")), "`axis[1].axis`: expected an axis of machine `vmc-3axis` (X, Y, Z), found `Q`"),
+        (format!("{CONN}{}", AXIS.replace("ns=2;s=", "ns=x;s=")), "`axis[1].k0`: expected a node id"),
+        (format!("{CONN}{}", AXIS.replace("5.0", "0.0")), "`axis[1].max_rate_um_per_s`: expected a rate above 0"),
+        (format!("{CONN}{AXIS}{AXIS}"), "`axis[2].axis`: axis `X` is mapped twice"),
+        (CONN.to_string(), "`axis`: expected at least one [[axis]]"),
         (format!("{CONN}{AXIS}colour = 1\n"), "unknown field `colour`"),
     ];
     for (text, want) in cases {
@@ -70,7 +70,7 @@ fn mistakes_name_the_key_and_the_expectation() {
     let f = dir.join("bad.toml");
     std::fs::write(&f, format!("{CONN}rate_hz = \"fast\"\n{AXIS}")).unwrap();
     let e = SinkConfig::load(&f, &machine()).unwrap_err().to_string();
-    assert!(e.contains("bad.toml:5:11: rate_hz: invalid type"), "{e}");
+    assert!(e.contains("bad.toml:5:11: `rate_hz`: invalid type"), "{e}");
     std::fs::write(
         &f,
         format!("{CONN}sample_ms = 10\n[[channel]]\naxis = \"X\"\nnode = \"ns=2;s=a\"\n"),
@@ -80,7 +80,7 @@ fn mistakes_name_the_key_and_the_expectation() {
     let line = CONN.lines().count() + 1;
     assert!(
         e.contains(&format!(
-            "bad.toml:{line}:1: sample_ms: expected 100–60 000 ms, found 10"
+            "bad.toml:{line}:1: `sample_ms`: expected 100–60 000 ms, found 10"
         )),
         "{e}"
     );
@@ -88,7 +88,7 @@ fn mistakes_name_the_key_and_the_expectation() {
     let e = SourceConfig::load(&f, &machine()).unwrap_err().to_string();
     assert!(
         e.contains(&format!(
-            "bad.toml:{}:1: channel[2]",
+            "bad.toml:{}:1: `channel[2]`",
             CONN.lines().count() + 4
         )) && e.contains("feeds the same one"),
         "{e}"

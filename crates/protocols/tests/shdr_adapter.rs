@@ -436,7 +436,7 @@ fn configuration_errors_name_the_key_and_the_expectation() {
     let mut c = config("127.0.0.1:7878".into());
     c.channels[2].temperature = Some("x_slide_middle".into());
     let e = c.resolve(&m).unwrap_err();
-    assert_eq!(e.key, "shdr.channel[3].temperature");
+    assert_eq!(e.key.as_deref(), Some("shdr.channel[3].temperature"));
     assert!(
         e.message.starts_with(
             "expected a temperature channel of machine `vmc-3axis` (x_slide_top, x_slide_bottom"
@@ -446,21 +446,27 @@ fn configuration_errors_name_the_key_and_the_expectation() {
     let mut c = config("127.0.0.1:7878".into());
     c.channels[0].temperature = Some("ambient".into());
     let e = c.resolve(&m).unwrap_err();
-    assert_eq!(e.key, "shdr.channel[1]");
+    assert_eq!(e.key.as_deref(), Some("shdr.channel[1]"));
     assert!(e.message.contains("exactly one of"), "{e}");
     let mut c = config("127.0.0.1:7878".into());
     c.channels[1].axis = Some("X".into());
     let e = c.resolve(&m).unwrap_err();
-    assert_eq!(e.key, "shdr.channel[2]");
+    assert_eq!(e.key.as_deref(), Some("shdr.channel[2]"));
     assert!(
         e.message.contains("shdr.channel[1] feeds the same one"),
         "{e}"
     );
     let mut c = config("nowhere".into());
-    assert_eq!(c.resolve(&m).unwrap_err().key, "shdr.address");
+    assert_eq!(
+        c.resolve(&m).unwrap_err().key.as_deref(),
+        Some("shdr.address")
+    );
     c.address = "127.0.0.1:7878".into();
     c.channels.clear();
-    assert_eq!(c.resolve(&m).unwrap_err().key, "shdr.channel");
+    assert_eq!(
+        c.resolve(&m).unwrap_err().key.as_deref(),
+        Some("shdr.channel")
+    );
     // TOML as the service's configuration holds it.
     let c = ShdrConfig::from_toml(
         "address = \"127.0.0.1:7878\"\nping_ms = 500\n[backoff]\ninitial_ms = 10\nmax_ms = 1000\n\
@@ -471,7 +477,7 @@ fn configuration_errors_name_the_key_and_the_expectation() {
     assert_eq!(c.backoff.max_ms, 1000);
     assert_eq!(c.resolve(&m).unwrap().len(), 1);
     let e = ShdrConfig::load(Path::new("/nonexistent/shdr.toml")).unwrap_err();
-    assert_eq!(e.file, "/nonexistent/shdr.toml");
+    assert_eq!(e.file, Path::new("/nonexistent/shdr.toml"));
     assert!(
         e.message
             .starts_with("cannot read the SHDR source configuration"),

@@ -6,9 +6,8 @@ use truepos_model::Machine;
 use super::codec::{Encoding, RegisterKind, WordOrder};
 use super::plan::RegisterSpan;
 use crate::channel::channel_config;
-use truepos_runtime::sources::{
-    check_source_config, check_unique_targets, BackoffConfig, ConfigError, Target,
-};
+use truepos_files::InputError;
+use truepos_runtime::sources::{check_source_config, check_unique_targets, BackoffConfig, Target};
 use truepos_runtime::sources::{from_toml_text, load_toml_file};
 
 /// How the configured register numbers count.
@@ -94,13 +93,13 @@ fn default_timeout_ms() -> u64 {
 
 impl ModbusConfig {
     /// Reads the configuration from TOML text (a table with the fields above).
-    pub fn from_toml(text: &str) -> Result<Self, ConfigError> {
+    pub fn from_toml(text: &str) -> Result<Self, InputError> {
         from_toml_text(text, "modbus")
     }
 
     /// Reads the configuration from a TOML file; errors name the file (and, for TOML mistakes,
     /// the line and column).
-    pub fn load(path: &std::path::Path) -> Result<Self, ConfigError> {
+    pub fn load(path: &std::path::Path) -> Result<Self, InputError> {
         load_toml_file(path, "Modbus source")
     }
 
@@ -109,7 +108,7 @@ impl ModbusConfig {
     pub fn resolve(
         &self,
         machine: &Machine,
-    ) -> Result<(Vec<Target>, Vec<RegisterSpan>), ConfigError> {
+    ) -> Result<(Vec<Target>, Vec<RegisterSpan>), InputError> {
         let keys = check_source_config(
             "modbus",
             &self.address,
@@ -133,7 +132,7 @@ impl ModbusConfig {
                     Addressing::ZeroBased => (0, last, "0-based"),
                     Addressing::OneBased => (1, last + 1, "1-based"),
                 };
-                ConfigError::new(
+                InputError::at_key(
                     format!("{key}.register"),
                     format!(
                         "expected a register number from {lo} to {hi} ({how} addressing, {n} register(s)), found {}",

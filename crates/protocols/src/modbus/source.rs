@@ -11,9 +11,10 @@ use super::client::ModbusClient;
 use super::codec::{decode, DecodeError, Encoding, ModbusError, WordOrder};
 use super::config::ModbusConfig;
 use super::plan::{plan_reads, split_blocks, ReadBlock};
+use truepos_files::InputError;
 use truepos_runtime::sources::{
-    resolve_address, seconds_since, sleep_unless_stopped, Backoff, BackoffConfig, ConfigError,
-    LinkStatus, PolledSource, STOP_LIMIT,
+    resolve_address, seconds_since, sleep_unless_stopped, Backoff, BackoffConfig, LinkStatus,
+    PolledSource, STOP_LIMIT,
 };
 use truepos_runtime::SharedChannels;
 
@@ -29,7 +30,7 @@ impl ModbusSource {
         config: &ModbusConfig,
         machine: &Machine,
         epoch: Instant,
-    ) -> Result<PolledSource, ConfigError> {
+    ) -> Result<PolledSource, InputError> {
         let (targets, spans) = config.resolve(machine)?;
         let peer = resolve_address(&config.address, "modbus.address")?;
         let (poll, timeout) = (config.poll_ms, config.timeout_ms);

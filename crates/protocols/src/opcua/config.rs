@@ -7,10 +7,9 @@ use std::path::{Path, PathBuf};
 use serde::Deserialize;
 
 use crate::channel::channel_config;
+use truepos_files::InputError;
 use truepos_model::{AxisKind, Machine};
-use truepos_runtime::sources::{
-    check_unique_targets, load_toml_file, BackoffConfig, ConfigError, Target,
-};
+use truepos_runtime::sources::{check_unique_targets, load_toml_file, BackoffConfig, Target};
 
 /// OPC UA security policies the client offers.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
@@ -92,14 +91,14 @@ pub enum Identity {
 impl Connection {
     /// Checks the connection settings; `dir` is the configuration file's directory (the PKI
     /// directory is relative to it). Returns the identity to authenticate with.
-    pub fn check(&mut self, dir: &Path) -> Result<Identity, ConfigError> {
+    pub fn check(&mut self, dir: &Path) -> Result<Identity, InputError> {
         let url = self.endpoint.strip_prefix("opc.tcp://").unwrap_or("");
         let host_port = url.split('/').next().unwrap_or("");
         if host_port
             .rsplit_once(':')
             .is_none_or(|(h, p)| h.is_empty() || p.parse::<u16>().is_err())
         {
-            return Err(ConfigError::new(
+            return Err(InputError::at_key(
                 "endpoint",
                 format!(
                     "expected opc.tcp://host:port[/path], found `{}`",
@@ -110,14 +109,14 @@ impl Connection {
         match (self.security_policy, self.security_mode) {
             (Policy::None, Mode::None) | (Policy::Basic256Sha256, Mode::Sign | Mode::SignAndEncrypt) => {}
             (p, m) => {
-                return Err(ConfigError::new(
+                return Err(InputError::at_key(
                     "security_mode",
                     format!("expected `None` with policy None and `Sign` or `SignAndEncrypt` with Basic256Sha256, found {m:?} with {p:?}"),
                 ))
             }
         }
         if !(10..=60_000).contains(&self.timeout_ms) {
-            return Err(ConfigError::new(
+            return Err(InputError::at_key(
                 "timeout_ms",
                 format!("expected 10–60 000 ms, found {}", self.timeout_ms),
             ));
@@ -129,14 +128,14 @@ impl Connection {
         let password = match (&self.password, &self.password_env) {
             (Some(p), None) => Some(p.clone()),
             (None, Some(var)) => Some(std::env::var(var).map_err(|_| {
-                ConfigError::new(
+                InputError::at_key(
                     "password_env",
                     format!("the environment variable `{var}` is not set"),
                 )
             })?),
             (None, None) => None,
             (Some(_), Some(_)) => {
-                return Err(ConfigError::new(
+                return Err(InputError::at_key(
                     "password",
                     "expected `password` or `password_env`, not both",
                 ))
@@ -145,11 +144,11 @@ impl Connection {
         match (&self.user, password, self.anonymous) {
             (Some(u), Some(p), false) if !u.is_empty() => Ok(Identity::User(u.clone(), p)),
             (None, None, true) => Ok(Identity::Anonymous),
-            (Some(_), _, true) | (_, Some(_), true) => Err(ConfigError::new(
+            (Some(_), _, true) | (_, Some(_), true) => Err(InputError::at_key(
                 "anonymous",
                 "expected either a user and password or `anonymous = true`, not both",
             )),
-            _ => Err(ConfigError::new(
+            _ => Err(InputError::at_key(
                 "user",
                 "expected `user` with `password` or `password_env` (anonymous sessions only with `anonymous = true`)",
             )),
@@ -262,7 +261,7 @@ fn dir_of(path: &Path) -> &Path {
 }
 
 /// A node id as the configuration gives it: `ns=<n>;s=<string>` or `ns=<n>;i=<number>`.
-pub fn check_node(text: &str, key: &str) -> Result<(), ConfigError> {
+pub fn check_node(text: &str, key: &str) -> Result<(), InputError> {
     let ok = text.split_once(';').is_some_and(|(ns, id)| {
         ns.strip_prefix("ns=")
             .is_some_and(|n| n.parse::<u16>().is_ok())
@@ -274,7 +273,7 @@ pub fn check_node(text: &str, key: &str) -> Result<(), ConfigError> {
     if ok {
         Ok(())
     } else {
-        Err(ConfigError::new(
+        Err(InputError::at_key(
             key,
             format!("expected a node id `ns=<n>;s=<name>` or `ns=<n>;i=<number>`, found `{text}`"),
         ))
@@ -289,7 +288,7 @@ impl SinkConfig {
     pub fn load(
         path: &Path,
         machine: &Machine,
-    ) -> Result<(Self, Identity, ResolvedAxes), ConfigError> {
+    ) -> Result<(Self, Identity, ResolvedAxes), InputError> {
         let mut c: Self = load_toml_file(path, "OPC UA sink mapping")?;
         let (identity, axes) = c
             .check(dir_of(path), machine)
@@ -302,10 +301,10 @@ impl SinkConfig {
         &mut self,
         dir: &Path,
         machine: &Machine,
-    ) -> Result<(Identity, ResolvedAxes), ConfigError> {
+    ) -> Result<(Identity, ResolvedAxes), InputError> {
         let identity = self.connection.check(dir)?;
         if self.connection.timeout_ms > SINK_TIMEOUT_LIMIT_MS {
-            return Err(ConfigError::new(
+            return Err(InputError::at_key(
                 "timeout_ms",
                 format!(
                     "expected at most {SINK_TIMEOUT_LIMIT_MS} ms for a sink (the control holds its \
@@ -315,13 +314,13 @@ impl SinkConfig {
             ));
         }
         if !(self.rate_hz.is_finite() && (0.1..=10.0).contains(&self.rate_hz)) {
-            return Err(ConfigError::new(
+            return Err(InputError::at_key(
                 "rate_hz",
                 format!("expected 0.1–10 writes per second, found {}", self.rate_hz),
             ));
         }
         if self.axis.is_empty() {
-            return Err(ConfigError::new(
+            return Err(InputError::at_key(
                 "axis",
                 "expected at least one [[axis]] naming the nodes of an axis",
             ));
@@ -331,7 +330,7 @@ impl SinkConfig {
             let key = format!("axis[{}]", i + 1);
             let index = machine.axis_index(&a.axis).ok_or_else(|| {
                 let names: Vec<&str> = machine.axes.iter().map(|x| x.name.as_str()).collect();
-                ConfigError::new(
+                InputError::at_key(
                     format!("{key}.axis"),
                     format!(
                         "expected an axis of machine `{}` ({}), found `{}`",
@@ -342,13 +341,13 @@ impl SinkConfig {
                 )
             })?;
             if machine.axes[index].kind != AxisKind::Linear {
-                return Err(ConfigError::new(
+                return Err(InputError::at_key(
                     format!("{key}.axis"),
                     format!("expected a linear axis; `{}` is rotary", a.axis),
                 ));
             }
             if out.iter().any(|(j, _)| *j == index) {
-                return Err(ConfigError::new(
+                return Err(InputError::at_key(
                     format!("{key}.axis"),
                     format!("axis `{}` is mapped twice", a.axis),
                 ));
@@ -361,7 +360,7 @@ impl SinkConfig {
                 check_node(n, &format!("{key}.p0"))?;
             }
             if !(a.p0_mm.is_finite() && a.p0_mm.abs() <= 1e5) {
-                return Err(ConfigError::new(
+                return Err(InputError::at_key(
                     format!("{key}.p0_mm"),
                     format!(
                         "expected a finite position within ±100 000 mm, found {}",
@@ -373,7 +372,7 @@ impl SinkConfig {
                 && a.max_rate_um_per_s > 0.0
                 && a.max_rate_um_per_s <= 1e6)
             {
-                return Err(ConfigError::new(
+                return Err(InputError::at_key(
                     format!("{key}.max_rate_um_per_s"),
                     format!(
                         "expected a rate above 0 and at most 10⁶ µm/s, found {}",
@@ -392,7 +391,7 @@ impl SourceConfig {
     pub fn load(
         path: &Path,
         machine: &Machine,
-    ) -> Result<(Self, Identity, Vec<Target>), ConfigError> {
+    ) -> Result<(Self, Identity, Vec<Target>), InputError> {
         let mut c: Self = load_toml_file(path, "OPC UA source configuration")?;
         let (identity, targets) = c
             .check(dir_of(path), machine)
@@ -405,16 +404,16 @@ impl SourceConfig {
         &mut self,
         dir: &Path,
         machine: &Machine,
-    ) -> Result<(Identity, Vec<Target>), ConfigError> {
+    ) -> Result<(Identity, Vec<Target>), InputError> {
         let identity = self.connection.check(dir)?;
         if !(100..=60_000).contains(&self.sample_ms) {
-            return Err(ConfigError::new(
+            return Err(InputError::at_key(
                 "sample_ms",
                 format!("expected 100–60 000 ms, found {}", self.sample_ms),
             ));
         }
         if self.channel.is_empty() {
-            return Err(ConfigError::new(
+            return Err(InputError::at_key(
                 "channel",
                 "expected at least one [[channel]] mapping a node to a machine channel",
             ));
@@ -427,7 +426,7 @@ impl SourceConfig {
             check_node(&c.node, &format!("{key}.node"))?;
             for (k, v) in [("scale", c.scale), ("offset", c.offset)] {
                 if !v.is_finite() || (k == "scale" && v == 0.0) {
-                    return Err(ConfigError::new(
+                    return Err(InputError::at_key(
                         format!("{key}.{k}"),
                         format!(
                             "expected a finite{} number, found {v}",

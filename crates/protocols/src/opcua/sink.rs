@@ -12,11 +12,10 @@ use opcua::types::{
     AttributeId, DataValue, NodeId, NumericRange, ReadValueId, StatusCode, TimestampsToReturn,
     Variant, WriteValue,
 };
+use truepos_files::InputError;
 use truepos_model::{Machine, Model};
 use truepos_runtime::events::Reason;
-use truepos_runtime::sources::{
-    stop_thread, Backoff, ConfigError, LinkStatus, OutageReporter, STOP_LIMIT,
-};
+use truepos_runtime::sources::{stop_thread, Backoff, LinkStatus, OutageReporter, STOP_LIMIT};
 use truepos_runtime::{CompensationState, Frame, LinkError, MachineConfig, Output, Sink};
 
 use super::client::{connect, describe, node_id, Open};
@@ -99,12 +98,12 @@ impl OpcUaSink {
         axes: &[(usize, super::config::AxisNodes)],
         machine: &MachineConfig,
         model: Option<Model>,
-    ) -> Result<Self, ConfigError> {
+    ) -> Result<Self, InputError> {
         let m = &machine.machine;
         let mut out = Vec::new();
         for (i, (a, nodes)) in axes.iter().enumerate() {
             let key = |k: &str| format!("axis[{}].{k}", i + 1);
-            let parse = |t: &str, k: &str| node_id(t).map_err(|e| ConfigError::new(key(k), e));
+            let parse = |t: &str, k: &str| node_id(t).map_err(|e| InputError::at_key(key(k), e));
             let axis = &m.axes[*a];
             out.push(AxisOut {
                 axis: *a,
@@ -161,7 +160,7 @@ impl OpcUaSink {
             .name(name.clone())
             .spawn(move || writer.run())
             .map_err(|e| {
-                ConfigError::new("opcua", format!("cannot start the writing thread: {e}"))
+                InputError::at_key("opcua", format!("cannot start the writing thread: {e}"))
             })?;
         Ok(Self {
             name,

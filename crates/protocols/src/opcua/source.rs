@@ -12,8 +12,9 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use opcua::types::{DataValue, NodeId, ReadValueId, StatusCode, TimestampsToReturn, Variant};
+use truepos_files::InputError;
 use truepos_runtime::sources::{
-    seconds_since, Backoff, ConfigError, LinkStatus, PolledSource, Target, STOP_LIMIT,
+    seconds_since, Backoff, LinkStatus, PolledSource, Target, STOP_LIMIT,
 };
 use truepos_runtime::SharedChannels;
 
@@ -33,14 +34,14 @@ impl OpcUaSource {
         identity: Identity,
         targets: Vec<Target>,
         epoch: Instant,
-    ) -> Result<PolledSource, ConfigError> {
+    ) -> Result<PolledSource, InputError> {
         let nodes = config
             .channel
             .iter()
             .enumerate()
             .map(|(i, c)| {
                 node_id(&c.node)
-                    .map_err(|e| ConfigError::new(format!("channel[{}].node", i + 1), e))
+                    .map_err(|e| InputError::at_key(format!("channel[{}].node", i + 1), e))
             })
             .collect::<Result<Vec<_>, _>>()?;
         let config = config.clone();

@@ -5,9 +5,8 @@ use truepos_model::Machine;
 
 use crate::channel::channel_config;
 
-use truepos_runtime::sources::{
-    check_source_config, check_unique_targets, BackoffConfig, ConfigError, Target,
-};
+use truepos_files::InputError;
+use truepos_runtime::sources::{check_source_config, check_unique_targets, BackoffConfig, Target};
 use truepos_runtime::sources::{from_toml_text, load_toml_file};
 
 channel_config! {
@@ -82,18 +81,18 @@ fn default_data_timeout_ms() -> u64 {
 
 impl ShdrConfig {
     /// Reads the configuration from TOML text (a table with the fields above).
-    pub fn from_toml(text: &str) -> Result<Self, ConfigError> {
+    pub fn from_toml(text: &str) -> Result<Self, InputError> {
         from_toml_text(text, "shdr")
     }
 
     /// Reads the configuration from a TOML file; errors name the file (and, for TOML mistakes,
     /// the line and column).
-    pub fn load(path: &std::path::Path) -> Result<Self, ConfigError> {
+    pub fn load(path: &std::path::Path) -> Result<Self, InputError> {
         load_toml_file(path, "SHDR source")
     }
 
     /// Checks the bounds and resolves the channels against the machine.
-    pub fn resolve(&self, machine: &Machine) -> Result<Vec<Target>, ConfigError> {
+    pub fn resolve(&self, machine: &Machine) -> Result<Vec<Target>, InputError> {
         let keys = check_source_config(
             "shdr",
             &self.address,
@@ -111,7 +110,7 @@ impl ShdrConfig {
         let mut targets = Vec::with_capacity(self.channels.len());
         for (c, key) in self.channels.iter().zip(&keys) {
             if c.data_item.trim().is_empty() || c.data_item.contains('|') {
-                return Err(ConfigError::new(
+                return Err(InputError::at_key(
                     format!("{key}.data_item"),
                     format!("expected a dataItemId without `|`, found `{}`", c.data_item),
                 ));

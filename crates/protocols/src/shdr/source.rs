@@ -12,9 +12,10 @@ use truepos_model::Machine;
 
 use super::config::ShdrConfig;
 use super::parse::{parse_line, LineBuffer, ShdrLine, ShdrValue};
+use truepos_files::InputError;
 use truepos_runtime::sources::{
-    resolve_address, seconds_since, sleep_unless_stopped, Backoff, ConfigError, Link, LinkStatus,
-    PolledSource, STOP_LIMIT,
+    resolve_address, seconds_since, sleep_unless_stopped, Backoff, Link, LinkStatus, PolledSource,
+    STOP_LIMIT,
 };
 
 /// Unusable lines in a row (no usable data line between them) after which the source counts as
@@ -38,7 +39,7 @@ impl ShdrSource {
         config: &ShdrConfig,
         machine: &Machine,
         epoch: Instant,
-    ) -> Result<PolledSource, ConfigError> {
+    ) -> Result<PolledSource, InputError> {
         let targets = config.resolve(machine)?;
         let n = targets.len();
         let mut by_id: HashMap<String, Vec<usize>> = HashMap::new();

@@ -4,7 +4,7 @@ use std::time::Duration;
 
 use serde::Deserialize;
 
-use crate::sources::ConfigError;
+use truepos_files::InputError;
 
 /// How long to wait between reconnection attempts (configuration, TOML).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
@@ -37,15 +37,15 @@ impl Default for BackoffConfig {
 
 impl BackoffConfig {
     /// Checks the bounds: `initial_ms` ≥ 1 and `max_ms` ≥ `initial_ms`.
-    pub fn check(&self, key: &str) -> Result<(), ConfigError> {
+    pub fn check(&self, key: &str) -> Result<(), InputError> {
         if self.initial_ms == 0 {
-            return Err(ConfigError::new(
+            return Err(InputError::at_key(
                 format!("{key}.initial_ms"),
                 "expected a wait of at least 1 ms",
             ));
         }
         if self.max_ms < self.initial_ms {
-            return Err(ConfigError::new(
+            return Err(InputError::at_key(
                 format!("{key}.max_ms"),
                 format!(
                     "expected at least initial_ms = {} ms, found {}",
@@ -114,7 +114,10 @@ mod tests {
             initial_ms: 0,
             max_ms: 10,
         };
-        assert_eq!(bad.check("backoff").unwrap_err().key, "backoff.initial_ms");
+        assert_eq!(
+            bad.check("backoff").unwrap_err().key.as_deref(),
+            Some("backoff.initial_ms")
+        );
         let bad = BackoffConfig {
             initial_ms: 500,
             max_ms: 10,
@@ -122,7 +125,7 @@ mod tests {
         let e = bad.check("backoff").unwrap_err();
         assert_eq!(
             e.to_string(),
-            "backoff.max_ms: expected at least initial_ms = 500 ms, found 10"
+            "`backoff.max_ms`: expected at least initial_ms = 500 ms, found 10"
         );
         assert!(BackoffConfig::default().check("backoff").is_ok());
     }

@@ -18,9 +18,7 @@ mod target;
 mod thread;
 
 pub use backoff::{Backoff, BackoffConfig};
-pub use config::{
-    check_source_config, from_toml_text, load_toml_file, resolve_address, ConfigError,
-};
+pub use config::{check_source_config, from_toml_text, load_toml_file, resolve_address};
 pub use link::{
     LinkEvent, LinkEventKind, LinkSnapshot, LinkStatus, OutageReporter, MAX_EVENT_MESSAGE_BYTES,
     MAX_PENDING_EVENTS,

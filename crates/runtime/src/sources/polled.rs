@@ -8,7 +8,9 @@ use std::sync::Arc;
 use std::thread::JoinHandle;
 use std::time::Duration;
 
-use super::{stop_thread, ConfigError, LinkSnapshot, LinkStatus, OutageReporter, Target};
+use truepos_files::InputError;
+
+use super::{stop_thread, LinkSnapshot, LinkStatus, OutageReporter, Target};
 use crate::frame::Frame;
 use crate::io_traits::{LinkError, SharedChannels, Source};
 
@@ -43,7 +45,7 @@ impl PolledSource {
         targets: Vec<Target>,
         stop_limit: Duration,
         body: impl FnOnce(Link) + Send + 'static,
-    ) -> Result<Self, ConfigError> {
+    ) -> Result<Self, InputError> {
         let link = Link {
             channels: SharedChannels::new(targets.len()),
             status: Arc::new(LinkStatus::default()),
@@ -55,7 +57,7 @@ impl PolledSource {
             .spawn(move || body(theirs))
             .map_err(|e| {
                 let what = name.split(' ').next().unwrap_or("source").to_string();
-                ConfigError::new(what, format!("cannot start the reading thread: {e}"))
+                InputError::at_key(what, format!("cannot start the reading thread: {e}"))
             })?;
         Ok(Self {
             name,

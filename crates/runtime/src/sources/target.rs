@@ -4,7 +4,7 @@
 use truepos_model::Machine;
 
 use crate::frame::Frame;
-use crate::sources::ConfigError;
+use truepos_files::InputError;
 
 /// The machine channel a received value feeds, resolved against the machine description.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -26,14 +26,14 @@ impl Target {
         temperature: Option<&str>,
         axis: Option<&str>,
         operating: Option<&str>,
-    ) -> Result<Self, ConfigError> {
+    ) -> Result<Self, InputError> {
         let list = |names: Vec<&str>| names.join(", ");
         match (temperature, axis, operating) {
             (Some(id), None, None) => machine
                 .temperature_index(id)
                 .map(Target::Temperature)
                 .ok_or_else(|| {
-                    ConfigError::new(
+                    InputError::at_key(
                         format!("{key}.temperature"),
                         format!(
                             "expected a temperature channel of machine `{}` ({}), found `{id}`",
@@ -47,7 +47,7 @@ impl Target {
                     .axis_index(name)
                     .map(Target::Position)
                     .ok_or_else(|| {
-                        ConfigError::new(
+                        InputError::at_key(
                             format!("{key}.axis"),
                             format!(
                                 "expected an axis of machine `{}` ({}), found `{name}`",
@@ -61,7 +61,7 @@ impl Target {
                 .operating_index(id)
                 .map(Target::Operating)
                 .ok_or_else(|| {
-                    ConfigError::new(
+                    InputError::at_key(
                         format!("{key}.operating"),
                         format!(
                             "expected an operating channel of machine `{}` ({}), found `{id}`",
@@ -70,7 +70,7 @@ impl Target {
                         ),
                     )
                 }),
-            _ => Err(ConfigError::new(
+            _ => Err(InputError::at_key(
                 key,
                 "expected exactly one of `temperature`, `axis` or `operating` naming the machine \
                  channel this value feeds",
@@ -96,10 +96,10 @@ impl Target {
 }
 
 /// Refuses two configuration entries that feed the same machine channel.
-pub fn check_unique_targets(targets: &[Target], keys: &[String]) -> Result<(), ConfigError> {
+pub fn check_unique_targets(targets: &[Target], keys: &[String]) -> Result<(), InputError> {
     for (j, t) in targets.iter().enumerate() {
         if let Some(i) = targets[..j].iter().position(|u| u == t) {
-            return Err(ConfigError::new(
+            return Err(InputError::at_key(
                 keys[j].clone(),
                 format!(
                     "expected each machine channel to be fed once; {} feeds the same one",
