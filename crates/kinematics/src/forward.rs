@@ -98,35 +98,23 @@ fn turn<const DIR_JAC: bool, const OMEGA: bool>(
 }
 
 /// An error rotation (k, cos, sin) of the pose and the derivatives; `g`: the slope of its
-/// angle per internal unit of `axis` (used with `ACTUAL` only).
+/// angle per internal unit of `axis` (used with `ACTUAL` only). With `ACTUAL` it moves with
+/// the axis as a rotary axis turning by `g` per unit does, else it is a fixed rotation.
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
 fn err_rotate<const JAC: bool, const ACTUAL: bool, const DIR_JAC: bool, const OMEGA: bool>(
     x: &mut Pd,
     tangents: Option<&mut Tangents>,
-    mut omega: Option<&mut AngularVelocity>,
+    omega: Option<&mut AngularVelocity>,
     active: &mut u32,
-    (k, c, s): (usize, f64, f64),
+    rotation: (usize, f64, f64),
     axis: usize,
     g: f64,
 ) {
-    x.rotate(k, c, s);
-    if JAC {
-        if let Some(t) = tangents {
-            turn::<DIR_JAC, OMEGA>(t, omega.as_deref_mut(), *active, k, c, s);
-            if ACTUAL {
-                add_cross(&mut t.dp[axis], k, &x.p(), g);
-                if DIR_JAC {
-                    add_cross(&mut t.dd[axis], k, &x.d(), g);
-                }
-                if OMEGA {
-                    if let Some(w) = omega {
-                        w[axis][k] += g;
-                    }
-                }
-                *active |= turns_bit::<OMEGA>() << axis;
-            }
-        }
+    if ACTUAL {
+        axis_rotate::<JAC, DIR_JAC, OMEGA>(x, tangents, omega, active, rotation, axis, g);
+    } else {
+        fixed_rotate::<JAC, DIR_JAC, OMEGA>(x, tangents, omega, *active, rotation);
     }
 }
 
