@@ -161,33 +161,8 @@ pub(crate) fn fit_and_write(mut args: Args, path: &Path) -> Result<MachineFit, C
     let (ds, tables) = load(&args, &inputs)?;
     let mut settings = settings(&args, &ds)?;
     settings.absolute_targets = true;
-    let reference = match &args.reference {
-        Some(name) => Some(
-            machine
-                .temperatures
-                .iter()
-                .position(|t| &t.id == name)
-                .ok_or_else(|| {
-                    CliError::refused(format!(
-                        "--reference {name}: not a temperature channel of machine `{}`",
-                        machine.name
-                    ))
-                })?,
-        ),
-        None => reference_sensor(&machine),
-    };
-    let positions: Option<Vec<String>> = match &args.positions {
-        Some(p) if p.0.len() != machine.axes.len() => {
-            return Err(CliError::refused(format!(
-            "--positions: expected {} columns (one per axis of machine `{}`, in its order), got {}",
-            machine.axes.len(),
-            machine.name,
-            p.0.len()
-        )))
-        }
-        Some(p) => Some(p.0.clone()),
-        None => None,
-    };
+    let reference = reference_channel(&args, &machine)?;
+    let positions = position_columns(&args, &machine)?;
     let axes = target_axes(&args, &ds, &machine)?;
     let data = MachineData::from_tables(
         &machine,
@@ -213,23 +188,7 @@ pub(crate) fn fit_and_write(mut args: Args, path: &Path) -> Result<MachineFit, C
         &mut |d, t| progress.update(d, t),
     )
     .map_err(CliError::Refused)?;
-    let mut warnings = outcome.validation.warnings.clone();
-    warnings.extend(super::beyond_training(
-        outcome.validation.held_out_rows_beyond_training,
-    ));
-    if let Err(bad) = plausible_predictions(&ds, &outcome.fitted, &outcome.training_rows, true) {
-        warnings.extend(super::forced(&args, &bad)?);
-    }
-    let beyond = beyond_envelope(&ds, &outcome, &data.target_axes, &config);
-    let name = args
-        .model
-        .as_ref()
-        .map_or("fitted".to_string(), |p| p.display().to_string());
-    warnings.extend(
-        crate::envelope_check::warnings(&config, path, &name, "its training runs", &beyond)
-            .into_iter()
-            .map(|w| w.trim_start_matches("warning: ").to_string()),
-    );
+    let mut warnings = fit_warnings(&args, &ds, &outcome, &data, &config, path)?;
     let mut text = None;
     if let Some(out) = &args.model {
         let t = model_text(out, &ds, &settings, &machine, &outcome, &data)?;
@@ -251,6 +210,73 @@ pub(crate) fn fit_and_write(mut args: Args, path: &Path) -> Result<MachineFit, C
         machine,
         text,
     })
+}
+
+/// The reference sensor: `--reference`, which must be one of the machine's temperature
+/// channels, else the sensor most of the machine's differences are taken against.
+fn reference_channel(args: &Args, machine: &Machine) -> Result<Option<usize>, CliError> {
+    Ok(match &args.reference {
+        Some(name) => Some(
+            machine
+                .temperatures
+                .iter()
+                .position(|t| &t.id == name)
+                .ok_or_else(|| {
+                    CliError::refused(format!(
+                        "--reference {name}: not a temperature channel of machine `{}`",
+                        machine.name
+                    ))
+                })?,
+        ),
+        None => reference_sensor(machine),
+    })
+}
+
+/// `--positions`: one column per axis of the machine, in its order.
+fn position_columns(args: &Args, machine: &Machine) -> Result<Option<Vec<String>>, CliError> {
+    Ok(match &args.positions {
+        Some(p) if p.0.len() != machine.axes.len() => {
+            return Err(CliError::refused(format!(
+            "--positions: expected {} columns (one per axis of machine `{}`, in its order), got {}",
+            machine.axes.len(),
+            machine.name,
+            p.0.len()
+        )))
+        }
+        Some(p) => Some(p.0.clone()),
+        None => None,
+    })
+}
+
+/// The warnings of a machine fit: the validation's own, held-out rows beyond the training
+/// range, an implausible model the user forced through (refused unless forced), and the axes
+/// where the model would exceed the machine's safety envelope on its training runs.
+fn fit_warnings(
+    args: &Args,
+    ds: &Dataset,
+    outcome: &MachineOutcome,
+    data: &MachineData,
+    config: &truepos_runtime::MachineConfig,
+    path: &Path,
+) -> Result<Vec<String>, CliError> {
+    let mut warnings = outcome.validation.warnings.clone();
+    warnings.extend(super::beyond_training(
+        outcome.validation.held_out_rows_beyond_training,
+    ));
+    if let Err(bad) = plausible_predictions(ds, &outcome.fitted, &outcome.training_rows, true) {
+        warnings.extend(super::forced(args, &bad)?);
+    }
+    let beyond = beyond_envelope(ds, outcome, &data.target_axes, config);
+    let name = args
+        .model
+        .as_ref()
+        .map_or("fitted".to_string(), |p| p.display().to_string());
+    warnings.extend(
+        crate::envelope_check::warnings(config, path, &name, "its training runs", &beyond)
+            .into_iter()
+            .map(|w| w.trim_start_matches("warning: ").to_string()),
+    );
+    Ok(warnings)
 }
 
 /// The axes on which the model written predicts, on its own training rows, more than the
