@@ -359,69 +359,15 @@ pub fn parse_fanuc(path: &Path, text: &str) -> Result<FanucPitch, InputError> {
                 format!("expected a parameter number, got `{num}`"),
             )
         })?;
+        let at = Block {
+            path,
+            line: n,
+            col0,
+        };
         if (DATA_BASE..=DATA_BASE + MAX_POINT).contains(&number) {
-            let [_, ('P', c, v)] = words.as_slice() else {
-                return Err(bad(
-                    col0,
-                    &format!("N{number}"),
-                    "expected `N1xxxxP<value>;`".into(),
-                ));
-            };
-            let v: i32 = v.parse().map_err(|_| {
-                bad(
-                    col0 + c,
-                    &format!("N{number}"),
-                    format!("expected an integer compensation value, got `{v}`"),
-                )
-            })?;
-            if tape.points.insert(number - DATA_BASE, v).is_some() {
-                return Err(bad(col0, &format!("N{number}"), "given twice".into()));
-            }
-            continue;
-        }
-        if !(3620..=3624).contains(&number) {
-            return Err(bad(
-                col0 + num_col,
-                "N",
-                format!(
-                    "parameter {number}; expected 3620–3624 or pitch error data N10000–N{}",
-                    DATA_BASE + MAX_POINT
-                ),
-            ));
-        }
-        let rest = &words[1..];
-        if rest.is_empty() || rest.len() % 2 != 0 {
-            return Err(bad(
-                col0,
-                &format!("N{number}"),
-                "expected pairs A<axis>P<value>".into(),
-            ));
-        }
-        for pair in rest.chunks(2) {
-            let [('A', ac, a), ('P', pc, v)] = pair else {
-                return Err(bad(
-                    col0 + pair[0].1,
-                    &format!("N{number}"),
-                    "expected A<axis>P<value>".into(),
-                ));
-            };
-            let axis: u32 = a.parse().ok().filter(|&x| x >= 1).ok_or_else(|| {
-                bad(
-                    col0 + ac,
-                    &format!("N{number}"),
-                    format!("expected an axis number ≥ 1, got `{a}`"),
-                )
-            })?;
-            if params
-                .insert((axis, number), (v.to_string(), n, col0 + pc))
-                .is_some()
-            {
-                return Err(bad(
-                    col0 + ac,
-                    &format!("N{number}"),
-                    format!("axis A{axis} given twice"),
-                ));
-            }
+            data_point(&at, number, &words, &mut tape)?;
+        } else {
+            parameter_block(&at, number, num_col, &words, &mut params)?;
         }
     }
     if !closed {
@@ -432,6 +378,90 @@ pub fn parse_fanuc(path: &Path, text: &str) -> Result<FanucPitch, InputError> {
     }
     tape.axes = axes(path, &params)?;
     Ok(tape)
+}
+
+/// Where a block stands on the tape, so that its mistakes are named at their line and column.
+struct Block<'a> {
+    path: &'a Path,
+    line: usize,
+    /// 1-based column of the block's first character.
+    col0: usize,
+}
+
+impl Block<'_> {
+    fn bad(&self, col: usize, key: &str, msg: String) -> InputError {
+        InputError::at(self.path, self.line, col, key, msg)
+    }
+}
+
+/// A block of pitch error data, `N1xxxx P<value>`: one compensation point, each given once.
+fn data_point(
+    at: &Block,
+    number: u32,
+    words: &[Word],
+    tape: &mut FanucPitch,
+) -> Result<(), InputError> {
+    let key = format!("N{number}");
+    let [_, ('P', c, v)] = words else {
+        return Err(at.bad(at.col0, &key, "expected `N1xxxxP<value>;`".into()));
+    };
+    let v: i32 = v.parse().map_err(|_| {
+        at.bad(
+            at.col0 + c,
+            &key,
+            format!("expected an integer compensation value, got `{v}`"),
+        )
+    })?;
+    if tape.points.insert(number - DATA_BASE, v).is_some() {
+        return Err(at.bad(at.col0, &key, "given twice".into()));
+    }
+    Ok(())
+}
+
+/// A block of one of the parameters 3620–3624, `N<number>` then pairs `A<axis>P<value>`: each
+/// axis' value kept with its place, for [`axes`] to check; any other parameter is refused.
+fn parameter_block(
+    at: &Block,
+    number: u32,
+    num_col: usize,
+    words: &[Word],
+    params: &mut Params,
+) -> Result<(), InputError> {
+    let col0 = at.col0;
+    if !(3620..=3624).contains(&number) {
+        return Err(at.bad(
+            col0 + num_col,
+            "N",
+            format!(
+                "parameter {number}; expected 3620–3624 or pitch error data N10000–N{}",
+                DATA_BASE + MAX_POINT
+            ),
+        ));
+    }
+    let key = format!("N{number}");
+    let rest = &words[1..];
+    if rest.is_empty() || !rest.len().is_multiple_of(2) {
+        return Err(at.bad(col0, &key, "expected pairs A<axis>P<value>".into()));
+    }
+    for pair in rest.chunks(2) {
+        let [('A', ac, a), ('P', pc, v)] = pair else {
+            return Err(at.bad(col0 + pair[0].1, &key, "expected A<axis>P<value>".into()));
+        };
+        let axis: u32 = a.parse().ok().filter(|&x| x >= 1).ok_or_else(|| {
+            at.bad(
+                col0 + ac,
+                &key,
+                format!("expected an axis number ≥ 1, got `{a}`"),
+            )
+        })?;
+        if params
+            .insert((axis, number), (v.to_string(), at.line, col0 + pc))
+            .is_some()
+        {
+            return Err(at.bad(col0 + ac, &key, format!("axis A{axis} given twice")));
+        }
+    }
+    Ok(())
 }
 
 /// Each axis' parameters 3620–3624 from the tape's values, every one present and a number.
