@@ -9,9 +9,9 @@ use std::time::{Duration, Instant};
 
 use crate::envelope_check;
 use crate::error::CliError;
-use truepos_io::compensation::{load_entry_trusted, load_set_trusted};
+use truepos_io::model_file::{load_entry_trusted, load_set_trusted};
 use truepos_io::limits::{check_in, finite_in};
-use truepos_io::signature::TrustedKeys;
+use truepos_io::model_file::signature::TrustedKeys;
 use truepos_io::{cycles, machine_file};
 use truepos_live::host::{HttpArgs, Live};
 use truepos_model::RecordedRun;
@@ -254,7 +254,6 @@ pub fn run(mut args: RunArgs) -> Result<(), CliError> {
         .map(TrustedKeys::load)
         .transpose()?;
     let entries = load_set_trusted(&args.models, &machine, trusted.as_ref())?;
-    let period_s = args.period_ms / 1000.0;
     let clock = run_clock(&args)?;
     // The service clock's zero, shared with network sources that stamp values themselves.
     let epoch = Instant::now();
@@ -271,31 +270,7 @@ pub fn run(mut args: RunArgs) -> Result<(), CliError> {
     let (sources, replay_end_s) = open_sources(&args, &machine.machine, epoch, &check)?;
     let sinks = open_sinks(&args, &machine, &entries)?;
     let source_names: Vec<String> = sources.iter().map(|s| s.name().to_string()).collect();
-    let config = ServiceConfig {
-        blend_s: args.blend_s,
-        hold_ramp_s: args.hold_ramp_s,
-        log_every_s: args.log_every_s,
-        ..ServiceConfig::default()
-    };
-    let reload = args.reload_on_change.then(|| {
-        let loader_machine = machine.clone();
-        ReloadSetup {
-            files: args.models.clone(),
-            loader: Box::new(move |path: &std::path::Path| {
-                load_entry_trusted(path, &loader_machine, trusted.as_ref())
-                    .map_err(|e| e.to_string())
-            }) as ModelLoader,
-            watch: true,
-        }
-    });
-    let mut host = ServiceHost::new(machine, entries)
-        .period_s(period_s)
-        .reload(reload)
-        .sources(sources)
-        .sinks(sinks)
-        .config(config)
-        .log(args.log.clone())
-        .start()?;
+    let mut host = start_service(&args, machine, entries, trusted, (sources, sinks))?;
     let mut live = match http {
         Some(h) => Some(
             Live::start(h, &host, source_names, args.log.as_ref(), &args.models)
@@ -357,6 +332,44 @@ pub fn run(mut args: RunArgs) -> Result<(), CliError> {
 
 /// The service's sources, in the order given.
 type Sources = Vec<Box<dyn Source>>;
+
+/// The service started on the run's machine, models, sources and sinks, with the run's blend,
+/// hold and log settings, its log, and with `--reload-on-change` the thread that loads a model
+/// file again (signature checked as at start) when it changes.
+fn start_service(
+    args: &RunArgs,
+    machine: truepos_runtime::MachineConfig,
+    entries: Vec<truepos_runtime::model_set::ModelEntry>,
+    trusted: Option<TrustedKeys>,
+    (sources, sinks): (Sources, Vec<Box<dyn Sink>>),
+) -> Result<Running, CliError> {
+    let config = ServiceConfig {
+        blend_s: args.blend_s,
+        hold_ramp_s: args.hold_ramp_s,
+        log_every_s: args.log_every_s,
+        ..ServiceConfig::default()
+    };
+    let reload = args.reload_on_change.then(|| {
+        let loader_machine = machine.clone();
+        ReloadSetup {
+            files: args.models.clone(),
+            loader: Box::new(move |path: &std::path::Path| {
+                load_entry_trusted(path, &loader_machine, trusted.as_ref())
+                    .map_err(|e| e.to_string())
+            }) as ModelLoader,
+            watch: true,
+        }
+    });
+    ServiceHost::new(machine, entries)
+        .period_s(args.period_ms / 1000.0)
+        .reload(reload)
+        .sources(sources)
+        .sinks(sinks)
+        .config(config)
+        .log(args.log.clone())
+        .start()
+        .map_err(CliError::from)
+}
 
 /// Says when a model's predictions on a recorded source's data (named by the text) go beyond
 /// the envelope.

@@ -134,43 +134,8 @@ impl Poller {
                 );
                 match client.read_registers(block.unit, block.kind, block.address, block.count) {
                     Ok(registers) => {
-                        let now = seconds_since(self.epoch);
                         block_problem[b] = None;
-                        for &(k, offset) in &block.members {
-                            let (encoding, order) = self.decoders[k];
-                            let start = usize::from(offset);
-                            let end = start + usize::from(encoding.registers());
-                            let value = registers
-                                .get(start..end)
-                                .ok_or(DecodeError::WrongCount {
-                                    expected: end,
-                                    found: registers.len(),
-                                })
-                                .and_then(|r| decode(encoding, order, r));
-                            match value {
-                                Ok(x) => {
-                                    value_problem[k] = None;
-                                    self.channels.publish(k, x, now);
-                                }
-                                Err(e) => {
-                                    // An invalid value is published as NaN so that validation
-                                    // rejects it, and reported once while it lasts.
-                                    self.channels.publish(k, f64::NAN, now);
-                                    if value_problem[k] != Some(e) {
-                                        value_problem[k] = Some(e);
-                                        self.status.bad_data(
-                                            now,
-                                            format!(
-                                                "Modbus server {} unit {} register {}: {e}",
-                                                self.peer,
-                                                block.unit,
-                                                u32::from(block.address) + u32::from(offset)
-                                            ),
-                                        );
-                                    }
-                                }
-                            }
-                        }
+                        self.publish_block(block, &registers, value_problem);
                     }
                     // A module may refuse a read that spans registers it does not have (between
                     // the ones configured): read the channels of that block one by one.
@@ -228,6 +193,51 @@ impl Poller {
             }
             if !sleep_unless_stopped(next - now, &self.stop) {
                 return None;
+            }
+        }
+    }
+
+    /// Publishes the values of an answered block, each decoded from its registers, stamped with
+    /// the answer's time. An invalid value is published as NaN so that validation rejects it,
+    /// and reported once while it lasts.
+    fn publish_block(
+        &self,
+        block: &ReadBlock,
+        registers: &[u16],
+        value_problem: &mut [Option<DecodeError>],
+    ) {
+        let now = seconds_since(self.epoch);
+        for &(k, offset) in &block.members {
+            let (encoding, order) = self.decoders[k];
+            let start = usize::from(offset);
+            let end = start + usize::from(encoding.registers());
+            let value = registers
+                .get(start..end)
+                .ok_or(DecodeError::WrongCount {
+                    expected: end,
+                    found: registers.len(),
+                })
+                .and_then(|r| decode(encoding, order, r));
+            match value {
+                Ok(x) => {
+                    value_problem[k] = None;
+                    self.channels.publish(k, x, now);
+                }
+                Err(e) => {
+                    self.channels.publish(k, f64::NAN, now);
+                    if value_problem[k] != Some(e) {
+                        value_problem[k] = Some(e);
+                        self.status.bad_data(
+                            now,
+                            format!(
+                                "Modbus server {} unit {} register {}: {e}",
+                                self.peer,
+                                block.unit,
+                                u32::from(block.address) + u32::from(offset)
+                            ),
+                        );
+                    }
+                }
             }
         }
     }

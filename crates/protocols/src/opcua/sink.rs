@@ -427,41 +427,7 @@ impl Writer {
                 continue;
             };
             let targets = form::target(&self.machine, self.model.as_ref(), &snap, &lims);
-            let mut values = Vec::new();
-            let mut what = Vec::new();
-            for (k, a) in self.axes.iter().enumerate() {
-                if !held[k].p0_ok {
-                    // K0 means the compensation at P0: nothing else is written before the
-                    // control holds our P0.
-                    values.push(write_value(&a.p0, a.lim.p0_mm, a.value_type));
-                    what.push((k, Part::P0, a.lim.p0_mm));
-                    continue;
-                }
-                let applied = Ends::from_written(
-                    &Written {
-                        k0_mm: held[k].k0_mm,
-                        tan_beta: held[k].tan_beta,
-                        p0_mm: a.lim.p0_mm,
-                    },
-                    &a.lim,
-                );
-                let mut want = targets[k];
-                if a.tan_beta.is_none() {
-                    let p = snap.positions[a.axis];
-                    want = Ends::constant(if p.is_finite() {
-                        want.at(&a.lim, p)
-                    } else {
-                        0.5 * (want.lo_um + want.hi_um)
-                    });
-                }
-                let w = want.limited(&applied, &a.lim, dt).written(&a.lim);
-                values.push(write_value(&Some(a.k0.clone()), w.k0_mm, a.value_type));
-                what.push((k, Part::K0, w.k0_mm));
-                if a.tan_beta.is_some() {
-                    values.push(write_value(&a.tan_beta, w.tan_beta, a.value_type));
-                    what.push((k, Part::TanBeta, w.tan_beta));
-                }
-            }
+            let (values, what) = self.planned_writes(&held, &targets, &snap, dt);
             self.lock_stats().writes += 1;
             let sent = Instant::now();
             let answer = tokio::time::timeout(timeout, open.session.write(&values)).await;
@@ -481,28 +447,7 @@ impl Writer {
             self.lock_stats()
                 .round_trips_ms
                 .push(sent.elapsed().as_secs_f64() * 1e3);
-            let mut bad = None;
-            for (i, &(k, part, v)) in what.iter().enumerate() {
-                let s = results
-                    .get(i)
-                    .copied()
-                    .unwrap_or(StatusCode::BadUnexpectedError);
-                if s.is_good() {
-                    match part {
-                        Part::P0 => held[k].p0_ok = true,
-                        Part::K0 => held[k].k0_mm = v,
-                        Part::TanBeta => held[k].tan_beta = v,
-                    }
-                } else if bad.is_none() {
-                    bad = Some(format!(
-                        "axis {}: writing {} to {} refused: {}",
-                        self.axes[k].name,
-                        part.name(),
-                        values[i].node_id,
-                        describe(s)
-                    ));
-                }
-            }
+            let bad = self.take_answers(&mut held, &what, &values, &results);
             match bad {
                 Some(why) => {
                     self.say(&why);
@@ -518,6 +463,86 @@ impl Writer {
                 }
             }
         }
+    }
+
+    /// This period's writes, with what each is (axis, part, value): per axis the target line
+    /// limited by the envelope and the control's rate from what the control holds — or, until
+    /// the control holds our P0, only P0, since K0 means the compensation at P0.
+    fn planned_writes(
+        &self,
+        held: &[Held],
+        targets: &[Ends],
+        snap: &Snapshot,
+        dt: f64,
+    ) -> (Vec<WriteValue>, Vec<(usize, Part, f64)>) {
+        let mut values = Vec::new();
+        let mut what = Vec::new();
+        for (k, a) in self.axes.iter().enumerate() {
+            if !held[k].p0_ok {
+                values.push(write_value(&a.p0, a.lim.p0_mm, a.value_type));
+                what.push((k, Part::P0, a.lim.p0_mm));
+                continue;
+            }
+            let applied = Ends::from_written(
+                &Written {
+                    k0_mm: held[k].k0_mm,
+                    tan_beta: held[k].tan_beta,
+                    p0_mm: a.lim.p0_mm,
+                },
+                &a.lim,
+            );
+            let mut want = targets[k];
+            if a.tan_beta.is_none() {
+                let p = snap.positions[a.axis];
+                want = Ends::constant(if p.is_finite() {
+                    want.at(&a.lim, p)
+                } else {
+                    0.5 * (want.lo_um + want.hi_um)
+                });
+            }
+            let w = want.limited(&applied, &a.lim, dt).written(&a.lim);
+            values.push(write_value(&Some(a.k0.clone()), w.k0_mm, a.value_type));
+            what.push((k, Part::K0, w.k0_mm));
+            if a.tan_beta.is_some() {
+                values.push(write_value(&a.tan_beta, w.tan_beta, a.value_type));
+                what.push((k, Part::TanBeta, w.tan_beta));
+            }
+        }
+        (values, what)
+    }
+
+    /// Takes the control's answer to a write: a value whose node answered Good is what the
+    /// control holds now; a refused one is not. Returns the first refusal, said for a person.
+    fn take_answers(
+        &self,
+        held: &mut [Held],
+        what: &[(usize, Part, f64)],
+        values: &[WriteValue],
+        results: &[StatusCode],
+    ) -> Option<String> {
+        let mut bad = None;
+        for (i, &(k, part, v)) in what.iter().enumerate() {
+            let s = results
+                .get(i)
+                .copied()
+                .unwrap_or(StatusCode::BadUnexpectedError);
+            if s.is_good() {
+                match part {
+                    Part::P0 => held[k].p0_ok = true,
+                    Part::K0 => held[k].k0_mm = v,
+                    Part::TanBeta => held[k].tan_beta = v,
+                }
+            } else if bad.is_none() {
+                bad = Some(format!(
+                    "axis {}: writing {} to {} refused: {}",
+                    self.axes[k].name,
+                    part.name(),
+                    values[i].node_id,
+                    describe(s)
+                ));
+            }
+        }
+        bad
     }
 
     fn latest_len(&self) -> usize {
