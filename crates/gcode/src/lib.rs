@@ -160,7 +160,7 @@ pub fn rewrite<W: Write>(
             ),
         ));
     }
-    let mut comp = Compensator::new(
+    let comp = Compensator::new(
         chain,
         options.geometry,
         options.tool_length_mm,
@@ -169,7 +169,7 @@ pub fn rewrite<W: Write>(
     .map_err(|r| refused(&none, r))?;
     let letters = comp.letters();
     let rotary: Vec<bool> = (0..letters.len()).map(|j| comp.rotary(j)).collect();
-    let mut writer = Writer::new(w, letters.clone(), rotary.clone(), &options.header)
+    let writer = Writer::new(w, letters.clone(), rotary.clone(), &options.header)
         .map_err(Error::file(input, "cannot write the output for"))?;
     let workdir = tempfile::Builder::new()
         .prefix("truepos-rs274-")
@@ -181,8 +181,14 @@ pub fn rewrite<W: Write>(
     let mut motion = Motion::new(options.chord_tolerance_mm);
     let mut commands = 0u64;
     let mut blocks = Vec::new();
-    // The last compensated point and its machine point (a tap starts there and returns).
-    let mut last: Option<(Vec<f64>, canon::Pos6, f64)> = None;
+    let mut out = Output {
+        comp,
+        writer,
+        letters,
+        rotary,
+        correct_feed: options.correct_feed,
+        last: None,
+    };
     options
         .interpreter
         .run(input, workdir.path(), |line, place| {
@@ -192,54 +198,11 @@ pub fn rewrite<W: Write>(
                 .step(&line.command, &mut |b| blocks.push(b))
                 .map_err(|r| refused(&place, r))?;
             for b in blocks.drain(..) {
-                let io = |e| Error::file(input, "cannot write the output for")(e);
-                match b {
-                    Block::Move {
-                        rapid,
-                        machine,
-                        feed,
-                        tool_offset_z,
-                        ..
-                    } => {
-                        let q = comp
-                            .apply(&machine, tool_offset_z)
-                            .map_err(|r| refused(&place, r))?;
-                        let feed = match &last {
-                            Some((from, start, _)) if options.correct_feed && !rapid => {
-                                feed * length_ratio(&letters, &rotary, start, &machine, from, q)
-                            }
-                            _ => feed,
-                        };
-                        writer.motion(place.line, rapid, q, feed).map_err(io)?;
-                        last = Some((q.to_vec(), machine, tool_offset_z));
-                    }
-                    Block::Tap {
-                        machine,
-                        pitch_mm,
-                        tool_offset_z,
-                    } => {
-                        let Some((from, start, start_tool)) = last.clone() else {
-                            return Err(refused(&place, "a rigid tap before any move".into()));
-                        };
-                        let to = comp
-                            .apply(&machine, tool_offset_z)
-                            .map_err(|r| refused(&place, r))?
-                            .to_vec();
-                        for (j, (a, b)) in from.iter().zip(&to).enumerate() {
-                            if rotary[j] && (a - b).abs() > 1e-9 {
-                                return Err(refused(&place, format!("a rigid tap that turns {}: truepos writes taps along the linear axes only", letters[j])));
-                            }
-                        }
-                        writer.tap(place.line, &from, &to, pitch_mm).map_err(io)?;
-                        // The tap retracts to its start: the compensation state follows.
-                        comp.apply(&start, start_tool).map_err(|r| refused(&place, r))?;
-                    }
-                    Block::Units(u) => writer.units(place.line, u).map_err(io)?,
-                    Block::Code(c) => writer.code(place.line, &c).map_err(io)?,
-                }
+                out.block(b, &place, input)?;
             }
             Ok(rs274::Flow::Continue)
         })?;
+    let Output { comp, writer, .. } = out;
     let moves = writer.moves;
     let w = writer
         .finish()
@@ -255,6 +218,78 @@ pub fn rewrite<W: Write>(
         seconds: start.elapsed().as_secs_f64(),
     };
     Ok((summary, w))
+}
+
+/// What a rewrite carries from block to block: the compensator, the writer, the axes' letters
+/// and kinds, and the last compensated point with its machine point and tool offset (a rigid
+/// tap starts there and returns).
+struct Output<'c, W: Write> {
+    comp: Compensator<'c>,
+    writer: Writer<W>,
+    letters: Vec<char>,
+    rotary: Vec<bool>,
+    correct_feed: bool,
+    last: Option<(Vec<f64>, canon::Pos6, f64)>,
+}
+
+impl<W: Write> Output<'_, W> {
+    /// Compensates and writes one block of the line at `place`: a move at its compensated
+    /// set-point (its feed corrected for the compensated length with `correct_feed`), a rigid
+    /// tap along the linear axes, or a code passed through.
+    fn block(&mut self, b: Block, place: &Place, input: &Path) -> Result<(), Error> {
+        let refused = |reason: String| Error::Refused {
+            place: place.clone(),
+            reason,
+        };
+        let io = |e| Error::file(input, "cannot write the output for")(e);
+        match b {
+            Block::Move {
+                rapid,
+                machine,
+                feed,
+                tool_offset_z,
+                ..
+            } => {
+                let q = self.comp.apply(&machine, tool_offset_z).map_err(refused)?;
+                let feed = match &self.last {
+                    Some((from, start, _)) if self.correct_feed && !rapid => {
+                        let (letters, rotary) = (&self.letters, &self.rotary);
+                        feed * length_ratio(letters, rotary, start, &machine, from, q)
+                    }
+                    _ => feed,
+                };
+                self.writer.motion(place.line, rapid, q, feed).map_err(io)?;
+                self.last = Some((q.to_vec(), machine, tool_offset_z));
+            }
+            Block::Tap {
+                machine,
+                pitch_mm,
+                tool_offset_z,
+            } => {
+                let Some((from, start, start_tool)) = self.last.clone() else {
+                    return Err(refused("a rigid tap before any move".into()));
+                };
+                let to = self
+                    .comp
+                    .apply(&machine, tool_offset_z)
+                    .map_err(refused)?
+                    .to_vec();
+                for (j, (a, b)) in from.iter().zip(&to).enumerate() {
+                    if self.rotary[j] && (a - b).abs() > 1e-9 {
+                        return Err(refused(format!("a rigid tap that turns {}: truepos writes taps along the linear axes only", self.letters[j])));
+                    }
+                }
+                self.writer
+                    .tap(place.line, &from, &to, pitch_mm)
+                    .map_err(io)?;
+                // The tap retracts to its start: the compensation state follows.
+                self.comp.apply(&start, start_tool).map_err(refused)?;
+            }
+            Block::Units(u) => self.writer.units(place.line, u).map_err(io)?,
+            Block::Code(c) => self.writer.code(place.line, &c).map_err(io)?,
+        }
+        Ok(())
+    }
 }
 
 /// Compensated over programmed length of a move (linear axes), 1 when a rotary axis turns or

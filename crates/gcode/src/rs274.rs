@@ -11,7 +11,7 @@
 
 use std::io::{BufRead, BufReader, Read};
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
+use std::process::{Child, ChildStderr, Command, Stdio};
 use std::sync::mpsc;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
@@ -71,87 +71,16 @@ impl Interpreter {
     ) -> Result<(), Error> {
         let copy = workdir.join("program.ngc");
         program::number(input, &copy)?;
-        let mut cmd = Command::new(&self.rs274);
-        cmd.arg("-g");
-        if let Some(t) = &self.tool_table {
-            let c = workdir.join("tool.tbl");
-            std::fs::copy(t, &c).map_err(Error::file(t, "cannot read the tool table"))?;
-            cmd.arg("-t").arg(c);
-        }
-        let var = workdir.join("params.var");
-        match &self.var_file {
-            Some(v) => {
-                std::fs::copy(v, &var).map_err(Error::file(v, "cannot read the parameter file"))?;
-            }
-            None => {
-                std::fs::write(&var, b"").map_err(Error::file(&var, "cannot write"))?;
-            }
-        }
-        // rs274 writes its commands to stdout unbuffered (several write calls a line, each
-        // waking the reader of a pipe: 2.5× slower than interpreting), but to an output file
-        // through a buffered stream: the output file is a FIFO read as it is written.
-        let fifo = workdir.join("canon.fifo");
-        nix::unistd::mkfifo(
-            &fifo,
-            nix::sys::stat::Mode::S_IRUSR | nix::sys::stat::Mode::S_IWUSR,
-        )
-        .map_err(|e| Error::file(&fifo, "cannot create a FIFO")(e.into()))?;
-        cmd.arg("-v").arg(&var).arg(&copy).arg(&fifo);
-        // LinuxCNC 2.9's tool data lives in `$HOME/.tool.mmap`, which rs274 creates with
-        // O_TRUNC: two interpreters sharing it crash each other (SIGBUS), and one beside a
-        // running LinuxCNC would truncate the control's tool data. Each run gets its own.
-        cmd.env("HOME", workdir)
-            .current_dir(workdir)
-            .stdin(Stdio::null())
-            .stdout(Stdio::null())
-            .stderr(Stdio::piped());
+        let (mut cmd, fifo) = self.command(workdir, &copy)?;
         let mut child = cmd.spawn().map_err(|source| Error::Rs274Missing {
             program: self.rs274.clone(),
             source,
         })?;
         let stderr = child.stderr.take().expect("stderr is piped");
-        let err_reader = std::thread::spawn(move || {
-            let mut kept = Vec::new();
-            let mut s = stderr;
-            let _ = (&mut s).take(MAX_STDERR).read_to_end(&mut kept);
-            // Drain the rest so rs274 never blocks on a full pipe.
-            let _ = std::io::copy(&mut s, &mut std::io::sink());
-            kept
-        });
+        let err_reader = keep_stderr(stderr);
         let child = Arc::new(Mutex::new(child));
         let (done, wait) = mpsc::channel::<()>();
-        // The monitor kills rs274 at the time limit, and once rs274 is gone opens the FIFO
-        // for writing for a moment: a reader still waiting to open it (rs274 died before
-        // opening its output) then opens and sees the end instead of waiting for ever.
-        let monitor = {
-            let child = Arc::clone(&child);
-            let limit = self.time_limit;
-            let fifo = fifo.clone();
-            std::thread::spawn(move || {
-                let start = std::time::Instant::now();
-                let mut timed_out = false;
-                loop {
-                    if lock(&child).try_wait().map_or(true, |s| s.is_some()) {
-                        break;
-                    }
-                    if start.elapsed() >= limit {
-                        let _ = lock(&child).kill();
-                        timed_out = true;
-                        break;
-                    }
-                    match wait.recv_timeout(Duration::from_millis(10)) {
-                        Err(mpsc::RecvTimeoutError::Timeout) => {}
-                        _ => break,
-                    }
-                }
-                use std::os::unix::fs::OpenOptionsExt;
-                let _ = std::fs::OpenOptions::new()
-                    .write(true)
-                    .custom_flags(nix::fcntl::OFlag::O_NONBLOCK.bits())
-                    .open(&fifo);
-                timed_out
-            })
-        };
+        let monitor = watch(Arc::clone(&child), self.time_limit, fifo.clone(), wait);
         let read = std::fs::File::open(&fifo)
             .map_err(Error::file(&fifo, "cannot read rs274's output from"))
             .and_then(|out| read_lines(input, out, &mut each));
@@ -176,6 +105,96 @@ impl Interpreter {
             Flow::Continue => Err(refusal(input, &copy, &stderr, status)),
         }
     }
+
+    /// rs274's command line for the numbered copy `copy` in `workdir`: the tool table and the
+    /// parameter file copied beside it (an empty one without `var_file`), the output into a FIFO
+    /// (returned with the command) and a home of its own.
+    fn command(&self, workdir: &Path, copy: &Path) -> Result<(Command, PathBuf), Error> {
+        let mut cmd = Command::new(&self.rs274);
+        cmd.arg("-g");
+        if let Some(t) = &self.tool_table {
+            let c = workdir.join("tool.tbl");
+            std::fs::copy(t, &c).map_err(Error::file(t, "cannot read the tool table"))?;
+            cmd.arg("-t").arg(c);
+        }
+        let var = workdir.join("params.var");
+        match &self.var_file {
+            Some(v) => {
+                std::fs::copy(v, &var).map_err(Error::file(v, "cannot read the parameter file"))?;
+            }
+            None => {
+                std::fs::write(&var, b"").map_err(Error::file(&var, "cannot write"))?;
+            }
+        }
+        // rs274 writes its commands to stdout unbuffered (several write calls a line, each
+        // waking the reader of a pipe: slower than the interpreting itself), but to an output
+        // file through a buffered stream: the output file is a FIFO read as it is written.
+        let fifo = workdir.join("canon.fifo");
+        nix::unistd::mkfifo(
+            &fifo,
+            nix::sys::stat::Mode::S_IRUSR | nix::sys::stat::Mode::S_IWUSR,
+        )
+        .map_err(|e| Error::file(&fifo, "cannot create a FIFO")(e.into()))?;
+        cmd.arg("-v").arg(&var).arg(copy).arg(&fifo);
+        // LinuxCNC 2.9's tool data lives in `$HOME/.tool.mmap`, which rs274 creates with
+        // O_TRUNC: two interpreters sharing it crash each other (SIGBUS), and one beside a
+        // running LinuxCNC would truncate the control's tool data. Each run gets its own.
+        cmd.env("HOME", workdir)
+            .current_dir(workdir)
+            .stdin(Stdio::null())
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped());
+        Ok((cmd, fifo))
+    }
+}
+
+/// Keeps the first [`MAX_STDERR`] bytes of rs274's standard error, read on a thread of their own,
+/// for the refusal's message.
+fn keep_stderr(stderr: ChildStderr) -> std::thread::JoinHandle<Vec<u8>> {
+    std::thread::spawn(move || {
+        let mut kept = Vec::new();
+        let mut s = stderr;
+        let _ = (&mut s).take(MAX_STDERR).read_to_end(&mut kept);
+        // Drain the rest so rs274 never blocks on a full pipe.
+        let _ = std::io::copy(&mut s, &mut std::io::sink());
+        kept
+    })
+}
+
+/// The monitor kills rs274 at the time `limit`, and once rs274 is gone opens the FIFO for
+/// writing for a moment: a reader still waiting to open it (rs274 died before opening its
+/// output) then opens and sees the end instead of waiting for ever. A message on `wait` (or
+/// its sender dropped) ends the watch early. Joins with whether the time ran out.
+fn watch(
+    child: Arc<Mutex<Child>>,
+    limit: Duration,
+    fifo: PathBuf,
+    wait: mpsc::Receiver<()>,
+) -> std::thread::JoinHandle<bool> {
+    std::thread::spawn(move || {
+        let start = std::time::Instant::now();
+        let mut timed_out = false;
+        loop {
+            if lock(&child).try_wait().map_or(true, |s| s.is_some()) {
+                break;
+            }
+            if start.elapsed() >= limit {
+                let _ = lock(&child).kill();
+                timed_out = true;
+                break;
+            }
+            match wait.recv_timeout(Duration::from_millis(10)) {
+                Err(mpsc::RecvTimeoutError::Timeout) => {}
+                _ => break,
+            }
+        }
+        use std::os::unix::fs::OpenOptionsExt;
+        let _ = std::fs::OpenOptions::new()
+            .write(true)
+            .custom_flags(nix::fcntl::OFlag::O_NONBLOCK.bits())
+            .open(&fifo);
+        timed_out
+    })
 }
 
 fn lock(child: &Mutex<Child>) -> std::sync::MutexGuard<'_, Child> {
