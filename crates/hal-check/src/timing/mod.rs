@@ -74,6 +74,50 @@ struct Attributed {
     host: Option<HostActivity>,
 }
 
+/// What the cycle loop keeps of every cycle: its work and wake-up times (room for every cycle
+/// allocated, and with mlockall locked, before the first), the lateness histogram, the largest
+/// lateness and the episodes of cycles later than `late_ns`.
+struct Record {
+    work_ns: Vec<u32>,
+    wake_ns: Vec<u32>,
+    histogram: [u64; LATENESS_EDGES_US.len() + 1],
+    episodes: Episodes,
+    late_ns: u64,
+    late_max_ns: u64,
+}
+
+impl Record {
+    fn new(expected: usize, late_ns: u64) -> Self {
+        Record {
+            work_ns: Vec::with_capacity(expected.min(1 << 26)),
+            wake_ns: Vec::with_capacity(expected.min(1 << 26)),
+            histogram: [0u64; LATENESS_EDGES_US.len() + 1],
+            episodes: Episodes::with_capacity(MAX_EPISODES),
+            late_ns,
+            late_max_ns: 0,
+        }
+    }
+
+    /// Records a cycle that woke at `woke` and finished at `finish` for `deadline` (ns); no
+    /// allocation, so that recording does not disturb the cycle it measures.
+    fn cycle(&mut self, woke: u64, finish: u64, deadline: u64) {
+        let late = finish.saturating_sub(deadline);
+        if self.work_ns.len() < self.work_ns.capacity() {
+            self.work_ns
+                .push((finish - woke).min(u64::from(u32::MAX)) as u32);
+            self.wake_ns
+                .push(woke.saturating_sub(deadline).min(u64::from(u32::MAX)) as u32);
+        }
+        let late_us = late as f64 / 1000.0;
+        let bucket = LATENESS_EDGES_US.iter().position(|&e| late_us < e);
+        self.histogram[bucket.unwrap_or(LATENESS_EDGES_US.len())] += 1;
+        self.late_max_ns = self.late_max_ns.max(late);
+        if late > self.late_ns {
+            self.episodes.push(deadline, finish);
+        }
+    }
+}
+
 /// Runs the benchmark; `stop` ends it early. Returns the JSON summary.
 pub fn run(config: &TimingConfig, stop: &AtomicBool) -> Result<Value, Error> {
     if !(config.period_ms > 0.0 && config.period_ms <= 1000.0) {
@@ -121,13 +165,7 @@ pub fn run(config: &TimingConfig, stop: &AtomicBool) -> Result<Value, Error> {
 
     let period_ns = (config.period_ms * 1e6).round() as u64;
     let expected = (config.duration_s * 1000.0 / config.period_ms).ceil() as usize + 16;
-    // Room for every cycle, allocated (and with mlockall, locked) before the first.
-    let mut work_ns: Vec<u32> = Vec::with_capacity(expected.min(1 << 26));
-    let mut wake_ns: Vec<u32> = Vec::with_capacity(expected.min(1 << 26));
-    let mut histogram = [0u64; LATENESS_EDGES_US.len() + 1];
-    let mut episodes = Episodes::with_capacity(MAX_EPISODES);
-    let late_ns = (config.late_ms * 1e6).round() as u64;
-    let mut late_max_ns = 0u64;
+    let mut record = Record::new(expected, (config.late_ms * 1e6).round() as u64);
 
     let cpu0 = ffi::process_cpu_ns();
     let start_ns = ffi::monotonic_ns() + period_ns;
@@ -135,22 +173,17 @@ pub fn run(config: &TimingConfig, stop: &AtomicBool) -> Result<Value, Error> {
     while pacer.deadline_s() < config.duration_s && !stop.load(Ordering::Relaxed) {
         let woke = pacer.wait();
         service.cycle(pacer.deadline_s());
-        let finish = ffi::monotonic_ns();
-        let deadline = pacer.deadline_ns();
-        let late = finish.saturating_sub(deadline);
-        if work_ns.len() < work_ns.capacity() {
-            work_ns.push((finish - woke).min(u64::from(u32::MAX)) as u32);
-            wake_ns.push(woke.saturating_sub(deadline).min(u64::from(u32::MAX)) as u32);
-        }
-        let late_us = late as f64 / 1000.0;
-        let bucket = LATENESS_EDGES_US.iter().position(|&e| late_us < e);
-        histogram[bucket.unwrap_or(LATENESS_EDGES_US.len())] += 1;
-        late_max_ns = late_max_ns.max(late);
-        if late > late_ns {
-            episodes.push(deadline, finish);
-        }
+        record.cycle(woke, ffi::monotonic_ns(), pacer.deadline_ns());
         pacer.advance();
     }
+    let Record {
+        mut work_ns,
+        mut wake_ns,
+        histogram,
+        episodes,
+        late_max_ns,
+        ..
+    } = record;
     let end_ns = ffi::monotonic_ns();
     let cpu_ns = ffi::process_cpu_ns() - cpu0;
     let ran = pacer.index();
