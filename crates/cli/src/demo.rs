@@ -13,7 +13,7 @@ use truepos_fit::family::PositionFamily;
 use truepos_fit::machine_fit::{select, Chosen, MachineData, StaticModel};
 use truepos_fit::position_model::reference_sensor;
 use truepos_fit::settings::Settings;
-use truepos_io::{machine_file, model_file::ModelFile};
+use truepos_io::{machine_file, model_file::position::ModelFile};
 use truepos_model::{CycleInput, Machine, Model, RecordedRun};
 use truepos_report::{write_report, Channel, ReportData, VolumeMap};
 use truepos_sim::{Scenario, SimRun, Twin};

@@ -7,7 +7,7 @@ use std::path::PathBuf;
 
 use crate::error::CliError;
 use crate::shape::ShapeArgs;
-use truepos_io::{compensation, cycles, machine_file};
+use truepos_io::{cycles, machine_file, model_file};
 use truepos_model::config::MachineConfig;
 use truepos_model::{CompensationModel, CycleInput, Machine, MAX_AXES};
 
@@ -65,7 +65,7 @@ pub struct Evaluator {
 impl Evaluator {
     /// Reads a model file of either form, bound to the machine.
     pub fn load(path: &std::path::Path, machine: &Machine) -> Result<Self, CliError> {
-        let loaded = compensation::load(path, machine)?;
+        let loaded = model_file::load(path, machine)?;
         if let Some(d) = loaded.model.as_dynamic() {
             for name in d.unused_outputs() {
                 eprintln!("note: output `{name}` of the model names no axis and is not applied");

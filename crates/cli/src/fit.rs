@@ -533,7 +533,7 @@ pub(crate) fn model_name(path: &Path, forms: &[&str], why: &str) -> Result<(), C
 fn names_an_axis(target: &str) -> bool {
     ["X", "Y", "Z", "A", "B", "C", "U", "V", "W"]
         .iter()
-        .any(|a| truepos_io::dynamic_model_file::names_axis(target, a))
+        .any(|a| truepos_io::model_file::filtered::names_axis(target, a))
 }
 
 /// Refuses a fit whose model would leave a target unapplied: one named by no --axis and by no

@@ -13,7 +13,7 @@ use truepos_fleet::{BrokerUrl, Config, Publisher, Summary};
 use truepos_fleet_store::models::{self, Change, Model, ModelError, NewModel, State, Which};
 use truepos_fleet_store::postgres::{Client, NoTls};
 use truepos_fleet_store::status::{utc_text, MachineStatus};
-use truepos_io::signature::{signature_path, verify_line, TrustedKeys};
+use truepos_io::model_file::signature::{signature_path, verify_line, TrustedKeys};
 
 use crate::error::CliError;
 
@@ -448,7 +448,7 @@ fn signed_and_admitted(
         );
     }
     let text = crate::write::read_text(model, truepos_files::MODEL)?;
-    let entry = truepos_io::compensation::entry_of_text(model, &text, machine, Some(keys))?;
+    let entry = truepos_io::model_file::entry_of_text(model, &text, machine, Some(keys))?;
     truepos_runtime::admission::admit(&entry, machine, period_ms / 1000.0).map_err(|why| {
         CliError::refused(format!("{}: refused at admission: {why}", model.display()))
     })?;

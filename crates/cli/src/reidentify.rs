@@ -16,8 +16,8 @@ use std::process::ExitCode;
 use sha2::{Digest, Sha256};
 use truepos_fit::reidentify::{reidentify, Outcome, Settings, Verdict};
 use truepos_io::limits::finite_in;
-use truepos_io::model_file::ModelFile;
-use truepos_io::{compensation, machine_file};
+use truepos_io::model_file::position::ModelFile;
+use truepos_io::{machine_file, model_file};
 use truepos_model::{Machine, Model};
 
 use crate::error::CliError;
@@ -89,7 +89,7 @@ pub fn run(args: Args) -> Result<ExitCode, CliError> {
     let config = machine_file::load(&args.machine)?;
     let machine = config.machine;
     let parent_text = crate::write::read(&args.model, truepos_files::MODEL)?;
-    let loaded = compensation::load(&args.model, &machine)?;
+    let loaded = model_file::load(&args.model, &machine)?;
     let Some(model) = loaded.model.as_static() else {
         return Err(CliError::refused(format!(
             "{}: a fitted dynamic model cannot be re-identified from probe measurements (its \
@@ -233,7 +233,7 @@ fn write_model(
     );
     file.validation = v;
     let text = file.to_toml();
-    compensation::parse(&args.out, &text, machine).map_err(CliError::context(
+    model_file::parse(&args.out, &text, machine).map_err(CliError::context(
         "the re-identified model does not load back (a bug; nothing written): ",
     ))?;
     crate::write::write_whole(&args.out, text.as_bytes(), &inputs(args))?;

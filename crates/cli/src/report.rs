@@ -206,7 +206,7 @@ fn protocol(
 ) -> Vec<(String, String)> {
     let sha = truepos_files::read::read(&args.on.model, truepos_files::MODEL).map_or_else(
         |e| format!("cannot be read again: {e}"),
-        |b| truepos_io::model_file::sha256_hex(&b),
+        |b| truepos_io::model_file::position::sha256_hex(&b),
     );
     let made = std::time::SystemTime::now()
         .duration_since(std::time::UNIX_EPOCH)

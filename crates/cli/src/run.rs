@@ -9,9 +9,9 @@ use std::time::{Duration, Instant};
 
 use crate::envelope_check;
 use crate::error::CliError;
-use truepos_io::model_file::{load_entry_trusted, load_set_trusted};
 use truepos_io::limits::{check_in, finite_in};
 use truepos_io::model_file::signature::TrustedKeys;
+use truepos_io::model_file::{load_entry_trusted, load_set_trusted};
 use truepos_io::{cycles, machine_file};
 use truepos_live::host::{HttpArgs, Live};
 use truepos_model::RecordedRun;

@@ -1,11 +1,11 @@
 //! `truepos sign`: a new Ed25519 key pair, or a signature beside each model file
 //! (`MODEL.sig`), which a service started with `--trusted-keys` asks of every model it loads
-//! (`truepos_io::signature`).
+//! (`truepos_io::model_file::signature`).
 
 use std::io::Write as _;
 use std::path::PathBuf;
 
-use truepos_io::signature::{public_hex, signature_line, signature_path, SecretKey};
+use truepos_io::model_file::signature::{public_hex, signature_line, signature_path, SecretKey};
 
 use crate::error::CliError;
 

@@ -41,7 +41,7 @@ fn demo_fits_on_one_day_and_improves_the_other() {
     let machine = truepos_io::machine_file::load(&repo("examples/twin/machine.toml"))
         .unwrap()
         .machine;
-    truepos_io::model_file::load(&model, &machine).unwrap();
+    truepos_io::model_file::position::load(&model, &machine).unwrap();
     // One definition of "uncompensated": the headline card and the table below it give the same
     // dz figure (as measured, the reference point of the residual).
     let html = std::fs::read_to_string(dir.join("report/report.html")).unwrap();

@@ -111,7 +111,7 @@ fn a_model_fitted_through_the_cli_reaches_the_demo_figures_on_another_day() {
         let machine = truepos_io::machine_file::load(&repo("examples/twin/machine.toml"))
             .unwrap()
             .machine;
-        let loaded = truepos_io::compensation::load(&model, &machine).unwrap();
+        let loaded = truepos_io::model_file::load(&model, &machine).unwrap();
         assert!(loaded.model.reads_positions());
 
         let offsets = dir.join("eval.csv");

@@ -74,7 +74,7 @@ fn signed_model(dir: &Path, key: &Path, name: &str, from: &str, to: &str) -> Pat
 fn probe_run(dir: &Path, truth: &Path) -> PathBuf {
     let machine = truepos_io::machine_file::load(&repo("examples/vmc3/machine.toml")).unwrap();
     let m = &machine.machine;
-    let mut model = truepos_io::compensation::load(truth, m).unwrap().model;
+    let mut model = truepos_io::model_file::load(truth, m).unwrap().model;
     let run = std::fs::read_to_string(repo("examples/vmc3/run.csv")).unwrap();
     let mut lines = run.lines();
     let header: Vec<&str> = lines.next().unwrap().split(',').collect();

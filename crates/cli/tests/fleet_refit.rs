@@ -48,7 +48,7 @@ fn wait_until(secs: u64, what: &str, mut done: impl FnMut() -> bool) {
 fn probe_run(dir: &Path) -> PathBuf {
     let machine = truepos_io::machine_file::load(&repo("examples/vmc3/machine.toml")).unwrap();
     let m = &machine.machine;
-    let mut model = truepos_io::compensation::load(&repo("examples/vmc3/model.toml"), m)
+    let mut model = truepos_io::model_file::load(&repo("examples/vmc3/model.toml"), m)
         .unwrap()
         .model;
     let run = std::fs::read_to_string(repo("examples/vmc3/run.csv")).unwrap();

@@ -255,7 +255,7 @@ fn vmc3() -> (truepos_model::Machine, Model) {
     let machine = truepos_io::machine_file::load(&repo("examples/vmc3/machine.toml"))
         .unwrap()
         .machine;
-    let model = truepos_io::compensation::load(&repo("examples/vmc3/model.toml"), &machine)
+    let model = truepos_io::model_file::load(&repo("examples/vmc3/model.toml"), &machine)
         .unwrap()
         .model
         .as_static()

@@ -50,7 +50,7 @@ fn probe_deviations_beyond_the_envelope_are_left_out_by_reidentify() {
     let m = truepos_model::Model::new("zero", &machine, vec![]).unwrap();
     std::fs::write(
         &zero,
-        truepos_io::model_file::ModelFile::from_model(&m, &machine).to_toml(),
+        truepos_io::model_file::position::ModelFile::from_model(&m, &machine).to_toml(),
     )
     .unwrap();
     let probes = probes_with_dz(&dir, "999.9");
@@ -165,9 +165,12 @@ fn a_model_file_written_in_part_is_refused_by_its_checksum() {
     let machine = truepos_io::machine_file::load(&support::repo("examples/vmc3/machine.toml"))
         .unwrap()
         .machine;
-    let model =
-        truepos_io::model_file::load(&support::repo("examples/vmc3/model.toml"), &machine).unwrap();
-    let text = truepos_io::model_file::ModelFile::from_model(&model, &machine).to_toml();
+    let model = truepos_io::model_file::position::load(
+        &support::repo("examples/vmc3/model.toml"),
+        &machine,
+    )
+    .unwrap();
+    let text = truepos_io::model_file::position::ModelFile::from_model(&model, &machine).to_toml();
     assert!(text.starts_with("# sha256 "), "{text}");
     // The first write: everything before the last part.
     let cut = text.rfind("[[part]]").unwrap();

@@ -12,7 +12,7 @@ use std::process::Output;
 use sha2::{Digest, Sha256};
 use support::{command, repo, scratch};
 use truepos_fit::position_model::{fit_structure, structure, Family, Observation};
-use truepos_io::model_file::ModelFile;
+use truepos_io::model_file::position::ModelFile;
 use truepos_model::{CycleInput, Machine, Model};
 use truepos_sim::{Scenario, SimRun, Twin};
 
@@ -191,12 +191,8 @@ fn probes_of_a_drifted_day_give_a_model_that_is_better_on_later_probes() {
     assert!(v["data"]["last_time_s"].as_f64().unwrap() <= day_b.rows[split - 1].time_s);
 
     // The new model loads through the one door and is better on the later half's probes.
-    let loaded = truepos_io::compensation::load(&new, &machine)
-        .unwrap()
-        .model;
-    let before = truepos_io::compensation::load(&old, &machine)
-        .unwrap()
-        .model;
+    let loaded = truepos_io::model_file::load(&new, &machine).unwrap().model;
+    let before = truepos_io::model_file::load(&old, &machine).unwrap().model;
     let temps = temperatures(&day_b, &machine);
     for a in 0..3 {
         println!(
@@ -293,7 +289,7 @@ fn probes_of_a_drifted_day_give_a_model_that_is_better_on_later_probes() {
         .unwrap();
     let err = String::from_utf8_lossy(&other.stderr);
     assert_eq!(other.status.code(), Some(1), "{err}");
-    let via_log = truepos_io::compensation::load(&from_log, &machine)
+    let via_log = truepos_io::model_file::load(&from_log, &machine)
         .unwrap()
         .model;
     let e_log = probe_rmse(&via_log, &day_b, &temps, split, 0..3);
@@ -418,7 +414,8 @@ fn a_running_service_reloads_a_rewritten_model_file() {
         .unwrap()
         .machine;
     let original =
-        truepos_io::model_file::load(&repo("examples/vmc3/model.toml"), &machine).unwrap();
+        truepos_io::model_file::position::load(&repo("examples/vmc3/model.toml"), &machine)
+            .unwrap();
     let model = dir.join("model.toml");
     let write = |m: &Model| {
         let tmp = dir.join("model.tmp");

@@ -68,7 +68,7 @@ fn report_metrics_and_files() {
         "conclusion"
     );
     let bytes = std::fs::read(repo("examples/cross-slide/model.toml")).unwrap();
-    let sha = truepos_io::model_file::sha256_hex(&bytes);
+    let sha = truepos_io::model_file::position::sha256_hex(&bytes);
     assert!(html.contains(&format!("sha256 {sha}")), "model checksum");
     assert!(html.contains("by truepos "), "version");
     assert!(

@@ -16,7 +16,7 @@ fn status_names_the_missing_positions_and_reads_like_a_person_writes() {
     let m = truepos_model::Model::new("twin-zero", &machine, vec![]).unwrap();
     std::fs::write(
         &model,
-        truepos_io::model_file::ModelFile::from_model(&m, &machine).to_toml(),
+        truepos_io::model_file::position::ModelFile::from_model(&m, &machine).to_toml(),
     )
     .unwrap();
     let log = dir.join("log.sqlite");

@@ -7,7 +7,7 @@ use std::fmt;
 use std::str::FromStr;
 
 use truepos_files::InputError;
-pub use truepos_io::dynamic_model_file::InputKind;
+pub use truepos_io::model_file::filtered::InputKind;
 pub use truepos_io::run::Time;
 use truepos_io::run::{glob_match, RunTable};
 use truepos_io::units::Role;

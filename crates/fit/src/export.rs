@@ -7,8 +7,8 @@
 use std::fmt;
 use std::str::FromStr;
 
-use truepos_io::dynamic_model_file::{DynamicModelFile, InputEntry, InputKind};
-use truepos_io::envelope_file::EnvelopeEntry;
+use truepos_io::model_file::envelope::EnvelopeEntry;
+use truepos_io::model_file::filtered::{DynamicModelFile, InputEntry, InputKind};
 use truepos_model::envelope::TrainingEnvelope;
 
 use crate::dataset::Dataset;
@@ -69,7 +69,7 @@ impl std::error::Error for ExportError {}
 
 /// The dynamic model file of a fit for `machine`; `created_by` names the tool and version.
 /// A target without an entry in `axes` keeps the axis its name implies, if any (see
-/// `truepos_io::dynamic_model_file`).
+/// `truepos_io::model_file::filtered`).
 pub fn model_file(
     dataset: &Dataset,
     settings: &Settings,

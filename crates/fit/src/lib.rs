@@ -25,7 +25,7 @@
 //!   peak-to-peak and reduction versus uncompensated, per target channel; [`validate::fit`]
 //!   runs features and validation in one call.
 //! - [`export`]: the fit as a model file of the filtered form (`form = "filtered"`, JSON),
-//!   whose reading and writing live in `truepos_io::dynamic_model_file`, so that the runtime
+//!   whose reading and writing live in `truepos_io::model_file::filtered`, so that the runtime
 //!   reads it without the solvers.
 //! - [`position_model`]: the position-dependent thermal model's families (down to the prior art,
 //!   and the reference-sensor regression) fitted from observations, the ridge chosen by blocked or

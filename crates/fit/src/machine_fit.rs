@@ -5,7 +5,7 @@
 //! cross-validation inside the training rows (the same contiguous blocks, blocked or rolling,
 //! the same ridge candidates and rule), and validated by the same outer protocol
 //! ([`crate::validate::Split`]). The chosen model is of one form: a fitted dynamic model, or a
-//! position-dependent [`Model`] for the model file `truepos_io::model_file` writes.
+//! position-dependent [`Model`] for the model file `truepos_io::model_file::position` writes.
 //!
 //! Within the position-dependent form each target axis gets its own family, input set and ridge (an
 //! axis' summands never touch another axis' coefficients, so the choices are independent and one

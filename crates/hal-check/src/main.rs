@@ -13,8 +13,8 @@ use clap::{Parser, Subcommand};
 use truepos_hal_check::check::{check, events, load_samples, CheckConfig};
 use truepos_hal_check::timing::{self, TimingConfig};
 use truepos_hal_check::Error;
-use truepos_io::compensation::load_set;
 use truepos_io::limits::{finite_in, int_in};
+use truepos_io::model_file::load_set;
 
 #[derive(Parser)]
 #[command(

@@ -1,9 +1,8 @@
 //! # truepos-io — the file formats of truepos
 //!
-//! Machine descriptions ([`machine_file`]), model files ([`model_file`], and the fitted dynamic
-//! models of [`dynamic_model_file`]) and recorded cycles
-//! ([`cycles`]). Every parser returns an [`InputError`] that names the file, the line and
-//! column, the key and what was expected; none panics on bad input.
+//! Machine descriptions ([`machine_file`]), model files of either form ([`model_file`]) and
+//! recorded cycles ([`cycles`]). Every parser returns an [`InputError`] that names the file, the
+//! line and column, the key and what was expected; none panics on bad input.
 //!
 //! ```
 //! use std::path::Path;
@@ -24,17 +23,13 @@
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
-pub mod compensation;
 pub mod cycles;
-pub mod dynamic_model_file;
-pub mod envelope_file;
 pub mod error;
 pub mod kinematics_file;
 pub mod limits;
 pub mod machine_file;
 pub mod model_file;
 pub mod run;
-pub mod signature;
 pub mod table;
 pub mod timestamp;
 pub mod units;

@@ -3,7 +3,8 @@
 
 use std::path::Path;
 
-use truepos_io::{dynamic_model_file, machine_file, model_file};
+use truepos_io::machine_file;
+use truepos_io::model_file::{filtered, position};
 
 mod support;
 use support::machine_of;
@@ -72,7 +73,7 @@ fn machine_error(text: &str) -> String {
 }
 
 fn model_error(text: &str) -> String {
-    model_file::parse(Path::new("k.toml"), text, &machine_of(MACHINE))
+    position::parse(Path::new("k.toml"), text, &machine_of(MACHINE))
         .expect_err("the file must be refused")
         .to_string()
 }
@@ -87,7 +88,7 @@ fn edit(text: &str, from: &str, to: &str) -> String {
 fn the_unedited_files_are_accepted() {
     let m = machine_file::parse(Path::new("m.toml"), MACHINE).unwrap();
     assert_eq!(m.machine.axes[1].carried_by, Some(0));
-    model_file::parse(Path::new("k.toml"), MODEL, &m.machine).unwrap();
+    position::parse(Path::new("k.toml"), MODEL, &m.machine).unwrap();
 }
 
 // ---- machine files ----
@@ -473,7 +474,7 @@ fn k11_json_syntax_error() {
     let machine = machine_file::parse(Path::new("m.toml"), MACHINE)
         .unwrap()
         .machine;
-    let err = model_file::parse_json(
+    let err = position::parse_json(
         Path::new("k.json"),
         "{\n  \"format\": \"truepos-model\",\n  \"version\": 1,,\n}",
         &machine,
@@ -514,15 +515,14 @@ fn dynamic_machine() -> truepos_model::Machine {
 }
 
 fn dynamic_error(text: &str) -> String {
-    dynamic_model_file::parse(Path::new("d.json"), text, &dynamic_machine())
+    filtered::parse(Path::new("d.json"), text, &dynamic_machine())
         .expect_err("the file must be refused")
         .to_string()
 }
 
 #[test]
 fn the_unedited_dynamic_file_is_accepted() {
-    let bound =
-        dynamic_model_file::parse(Path::new("d.json"), DYNAMIC, &dynamic_machine()).unwrap();
+    let bound = filtered::parse(Path::new("d.json"), DYNAMIC, &dynamic_machine()).unwrap();
     assert_eq!(bound.axes(), vec![Some(1)]);
     assert_eq!(bound.model().bank().features().len(), 3);
 }

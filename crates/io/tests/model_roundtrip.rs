@@ -4,7 +4,8 @@
 use std::path::Path;
 
 use proptest::prelude::*;
-use truepos_io::{cycles, machine_file, model_file};
+use truepos_io::model_file::position;
+use truepos_io::{cycles, machine_file};
 use truepos_model::*;
 
 mod support;
@@ -77,16 +78,16 @@ proptest! {
             constants_um: vec![(2, 1.5)],
         };
         let model = Model::new("random", &machine, vec![part]).unwrap();
-        let file = model_file::ModelFile::from_model(&model, &machine);
+        let file = position::ModelFile::from_model(&model, &machine);
         let text = file.to_toml();
-        let back = model_file::parse(Path::new("random.toml"), &text, &machine).unwrap();
+        let back = position::parse(Path::new("random.toml"), &text, &machine).unwrap();
 
         let mut reordered = file.clone();
         reordered.part[0].term.reverse();
         let n = reordered.part[0].term.len();
         reordered.part[0].term.rotate_left(rotate % n);
         reordered.inputs.differences.reverse();
-        let shuffled = model_file::parse(Path::new("shuffled.toml"), &reordered.to_toml(), &machine).unwrap();
+        let shuffled = position::parse(Path::new("shuffled.toml"), &reordered.to_toml(), &machine).unwrap();
 
         let pos = [p.0, p.1, p.2];
         let a = evaluate(&model, &t, &pos);
@@ -103,20 +104,20 @@ proptest! {
 #[test]
 fn regression_parts_are_written_as_regression() {
     let machine = vmc();
-    let model = model_file::load(&repo("examples/vmc3/model.toml"), &machine).unwrap();
-    let text = model_file::ModelFile::from_model(&model, &machine).to_toml();
+    let model = position::load(&repo("examples/vmc3/model.toml"), &machine).unwrap();
+    let text = position::ModelFile::from_model(&model, &machine).to_toml();
     assert!(text.contains("form = \"regression\""), "{text}");
-    let back = model_file::parse(Path::new("x.toml"), &text, &machine).unwrap();
+    let back = position::parse(Path::new("x.toml"), &text, &machine).unwrap();
     assert_eq!(back.parts(), model.parts());
 }
 
 #[test]
 fn json_model_files_are_read_too() {
     let machine = vmc();
-    let model = model_file::load(&repo("examples/vmc3/model.toml"), &machine).unwrap();
-    let file = model_file::ModelFile::from_model(&model, &machine);
+    let model = position::load(&repo("examples/vmc3/model.toml"), &machine).unwrap();
+    let file = position::ModelFile::from_model(&model, &machine);
     let json = serde_json::to_string_pretty(&file).unwrap();
-    let back = model_file::parse_json(Path::new("x.json"), &json, &machine).unwrap();
+    let back = position::parse_json(Path::new("x.json"), &json, &machine).unwrap();
     assert_eq!(back.parts(), model.parts());
 }
 
@@ -126,7 +127,7 @@ fn shipped_examples_load() {
         let machine = machine_file::load(&repo(&format!("{dir}/machine.toml")))
             .unwrap()
             .machine;
-        let model = model_file::load(&repo(&format!("{dir}/model.toml")), &machine).unwrap();
+        let model = position::load(&repo(&format!("{dir}/model.toml")), &machine).unwrap();
         let run = cycles::load(
             &repo(&format!("{dir}/run.csv")),
             &machine,

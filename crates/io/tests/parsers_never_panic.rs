@@ -5,7 +5,9 @@
 use std::path::Path;
 
 use proptest::prelude::*;
-use truepos_io::{cycles, dynamic_model_file, machine_file, model_file};
+use truepos_io::cycles;
+use truepos_io::machine_file;
+use truepos_io::model_file::{filtered, position};
 
 mod support;
 use support::machine_of;
@@ -58,7 +60,7 @@ fn dynamic(m: &truepos_model::Machine) -> String {
 #[test]
 fn the_dynamic_fixture_is_valid() {
     let m = machine();
-    dynamic_model_file::parse(Path::new("d.json"), &dynamic(&m), &m).unwrap();
+    filtered::parse(Path::new("d.json"), &dynamic(&m), &m).unwrap();
 }
 
 proptest! {
@@ -73,14 +75,14 @@ proptest! {
     fn model_parser_never_panics(at in 0..10_000usize, with in any::<char>(), delete in any::<bool>()) {
         let m = machine();
         let text = mutate(MODEL, at, with, delete);
-        let _ = model_file::parse(Path::new("k.toml"), &text, &m);
+        let _ = position::parse(Path::new("k.toml"), &text, &m);
     }
 
     #[test]
     fn dynamic_model_parser_never_panics_and_names_the_file(at in 0..10_000usize, with in any::<char>(), delete in any::<bool>()) {
         let m = machine();
         let text = mutate(&dynamic(&m), at, with, delete);
-        if let Err(e) = dynamic_model_file::parse(Path::new("d.json"), &text, &m) {
+        if let Err(e) = filtered::parse(Path::new("d.json"), &text, &m) {
             let e = e.to_string();
             prop_assert!(e.starts_with("d.json:"), "{}", e);
             // Every error of a file that could be read has a line and column.
@@ -102,9 +104,9 @@ proptest! {
     fn random_text_never_panics(text in "\\PC{0,300}") {
         let m = machine();
         let _ = machine_file::parse(Path::new("m.toml"), &text);
-        let _ = model_file::parse(Path::new("k.toml"), &text, &m);
-        let _ = model_file::parse_json(Path::new("k.json"), &text, &m);
-        let _ = dynamic_model_file::parse(Path::new("d.json"), &text, &m);
+        let _ = position::parse(Path::new("k.toml"), &text, &m);
+        let _ = position::parse_json(Path::new("k.json"), &text, &m);
+        let _ = filtered::parse(Path::new("d.json"), &text, &m);
         let _ = cycles::read(Path::new("run.csv"), text.as_bytes(), &m, &[]);
     }
 }

@@ -2,7 +2,7 @@
 //! an answer, never a panic, and only the exact signed bytes verify.
 
 use proptest::prelude::*;
-use truepos_io::signature::{signature_line, verify_line, SecretKey, TrustedKeys};
+use truepos_io::model_file::signature::{signature_line, verify_line, SecretKey, TrustedKeys};
 
 proptest! {
     #[test]

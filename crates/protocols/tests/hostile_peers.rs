@@ -14,7 +14,8 @@ use std::sync::Arc;
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use truepos_io::{machine_file, model_file};
+use truepos_io::machine_file;
+use truepos_io::model_file::position;
 use truepos_protocols::modbus::{
     Addressing, Encoding, ModbusChannelConfig, ModbusConfig, ModbusSource, RegisterKind, WordOrder,
 };
@@ -149,7 +150,7 @@ fn service_with(make: impl FnOnce(&truepos_model::Machine, Instant) -> Box<dyn S
     }
     let model = ModelEntry {
         name: "vmc".into(),
-        model: model_file::load(&repo("examples/vmc3/model.toml"), &machine.machine)
+        model: position::load(&repo("examples/vmc3/model.toml"), &machine.machine)
             .unwrap()
             .into(),
         index: [101, 102, 103],

@@ -16,7 +16,7 @@
 //!
 //! let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/vmc3");
 //! let machine = truepos_io::machine_file::load(&root.join("machine.toml"))?;
-//! let models = truepos_io::compensation::load_set(&[root.join("model.toml")], &machine)?;
+//! let models = truepos_io::model_file::load_set(&[root.join("model.toml")], &machine)?;
 //! let run = truepos_io::cycles::load(&root.join("run.csv"), &machine.machine, &[])?;
 //! let out = std::env::temp_dir().join(format!("truepos-doc-{}.csv", std::process::id()));
 //! let axes: Vec<String> = machine.machine.axes.iter().map(|a| a.name.clone()).collect();

@@ -6,7 +6,7 @@
 mod support;
 
 use support::{repo, vmc};
-use truepos_io::compensation::load_set;
+use truepos_io::model_file::load_set;
 use truepos_runtime::admission;
 use truepos_runtime::MachineConfig;
 

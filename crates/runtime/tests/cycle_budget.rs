@@ -20,7 +20,8 @@ fn entry(name: &str, model: Model) -> ModelEntry {
 fn a_model_too_slow_for_the_cycle_is_refused_and_the_example_fits() {
     let machine = vmc();
     let m = &machine.machine;
-    let example = truepos_io::model_file::load(&repo("examples/vmc3/model.toml"), m).unwrap();
+    let example =
+        truepos_io::model_file::position::load(&repo("examples/vmc3/model.toml"), m).unwrap();
     let took = cycle_budget::check(&entry("example", example), m, 1e-3).unwrap();
     assert!(took.as_secs_f64() < 250e-6, "{took:?}");
 

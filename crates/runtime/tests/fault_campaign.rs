@@ -9,7 +9,8 @@
 use std::sync::{Arc, Mutex};
 
 use proptest::prelude::*;
-use truepos_io::{cycles, model_file};
+use truepos_io::cycles;
+use truepos_io::model_file::position;
 use truepos_model::envelope::TrainingEnvelope;
 use truepos_model::{CycleInput, EvalError, Model};
 use truepos_runtime::model_set::ModelEntry;
@@ -23,7 +24,7 @@ use support::{repo, vmc};
 /// schedules' warm-ups (up to 8 K), so that extrapolation — inputs clamped, output capped —
 /// is part of the campaign.
 fn models(machine: &MachineConfig) -> Vec<ModelEntry> {
-    let mut full = model_file::load(&repo("examples/vmc3/model.toml"), &machine.machine).unwrap();
+    let mut full = position::load(&repo("examples/vmc3/model.toml"), &machine.machine).unwrap();
     let m = &machine.machine;
     full.set_envelope(Some(TrainingEnvelope {
         temperatures: vec![Some((19.5, 23.0)); m.temperatures.len()],

@@ -14,7 +14,7 @@ use support::scratch;
 fn a_hosted_service_logs_under_its_own_names_and_stops_cleanly() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/vmc3");
     let machine = truepos_io::machine_file::load(&root.join("machine.toml")).unwrap();
-    let entries = truepos_io::compensation::load_set(&[root.join("model.toml")], &machine).unwrap();
+    let entries = truepos_io::model_file::load_set(&[root.join("model.toml")], &machine).unwrap();
     let run = truepos_io::cycles::load(&root.join("run.csv"), &machine.machine, &[]).unwrap();
     let run = run.run;
     let dir = scratch("host");

@@ -46,7 +46,7 @@ impl Source for Warming {
 fn a_new_source_feeds_the_service() {
     let machine = vmc();
     let models =
-        truepos_io::compensation::load_set(&[repo("examples/vmc3/model.toml")], &machine).unwrap();
+        truepos_io::model_file::load_set(&[repo("examples/vmc3/model.toml")], &machine).unwrap();
     let m = &machine.machine;
     let source = Warming {
         name: "warming spindle".into(),

@@ -5,7 +5,8 @@
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
-use truepos_io::{cycles, model_file};
+use truepos_io::cycles;
+use truepos_io::model_file::position;
 use truepos_runtime::live::{Board, HostFigures, Layout, LogFigures, PathView};
 use truepos_runtime::log;
 use truepos_runtime::model_set::ModelEntry;
@@ -19,7 +20,7 @@ fn vmc_model(name: &str) -> ModelEntry {
     let m = vmc();
     ModelEntry {
         name: name.into(),
-        model: model_file::load(&repo("examples/vmc3/model.toml"), &m.machine)
+        model: position::load(&repo("examples/vmc3/model.toml"), &m.machine)
             .unwrap()
             .into(),
         index: [101, 102, 103],

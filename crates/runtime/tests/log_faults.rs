@@ -5,7 +5,8 @@ use std::path::Path;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-use truepos_io::{machine_file, model_file};
+use truepos_io::machine_file;
+use truepos_io::model_file::position;
 use truepos_runtime::events::EventKind;
 use truepos_runtime::log::{self, LogSetup, Logger};
 use truepos_runtime::model_set::ModelEntry;
@@ -37,7 +38,7 @@ fn service(sinks: Vec<Box<dyn Sink>>) -> (Service, Arc<Mutex<Vec<f64>>>) {
     let temps = Arc::new(Mutex::new(vec![21.0; machine.machine.temperatures.len()]));
     let model = ModelEntry {
         name: "vmc3".into(),
-        model: model_file::load(&repo("examples/vmc3/model.toml"), &machine.machine)
+        model: position::load(&repo("examples/vmc3/model.toml"), &machine.machine)
             .unwrap()
             .into(),
         index: [101, 102, 103],
@@ -386,7 +387,7 @@ fn probe_events_during_a_full_disk_reach_the_log_when_it_resumes() {
     let temps = Arc::new(Mutex::new(vec![21.0; machine.machine.temperatures.len()]));
     let model = ModelEntry {
         name: "vmc3".into(),
-        model: model_file::load(&repo("examples/vmc3/model.toml"), &machine.machine)
+        model: position::load(&repo("examples/vmc3/model.toml"), &machine.machine)
             .unwrap()
             .into(),
         index: [101, 102, 103],

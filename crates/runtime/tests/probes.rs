@@ -7,7 +7,7 @@ mod support;
 use std::sync::{Arc, Mutex};
 
 use support::{repo, scratch, vmc};
-use truepos_io::model_file;
+use truepos_io::model_file::position;
 use truepos_runtime::model_set::ModelEntry;
 use truepos_runtime::probe::ProbeInput;
 use truepos_runtime::{log, Frame, LinkError, ServiceHost, Source};
@@ -50,7 +50,7 @@ fn every_probe_event_is_logged_with_its_cycle_accepted_or_rejected() {
     let db = dir.join("log.sqlite");
     let machine = vmc();
     let n_t = machine.machine.temperatures.len();
-    let model = model_file::load(&repo("examples/vmc3/model.toml"), &machine.machine).unwrap();
+    let model = position::load(&repo("examples/vmc3/model.toml"), &machine.machine).unwrap();
     let shared: Shared = Arc::new(Mutex::new((
         (0..n_t).map(|c| 21.0 + c as f64 * 0.5).collect(),
         vec![100.0, 100.0, 100.0],

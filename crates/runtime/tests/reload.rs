@@ -10,8 +10,8 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use support::{repo, scratch, vmc};
-use truepos_io::compensation::load_set;
-use truepos_io::model_file::{self, ModelFile};
+use truepos_io::model_file::load_set;
+use truepos_io::model_file::position::{self, ModelFile};
 use truepos_model::{CycleInput, Model};
 use truepos_runtime::host::ReloadSetup;
 use truepos_runtime::{
@@ -91,7 +91,7 @@ fn a_rewritten_model_file_blends_in_and_a_bad_one_changes_nothing() {
     let dir = scratch("reload");
     let machine = vmc();
     let file = dir.join("model.toml");
-    let original = model_file::load(&repo("examples/vmc3/model.toml"), &machine.machine).unwrap();
+    let original = position::load(&repo("examples/vmc3/model.toml"), &machine.machine).unwrap();
     let text = |m: &Model| {
         let mut f = ModelFile::from_model(m, &machine.machine);
         f.axis_index = Some(vec![101, 102, 103]);

@@ -4,7 +4,8 @@
 use std::path::Path;
 use std::sync::{Arc, Mutex};
 
-use truepos_io::{cycles, machine_file, model_file};
+use truepos_io::model_file::position;
+use truepos_io::{cycles, machine_file};
 use truepos_model::CycleInput;
 use truepos_runtime::events::EventKind;
 use truepos_runtime::log::{self, LogSetup, Logger};
@@ -19,7 +20,7 @@ fn vmc_model(name: &str) -> ModelEntry {
     let m = vmc();
     ModelEntry {
         name: name.into(),
-        model: model_file::load(&repo("examples/vmc3/model.toml"), &m.machine)
+        model: position::load(&repo("examples/vmc3/model.toml"), &m.machine)
             .unwrap()
             .into(),
         index: [101, 102, 103],
@@ -70,7 +71,7 @@ fn drain(service: &Service) -> Vec<EventKind> {
 fn replay_gives_the_model_output() {
     let machine = vmc();
     let run = cycles::load(&repo("examples/vmc3/run.csv"), &machine.machine, &[]).unwrap();
-    let reference = model_file::load(&repo("examples/vmc3/model.toml"), &machine.machine).unwrap();
+    let reference = position::load(&repo("examples/vmc3/model.toml"), &machine.machine).unwrap();
     let source = ReplaySource::new("replay", run.run.clone());
     let mut service = Service::new(
         machine,
@@ -660,7 +661,7 @@ axis = "Z"
 difference = "dT_spindle_front_lag30min"
 k0_um_per_k = 1000.0
 "#;
-    let model = model_file::parse(Path::new("lagged.toml"), model_text, m).unwrap();
+    let model = position::parse(Path::new("lagged.toml"), model_text, m).unwrap();
     // The same model refuses a machine whose lag differs.
     let other = machine_file::parse(
         Path::new("m.toml"),
@@ -669,7 +670,7 @@ k0_um_per_k = 1000.0
             .replacen("lag_s = 1800.0", "lag_s = 1700.0", 1),
     )
     .unwrap();
-    let refused = model_file::parse(Path::new("lagged.toml"), model_text, &other.machine)
+    let refused = position::parse(Path::new("lagged.toml"), model_text, &other.machine)
         .expect_err("another lag is another input")
         .to_string();
     assert!(refused.contains("spindle_front, 1700 s"), "{refused}");
@@ -752,8 +753,7 @@ fn a_dynamic_model_file_runs_in_the_service() {
     let dir = scratch("dyn");
     let path = dir.join("spindle.dynamic.json");
     std::fs::write(&path, json).unwrap();
-    let entries =
-        truepos_io::compensation::load_set(std::slice::from_ref(&path), &machine).unwrap();
+    let entries = truepos_io::model_file::load_set(std::slice::from_ref(&path), &machine).unwrap();
     assert_eq!(entries[0].name, "spindle.dynamic");
     assert_eq!(entries[0].model.used_sensors(), &[front]);
     // Bound to the machine: another machine name is refused with the file named.
@@ -761,7 +761,7 @@ fn a_dynamic_model_file_runs_in_the_service() {
         .unwrap()
         .replace("vmc-3axis", "lathe");
     std::fs::write(dir.join("other.json"), other).unwrap();
-    let refused = truepos_io::compensation::load_set(&[dir.join("other.json")], &machine)
+    let refused = truepos_io::model_file::load_set(&[dir.join("other.json")], &machine)
         .unwrap_err()
         .to_string();
     assert!(

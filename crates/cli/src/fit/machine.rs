@@ -13,8 +13,8 @@ use truepos_fit::family::PositionFamily;
 use truepos_fit::features::candidates;
 use truepos_fit::machine_fit::{fit_machine, Chosen, MachineData, MachineOutcome};
 use truepos_fit::position_model::reference_sensor;
-use truepos_io::dynamic_model_file::axis_named_like;
-use truepos_io::model_file::ModelFile;
+use truepos_io::model_file::filtered::axis_named_like;
+use truepos_io::model_file::position::ModelFile;
 use truepos_model::Machine;
 
 /// The default inputs of the dynamic families: the machine's measured temperature channels
@@ -359,7 +359,7 @@ fn refused_at_load(
 ) -> Option<String> {
     let refuse =
         |why: String| format!("`truepos run` and truepos-hal will refuse this model: {why}");
-    match truepos_io::compensation::parse(out, text, &config.machine) {
+    match truepos_io::model_file::parse(out, text, &config.machine) {
         Err(e) => Some(refuse(e.to_string())),
         Ok(loaded) => truepos_runtime::admission::plausible(&loaded.model, config)
             .err()

@@ -31,7 +31,7 @@ use truepos_fleet_store::models::{self, Change, ModelFile, State, Which};
 use truepos_fleet_store::postgres::Client;
 use truepos_fleet_store::shadow::{self, Rule, ShadowDecision, WatchDecision};
 use truepos_fleet_store::shadow_probes;
-use truepos_io::signature::{public_hex, signature_path, verify_line, TrustedKeys};
+use truepos_io::model_file::signature::{public_hex, signature_path, verify_line, TrustedKeys};
 use truepos_model::config::MachineConfig;
 use truepos_model::CompensationModel;
 use truepos_runtime::log;
@@ -303,9 +303,8 @@ impl Follower {
             .map_err(|why| format!("signature: {why}"))?;
         let text = std::str::from_utf8(&f.bytes).map_err(|_| "not UTF-8 text".to_string())?;
         // Parsed as the service parses the file it runs (its extension tells TOML from JSON).
-        let entry =
-            truepos_io::compensation::entry_of_text(&self.a.model, text, &self.machine, None)
-                .map_err(|e| e.to_string())?;
+        let entry = truepos_io::model_file::entry_of_text(&self.a.model, text, &self.machine, None)
+            .map_err(|e| e.to_string())?;
         Ok(entry.model)
     }
 

@@ -16,7 +16,9 @@ use std::collections::BTreeMap;
 use std::path::PathBuf;
 
 use clap::Parser;
-use truepos_io::signature::{public_hex, signature_line, signature_path, SecretKey, TrustedKeys};
+use truepos_io::model_file::signature::{
+    public_hex, signature_line, signature_path, SecretKey, TrustedKeys,
+};
 
 use super::{connect, figures, Store, Why};
 use crate::error::CliError;

@@ -15,7 +15,7 @@ use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use serde_json::{json, Value};
-use truepos_io::compensation::load_set;
+use truepos_io::model_file::load_set;
 use truepos_runtime::replay::ReplaySource;
 use truepos_runtime::ServiceHost;
 

@@ -131,7 +131,11 @@ mod tests {
             .unwrap()
             .machine;
         let text = std::fs::read_to_string(repo("examples/vmc3/model.toml")).unwrap();
-        crate::model_file::parse(Path::new("m.toml"), &format!("{text}\n{section}"), &machine)
+        crate::model_file::position::parse(
+            Path::new("m.toml"),
+            &format!("{text}\n{section}"),
+            &machine,
+        )
     }
 
     #[test]
@@ -148,9 +152,10 @@ mod tests {
         let machine = crate::machine_file::load(&repo("examples/vmc3/machine.toml"))
             .unwrap()
             .machine;
-        let text = crate::model_file::ModelFile::from_model(&model, &machine).to_toml();
+        let text = crate::model_file::position::ModelFile::from_model(&model, &machine).to_toml();
         assert!(text.contains("[training_envelope"), "{text}");
-        let again = crate::model_file::parse(Path::new("m.toml"), &text, &machine).unwrap();
+        let again =
+            crate::model_file::position::parse(Path::new("m.toml"), &text, &machine).unwrap();
         assert_eq!(again.envelope(), model.envelope());
         // A file without one loads as before.
         assert!(with_envelope("").unwrap().envelope().is_none());

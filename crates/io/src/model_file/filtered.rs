@@ -1,5 +1,5 @@
-//! The dynamic model file (JSON): what a fitted [`truepos_model::DynamicModel`] needs to run on a
-//! control, with its provenance and validation figures, readable by a person.
+//! The model file's filtered form (JSON): what a fitted [`truepos_model::DynamicModel`] needs to
+//! run on a control, with its provenance and validation figures, readable by a person.
 //!
 //! ```json
 //! { "format": "truepos-model", "version": 2, "form": "filtered", "machine": "fl-thermal",
@@ -16,8 +16,8 @@
 //! axis-combination index (`"axis_index": [101, 102, 103]`).
 //!
 //! `truepos fit` writes this file; every user (`truepos run`, `eval`, `report`, the LinuxCNC
-//! component) loads it beside the static model files ([`crate::model_file`]) through
-//! [`crate::compensation::load`], bound to the machine as a [`truepos_model::BoundDynamicModel`]:
+//! component) loads it beside the position model files ([`super::position`]) through
+//! [`super::load`], bound to the machine as a [`truepos_model::BoundDynamicModel`]:
 //! every input must be one of its channels, every mapped output one of its axes.
 
 use std::path::Path;
@@ -27,7 +27,7 @@ use truepos_model::{
     BoundDynamicModel, Channels, DynamicModel, FeatureBank, FeatureSpec, Machine, MachineInput,
 };
 
-use crate::envelope_file::EnvelopeEntry;
+use super::envelope::EnvelopeEntry;
 use crate::error::{json_key_offset, parse_json, read_text};
 use truepos_files::InputError;
 
@@ -49,7 +49,7 @@ pub enum InputKind {
 pub const LEGACY_FORMAT: &str = "truepos-dynamic-model";
 /// The `format`, `version` and `form` this crate writes: the model file's, of the filtered
 /// form.
-pub use crate::model_file::{FORMAT, FORM_FILTERED, VERSION};
+pub use super::{FORMAT, FORM_FILTERED, VERSION};
 
 /// One input the model reads every cycle.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -1,10 +1,46 @@
-//! The one loader of a compensation model file, whatever its form: reads the file once,
-//! recognises a filtered model (JSON with `"form": "filtered"`, or version 1's
-//! `"format": "truepos-dynamic-model"`,
-//! [`crate::dynamic_model_file`]) or a position-dependent model (TOML, or JSON by extension,
-//! [`crate::model_file`]), and returns it bound to the machine as the core's
-//! [`CompensationModel`], with the axis-combination index the file gives. Every user —
-//! `truepos run`, `eval`, `report`, the LinuxCNC component and its check — loads models here.
+//! The model file: one format, `truepos-model`, the contract between learning and compensating.
+//!
+//! Every model file carries `format = "truepos-model"`, a `version` ([`VERSION`], 2, is what
+//! this build writes) and its `form`:
+//!
+//! - `form = "position"` ([`position`], TOML or JSON by extension): a function of this cycle's
+//!   values — axis positions and temperature differences;
+//! - `form = "filtered"` ([`filtered`], JSON): a model whose filters carry history.
+//!
+//! Versions that still load: version 1 without `form` — a TOML (or `.json`) file is the position
+//! form — and version 1's `"format": "truepos-dynamic-model"` JSON, the filtered form. Both forms
+//! may carry the training envelope ([`envelope`]); a file may be signed ([`signature`]).
+//!
+//! This module is the one loader of a model file, whatever its form: it reads the file once,
+//! recognises the form and returns it bound to the machine as the core's [`CompensationModel`],
+//! with the axis-combination index the file gives. Every user — `truepos run`, `eval`, `report`,
+//! the LinuxCNC component and its check — loads models here.
+//!
+//! ```
+//! use std::path::Path;
+//! let machine = r#"
+//! [machine]
+//! name = "m"
+//! [[axis]]
+//! name = "Z"
+//! kind = "linear"
+//! travel = [0.0, 100.0]
+//! "#;
+//! let machine = truepos_io::machine_file::parse(Path::new("m.toml"), machine)?.machine;
+//! let model = r#"
+//! format = "truepos-model"
+//! version = 2
+//! form = "position"
+//! name = "s"
+//! machine = "m"
+//! [inputs]
+//! axes = [{ name = "Z", travel = [0.0, 100.0] }]
+//! "#;
+//! let loaded = truepos_io::model_file::parse(Path::new("s.toml"), model, &machine)?;
+//! assert_eq!(loaded.model.name(), "s");
+//! assert!(!loaded.model.keeps_state());
+//! # Ok::<(), truepos_files::InputError>(())
+//! ```
 
 use std::path::{Path, PathBuf};
 
@@ -12,11 +48,24 @@ use truepos_model::config::MachineConfig;
 use truepos_model::config::{index_of, ModelEntry};
 use truepos_model::{CompensationModel, Machine};
 
-use crate::dynamic_model_file;
 use crate::error::read_text;
-use crate::model_file;
-use crate::signature::TrustedKeys;
+use signature::TrustedKeys;
 use truepos_files::InputError;
+
+pub mod envelope;
+pub mod filtered;
+pub mod position;
+pub mod signature;
+
+/// The `format` every model file carries, of either form.
+pub const FORMAT: &str = "truepos-model";
+/// The version this build writes: version 2 says its `form`. Version 1 (no `form`: a
+/// position model, or a filtered one under `"format": "truepos-dynamic-model"`) is read as well.
+pub const VERSION: u32 = 2;
+/// The `form` of a model that is a function of this cycle's values ([`position`]).
+pub const FORM_POSITION: &str = "position";
+/// The `form` of a model whose filters carry history ([`filtered`]: JSON).
+pub const FORM_FILTERED: &str = "filtered";
 
 /// A model file bound to a machine.
 #[derive(Debug, Clone)]
@@ -41,7 +90,7 @@ pub fn load_set(paths: &[PathBuf], machine: &MachineConfig) -> Result<Vec<ModelE
 }
 
 /// [`load_set`] where, with a trust list, every file must carry a signature from one of its
-/// keys ([`crate::signature`]); the bytes verified are the bytes parsed.
+/// keys ([`signature`]); the bytes verified are the bytes parsed.
 pub fn load_set_trusted(
     paths: &[PathBuf],
     machine: &MachineConfig,
@@ -105,13 +154,13 @@ pub fn entry_of_text(
 /// TOML for a position-dependent model.
 pub fn parse(path: &Path, text: &str, machine: &Machine) -> Result<Loaded, InputError> {
     if is_dynamic(path, text) {
-        let (bound, axis_index) = dynamic_model_file::parse_entry(path, text, machine)?;
+        let (bound, axis_index) = filtered::parse_entry(path, text, machine)?;
         return Ok(Loaded {
             model: bound.into(),
             axis_index,
         });
     }
-    let loaded = model_file::parse_entry(path, text, machine)?;
+    let loaded = position::parse_entry(path, text, machine)?;
     Ok(Loaded {
         model: loaded.model.into(),
         axis_index: loaded.axis_index,
@@ -124,14 +173,11 @@ fn is_dynamic(path: &Path, text: &str) -> bool {
     let json = path
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("json"));
-    dynamic_model_file::is_dynamic(text)
+    filtered::is_dynamic(text)
         || (json
-            && [
-                dynamic_model_file::LEGACY_FORMAT,
-                dynamic_model_file::FORM_FILTERED,
-            ]
-            .iter()
-            .any(|f| text.contains(&format!("\"{f}\""))))
+            && [filtered::LEGACY_FORMAT, filtered::FORM_FILTERED]
+                .iter()
+                .any(|f| text.contains(&format!("\"{f}\""))))
 }
 
 #[cfg(test)]

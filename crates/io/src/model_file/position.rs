@@ -1,7 +1,7 @@
-//! The model file: the contract between learning and compensating.
+//! The model file's position form: a model that is a function of this cycle's values.
 //!
 //! A model file is versioned (`format = "truepos-model"`, `version = 2`) and says its form
-//! (`form = "position"` here; the filtered form is [`crate::dynamic_model_file`]; version 1,
+//! (`form = "position"` here; the filtered form is [`super::filtered`]; version 1,
 //! without `form`, still loads as the position form). It names the machine it
 //! belongs to, lists the inputs it was made for (axes with their travel, temperature differences
 //! with their definitions) and holds its parts and coefficients, plus free-form provenance and
@@ -46,21 +46,15 @@ use truepos_model::{
     Carriage, Machine, Model, Part, PartForm, PositionFactor, PositionTerm, Reference, Summand,
 };
 
-use crate::envelope_file::EnvelopeEntry;
+use super::envelope::EnvelopeEntry;
 use crate::error::{parse_toml, read_text};
 use truepos_files::InputError;
 
 mod write;
 
-/// The `format` every model file carries, of either form.
-pub const FORMAT: &str = "truepos-model";
-/// The version this build writes: version 2 says its `form`. Version 1 (no `form`: a
-/// position model) is read as well.
-pub const VERSION: u32 = 2;
-/// The `form` of a model that is a function of this cycle's values (this module).
-pub const FORM_POSITION: &str = "position";
-/// The `form` of a model whose filters carry history ([`crate::dynamic_model_file`]: JSON).
-pub const FORM_FILTERED: &str = "filtered";
+/// The `format`, `version` and `form`s of the model file ([`super`]), of which this is the
+/// position form.
+pub use super::{FORMAT, FORM_FILTERED, FORM_POSITION, VERSION};
 
 /// A model file as written: names, not indices. Build one from a bound model with
 /// [`ModelFile::from_model`], write it with [`ModelFile::to_toml`], read one with [`load`].

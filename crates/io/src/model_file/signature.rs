@@ -12,11 +12,11 @@
 //! A service started with a list of trusted public keys ([`TrustedKeys`], a text file of one
 //! key in hex a line, `#` comments) loads a model only when its signature verifies under one of
 //! them — at start and at every hot reload — and the bytes it verified are the bytes it parses
-//! ([`crate::compensation::load_entry_trusted`]). A secret key is a file of 64 hex digits
+//! ([`super::load_entry_trusted`]). A secret key is a file of 64 hex digits
 //! (the 32-byte seed), written readable by its owner only.
 //!
 //! ```
-//! use truepos_io::signature::{signature_line, verify_line, SecretKey};
+//! use truepos_io::model_file::signature::{signature_line, verify_line, SecretKey};
 //! let key = SecretKey::from_seed([7; 32]);
 //! let line = signature_line(&key, b"format = \"truepos-model\"\n");
 //! assert!(verify_line(&line, b"format = \"truepos-model\"\n", &[key.public()]).is_ok());

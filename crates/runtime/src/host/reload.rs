@@ -23,7 +23,7 @@ use crate::model_set::ModelEntry;
 pub const POLL: Duration = Duration::from_millis(100);
 
 /// Reads a model file into an entry of the set, or says why it cannot (the message names the
-/// file, line, column and key, as `truepos_io::compensation::load_set` does).
+/// file, line, column and key, as `truepos_io::model_file::load_set` does).
 pub type ModelLoader = Box<dyn Fn(&Path) -> Result<ModelEntry, String> + Send>;
 
 /// What to reload and how.
