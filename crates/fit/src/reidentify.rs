@@ -260,53 +260,7 @@ pub fn reidentify(
     };
     let rule = *re.rule();
     let (run, cand) = rule.recent_rms_um();
-    let (verdict, reason) = match &new {
-        _ if used.is_empty() => (Verdict::Kept, "no usable probe measurement".to_string()),
-        None if used.len() < rule.min_samples as usize => (
-            Verdict::Kept,
-            format!(
-                "{} probe measurements; the switch rule needs {} before it decides",
-                used.len(),
-                rule.min_samples
-            ),
-        ),
-        None if run <= rule.threshold_um => (
-            Verdict::Kept,
-            format!(
-                "the running model's recent RMS error {run:.2} µm is not above the threshold {:.2} µm",
-                rule.threshold_um
-            ),
-        ),
-        None => (
-            Verdict::Kept,
-            format!(
-                "the re-estimated parameters' recent RMS error {cand:.2} µm is not below {:.0} % of the running model's {run:.2} µm",
-                100.0 * rule.margin
-            ),
-        ),
-        Some(_)
-            if window.new_rmse_um.partial_cmp(&window.old_rmse_um)
-                != Some(core::cmp::Ordering::Less) =>
-        {
-            (
-            Verdict::Kept,
-            format!(
-                "the re-estimated model is not better on the last {} measurements: {:.2} µm against the old model's {:.2} µm",
-                window.measurements, window.new_rmse_um, window.old_rmse_um
-            ),
-        )
-        }
-        Some(_) => (
-            Verdict::Switched,
-            format!(
-                "the rule switched {} time(s); on the last {} measurements the RMS error falls from {:.2} to {:.2} µm",
-                re.switches(),
-                window.measurements,
-                window.old_rmse_um,
-                window.new_rmse_um
-            ),
-        ),
-    };
+    let (verdict, reason) = verdict(new.is_some(), used.len(), &rule, &window, re.switches());
     Outcome {
         model: new.filter(|_| verdict == Verdict::Switched),
         verdict,
@@ -319,6 +273,66 @@ pub fn reidentify(
         switches: re.switches(),
         recent_rms_um: (run, cand),
         window,
+    }
+}
+
+/// Whether the re-estimated model replaces the old one, and why in a sentence: it must exist
+/// (the switch rule switched, which needs enough measurements and a running error above the
+/// threshold) and do better than the old model on the most recent window.
+fn verdict(
+    switched: bool,
+    used: usize,
+    rule: &SwitchRule,
+    window: &WindowFigures,
+    switches: usize,
+) -> (Verdict, String) {
+    let (run, cand) = rule.recent_rms_um();
+    match switched {
+        _ if used == 0 => (Verdict::Kept, "no usable probe measurement".to_string()),
+        false if used < rule.min_samples as usize => (
+            Verdict::Kept,
+            format!(
+                "{} probe measurements; the switch rule needs {} before it decides",
+                used,
+                rule.min_samples
+            ),
+        ),
+        false if run <= rule.threshold_um => (
+            Verdict::Kept,
+            format!(
+                "the running model's recent RMS error {run:.2} µm is not above the threshold {:.2} µm",
+                rule.threshold_um
+            ),
+        ),
+        false => (
+            Verdict::Kept,
+            format!(
+                "the re-estimated parameters' recent RMS error {cand:.2} µm is not below {:.0} % of the running model's {run:.2} µm",
+                100.0 * rule.margin
+            ),
+        ),
+        true
+            if window.new_rmse_um.partial_cmp(&window.old_rmse_um)
+                != Some(core::cmp::Ordering::Less) =>
+        {
+            (
+            Verdict::Kept,
+            format!(
+                "the re-estimated model is not better on the last {} measurements: {:.2} µm against the old model's {:.2} µm",
+                window.measurements, window.new_rmse_um, window.old_rmse_um
+            ),
+        )
+        }
+        true => (
+            Verdict::Switched,
+            format!(
+                "the rule switched {} time(s); on the last {} measurements the RMS error falls from {:.2} to {:.2} µm",
+                switches,
+                window.measurements,
+                window.old_rmse_um,
+                window.new_rmse_um
+            ),
+        ),
     }
 }
 
