@@ -2,39 +2,12 @@
 //! `(default N …)` of the source configurations in docs/network_sources.md is compared with what
 //! an empty setting gives.
 
-use std::path::{Path, PathBuf};
+#[path = "../../runtime/tests/support/mod.rs"]
+mod support;
 
+use support::{doc, documented};
 use truepos_protocols::modbus::ModbusConfig;
 use truepos_protocols::shdr::ShdrConfig;
-
-fn doc(name: &str) -> String {
-    let path: PathBuf = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../docs")
-        .join(name);
-    std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
-}
-
-/// The number after `(default ` on the first line of `section` (the text after its heading)
-/// that sets `key`.
-fn documented(text: &str, section: &str, key: &str) -> f64 {
-    let start = text
-        .find(section)
-        .unwrap_or_else(|| panic!("no section `{section}`"));
-    let line = text[start..]
-        .lines()
-        .find(|l| l.trim_start().starts_with(&format!("{key} =")))
-        .unwrap_or_else(|| panic!("`{key}` is not documented under `{section}`"));
-    let after = line
-        .split("(default ")
-        .nth(1)
-        .unwrap_or_else(|| panic!("no `(default …)` on `{line}`"));
-    let number: String = after
-        .chars()
-        .take_while(|c| c.is_ascii_digit() || *c == '.' || *c == ' ')
-        .filter(|c| *c != ' ')
-        .collect();
-    number.parse().unwrap_or_else(|e| panic!("`{line}`: {e}"))
-}
 
 #[test]
 fn shdr_defaults_are_as_documented() {

@@ -25,6 +25,8 @@ use truepos_runtime::model_set::ModelEntry;
 use truepos_runtime::sources::BackoffConfig;
 use truepos_runtime::*;
 
+// One support module with the runtime's tests: the example machine, a source read into a frame.
+#[path = "../../runtime/tests/support/mod.rs"]
 mod support;
 use support::repo;
 

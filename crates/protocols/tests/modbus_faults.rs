@@ -17,6 +17,8 @@ use truepos_protocols::modbus::{
 use truepos_runtime::sources::{BackoffConfig, LinkEventKind};
 use truepos_runtime::{LinkError, Source};
 
+// One support module with the runtime's tests: the example machine, a source read into a frame.
+#[path = "../../runtime/tests/support/mod.rs"]
 mod support;
 use support::{frame_for, machine, read, wait_until};
 

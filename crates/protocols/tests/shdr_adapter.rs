@@ -14,6 +14,8 @@ use truepos_protocols::shdr::{ShdrChannelConfig, ShdrConfig, ShdrSource};
 use truepos_runtime::sources::{BackoffConfig, LinkEventKind, PolledSource};
 use truepos_runtime::{Frame, LinkError, Source, NEVER};
 
+// One support module with the runtime's tests: the example machine, a source read into a frame.
+#[path = "../../runtime/tests/support/mod.rs"]
 mod support;
 use support::{frame_for, machine, messages, repo, wait_until};
 

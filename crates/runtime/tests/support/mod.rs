@@ -1,5 +1,6 @@
-//! What the runtime's tests share: the repository's example machine, a scratch directory, and
-//! reading a source into a frame while polling for what a peer thread does.
+//! What the runtime's and the protocols' tests share (`truepos-protocols` includes this file):
+//! the repository's example machine, a scratch directory, reading a source into a frame while
+//! polling for what a peer thread does, and the defaults the documentation states.
 #![allow(dead_code)] // each test file uses a part
 
 use std::path::{Path, PathBuf};
@@ -64,4 +65,34 @@ pub fn messages(link: &LinkStatus, kind: LinkEventKind) -> Vec<String> {
         .filter(|e| e.kind == kind)
         .map(|e| e.message)
         .collect()
+}
+
+/// The text of `docs/NAME`.
+pub fn doc(name: &str) -> String {
+    let path: PathBuf = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../docs")
+        .join(name);
+    std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
+/// The number after `(default ` on the first line of `section` (the text after its heading)
+/// that sets `key`.
+pub fn documented(text: &str, section: &str, key: &str) -> f64 {
+    let start = text
+        .find(section)
+        .unwrap_or_else(|| panic!("no section `{section}`"));
+    let line = text[start..]
+        .lines()
+        .find(|l| l.trim_start().starts_with(&format!("{key} =")))
+        .unwrap_or_else(|| panic!("`{key}` is not documented under `{section}`"));
+    let after = line
+        .split("(default ")
+        .nth(1)
+        .unwrap_or_else(|| panic!("no `(default …)` on `{line}`"));
+    let number: String = after
+        .chars()
+        .take_while(|c| c.is_ascii_digit() || *c == '.' || *c == ' ')
+        .filter(|c| *c != ' ')
+        .collect();
+    number.parse().unwrap_or_else(|e| panic!("`{line}`: {e}"))
 }
