@@ -20,7 +20,7 @@ use crate::dataset::Dataset;
 use crate::features::Candidates;
 use crate::out_of_fold::{cross_validate, Procedure};
 use crate::position_model::{
-    fit_blocks, input_sets, CvOptions, Fitted, Observation, PositionDesign, Shape,
+    fit_blocks, input_sets, CvOptions, Fitted, InputSet, Observation, PositionDesign, Shape,
 };
 use crate::settings::{InnerCv, Settings};
 use crate::train::{train, Trained};
@@ -296,14 +296,7 @@ fn static_selection(
         ridges: &settings.position_ridges,
         rule: settings.position_rule,
     };
-    let sets: Vec<_> = input_sets(machine)
-        .into_iter()
-        .map(|mut s| {
-            s.differences.retain(|d| data.differences.contains(d));
-            s
-        })
-        .filter(|s| !s.differences.is_empty())
-        .collect();
+    let sets = usable_input_sets(data);
     let mut best: Vec<Option<PositionChoice>> = vec![None; nt];
     for &family in families {
         let owned = data.owners.iter().any(Option::is_some);
@@ -320,7 +313,7 @@ fn static_selection(
             }
             seen.push(diffs.clone());
             let mut scores = Vec::new();
-            for k in 0..nt {
+            for (k, best_k) in best.iter_mut().enumerate() {
                 let axis = data.target_axes[k];
                 let shape = Shape {
                     name: "fit",
@@ -331,18 +324,7 @@ fn static_selection(
                     owners: &data.owners,
                 };
                 let s = family.structure(&shape).map_err(|e| e.to_string())?;
-                let obs: Vec<Vec<Observation<'_>>> = blocks
-                    .iter()
-                    .map(|b| {
-                        b.iter()
-                            .map(|&(r, i)| Observation {
-                                input: data.input(r, i),
-                                axis,
-                                error_um: targets[r][k][i],
-                            })
-                            .collect()
-                    })
-                    .collect();
+                let obs = observations(data, &blocks, targets, k);
                 let Ok(fitted) = fit_blocks(&s, machine, &obs, &options) else {
                     continue;
                 };
@@ -351,11 +333,11 @@ fn static_selection(
                     cv_rmse_um: fitted.score_um,
                     ridge: fitted.ridge,
                 });
-                if best[k]
+                if best_k
                     .as_ref()
                     .is_none_or(|b| fitted.score_um < b.fitted.score_um)
                 {
-                    best[k] = Some(PositionChoice {
+                    *best_k = Some(PositionChoice {
                         family: family.key(),
                         family_name: family.name(),
                         inputs: set.label,
@@ -374,8 +356,50 @@ fn static_selection(
     let Some(choices) = best.into_iter().collect::<Option<Vec<_>>>() else {
         return Ok(None);
     };
-    // One model: every target's parts, named by their axis so that they stay apart (a part
-    // already named after its axis, as the reference-sensor regression's, keeps its name).
+    let model = one_model(data, &choices)?;
+    Ok(Some(StaticModel { model, choices }))
+}
+
+/// The machine's input sets restricted to the differences the data holds; a set left without
+/// any is no candidate.
+fn usable_input_sets(data: &MachineData) -> Vec<InputSet> {
+    input_sets(&data.machine)
+        .into_iter()
+        .map(|mut s| {
+            s.differences.retain(|d| data.differences.contains(d));
+            s
+        })
+        .filter(|s| !s.differences.is_empty())
+        .collect()
+}
+
+/// Target `k`'s observations on the training rows, block by block of the inner CV.
+fn observations<'d>(
+    data: &'d MachineData,
+    blocks: &[&[(usize, usize)]],
+    targets: &[Vec<Vec<f64>>],
+    k: usize,
+) -> Vec<Vec<Observation<'d>>> {
+    let axis = data.target_axes[k];
+    blocks
+        .iter()
+        .map(|b| {
+            b.iter()
+                .map(|&(r, i)| Observation {
+                    input: data.input(r, i),
+                    axis,
+                    error_um: targets[r][k][i],
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// One model of the targets' choices: every target's parts, named by their axis so that they
+/// stay apart (a part already named after its axis, as the reference-sensor regression's,
+/// keeps its name).
+fn one_model(data: &MachineData, choices: &[PositionChoice]) -> Result<Model, String> {
+    let machine = &data.machine;
     let mut parts: Vec<Part> = Vec::new();
     for (k, choice) in choices.iter().enumerate() {
         let axis = &machine.axes[data.target_axes[k]].name;
@@ -387,9 +411,8 @@ fn static_selection(
             parts.push(p);
         }
     }
-    let model = Model::new(format!("{}-fit", machine.name), machine, parts)
-        .map_err(|e| format!("the chosen position-dependent model: {e}"))?;
-    Ok(Some(StaticModel { model, choices }))
+    Model::new(format!("{}-fit", machine.name), machine, parts)
+        .map_err(|e| format!("the chosen position-dependent model: {e}"))
 }
 
 /// Chooses among every family on the training `rows` by inner CV and fits the choice on them:
@@ -415,23 +438,7 @@ pub fn select(
     let mut candidates = Vec::new();
     let dynamic = if let Some(cand) = cand.filter(|_| !settings.families.is_empty()) {
         let trained = train(ds, cand, rows, settings)?;
-        for s in &trained.scores {
-            candidates.push(CandidateFigures {
-                form: "dynamic",
-                family: s.family.name().into(),
-                inputs: "dataset inputs".into(),
-                targets: s
-                    .per_target
-                    .iter()
-                    .zip(&ds.target_names)
-                    .map(|(&(cv_rmse_um, ridge), t)| TargetScore {
-                        target: t.clone(),
-                        cv_rmse_um,
-                        ridge,
-                    })
-                    .collect(),
-            });
-        }
+        candidates.extend(filtered_figures(ds, &trained));
         Some(trained)
     } else {
         None
@@ -476,19 +483,7 @@ pub fn select(
                 .map(|c| format!("{} on {}, λ={:e}", c.family, c.inputs, c.fitted.ridge))
                 .collect();
             let cv = s.choices.iter().map(|c| c.fitted.score_um).collect();
-            let warnings = s
-                .choices
-                .iter()
-                .zip(&ds.target_names)
-                .filter(|(c, _)| c.fitted.skipped > 0)
-                .map(|(c, t)| {
-                    format!(
-                        "{t}: {} of {} training samples left out of the position-dependent fit (an input invalid or outside its range)",
-                        c.fitted.skipped,
-                        c.fitted.skipped + c.fitted.observations
-                    )
-                })
-                .collect();
+            let warnings = skipped_warnings(ds, &s);
             (Chosen::Position(s), labels, cv, warnings)
         }
         (_, Some(t), _) => {
@@ -506,6 +501,47 @@ pub fn select(
         cv_rmse_um,
         warnings,
     })
+}
+
+/// The filtered families' inner-CV figures, per target, as candidates beside the
+/// position-dependent ones.
+fn filtered_figures(ds: &Dataset, trained: &Trained) -> Vec<CandidateFigures> {
+    trained
+        .scores
+        .iter()
+        .map(|s| CandidateFigures {
+            form: "dynamic",
+            family: s.family.name().into(),
+            inputs: "dataset inputs".into(),
+            targets: s
+                .per_target
+                .iter()
+                .zip(&ds.target_names)
+                .map(|(&(cv_rmse_um, ridge), t)| TargetScore {
+                    target: t.clone(),
+                    cv_rmse_um,
+                    ridge,
+                })
+                .collect(),
+        })
+        .collect()
+}
+
+/// A warning per target whose position-dependent fit left training samples out (an input
+/// invalid or outside its range), so that a user sees the fit saw fewer rows than given.
+fn skipped_warnings(ds: &Dataset, s: &StaticModel) -> Vec<String> {
+    s.choices
+        .iter()
+        .zip(&ds.target_names)
+        .filter(|(c, _)| c.fitted.skipped > 0)
+        .map(|(c, t)| {
+            format!(
+                "{t}: {} of {} training samples left out of the position-dependent fit (an input invalid or outside its range)",
+                c.fitted.skipped,
+                c.fitted.skipped + c.fitted.observations
+            )
+        })
+        .collect()
 }
 
 /// The predictions of a chosen model over every row of every run: a dynamic model stepped through
