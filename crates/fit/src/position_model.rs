@@ -543,7 +543,41 @@ fn fit_rows(
         shared_scale: Vec::new(),
     };
     let ridges = options.ridges;
-    // Per ridge: squared errors per held-out block.
+    let (se, held) = held_out_errors(blocks, &accs, n, options)?;
+    if held.is_empty() {
+        return Err(SolveError::Empty);
+    }
+    let scores = cv_scores(&se, &held);
+    let pick = pick_ridge(ridges, &scores, options.rule)?;
+    let mut all = Accumulator::new(n, 1);
+    for acc in accs {
+        all.merge(acc)?;
+    }
+    let solution = all.finish().solve(&solve(ridges[pick]))?;
+    let model = structure
+        .with_parameters(machine, &solution.coefficients[0])
+        .map_err(|_| SolveError::NoConvergence)?;
+    Ok(Fitted {
+        model,
+        solution,
+        ridge: ridges[pick],
+        cv_rmse_um: ridges.iter().zip(&scores).map(|(&r, s)| (r, s.0)).collect(),
+        score_um: scores[pick].0,
+        observations,
+        skipped: 0,
+    })
+}
+
+/// Per ridge weight, the squared errors of each held-out block, predicted by the fit on its
+/// training blocks (infinite where that fit fails); and the held-out blocks' sizes. A block
+/// without training blocks is not held out.
+fn held_out_errors(
+    blocks: &[Vec<(Vec<f64>, f64)>],
+    accs: &[Accumulator],
+    n: usize,
+    options: &CvOptions<'_>,
+) -> Result<(Vec<Vec<f64>>, Vec<usize>), SolveError> {
+    let ridges = options.ridges;
     let mut se = vec![Vec::new(); ridges.len()];
     let mut held = Vec::new();
     for (b, block) in blocks.iter().enumerate() {
@@ -577,17 +611,19 @@ fn fit_rows(
             se[r].push(sum);
         }
     }
-    if held.is_empty() {
-        return Err(SolveError::Empty);
-    }
+    Ok((se, held))
+}
+
+/// Per ridge weight: the pooled held-out RMSE over every held-out row, and the standard error
+/// of the per-block RMSEs (what the one-standard-error rule reads).
+fn cv_scores(se: &[Vec<f64>], held: &[usize]) -> Vec<(f64, f64)> {
     let count: usize = held.iter().sum();
-    let scores: Vec<(f64, f64)> = se
-        .iter()
+    se.iter()
         .map(|per_block| {
             let total: f64 = per_block.iter().sum();
             let rmse: Vec<f64> = per_block
                 .iter()
-                .zip(&held)
+                .zip(held)
                 .map(|(e, &m)| (e / m as f64).sqrt())
                 .collect();
             let k = rmse.len() as f64;
@@ -595,35 +631,23 @@ fn fit_rows(
             let var = rmse.iter().map(|r| (r - mean).powi(2)).sum::<f64>() / (k - 1.0).max(1.0);
             ((total / count as f64).sqrt(), (var / k).sqrt())
         })
-        .collect();
+        .collect()
+}
+
+/// The index of the ridge weight `rule` picks from the `scores` of [`cv_scores`]; an error when
+/// no weight has a finite score.
+fn pick_ridge(ridges: &[f64], scores: &[(f64, f64)], rule: Rule) -> Result<usize, SolveError> {
     let best = (0..ridges.len())
         .filter(|&r| scores[r].0.is_finite())
         .min_by(|&a, &b| scores[a].0.total_cmp(&scores[b].0))
         .ok_or(SolveError::NoConvergence)?;
-    let pick = match options.rule {
+    Ok(match rule {
         Rule::MinimumCv => best,
         // Among ridge weights the CV cannot tell from the best, the most regularised.
         Rule::OneStandardError => (0..ridges.len())
             .filter(|&r| scores[r].0 <= scores[best].0 + scores[best].1)
             .max_by(|&a, &b| ridges[a].total_cmp(&ridges[b]))
             .unwrap_or(best),
-    };
-    let mut all = Accumulator::new(n, 1);
-    for acc in accs {
-        all.merge(acc)?;
-    }
-    let solution = all.finish().solve(&solve(ridges[pick]))?;
-    let model = structure
-        .with_parameters(machine, &solution.coefficients[0])
-        .map_err(|_| SolveError::NoConvergence)?;
-    Ok(Fitted {
-        model,
-        solution,
-        ridge: ridges[pick],
-        cv_rmse_um: ridges.iter().zip(&scores).map(|(&r, s)| (r, s.0)).collect(),
-        score_um: scores[pick].0,
-        observations,
-        skipped: 0,
     })
 }
 
