@@ -422,6 +422,50 @@ impl Chain {
         t: &mut Tangents,
     ) -> Result<Pose, KinError> {
         let n = self.axes.len();
+        let (cands, mut failure) = self.rotary_branches(fa, target, prev)?;
+        // The nearest branch whose linear axes stay within travel.
+        let (geometry, dirs) = match actual {
+            Some(d) => (Geometry::Actual, d),
+            None => (Geometry::Nominal, Directions(0)),
+        };
+        // Derivatives valid at the solution for linear axes inside the rotary ones need the
+        // angular velocities (see `FiveAxis::linear_inside`).
+        let omega = actual.is_some() && fa.real_linear && fa.linear_inside;
+        for &(cost, ref branch) in &cands {
+            if !cost.is_finite() {
+                continue;
+            }
+            let mut cand = *branch;
+            let before = cand;
+            let mut w = [[0.0; 3]; MAX_AXES];
+            let mut pose = if omega {
+                self.eval_with_angular_velocity(&cand[..n], tool_mm, dirs, t, &mut w)
+            } else {
+                self.eval::<true>(&cand[..n], tool_mm, dirs, geometry, Some(t))
+            };
+            match self.solve_linear(&fa.linear, &pose, t, target, &mut cand) {
+                Ok(()) => {
+                    moved_linear(fa, &before, &cand, &mut pose, t, omega.then_some(&w));
+                    *q = cand;
+                    return Ok(pose);
+                }
+                Err(e) => failure = e,
+            }
+        }
+        Err(failure)
+    }
+
+    /// The rotary set-points of both branches of R(u2, φ2)·R(u1, φ1)·v' = w, each the nearest
+    /// turn to `prev` within travel, with its distance from `prev` (infinite for a branch that
+    /// failed), the nearest first; and the error of the last branch that failed. A direction
+    /// neither branch reaches is an error.
+    #[allow(clippy::type_complexity)]
+    fn rotary_branches(
+        &self,
+        fa: &FiveAxis,
+        target: &Pose,
+        prev: &[f64; MAX_AXES],
+    ) -> Result<([(f64, [f64; MAX_AXES]); 2], KinError), KinError> {
         // R(u2, φ2)·R(u1, φ1)·v' = w, with v' = G1·v and w = G2ᵀ·d.
         let vp = mul_mv(&fa.g1, &fa.v);
         let w = mul_tv(&fa.g2, &target.direction);
@@ -477,54 +521,7 @@ impl Chain {
         if cands[1].0 < cands[0].0 {
             cands.swap(0, 1);
         }
-        // The nearest branch whose linear axes stay within travel.
-        let (geometry, dirs) = match actual {
-            Some(d) => (Geometry::Actual, d),
-            None => (Geometry::Nominal, Directions(0)),
-        };
-        // Derivatives valid at the solution for linear axes inside the rotary ones need the
-        // angular velocities (see `FiveAxis::linear_inside`).
-        let omega = actual.is_some() && fa.real_linear && fa.linear_inside;
-        for &(cost, ref branch) in &cands {
-            if !cost.is_finite() {
-                continue;
-            }
-            let mut cand = *branch;
-            let before = cand;
-            let mut w = [[0.0; 3]; MAX_AXES];
-            let mut pose = if omega {
-                self.eval_with_angular_velocity(&cand[..n], tool_mm, dirs, t, &mut w)
-            } else {
-                self.eval::<true>(&cand[..n], tool_mm, dirs, geometry, Some(t))
-            };
-            match self.solve_linear(&fa.linear, &pose, t, target, &mut cand) {
-                Ok(()) => {
-                    // The TCP is affine in the linear axes: it moved by u = Σ ∂p/∂q_j · Δq_j.
-                    let mut u = [0.0; 3];
-                    for &j in &fa.linear {
-                        let dq = cand[j] - before[j];
-                        for i in 0..3 {
-                            u[i] += t.dp[j][i] * dq;
-                        }
-                    }
-                    for i in 0..3 {
-                        pose.position[i] += u[i];
-                    }
-                    if omega {
-                        for j in fa.rotary {
-                            let turn = cross(&w[j], &u);
-                            for i in 0..3 {
-                                t.dp[j][i] += turn[i];
-                            }
-                        }
-                    }
-                    *q = cand;
-                    return Ok(pose);
-                }
-                Err(e) => failure = e,
-            }
-        }
-        Err(failure)
+        Ok((cands, failure))
     }
 
     /// The rotation structure of the erroneous chain with every error rotation read from its
@@ -580,6 +577,38 @@ impl Chain {
             real_linear: fa.real_linear,
             linear_outside: fa.linear_outside,
             linear_inside: fa.linear_inside,
+        }
+    }
+}
+
+/// The pose and the derivatives after the linear axes moved from `before` to `cand`: the TCP
+/// is affine in the linear axes, so it moved by u = Σ ∂p/∂q_j · Δq_j; with the angular
+/// velocities `w` (linear axes inside the rotary ones) the rotary axes' derivatives turn that
+/// displacement too.
+fn moved_linear(
+    fa: &FiveAxis,
+    before: &[f64; MAX_AXES],
+    cand: &[f64; MAX_AXES],
+    pose: &mut Pose,
+    t: &mut Tangents,
+    w: Option<&[[f64; 3]; MAX_AXES]>,
+) {
+    let mut u = [0.0; 3];
+    for &j in &fa.linear {
+        let dq = cand[j] - before[j];
+        for i in 0..3 {
+            u[i] += t.dp[j][i] * dq;
+        }
+    }
+    for i in 0..3 {
+        pose.position[i] += u[i];
+    }
+    if let Some(w) = w {
+        for j in fa.rotary {
+            let turn = cross(&w[j], &u);
+            for i in 0..3 {
+                t.dp[j][i] += turn[i];
+            }
         }
     }
 }
