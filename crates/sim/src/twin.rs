@@ -428,6 +428,37 @@ impl Twin {
     }
 }
 
+/// A part as a beam: its name, its directions (`axes`: along its length, height and width),
+/// its size (`dims`: length, height and width in mm), the segments it is cut into, its material
+/// and section (`part`), how it is supported and its datum along its length (mm).
+fn beam(
+    name: &str,
+    [e_len, e_h, e_w]: [Vec3; 3],
+    dims: [f64; 3],
+    segments: usize,
+    part: &crate::params::PartParams,
+    support: Support,
+    datum_mm: f64,
+) -> Beam {
+    Beam {
+        name: name.into(),
+        e_len,
+        e_h,
+        e_w,
+        length_mm: dims[0],
+        height_mm: dims[1],
+        width_mm: dims[2],
+        segments,
+        material: part.material,
+        fill: part.fill,
+        web: part.web,
+        support,
+        datum_mm,
+        support_offset_mm: 0.0,
+        first_node: 0,
+    }
+}
+
 /// The five structural parts of the reference machine, before they are put into a network.
 struct Parts {
     bed: Beam,
@@ -440,43 +471,14 @@ struct Parts {
 impl Parts {
     /// The parts' geometry, supports and materials.
     fn reference(p: &TwinParams) -> Self {
-        let beam = |name: &str,
-                    e_len,
-                    e_h,
-                    e_w,
-                    dims: [f64; 3],
-                    segments,
-                    material,
-                    [fill, web]: [f64; 2],
-                    support,
-                    datum_mm| Beam {
-            name: name.into(),
-            e_len,
-            e_h,
-            e_w,
-            length_mm: dims[0],
-            height_mm: dims[1],
-            width_mm: dims[2],
-            segments,
-            material,
-            fill,
-            web,
-            support,
-            datum_mm,
-            support_offset_mm: 0.0,
-            first_node: 0,
-        };
         let (x, y, z) = ([1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]);
         let front = [0.0, -1.0, 0.0];
         let mut bed = beam(
             "bed",
-            y,
-            z,
-            x,
+            [y, z, x],
             [1200.0, 300.0, 800.0],
             4,
-            p.bed.material,
-            [p.bed.fill, p.bed.web],
+            &p.bed,
             Support::TwoPoint {
                 a_mm: 150.0,
                 b_mm: 1050.0,
@@ -485,25 +487,19 @@ impl Parts {
         );
         let column = beam(
             "column",
-            z,
-            front,
-            x,
+            [z, front, x],
             [1600.0, 400.0, 500.0],
             6,
-            p.column.material,
-            [p.column.fill, p.column.web],
+            &p.column,
             Support::Clamped { at_mm: 0.0 },
             0.0,
         );
         let mut saddle = beam(
             "saddle",
-            x,
-            z,
-            y,
+            [x, z, y],
             [1000.0, 150.0, 450.0],
             3,
-            p.saddle.material,
-            [p.saddle.fill, p.saddle.web],
+            &p.saddle,
             Support::TwoPoint {
                 a_mm: 250.0,
                 b_mm: 750.0,
@@ -512,13 +508,10 @@ impl Parts {
         );
         let mut table = beam(
             "table",
-            x,
-            z,
-            y,
+            [x, z, y],
             [1000.0, 120.0, 450.0],
             4,
-            p.table.material,
-            [p.table.fill, p.table.web],
+            &p.table,
             Support::TwoPoint {
                 a_mm: 400.0,
                 b_mm: 600.0,
@@ -527,13 +520,10 @@ impl Parts {
         );
         let mut head = beam(
             "head",
-            z,
-            front,
-            x,
+            [z, front, x],
             [600.0, 350.0, 300.0],
             3,
-            p.head.material,
-            [p.head.fill, p.head.web],
+            &p.head,
             Support::Clamped { at_mm: 300.0 },
             300.0,
         );
