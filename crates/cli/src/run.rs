@@ -9,11 +9,12 @@ use std::time::{Duration, Instant};
 
 use crate::envelope_check;
 use crate::error::CliError;
+use truepos_fleet::MqttOptions;
 use truepos_io::limits::{check_in, finite_in};
 use truepos_io::model_file::signature::TrustedKeys;
 use truepos_io::model_file::{load_entry_trusted, load_set_trusted};
 use truepos_io::{cycles, machine_file};
-use truepos_live::host::{HttpArgs, Live};
+use truepos_live::host::{HttpOptions, Live};
 use truepos_model::RecordedRun;
 use truepos_protocols::modbus::{ModbusConfig, ModbusSource};
 use truepos_protocols::opcua::{OpcUaSink, OpcUaSource, SinkConfig, SourceConfig};
@@ -107,25 +108,10 @@ pub struct RunArgs {
     /// Print a summary as JSON at the end (and no status line).
     #[arg(long)]
     json: bool,
-    /// Serve the live view (page, JSON, Server-Sent Events, Prometheus `/metrics`) on ADDR:
-    /// `127.0.0.1:8080`, or a port alone for loopback; port 0 picks a free one. An address
-    /// beyond loopback needs a token (TRUEPOS_HTTP_TOKEN or --http-token-file); docs/live_view.md.
-    #[arg(long, value_name = "ADDR")]
-    http: Option<String>,
-    /// The live view's token: the first line of FILE (at least 16 characters).
-    #[arg(long, value_name = "FILE")]
-    http_token_file: Option<PathBuf>,
-    /// Forward the log to an MQTT broker as Sparkplug B, `mqtt://HOST[:PORT]`: 1 s aggregates
-    /// and events at QoS 1, store-and-forward across outages (needs --log; docs/fleet.md).
-    #[arg(long, value_name = "URL")]
-    mqtt: Option<String>,
-    /// Sparkplug group id of --mqtt.
-    #[arg(long, default_value = "truepos")]
-    mqtt_group: String,
-    /// Sparkplug edge node id of --mqtt (default: the machine's name in the machine file). Give
-    /// each machine its own when several run one machine file.
-    #[arg(long, value_name = "NAME")]
-    mqtt_node: Option<String>,
+    #[command(flatten)]
+    http: HttpOptions,
+    #[command(flatten)]
+    mqtt: MqttOptions,
 }
 
 /// Longest run in s, a year: bounds `--duration-s` and a replay's length at its speed, so that a
@@ -238,15 +224,11 @@ impl Timing {
 pub fn run(mut args: RunArgs) -> Result<(), CliError> {
     args.machine = crate::examples::find(std::mem::take(&mut args.machine));
     args.models = args.models.drain(..).map(crate::examples::find).collect();
-    let http = HttpArgs::check(args.http.as_deref(), args.http_token_file.as_deref())
+    let http = args.http.check().map_err(CliError::refused)?;
+    let mqtt = args
+        .mqtt
+        .config(args.log.as_deref())
         .map_err(CliError::refused)?;
-    let mqtt = truepos_fleet::Config::for_service(
-        args.mqtt.as_deref(),
-        &args.mqtt_group,
-        args.mqtt_node.as_deref(),
-        args.log.as_deref(),
-    )
-    .map_err(CliError::refused)?;
     let machine = machine_file::load(&args.machine)?;
     let trusted = args
         .trusted_keys

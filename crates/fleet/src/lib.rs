@@ -54,5 +54,7 @@ pub mod sparkplug;
 pub mod store;
 
 pub use mqtt::BrokerUrl;
+#[cfg(feature = "clap")]
+pub use publisher::MqttOptions;
 pub use publisher::{Config, Publisher, Summary};
 pub use store::{last_rows, Rows};

@@ -84,6 +84,37 @@ impl Config {
     }
 }
 
+/// A service's `--mqtt` options as every process running the service takes them (`truepos
+/// run`, `truepos-hal run`; feature `clap`), checked by [`MqttOptions::config`].
+#[cfg(feature = "clap")]
+#[derive(Debug, Clone, clap::Args)]
+pub struct MqttOptions {
+    /// Forward the log to an MQTT broker as Sparkplug B, `mqtt://HOST[:PORT]`: 1 s aggregates
+    /// and events at QoS 1, store-and-forward across outages (needs --log; docs/fleet.md).
+    #[arg(long, value_name = "URL")]
+    pub mqtt: Option<String>,
+    /// Sparkplug group id of --mqtt.
+    #[arg(long, default_value = "truepos")]
+    pub mqtt_group: String,
+    /// Sparkplug edge node id of --mqtt (default: the machine's name in the machine file). Give
+    /// each machine its own when several run one machine file.
+    #[arg(long, value_name = "NAME")]
+    pub mqtt_node: Option<String>,
+}
+
+#[cfg(feature = "clap")]
+impl MqttOptions {
+    /// [`Config::for_service`] of these options and the service's log.
+    pub fn config(&self, log: Option<&Path>) -> Result<Option<Config>, String> {
+        Config::for_service(
+            self.mqtt.as_deref(),
+            &self.mqtt_group,
+            self.mqtt_node.as_deref(),
+            log,
+        )
+    }
+}
+
 /// Counters the thread keeps, readable from any thread.
 #[derive(Debug, Default)]
 struct Shared {

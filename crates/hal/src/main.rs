@@ -10,6 +10,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use clap::{Parser, Subcommand};
+use truepos_fleet::MqttOptions;
 use truepos_hal::ffi::{self, Component, HalError};
 use truepos_hal::pacer::{keep_off_cpu, realtime_setup, Pacer};
 use truepos_hal::source::Edge;
@@ -17,7 +18,7 @@ use truepos_hal::{pins, Error, HalSink, HalSource};
 use truepos_io::limits::{finite_in, int_in};
 use truepos_io::model_file::signature::TrustedKeys;
 use truepos_io::model_file::{load_entry_trusted, load_set_trusted};
-use truepos_live::host::{HttpArgs, Live};
+use truepos_live::host::{HttpArgs, HttpOptions, Live};
 use truepos_runtime::admission;
 use truepos_runtime::host::ReloadSetup;
 use truepos_runtime::{MachineConfig, PathState, Running, Service, ServiceConfig, ServiceHost};
@@ -78,25 +79,10 @@ struct RunArgs {
     /// thread unless that is bound elsewhere).
     #[arg(long, value_parser = int_in(0usize, 1023))]
     cpu: Option<usize>,
-    /// Serve the live view (page, JSON, Server-Sent Events, Prometheus `/metrics`) on ADDR:
-    /// `127.0.0.1:8080`, or a port alone for loopback. An address beyond loopback needs a token
-    /// (TRUEPOS_HTTP_TOKEN or --http-token-file); docs/live_view.md.
-    #[arg(long, value_name = "ADDR")]
-    http: Option<String>,
-    /// The live view's token: the first line of FILE (at least 16 characters).
-    #[arg(long, value_name = "FILE")]
-    http_token_file: Option<PathBuf>,
-    /// Forward the log to an MQTT broker as Sparkplug B, `mqtt://HOST[:PORT]`, on a thread of
-    /// its own that reads the log (needs --log; docs/fleet.md).
-    #[arg(long, value_name = "URL")]
-    mqtt: Option<String>,
-    /// Sparkplug group id of --mqtt.
-    #[arg(long, default_value = "truepos")]
-    mqtt_group: String,
-    /// Sparkplug edge node id of --mqtt (default: the machine's name in the machine file). Give
-    /// each machine its own when several run one machine file.
-    #[arg(long, value_name = "NAME")]
-    mqtt_node: Option<String>,
+    #[command(flatten)]
+    http: HttpOptions,
+    #[command(flatten)]
+    mqtt: MqttOptions,
 }
 
 /// Histogram bucket edges of the cycle-to-cycle interval, ms.
@@ -269,16 +255,12 @@ struct Checked {
 /// admits again at start and at every reload.
 fn check_before_hal(args: &RunArgs, period_s: f64) -> Result<Checked, Error> {
     // A live view beyond loopback without a token is refused here.
-    let http = HttpArgs::check(args.http.as_deref(), args.http_token_file.as_deref())
-        .map_err(Error::Refused)?;
+    let http = args.http.check().map_err(Error::Refused)?;
     // As the live view's address.
-    let mqtt = truepos_fleet::Config::for_service(
-        args.mqtt.as_deref(),
-        &args.mqtt_group,
-        args.mqtt_node.as_deref(),
-        args.log.as_deref(),
-    )
-    .map_err(Error::Refused)?;
+    let mqtt = args
+        .mqtt
+        .config(args.log.as_deref())
+        .map_err(Error::Refused)?;
     let machine = truepos_io::machine_file::load(&args.machine)?;
     // A channel id that is no pin name is the machine file's mistake.
     pins::check_names(&machine.machine)?;

@@ -23,6 +23,29 @@ pub struct HttpArgs {
     pub(crate) token: Option<String>,
 }
 
+/// The live view's command-line options as every process running the service takes them
+/// (`truepos run`, `truepos-hal run`; feature `clap`), checked by [`HttpOptions::check`].
+#[cfg(feature = "clap")]
+#[derive(Debug, Clone, Default, clap::Args)]
+pub struct HttpOptions {
+    /// Serve the live view (page, JSON, Server-Sent Events, Prometheus `/metrics`) on ADDR:
+    /// `127.0.0.1:8080`, or a port alone for loopback; port 0 picks a free one. An address
+    /// beyond loopback needs a token (TRUEPOS_HTTP_TOKEN or --http-token-file); docs/live_view.md.
+    #[arg(long, value_name = "ADDR")]
+    pub http: Option<String>,
+    /// The live view's token: the first line of FILE (at least 16 characters).
+    #[arg(long, value_name = "FILE")]
+    pub http_token_file: Option<PathBuf>,
+}
+
+#[cfg(feature = "clap")]
+impl HttpOptions {
+    /// [`HttpArgs::check`] of these options.
+    pub fn check(&self) -> Result<Option<HttpArgs>, String> {
+        HttpArgs::check(self.http.as_deref(), self.http_token_file.as_deref())
+    }
+}
+
 /// `ADDR` as `host:port`, or a port alone (then loopback, 127.0.0.1).
 fn parse_addr(spec: &str) -> Result<SocketAddr, String> {
     if !spec.is_empty() && spec.bytes().all(|b| b.is_ascii_digit()) {
