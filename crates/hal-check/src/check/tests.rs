@@ -76,13 +76,11 @@ fn entry(model: &Model) -> ModelEntry {
     }
 }
 
-#[test]
-fn lag_fraction_and_rate_by_hand() {
-    let (machine, model) = example();
-    let model = entry(&model);
-    // X at 250 mm (r = 0.5), ΔT = 25 − 20 = 5 K: Y error = 5·(2 + 4·0.5) = 20 µm, so the
-    // compensation is −20 µm = −0.020 mm. The span over X's travel is 5·4 = 20 µm.
-    let sample = |applied_y_mm: f64| Sample {
+/// A cycle at X = 250 mm (r = 0.5) with ΔT = 25 − 20 = 5 K: Y error = 5·(2 + 4·0.5) = 20 µm,
+/// so the compensation is −20 µm = −0.020 mm; Y applies `applied_y_mm`. The span over X's
+/// travel is 5·4 = 20 µm.
+fn sample(applied_y_mm: f64) -> Sample {
+    Sample {
         nominal: vec![250.0, 100.0],
         applied_mm: vec![0.0, applied_y_mm],
         joint: vec![250.0, 100.0 + applied_y_mm],
@@ -93,7 +91,13 @@ fn lag_fraction_and_rate_by_hand() {
         axis_paths: vec![1, 1],
         servo_clocks: 1000.0,
         temperatures_c: vec![25.0, 20.0],
-    };
+    }
+}
+
+#[test]
+fn lag_fraction_and_rate_by_hand() {
+    let (machine, model) = example();
+    let model = entry(&model);
     let mut samples = vec![sample(-0.020); 9];
     // The last cycle applies −20.1 µm: 0.1 µm off, 0.1 / 20 = 0.5 % of the span; it moved
     // 0.1 µm in one 1 ms cycle.
@@ -165,7 +169,21 @@ fn lag_fraction_and_rate_by_hand() {
     assert_eq!(r.compared, 8);
     assert!((r.max_diff_um - 0.4).abs() < 1e-9, "{}", r.max_diff_um);
     assert!(r.max_lag_fraction < 1e-9, "{}", r.max_lag_fraction);
+}
 
+#[test]
+fn update_gaps_are_reported_and_in_step_moving_cycles_judged() {
+    let (machine, model) = example();
+    let model = entry(&model);
+    let config = CheckConfig {
+        period_s: 0.001,
+        settle_s: 0.002,
+        min_span_um: 2.0,
+        rate_window_s: 0.05,
+        max_lag_fraction: 0.01,
+        min_in_step_moving_cycles: 0,
+        ..CheckConfig::default()
+    };
     // An update gap: X moves 1 mm per cycle for 40 cycles, truepos's sent offset changes up
     // to cycle 10 only. Cycles 11…40 repeat it (a gap of 30); a gap counts once it exceeds
     // 2 cycles, so cycles 13…40 = 28 of the 40 moving cycles (70 %) are in it.
