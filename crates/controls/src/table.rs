@@ -45,8 +45,8 @@ use crate::linuxcnc::LINUXCNC_MAX_ROWS;
 /// were read from, so a file truepos writes reads back equal to the table it wrote.
 #[derive(Debug, Clone, Default)]
 pub struct Origin {
-    /// The file; `None` for a table built in memory ([`LinuxCncComp::from_table`],
-    /// [`SiemensTable::from_table`]).
+    /// The file; `None` for a table built in memory ([`crate::linuxcnc::LinuxCncComp::from_table`],
+    /// [`crate::siemens::SiemensTable::from_table`]).
     pub file: Option<PathBuf>,
     /// The 1-based line of each support point, in order (empty for a table built in memory).
     pub lines: Vec<usize>,
@@ -106,9 +106,9 @@ pub enum ExportError {
     DirectionalEncoder,
     /// One `$AN_CEC` table holds one direction: a directional table needs two.
     DirectionalCec,
-    /// [`SiemensTable::directional_pair`] of a table with one direction.
+    /// [`crate::siemens::SiemensTable::directional_pair`] of a table with one direction.
     OneDirection,
-    /// [`SiemensTable::directional_pair`] needs a table number after `first`.
+    /// [`crate::siemens::SiemensTable::directional_pair`] needs a table number after `first`.
     NoTableNumber {
         /// The first table's number.
         first: u32,
