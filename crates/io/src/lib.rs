@@ -1,7 +1,7 @@
 //! # truepos-io — the file formats of truepos
 //!
 //! Machine descriptions ([`machine_file`]), model files of either form ([`model_file`]) and
-//! recorded cycles ([`cycles`]). Every parser returns an [`InputError`] that names the file, the
+//! recorded cycles ([`cycles`]). Every parser returns an [`truepos_files::InputError`] that names the file, the
 //! line and column, the key and what was expected; none panics on bad input.
 //!
 //! ```
