@@ -1,5 +1,5 @@
 //! What is CLI-specific about running a model on a recorded run (`truepos eval`, `truepos
-//! report`): loading through the one door (`truepos_io::compensation`), reading the run with the
+//! report`): loading through the one door (`truepos_io::model_file`), reading the run with the
 //! columns the model needs, stepping the model through the rows in order with the time between
 //! them (as the control steps it every cycle), and naming channels in errors.
 

@@ -409,7 +409,7 @@ fn figures(path: &Path, text: &str) -> Result<(serde_json::Value, serde_json::Va
 }
 
 /// The model's text, read once: its signature verified, loaded for the machine and admitted
-/// through the same door as `truepos run --trusted-keys` (`io::compensation`, runtime's
+/// through the same door as `truepos run --trusted-keys` (`io::model_file`, runtime's
 /// admission); returns the text and its signature line.
 fn verified_and_admitted(a: &RegisterArgs) -> Result<(String, String), CliError> {
     if !(a.period_ms.is_finite() && (0.1..=10_000.0).contains(&a.period_ms)) {

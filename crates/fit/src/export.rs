@@ -78,7 +78,7 @@ pub fn model_file(
     axes: &[TargetAxis],
     created_by: &str,
 ) -> Result<DynamicModelFile, ExportError> {
-    let mut file = dynamic_model_file(
+    let mut file = filtered_model_file(
         dataset,
         settings,
         &outcome.trained,
@@ -136,7 +136,7 @@ pub fn training_envelope(
 }
 
 /// [`model_file`] of any trained dynamic model with its validation figures (JSON).
-pub fn dynamic_model_file(
+pub fn filtered_model_file(
     dataset: &Dataset,
     settings: &Settings,
     trained: &Trained,

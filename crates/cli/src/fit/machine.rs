@@ -8,7 +8,7 @@ use std::time::Instant;
 use super::{load, print_per_run, settings, tables, Args, Progress};
 use crate::error::CliError;
 use truepos_fit::dataset::{Dataset, Patterns};
-use truepos_fit::export::{dynamic_model_file, plausible_predictions, predictions_csv_of};
+use truepos_fit::export::{filtered_model_file, plausible_predictions, predictions_csv_of};
 use truepos_fit::family::PositionFamily;
 use truepos_fit::features::candidates;
 use truepos_fit::machine_fit::{fit_machine, Chosen, MachineData, MachineOutcome};
@@ -397,7 +397,7 @@ fn model_text(
                     axis: machine.axes[a].name.clone(),
                 })
                 .collect();
-            let mut file = dynamic_model_file(
+            let mut file = filtered_model_file(
                 ds,
                 settings,
                 trained,
