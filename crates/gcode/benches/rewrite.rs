@@ -1,5 +1,5 @@
 //! Rewrite time against rs274 alone, side by side in one run, on a generated program of one
-//! million moves (issue 15's bar: rewriting costs at most twice what rs274 needs to interpret
+//! million moves (the bar: rewriting costs at most twice what rs274 needs to interpret
 //! the same program). `cargo bench -p truepos-gcode --bench rewrite [-- MOVES]`.
 //!
 //! rs274 alone writes its canonical commands to its output file `/dev/null` (a buffered stream:

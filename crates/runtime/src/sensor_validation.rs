@@ -437,7 +437,7 @@ mod tests {
         assert!(matches!(h[61], Some(Fault::Stuck { .. })));
     }
 
-    /// Issue 11, case 2: a 0.1 K module flickering between two adjacent levels at a 100 ms poll
+    /// A red-team case: a 0.1 K module flickering between two adjacent levels at a 100 ms poll
     /// was judged a 60 K/min rate fault (432 faults in 10 s).
     #[test]
     fn a_quantisation_flicker_is_no_fault() {

@@ -375,7 +375,7 @@ mod tests {
         .unwrap_err()
     }
 
-    /// Issue 11: a scenario of 10⁹ hours allocated 5.6 GB and aborted; durations, sampled rows
+    /// A red-team case: a scenario of 10⁹ hours allocated 5.6 GB and aborted; durations, sampled rows
     /// and steps are bounded, each reported at its key.
     #[test]
     fn a_billion_hours_is_refused_at_the_phase_that_crosses_30_days() {
