@@ -24,9 +24,6 @@ pub enum CliError {
     /// A fitted model cannot be written in the model file format.
     #[error(transparent)]
     Export(#[from] truepos_fit::export::ExportError),
-    /// A scenario or the twin's parameters are not what they must be.
-    #[error(transparent)]
-    Scenario(#[from] truepos_sim::ScenarioError),
     /// The twin refused to run a scenario.
     #[error(transparent)]
     Sim(#[from] truepos_sim::SimError),

@@ -49,6 +49,6 @@ pub mod simulation;
 pub mod twin;
 
 pub use params::TwinParams;
-pub use scenario::{Scenario, ScenarioError, BUILTIN};
+pub use scenario::{Scenario, BUILTIN};
 pub use simulation::{ProbeReading, Row, SimError, SimRun, Summary};
 pub use twin::{Deformed, Operating, SensorSpec, Twin, AXES};

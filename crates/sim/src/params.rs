@@ -36,8 +36,8 @@ use serde::Deserialize;
 
 use crate::beam::Material;
 use crate::scenario::checker::{toml_error, Checker, Seg};
-use crate::scenario::ScenarioError;
 use crate::twin::{DriveHeat, SpindleHeat};
+use truepos_files::InputError;
 
 /// Material and casting of one part.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -229,7 +229,7 @@ pub const SENSOR_IDS: [&str; 16] = [
 
 impl TwinParams {
     /// Reads a twin description; errors name the file, line, column, key and what was expected.
-    pub fn parse(src: &str, file: &str) -> Result<TwinParams, ScenarioError> {
+    pub fn parse(src: &str, file: &str) -> Result<TwinParams, InputError> {
         use Seg::Key as K;
         let raw: FileRoot = toml::from_str(src).map_err(|e| toml_error(src, file, &e))?;
         let ck = &Checker::new(src, file);
@@ -286,7 +286,7 @@ fn set(
     hi: f64,
     what: &str,
     into: &mut f64,
-) -> Result<(), ScenarioError> {
+) -> Result<(), InputError> {
     if let Some(v) = v {
         *into = ck.within(path, v, lo, hi, what)?;
     }
@@ -303,7 +303,7 @@ fn map_into(
     m: Option<BTreeMap<String, f64>>,
     table: &str,
     fields: &mut [Field<'_>],
-) -> Result<(), ScenarioError> {
+) -> Result<(), InputError> {
     use Seg::Key as K;
     for (k, v) in m.unwrap_or_default() {
         let path = [K("twin"), K(table), K(k.as_str())];
@@ -322,7 +322,7 @@ fn map_into(
 fn read_parts(
     ck: &Checker,
     parts: [(&str, Option<FilePart>, &mut PartParams); 5],
-) -> Result<(), ScenarioError> {
+) -> Result<(), InputError> {
     use Seg::Key as K;
     for (name, part, target) in parts {
         let Some(f) = part else { continue };
@@ -390,7 +390,7 @@ fn read_joints(
     ck: &Checker,
     m: Option<BTreeMap<String, f64>>,
     j: &mut JointParams,
-) -> Result<(), ScenarioError> {
+) -> Result<(), InputError> {
     map_into(
         ck,
         m,
@@ -455,7 +455,7 @@ fn read_spindle_and_coolant(
     spindle: Option<BTreeMap<String, f64>>,
     coolant: Option<BTreeMap<String, f64>>,
     p: &mut TwinParams,
-) -> Result<(), ScenarioError> {
+) -> Result<(), InputError> {
     let s = &mut p.spindle;
     map_into(
         ck,
@@ -506,7 +506,7 @@ fn read_drives(
     ck: &Checker,
     drive: Option<BTreeMap<String, BTreeMap<String, f64>>>,
     p: &mut TwinParams,
-) -> Result<(), ScenarioError> {
+) -> Result<(), InputError> {
     use Seg::Key as K;
     for (axis, fields) in drive.unwrap_or_default() {
         let Some(a) = ["X", "Y", "Z"].iter().position(|n| *n == axis) else {
@@ -540,7 +540,7 @@ fn read_sensor_taus(
     ck: &Checker,
     taus: Option<BTreeMap<String, f64>>,
     p: &mut TwinParams,
-) -> Result<(), ScenarioError> {
+) -> Result<(), InputError> {
     use Seg::Key as K;
     for (id, v) in taus.unwrap_or_default() {
         let path = [K("twin"), K("sensor_tau_s"), K(id.as_str())];
@@ -574,22 +574,37 @@ mod tests {
         assert_eq!(p.sensor_tau_s["spindle_front"], 20.0);
 
         let e = TwinParams::parse("[twin]\n[twin.table]\nfill = 1.5\n", "t.toml").unwrap_err();
-        assert_eq!((e.line, e.key.as_str()), (3, "twin.table.fill"));
-        assert!(e.expected.contains("share"), "{e}");
+        assert_eq!(
+            (
+                e.position.map_or(0, |p| p.0),
+                e.key.as_deref().unwrap_or("")
+            ),
+            (3, "twin.table.fill")
+        );
+        assert!(e.message.contains("share"), "{e}");
         let e = TwinParams::parse("[twin]\n[twin.spindle]\nfront_c = 1\n", "t.toml").unwrap_err();
-        assert_eq!((e.line, e.key.as_str()), (3, "twin.spindle.front_c"));
-        assert!(e.expected.contains("front_a"), "{e}");
+        assert_eq!(
+            (
+                e.position.map_or(0, |p| p.0),
+                e.key.as_deref().unwrap_or("")
+            ),
+            (3, "twin.spindle.front_c")
+        );
+        assert!(e.message.contains("front_a"), "{e}");
         let e = TwinParams::parse(
             "[twin]\n\n[twin.sensor_tau_s]\nspindle_nose = 3\n",
             "t.toml",
         )
         .unwrap_err();
         assert_eq!(
-            (e.line, e.key.as_str()),
+            (
+                e.position.map_or(0, |p| p.0),
+                e.key.as_deref().unwrap_or("")
+            ),
             (4, "twin.sensor_tau_s.spindle_nose")
         );
         let e = TwinParams::parse("[twin]\nconvection = 3\n", "t.toml").unwrap_err();
-        assert_eq!(e.line, 2);
-        assert!(e.expected.contains("unknown field"), "{e}");
+        assert_eq!(e.position.map_or(0, |p| p.0), 2);
+        assert!(e.message.contains("unknown field"), "{e}");
     }
 }

@@ -8,9 +8,10 @@ use super::file::{
 };
 use super::{
     Ambient, AmbientEvent, Fault, FaultKind, Motion, Pattern, Phase, Probing, Scenario,
-    ScenarioError, MAX_DURATION_S, MAX_SAMPLES, MAX_STEPS,
+    MAX_DURATION_S, MAX_SAMPLES, MAX_STEPS,
 };
 use crate::twin::AXES;
+use truepos_files::InputError;
 
 impl Checker<'_> {
     /// The bounds of [`Scenario::check_size`], reported at the key that crosses them: the
@@ -21,7 +22,7 @@ impl Checker<'_> {
         step_s: f64,
         sample_s: f64,
         h: &Head,
-    ) -> Result<(), ScenarioError> {
+    ) -> Result<(), InputError> {
         use Seg::{Index as I, Key as K};
         let mut end_s = 0.0;
         for (i, p) in phases.iter().enumerate() {
@@ -66,7 +67,7 @@ impl Checker<'_> {
         Ok(())
     }
 
-    fn axis(&self, path: &[Seg], name: &str) -> Result<usize, ScenarioError> {
+    fn axis(&self, path: &[Seg], name: &str) -> Result<usize, InputError> {
         AXES.iter()
             .position(|a| *a == name)
             .ok_or_else(|| self.err(path, format!("one of the axes X, Y, Z, got \"{name}\"")))
@@ -74,7 +75,7 @@ impl Checker<'_> {
 
     /// Checks a parsed scenario section by section, in file order, and builds it; `travel`
     /// (mm per axis X, Y, Z) bounds every position.
-    pub(super) fn build(&self, f: File, travel: [[f64; 2]; 3]) -> Result<Scenario, ScenarioError> {
+    pub(super) fn build(&self, f: File, travel: [[f64; 2]; 3]) -> Result<Scenario, InputError> {
         use Seg::Key as K;
         let h = &f.scenario;
         let (step_s, sample_s) = self.step_and_sample(h)?;
@@ -143,7 +144,7 @@ impl Checker<'_> {
 
     /// The integration step (default 1 s) and the sampling period (default 10 s, at least the
     /// step), the latter a whole multiple of the former so that samples fall on steps.
-    fn step_and_sample(&self, h: &Head) -> Result<(f64, f64), ScenarioError> {
+    fn step_and_sample(&self, h: &Head) -> Result<(f64, f64), InputError> {
         use Seg::Key as K;
         let step_s = match h.step_s {
             Some(v) => self.within(&[K("scenario"), K("step_s")], v, 0.01, 600.0, "a step in s")?,
@@ -174,7 +175,7 @@ impl Checker<'_> {
 
     /// The ambient temperature: mean, daily swing, drift and events, each within a plausible
     /// range for a workshop.
-    fn ambient(&self, a: &AmbientFile) -> Result<Ambient, ScenarioError> {
+    fn ambient(&self, a: &AmbientFile) -> Result<Ambient, InputError> {
         use Seg::Key as K;
         let p = |k| [K("ambient"), K(k)];
         let mut events = Vec::new();
@@ -210,7 +211,7 @@ impl Checker<'_> {
 
     /// Ambient event `i`: a step of at most ±30 K at a time ≥ 0, optionally held for a while and
     /// recovering over a time ≥ 0.
-    fn ambient_event(&self, i: usize, e: &EventFile) -> Result<AmbientEvent, ScenarioError> {
+    fn ambient_event(&self, i: usize, e: &EventFile) -> Result<AmbientEvent, InputError> {
         use Seg::{Index as I, Key as K};
         let pe = |k| [K("ambient"), K("event"), I(i), K(k)];
         Ok(AmbientEvent {
@@ -226,12 +227,7 @@ impl Checker<'_> {
     }
 
     /// Phase `i`: its motions, a positive duration and a spindle speed up to 60 000 1/min.
-    fn phase(
-        &self,
-        i: usize,
-        ph: &PhaseFile,
-        travel: [[f64; 2]; 3],
-    ) -> Result<Phase, ScenarioError> {
+    fn phase(&self, i: usize, ph: &PhaseFile, travel: [[f64; 2]; 3]) -> Result<Phase, InputError> {
         use Seg::{Index as I, Key as K};
         let pp = |k| [K("phase"), I(i), K(k)];
         let mut motion: Vec<Motion> = Vec::new();
@@ -265,7 +261,7 @@ impl Checker<'_> {
         m: &MotionFile,
         earlier: &[Motion],
         travel: [[f64; 2]; 3],
-    ) -> Result<Motion, ScenarioError> {
+    ) -> Result<Motion, InputError> {
         use Seg::{Index as I, Key as K};
         let pm = |k| [K("phase"), I(i), K("motion"), I(j), K(k)];
         let axis = self.axis(&pm("axis"), &m.axis)?;
@@ -330,7 +326,7 @@ impl Checker<'_> {
 
     /// The probing cycle: a grid of positions inside the travel (unless probing in place), its
     /// period, dwell, feed and repeatability.
-    fn probing(&self, p: &ProbingFile, travel: [[f64; 2]; 3]) -> Result<Probing, ScenarioError> {
+    fn probing(&self, p: &ProbingFile, travel: [[f64; 2]; 3]) -> Result<Probing, InputError> {
         use Seg::{Index as I, Key as K};
         let pk = |k| [K("probing"), K(k)];
         let mut lists = Vec::new();
@@ -379,7 +375,7 @@ impl Checker<'_> {
     }
 
     /// The temperature sensors' noise σ and resolution in K (defaults 0.02 and 0.01).
-    fn sensor_noise(&self, s: &Option<SensorsFile>) -> Result<(f64, f64), ScenarioError> {
+    fn sensor_noise(&self, s: &Option<SensorsFile>) -> Result<(f64, f64), InputError> {
         use Seg::Key as K;
         Ok(match s {
             None => (0.02, 0.01),
@@ -404,7 +400,7 @@ impl Checker<'_> {
 
     /// Fault `i`: a time window (an end after the start, if any) and a known kind with the
     /// settings that kind needs; a spike rate becomes a probability per sample.
-    fn fault(&self, i: usize, ft: &FaultFile, sample_s: f64) -> Result<Fault, ScenarioError> {
+    fn fault(&self, i: usize, ft: &FaultFile, sample_s: f64) -> Result<Fault, InputError> {
         use Seg::{Index as I, Key as K};
         let pf = |k| [K("fault"), I(i), K(k)];
         let start_s = 60.0 * self.non_negative(&pf("start_min"), ft.start_min)?;

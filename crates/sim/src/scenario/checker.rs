@@ -1,22 +1,20 @@
 //! Errors that name their place in a TOML text: file, line, column, key path and what was
 //! expected. Scenarios and twin descriptions (`crate::params`) check their values with it.
 
-use super::ScenarioError;
+use std::path::PathBuf;
 
-/// A TOML syntax or type error as a [`ScenarioError`].
-pub(crate) fn toml_error(src: &str, file: &str, e: &toml::de::Error) -> ScenarioError {
-    let (line, column) = e
-        .span()
-        .map_or((0, 0), |s| truepos_files::line_column(src, s.start));
-    ScenarioError {
-        file: file.into(),
-        line,
-        column,
+use truepos_files::InputError;
+
+/// A TOML syntax or type error as an [`InputError`].
+pub(crate) fn toml_error(src: &str, file: &str, e: &toml::de::Error) -> InputError {
+    InputError {
+        file: PathBuf::from(file),
+        position: e.span().map(|s| truepos_files::line_column(src, s.start)),
         key: e
             .span()
             .map(|s| truepos_files::toml_place::key_on_line(src, s.start))
-            .unwrap_or_default(),
-        expected: e.message().trim().to_string(),
+            .filter(|k| !k.is_empty()),
+        message: e.message().trim().to_string(),
     }
 }
 
@@ -34,8 +32,7 @@ impl<'a> Checker<'a> {
         Self { src, file }
     }
 
-    pub(crate) fn err(&self, path: &[Seg], expected: impl Into<String>) -> ScenarioError {
-        let (line, column) = truepos_files::toml_place::place(self.src, path).unwrap_or((0, 0));
+    pub(crate) fn err(&self, path: &[Seg], expected: impl Into<String>) -> InputError {
         let mut key = String::new();
         for seg in path {
             match seg {
@@ -48,16 +45,15 @@ impl<'a> Checker<'a> {
                 Seg::Index(i) => key.push_str(&format!("[{i}]")),
             }
         }
-        ScenarioError {
-            file: self.file.into(),
-            line,
-            column,
-            key,
-            expected: format!("expected {}", expected.into()),
+        InputError {
+            file: PathBuf::from(self.file),
+            position: truepos_files::toml_place::place(self.src, path),
+            key: Some(key).filter(|k| !k.is_empty()),
+            message: format!("expected {}", expected.into()),
         }
     }
 
-    pub(super) fn positive(&self, path: &[Seg], v: f64) -> Result<f64, ScenarioError> {
+    pub(super) fn positive(&self, path: &[Seg], v: f64) -> Result<f64, InputError> {
         if v.is_finite() && v > 0.0 {
             Ok(v)
         } else {
@@ -65,7 +61,7 @@ impl<'a> Checker<'a> {
         }
     }
 
-    pub(super) fn non_negative(&self, path: &[Seg], v: f64) -> Result<f64, ScenarioError> {
+    pub(super) fn non_negative(&self, path: &[Seg], v: f64) -> Result<f64, InputError> {
         if v.is_finite() && v >= 0.0 {
             Ok(v)
         } else {
@@ -80,7 +76,7 @@ impl<'a> Checker<'a> {
         lo: f64,
         hi: f64,
         what: &str,
-    ) -> Result<f64, ScenarioError> {
+    ) -> Result<f64, InputError> {
         if v.is_finite() && v >= lo && v <= hi {
             Ok(v)
         } else {

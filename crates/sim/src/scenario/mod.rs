@@ -5,14 +5,13 @@
 //! are written in it (`crates/sim/scenarios/*.toml`, copied to `examples/twin/scenarios/`).
 //! Every error names the file, line, column, key and what was expected.
 
-use std::fmt;
-
 mod build;
 pub(crate) mod checker;
 mod file;
 
 use checker::{toml_error, Checker};
 use file::File;
+use truepos_files::InputError;
 
 /// Names of the built-in scenarios.
 pub const BUILTIN: [&str; 5] = [
@@ -44,33 +43,6 @@ pub const MAX_SAMPLES: f64 = 300_000.0;
 /// Most integration steps of a run (a day at 0.01 s, 30 days at 0.26 s): seconds of CPU in a
 /// release build, about a minute in a debug one.
 pub const MAX_STEPS: f64 = 10_000_000.0;
-
-/// A bad scenario file: where and what was expected.
-#[derive(Debug, Clone, PartialEq)]
-pub struct ScenarioError {
-    /// File name (or `<builtin:name>`).
-    pub file: String,
-    /// Line (1-based), 0 if unknown.
-    pub line: usize,
-    /// Column (1-based), 0 if unknown.
-    pub column: usize,
-    /// The key path (`phase[2].duration_min`), empty if unknown.
-    pub key: String,
-    /// What was expected (or what went wrong).
-    pub expected: String,
-}
-
-impl fmt::Display for ScenarioError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "{}:{}:{}: ", self.file, self.line, self.column)?;
-        if !self.key.is_empty() {
-            write!(f, "key `{}`: ", self.key)?;
-        }
-        write!(f, "{}", self.expected)
-    }
-}
-
-impl std::error::Error for ScenarioError {}
 
 // ---------------------------------------------------------------------------------------------
 // Checked form
@@ -327,7 +299,7 @@ impl Scenario {
         src: &str,
         file: &str,
         travel_mm: Option<[[f64; 2]; 3]>,
-    ) -> Result<Scenario, ScenarioError> {
+    ) -> Result<Scenario, InputError> {
         let raw: File = toml::from_str(src).map_err(|e| toml_error(src, file, &e))?;
         let ck = Checker::new(src, file);
         ck.build(
@@ -366,7 +338,7 @@ mod tests {
         assert!(Scenario::builtin("nope").is_none());
     }
 
-    fn err(src: &str) -> ScenarioError {
+    fn err(src: &str) -> InputError {
         Scenario::parse(
             src,
             "bad.toml",
@@ -382,11 +354,14 @@ mod tests {
         let src = "[scenario]\nname = \"a\"\n[[phase]]\nname = \"p\"\nduration_min = 600\n[[phase]]\nname = \"q\"\nduration_min = 6e10\n";
         let e = err(src);
         assert_eq!(
-            (e.line, e.key.as_str()),
+            (
+                e.position.map_or(0, |p| p.0),
+                e.key.as_deref().unwrap_or("")
+            ),
             (8, "phase[1].duration_min"),
             "{e}"
         );
-        assert!(e.expected.contains("at most 43200 min (30 days)"), "{e}");
+        assert!(e.message.contains("at most 43200 min (30 days)"), "{e}");
     }
 
     #[test]
@@ -397,12 +372,26 @@ mod tests {
         let sc = Scenario::parse(&ok, "ok.toml", None).unwrap();
         assert!(sc.check_size().is_ok());
         let e = err(&format!("[scenario]\nname = \"a\"\nsample_s = 1\n{month}"));
-        assert_eq!((e.line, e.key.as_str()), (3, "scenario.sample_s"), "{e}");
-        assert!(e.expected.contains("300000 rows"), "{e}");
+        assert_eq!(
+            (
+                e.position.map_or(0, |p| p.0),
+                e.key.as_deref().unwrap_or("")
+            ),
+            (3, "scenario.sample_s"),
+            "{e}"
+        );
+        assert!(e.message.contains("300000 rows"), "{e}");
         let e = err(&format!(
             "[scenario]\nname = \"a\"\nstep_s = 0.01\nsample_s = 10\n{month}"
         ));
-        assert_eq!((e.line, e.key.as_str()), (3, "scenario.step_s"), "{e}");
+        assert_eq!(
+            (
+                e.position.map_or(0, |p| p.0),
+                e.key.as_deref().unwrap_or("")
+            ),
+            (3, "scenario.step_s"),
+            "{e}"
+        );
         // Changed in code (`truepos sim --sample-s`): the run refuses it too.
         let mut fine = sc;
         fine.sample_s = 1.0;
@@ -414,16 +403,20 @@ mod tests {
         let e =
             err("[scenario]\nname = \"a\"\n\n[[phase]]\nname = \"p\"\nduration_min = \"long\"\n");
         assert_eq!(
-            (e.file.as_str(), e.line, e.key.as_str()),
+            (
+                e.file.to_str().unwrap(),
+                e.position.map_or(0, |p| p.0),
+                e.key.as_deref().unwrap_or("")
+            ),
             ("bad.toml", 6, "duration_min")
         );
-        assert!(e.expected.contains("expected"), "{}", e.expected);
+        assert!(e.message.contains("expected"), "{}", e.message);
         let e = err("[scenario]\nname = \"a\"\n[[phase]]\nname = \"p\"\nduration_min = 5\nspindel_rpm = 3\n");
-        assert_eq!(e.line, 6);
+        assert_eq!(e.position.map_or(0, |p| p.0), 6);
         assert!(
-            e.expected.contains("unknown field `spindel_rpm`"),
+            e.message.contains("unknown field `spindel_rpm`"),
             "{}",
-            e.expected
+            e.message
         );
     }
 
@@ -432,32 +425,51 @@ mod tests {
         let src = "[scenario]\nname = \"a\"\n\n[[phase]]\nname = \"p\"\nduration_min = 5\n\n[[phase]]\nname = \"q\"\nduration_min = -5\n";
         let e = err(src);
         assert_eq!(
-            (e.line, e.column, e.key.as_str()),
+            (
+                e.position.map_or(0, |p| p.0),
+                e.position.map_or(0, |p| p.1),
+                e.key.as_deref().unwrap_or("")
+            ),
             (10, 1, "phase[1].duration_min")
         );
-        assert!(e.expected.contains("positive"), "{e}");
+        assert!(e.message.contains("positive"), "{e}");
         assert!(
             e.to_string()
-                .starts_with("bad.toml:10:1: key `phase[1].duration_min`"),
+                .starts_with("bad.toml:10:1: `phase[1].duration_min`: expected"),
             "{e}"
         );
 
         let src = "[scenario]\nname = \"a\"\n[[phase]]\nname = \"p\"\nduration_min = 5\n[[phase.motion]]\naxis = \"X\"\npattern = \"sweep\"\nfeed_mm_min = 1000\nrange_mm = [0, 900]\n";
         let e = err(src);
         assert_eq!(
-            (e.line, e.key.as_str()),
+            (
+                e.position.map_or(0, |p| p.0),
+                e.key.as_deref().unwrap_or("")
+            ),
             (10, "phase[0].motion[0].range_mm")
         );
-        assert!(e.expected.contains("[0, 800]"), "{e}");
+        assert!(e.message.contains("[0, 800]"), "{e}");
 
         let src = "[scenario]\nname = \"a\"\n[[phase]]\nname = \"p\"\nduration_min = 5\n[probing]\nevery_min = 10\nX = [0, 400]\nY = [0, 600]\nZ = [0]\n";
         let e = err(src);
-        assert_eq!((e.line, e.key.as_str()), (9, "probing.Y[1]"));
+        assert_eq!(
+            (
+                e.position.map_or(0, |p| p.0),
+                e.key.as_deref().unwrap_or("")
+            ),
+            (9, "probing.Y[1]")
+        );
 
         let src = "[scenario]\nname = \"a\"\n[[phase]]\nname = \"p\"\nduration_min = 5\n[[phase.motion]]\naxis = \"W\"\npattern = \"sweep\"\n";
         let e = err(src);
-        assert_eq!((e.line, e.key.as_str()), (7, "phase[0].motion[0].axis"));
-        assert!(e.expected.contains("X, Y, Z"));
+        assert_eq!(
+            (
+                e.position.map_or(0, |p| p.0),
+                e.key.as_deref().unwrap_or("")
+            ),
+            (7, "phase[0].motion[0].axis")
+        );
+        assert!(e.message.contains("X, Y, Z"));
     }
 
     /// Day/night swing: mean 20, amplitude 2, peak at 15:00. A run starting at 03:00 (12 h
