@@ -3,6 +3,9 @@
 //! read back to the table within the reported loss, located errors, and no panic whatever a
 //! one-character change does to a tape.
 
+mod support;
+use support::mutate;
+
 use std::path::Path;
 
 use proptest::prelude::*;
@@ -212,17 +215,6 @@ fn malformed_tapes_are_located() {
         e.to_string().contains("no data for point 42 (N10042)"),
         "{e}"
     );
-}
-
-fn mutate(text: &str, at: usize, with: char, delete: bool) -> String {
-    let mut chars: Vec<char> = text.chars().collect();
-    let i = at % chars.len();
-    if delete {
-        chars.remove(i);
-    } else {
-        chars[i] = with;
-    }
-    chars.into_iter().collect()
 }
 
 proptest! {

@@ -1,6 +1,9 @@
 //! Compensation table files: round trips of files written by truepos, and errors with line
 //! numbers for malformed ones.
 
+mod support;
+use support::mutate;
+
 use std::path::Path;
 
 use proptest::prelude::*;
@@ -429,17 +432,6 @@ fn siemens_malformed_axes_are_located() {
     let e = parse_siemens(p(), TWO_CEC, Some(&["AX1", "AX2"])).unwrap_err();
     assert_eq!(e.position, Some((7, 1)));
     assert!(e.to_string().contains("unknown axis `AX3`"), "{e}");
-}
-
-fn mutate(text: &str, at: usize, with: char, delete: bool) -> String {
-    let mut chars: Vec<char> = text.chars().collect();
-    let i = at % chars.len();
-    if delete {
-        chars.remove(i);
-    } else {
-        chars[i] = with;
-    }
-    chars.into_iter().collect()
 }
 
 proptest! {

@@ -3,6 +3,9 @@
 //! Y = F(Y) and the sag Z = F(Y)) reads to the values it states, malformed files get located
 //! errors, and no one-character change makes the readers panic.
 
+mod support;
+use support::mutate;
+
 use std::path::Path;
 
 use proptest::prelude::*;
@@ -199,17 +202,6 @@ fn directional_tables_are_refused() {
     let e = HeidenhainCom::from_table(&one, "X.COM", "X Y").unwrap_err();
     assert!(e.to_string().contains("expected an axis name"), "{e}");
     assert!(HeidenhainCma::single("C.CMA", "X", "a b.COM").is_err());
-}
-
-fn mutate(text: &str, at: usize, with: char, delete: bool) -> String {
-    let mut chars: Vec<char> = text.chars().collect();
-    let i = at % chars.len();
-    if delete {
-        chars.remove(i);
-    } else {
-        chars[i] = with;
-    }
-    chars.into_iter().collect()
 }
 
 proptest! {

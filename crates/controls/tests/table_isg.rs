@@ -3,6 +3,9 @@
 //! equidistant or not), malformed lists get located errors, and no one-character change makes
 //! the reader panic.
 
+mod support;
+use support::mutate;
+
 use std::path::Path;
 
 use proptest::prelude::*;
@@ -111,17 +114,6 @@ fn malformed_lists_are_located() {
         assert!(e.to_string().contains(msg), "{what}: {e}");
         assert_eq!(e.position, at, "{what}: {e}");
     }
-}
-
-fn mutate(text: &str, at: usize, with: char, delete: bool) -> String {
-    let mut chars: Vec<char> = text.chars().collect();
-    let i = at % chars.len();
-    if delete {
-        chars.remove(i);
-    } else {
-        chars[i] = with;
-    }
-    chars.into_iter().collect()
 }
 
 proptest! {
